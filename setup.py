@@ -1,0 +1,60 @@
+"""Build definition for vm_ros (ament_python: colcon needs a real setup.py).
+
+The data_files lay out an ament prefix, so that `pip install .` and `colcon build` both give
+`ros2 run vm_ros muscle_node` what it looks for:
+
+    share/ament_index/resource_index/packages/vm_ros   package marker
+    share/vm_ros/package.xml, config/*.yaml, msg/*.msg
+    lib/vm_ros/muscle_node                             sh shim that execs <prefix>/bin/muscle_node
+"""
+
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = "vm_ros"
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    description="Virtual Muscle model (force and partitioned energetics) with a ROS 2 node",
+    license="Apache-2.0",
+    python_requires=">=3.10",
+    packages=find_packages(exclude=["test", "test.*", "tests", "tests.*"]),
+    include_package_data=False,
+    zip_safe=False,
+    install_requires=[
+        "numpy>=1.24",
+        "scipy>=1.15",  # scipy.optimize.elementwise.find_root
+        "pyyaml>=6.0",
+        "mcap>=1.1",
+        "mcap-ros2-support>=0.5",
+        "zstandard>=0.21",
+    ],
+    extras_require={
+        # ROS 2 Jazzy wheels from PyPI (third-party build): exact pins, see interfaces.md section 2.
+        "ros": [
+            "ros-rclpy[fastrtps]==7.1.6",
+            "ros-std-msgs==5.3.6",
+            "ros-sensor-msgs==5.3.6",
+            "ros-geometry-msgs==5.3.6",
+            "ros-diagnostic-msgs==5.3.6",
+        ],
+        "plot": ["matplotlib>=3.6"],
+        "dev": ["pytest>=7.4", "ruff>=0.5", "hypothesis>=6.80", "matplotlib>=3.6"],
+    },
+    entry_points={
+        "console_scripts": [
+            "muscle_node = vm_ros.node:main",
+            "vm-ros = vm_ros.cli:main",
+        ],
+    },
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+        # sorted globs: new files are picked up, and an empty folder gives an empty (harmless) entry
+        (f"share/{PACKAGE}/config", sorted(glob("config/*.yaml"))),
+        (f"share/{PACKAGE}/msg", sorted(glob("msg_defs/*.msg"))),
+        (f"lib/{PACKAGE}", ["resource/muscle_node"]),
+    ],
+)

@@ -1,0 +1,100 @@
+"""Recruitment schemes against the spec's numbers (model.md sections 5 and 9)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from vm_ros.model import recruitment as rc
+from vm_ros.model.params import load_model_params
+
+P = load_model_params()
+LP = P.lumped
+
+
+def test_weighting_endpoints_for_u2_032():
+    # model.md section 9: W_S(U1)=0.872, W_S(U2)=0.660, W_S(1)=1.005, W_F(U2)=0.811,
+    # W_F(Ur)=0.768, W_F(1)=1.015 for U2 = 0.32 (Ur = 0.8)
+    u2, ur = 0.32, 0.8
+    ws = lambda u: rc.lumped_weighting_slow_tsianos2012(np.array(u), LP.u1, u2, LP)  # noqa: E731
+    wf = lambda u: rc.lumped_weighting_fast_tsianos2012(np.array(u), u2, ur, LP)  # noqa: E731
+    assert ws(0.01) == pytest.approx(0.872, abs=0.0006)
+    assert ws(0.32) == pytest.approx(0.660, abs=0.0006)
+    assert ws(1.0) == pytest.approx(1.005, abs=0.0012)
+    assert wf(0.32) == pytest.approx(0.811, abs=0.0006)
+    assert wf(0.8) == pytest.approx(0.768, abs=0.0006)
+    assert wf(1.0) == pytest.approx(1.015, abs=0.0012)
+    assert ws(0.005) == 0.0 and wf(0.31) == 0.0
+
+
+def test_lumped_drive_filter_is_one_ms_for_full_step_and_t_rise_for_small():
+    u2 = 0.32
+    t_rise = 0.38 * u2**2 + 0.8 * u2 + 0.14
+    t_fall = -0.32 * u2**4 + 0.82 * u2**3 - 0.28 * u2**2 + 0.014 * u2 + 0.09
+    tau = rc.lumped_drive_time_constant_tsianos2012
+    assert tau(1.0, 0.0, u2, LP) == pytest.approx(0.001, rel=1e-9)
+    assert tau(0.5, 0.5, u2, LP) == pytest.approx(t_rise, rel=1e-12)
+    assert tau(0.2, 0.5, u2, LP) == pytest.approx(t_fall, rel=1e-12)
+
+
+def _lumped(fs, ur=0.8):
+    return rc.LumpedRecruitment(np.array([[fs, 1 - fs]]), np.array([ur]), LP)
+
+
+def test_lumped_recruitment_capped_at_full_recruitment_of_each_type():
+    r = _lumped(0.4)  # U2 = 0.32
+    assert r.u2[0] == pytest.approx(0.32)
+    rf = r.recruited_fraction(None, np.array([0.32]))
+    assert rf[0, 0] == pytest.approx(0.4) and rf[0, 1] == 0.0
+    rf = r.recruited_fraction(None, np.array([0.8]))
+    assert rf[0] == pytest.approx([0.4, 0.6])
+    rf = r.recruited_fraction(None, np.array([0.56]))
+    assert rf[0, 1] == pytest.approx(0.6 * 0.5)
+
+
+@pytest.mark.parametrize("scheme", rc.SCHEMES)
+@pytest.mark.parametrize("fs", [0.0, 1.0])
+def test_pure_muscles_have_no_absent_type_and_finite_weights(scheme, fs):
+    r = rc.make_recruitment(scheme, np.array([[fs, 1 - fs]]), np.array([0.8]), P)
+    absent = 1 if fs == 1.0 else 0
+    members = r.fibre_index == absent
+    for u in np.linspace(0, 1, 41):
+        w = r.pool_weights(np.array([u]))
+        assert np.all(np.isfinite(w))
+        assert np.all(w[0, members] == 0.0)
+        assert np.all(np.isfinite(r.recruited_fraction(np.array([u]), np.array([u]))))
+
+
+def test_natural_thresholds_equal_apportioning():
+    n = 10
+    params = P.natural.__class__(units_per_type=n, apportioning="equal", geometric_ratio=10.0,
+                                 u_threshold_min=0.001)
+    r = rc.NaturalRecruitment(np.array([[0.4, 0.6]]), np.array([0.8]), params)
+    p = r.pool_pcsa[0]
+    assert p[:n] == pytest.approx(np.full(n, 0.04)) and p[n:] == pytest.approx(np.full(n, 0.06))
+    th = r.thresholds[0]
+    # Uth_j = Ur * cumulative PCSA up to and including j; last unit at Ur
+    assert th[0] == pytest.approx(0.8 * 0.04) and th[-1] == pytest.approx(0.8)
+    assert th[n - 1] == pytest.approx(0.32)  # last slow unit at U2
+    assert np.all(np.diff(th) > 0)
+
+
+def test_natural_geometric_apportioning_sizes_grow_by_ratio():
+    params = P.natural.__class__(units_per_type=5, apportioning="geometric", geometric_ratio=10.0,
+                                 u_threshold_min=0.001)
+    r = rc.NaturalRecruitment(np.array([[0.5, 0.5]]), np.array([0.8]), params)
+    p = r.pool_pcsa[0]
+    assert p[4] / p[0] == pytest.approx(10.0) and p[:5].sum() == pytest.approx(0.5)
+
+
+def test_continuous_weights_follow_song2008():
+    r = rc.ContinuousRecruitment(np.array([[0.5, 0.5]]), np.array([0.8]), P.continuous)
+    assert r.thresholds[0] == pytest.approx([0.001, 0.4])
+    w = r.pool_weights(np.array([0.6]))[0]
+    d = (0.6 - 0.001) + (0.6 - 0.4)
+    assert w == pytest.approx([0.6 * (0.599 / d), 0.6 * (0.2 / d)])
+    assert rc.ContinuousRecruitment(np.array([[0.5, 0.5]]), np.array([0.8]),
+                                    P.continuous).drive_tau(np.array([1.0]), np.array([0.0])) == 0.03
+    assert math.isclose(float(r.drive_tau(np.array([0.0]), np.array([1.0]))[0]), 0.15)

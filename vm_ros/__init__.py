@@ -1,0 +1,1 @@
+"""vm_ros: Virtual Muscle model and ROS 2 node."""

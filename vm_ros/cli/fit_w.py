@@ -1,0 +1,131 @@
+"""Refit the lumped units' weighting W (and optionally the drive filter's T_rise/T_fall) from the
+natural-units model, for a recruitment range Ur and a grid of fibre mixes, and report how well the
+published coefficients (fitted by Tsianos 2012 for Ur = 0.8) and the refit match natural units.
+
+Writes, in --out: fit_w.csv (max error per fibre mix, published vs refit), fit_w.png (lumped vs
+natural isometric force-drive curves), and model_fit_w.yaml: a copy of the model parameter file
+with the refit recruitment.lumped coefficients, usable as `--params` / `params=` elsewhere.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from vm_ros.model import load_model_params
+from vm_ros.model.lumped_fit import (
+    DEFAULT_FPCSA_GRID,
+    FILTER_FIELDS,
+    W_FIELDS,
+    fit_drive_filter,
+    fit_weighting,
+)
+from vm_ros.resources import config_dir
+
+HELP = "refit the lumped weighting W (and drive filter) from natural units"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--ur", type=float, default=0.8,
+                        help="drive at which all units are recruited (default 0.8)")
+    parser.add_argument("--fpcsa-slow", type=float, nargs="+", default=list(DEFAULT_FPCSA_GRID),
+                        metavar="F", help="slow PCSA fractions to fit over (default 0.2 ... 0.8)")
+    parser.add_argument("--units", type=int, default=50,
+                        help="natural units per fibre type in the reference ensemble (default 50)")
+    parser.add_argument("--drive-filter", action="store_true",
+                        help="also refit T_rise(U2) and T_fall(U2) against step responses (~1 min)")
+    parser.add_argument("--params", type=Path, default=None,
+                        help="model parameter YAML to start from (default: the shipped one)")
+    parser.add_argument("--out", type=Path, default=Path("out/fit-w"),
+                        help="output folder (default out/fit-w)")
+    parser.add_argument("--no-plot", action="store_true", help="skip the PNG")
+
+
+def _write_params_yaml(source: Path, lumped, ur: float, units: int, fields, path: Path) -> None:
+    data = yaml.safe_load(source.read_text(encoding="utf-8"))
+    section = data["recruitment"]["lumped"]
+    for name in fields:
+        value = getattr(lumped, name)
+        section[name] = {
+            "value": [round(float(v), 6) for v in value] if isinstance(value, tuple)
+            else round(float(value), 6),
+            "unit": section[name]["unit"], "tag": "R",
+            "source": f"vm-ros fit-w: least squares against {units} natural units per type, "
+                      f"Ur = {ur}; published value {section[name]['value']}",
+        }
+    path.write_text(yaml.safe_dump(data, sort_keys=False, width=100), encoding="utf-8")
+
+
+def _plot(fit, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (ax_force, ax_err) = plt.subplots(1, 2, figsize=(12, 4.8))
+    colours = plt.cm.viridis(np.linspace(0, 0.9, len(fit.published.fpcsa_slow)))
+    for i, fs in enumerate(fit.published.fpcsa_slow):
+        nat = fit.published.natural.sum(-1)[:, i]
+        ax_force.plot(fit.published.drive, nat / nat[-1], color=colours[i], lw=2,
+                      label=f"natural, slow {fs:.0%}")
+        ax_force.plot(fit.published.drive, fit.published.lumped.sum(-1)[:, i] / nat[-1], "--",
+                      color=colours[i], lw=1)
+        ax_err.plot(fit.published.drive, fit.published.error_percent[:, i], "--", color=colours[i])
+        ax_err.plot(fit.fitted.drive, fit.fitted.error_percent[:, i], color=colours[i])
+    ax_force.set(xlabel="drive U", ylabel="isometric force at L0 / natural F(U=1)",
+                 title="Lumped (dashed, published W) vs natural units")
+    ax_force.legend(fontsize=7)
+    ax_err.axhline(2, color="grey", lw=0.5)
+    ax_err.axhline(-2, color="grey", lw=0.5)
+    ax_err.set(xlabel="drive U", ylabel="lumped - natural (% of natural F(U=1))",
+               title="lumped - natural: published W (dashed), refit W (solid)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def run(args) -> int:
+    source = args.params or config_dir() / "model.yaml"
+    params = load_model_params(source)
+    args.out.mkdir(parents=True, exist_ok=True)
+    print(f"fitting W for Ur = {args.ur} against {args.units} natural units per fibre type ...")
+    fit = fit_weighting(params, ur=args.ur, fpcsa_slow_grid=args.fpcsa_slow,
+                        units_per_type=args.units)
+    fitted_params, fields = fit.params, list(W_FIELDS)
+    filter_rows = None
+    if args.drive_filter:
+        print("fitting the drive filter (T_rise, T_fall) against step responses ...")
+        dyn = fit_drive_filter(fitted_params, ur=args.ur, fpcsa_slow_grid=args.fpcsa_slow)
+        fitted_params, filter_rows = dyn.params, dyn
+        fields += list(FILTER_FIELDS)
+
+    header = ["fpcsa_slow", "published_max_error_percent", "refit_max_error_percent"]
+    rows = [[fs, p, f] for fs, p, f in zip(fit.published.fpcsa_slow, fit.published.max_error_percent,
+                                           fit.fitted.max_error_percent, strict=True)]
+    if filter_rows is not None:
+        header += ["published_step_rms_percent", "refit_step_rms_percent"]
+        rows = [r + [p, f] for r, p, f in zip(rows, filter_rows.rms_published_percent,
+                                              filter_rows.rms_fitted_percent, strict=True)]
+    with open(args.out / "fit_w.csv", "w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(header)
+        writer.writerows([[f"{v:.4f}" for v in row] for row in rows])
+    print(f"\nsteady-state isometric force at L0, max |lumped - natural| in % of natural F(U=1), "
+          f"Ur = {args.ur}")
+    print("  " + "  ".join(f"{h:>28}" for h in header))
+    for row in rows:
+        print("  " + "  ".join(f"{v:28.3f}" for v in row))
+    _write_params_yaml(Path(source), fitted_params.lumped, args.ur, args.units, fields,
+                       args.out / "model_fit_w.yaml")
+    written = [args.out / "fit_w.csv", args.out / "model_fit_w.yaml"]
+    if not args.no_plot:
+        try:
+            _plot(fit, args.out / "fit_w.png")
+            written.append(args.out / "fit_w.png")
+        except ImportError:
+            print("matplotlib is not installed: no plot (pip install 'vm_ros[plot]')")
+    print("\nwrote " + ", ".join(str(p) for p in written))
+    return 0

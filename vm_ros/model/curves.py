@@ -1,0 +1,104 @@
+"""Virtual Muscle's static curves: pure functions over NumPy arrays (any broadcastable shapes).
+
+Units: L = fascicle length / L0; V = dL/dt in L0/s, **negative when shortening**; forces in F0;
+firing rates in f0.5; L_SE = tendon length / L0T. Parameters are passed explicitly (arrays over
+the fibre-type or unit axis broadcast against the state). Nothing here raises mid-step: divisions
+are guarded and inputs clipped inside the arithmetic.
+
+References: Brown, Cheng & Loeb 1999 (J Muscle Res Cell Motil 20:627); Cheng, Brown & Loeb 2000
+(J Neurosci Methods 101:117); Tsianos, Rustin & Loeb 2012 (IEEE TNSRE 20:117).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.special import expit
+
+
+def force_length_cheng2000(l, omega, beta, rho):
+    """Active force-length relation.
+
+    FL(L) = exp(-|(L^beta - 1) / omega|^rho)
+
+    omega, beta, rho per fibre type (model.md section 8). FL(1) = 1. L is clipped at 0.
+    """
+    l = np.maximum(l, 0.0)
+    return np.exp(-(np.abs((l**beta - 1.0) / omega) ** rho))
+
+
+def force_velocity_cheng2000(v, l, vmax, cv0, cv1, av0, av1, av2, bv, denominator_min):
+    """Active force-velocity relation (shortening V <= 0, lengthening V > 0).
+
+    FV = (Vmax - V) / (Vmax + (cV0 + cV1 L) V)                    V <= 0
+       = (bV - (aV0 + aV1 L + aV2 L^2) V) / (bV + V)               V > 0
+
+    FV(0, L) = 1. The shortening denominator is negative for physiological states; for fast
+    fibres below L = 0.621 it can reach zero at high shortening speed, so it is held at or below
+    ``-denominator_min * |Vmax|``.
+    """
+    v_short = np.minimum(v, 0.0)
+    v_long = np.maximum(v, 0.0)
+    denominator = np.minimum(vmax + (cv0 + cv1 * l) * v_short, -denominator_min * np.abs(vmax))
+    shortening = (vmax - v_short) / denominator
+    lengthening = (bv - (av0 + av1 * l + av2 * l * l) * v_long) / (bv + v_long)
+    return np.where(v <= 0.0, shortening, lengthening)
+
+
+def passive_parallel_elastic_cheng2000(l, v, lmax, c1, k1, lr1, eta):
+    """PE1, the parallel elastic element with its viscosity (F0).
+
+    FPE1(L, V) = c1 k1 ln(exp((L/Lmax - Lr1)/k1) + 1) + eta V
+
+    Lmax: fascicle length (L0) at the maximum anatomical path length.
+    """
+    return c1 * k1 * np.logaddexp(0.0, (l / lmax - lr1) / k1) + eta * v
+
+
+def thick_filament_compression_cheng2000(l, c2, k2, lr2):
+    """PE2, compression of thick filaments at short lengths (F0, <= 0).
+
+    FPE2(L) = min(0, c2 (exp(k2 (L - Lr2)) - 1))
+
+    Human rescaling k2 = -21, Lr2 = 0.70 (Tsianos 2012); VM's cat set is -18.7, 0.79.
+    """
+    exponent = np.minimum(k2 * (l - lr2), 50.0)
+    return np.minimum(0.0, c2 * np.expm1(exponent))
+
+
+def tendon_force_cheng2000(l_se, ct, kt, lrt):
+    """Series elastic element (tendon and aponeurosis) force (F0).
+
+    F_SE(L_SE) = cT kT ln(exp((L_SE - LrT)/kT) + 1),   L_SE = tendon length / L0T
+
+    cT = 27.8, kT = 0.0047, LrT = 0.964: F_SE(1.0) = 1.0 F0 (L0T is the length at F0).
+    """
+    return ct * kt * np.logaddexp(0.0, (l_se - lrt) / kt)
+
+
+def tendon_stiffness_cheng2000(l_se, ct, kt, lrt):
+    """dF_SE/dL_SE (F0 per L0T) of :func:`tendon_force_cheng2000`."""
+    return ct * expit((l_se - lrt) / kt)
+
+
+def tendon_length_at_force(force, ct, kt, lrt):
+    """Inverse of :func:`tendon_force_cheng2000`: L_SE (L0T) at which the tendon carries ``force``.
+
+    L_SE = kT ln(exp(F/(cT kT)) - 1) + LrT, for F > 0.
+    """
+    z = np.asarray(force) / (ct * kt)
+    # ln(exp(z) - 1) = z + ln(1 - exp(-z)), stable for large z
+    return kt * (z + np.log(-np.expm1(-z))) + lrt
+
+
+def activation_frequency_brown1999(f_eff, l, yield_factor, sag_factor, af, nf0, nf1):
+    """Activation-frequency relation Af (fraction of tetanic force at that rate).
+
+    nf = nf0 + nf1 (1/L - 1)
+    Af = 1 - exp(-((Y S f_eff) / (af nf))^nf)
+
+    Y = 1 for fast fibres, S = 1 for slow fibres (neutral parameters). Af(f_eff=1, L=1) = 0.509.
+    The caller clamps L below nf1/(nf1 - nf0), where nf reaches 0.
+    """
+    nf = nf0 + nf1 * (1.0 / l - 1.0)
+    drive = np.maximum(yield_factor * sag_factor * f_eff, 0.0) / (af * nf)
+    return -np.expm1(-(drive**nf))

@@ -1,0 +1,204 @@
+"""Musculotendon mechanics: contractile and tendon forces, the fascicle-mass equation, its
+fixed-step integrator, and the equilibrium used to start a run.
+
+    L_SE = (L_path - L0 L) / L0T
+    F_SE = F0 FSE(L_SE)
+    F_CE = F0 max(0, FPE1(L, V) + sum_i Acteff_i (FL_i(L) FV_i(V, L) + FPE2(L)))
+    m_eff d2x/dt2 = F_SE - F_CE,   m_eff = mass / 2,   x = L0 L (m)
+
+The fascicle mass against a stiff tendon is a stiff system: when active its fast eigenvalue is
+about -1e5 /s for a human muscle. :func:`rosenbrock_step` integrates it with the two-stage,
+second-order, L-stable Rosenbrock W-method ROS2 (Verwer, Spee, Blom & Hundsdorfer 1999, SIAM J Sci
+Comput 20:1456), which stays second order with the finite-difference Jacobian used here. Activation
+is held over the step (it varies on time scales of 1 ms and longer).
+
+References: Cheng, Brown & Loeb 2000; model.md section 4.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import elementwise
+
+from vm_ros.model import curves
+from vm_ros.model.params import FibreTypeParams, GenericParams, MuscleSpec
+
+ROS2_GAMMA = 1.0 + 1.0 / np.sqrt(2.0)
+
+
+def lmax_from_path_length_max(path_length_max_m, l0_m, l0t_m, g: GenericParams):
+    """Lmax (L0): the fascicle length at the maximum path length, where PE1 carries
+    F* = c1 k1 ln(exp((1 - Lr1)/k1) + 1) and the tendon is at the length carrying F*.
+
+    Lmax = (L_path_max - L0T L_SE*) / L0,  L_SE* = kT ln(exp(F*/(cT kT)) - 1) + LrT.
+    """
+    f_star = g.c1 * g.k1 * np.logaddexp(0.0, (1.0 - g.lr1) / g.k1)
+    l_se_star = curves.tendon_length_at_force(f_star, g.ct, g.kt, g.lrt)
+    return (np.asarray(path_length_max_m) - np.asarray(l0t_m) * l_se_star) / np.asarray(l0_m)
+
+
+@dataclass(frozen=True)
+class MuscleGeometry:
+    """Per-muscle constants in SI, arrays of shape (n,).
+
+    | field | unit | meaning |
+    | f0 | N | tetanic isometric force at L0, sigma * mass / (rho * L0) |
+    | l0 | m | optimal fascicle length |
+    | l0t | m | tendon length at F0 |
+    | mass | kg | wet muscle mass |
+    | m_eff | kg | fascicle mass moving with the fascicle, mass / 2 |
+    | lmax | L0 | fascicle length at the maximum path length |
+    """
+
+    f0: np.ndarray
+    l0: np.ndarray
+    l0t: np.ndarray
+    mass: np.ndarray
+    m_eff: np.ndarray
+    lmax: np.ndarray
+
+    @classmethod
+    def from_specs(cls, specs: list[MuscleSpec], g: GenericParams) -> MuscleGeometry:
+        mass = np.array([s.mass_kg for s in specs], dtype=float)
+        l0 = np.array([s.l0_m for s in specs], dtype=float)
+        l0t = np.array([s.l0t_m for s in specs], dtype=float)
+        pcsa = mass / (g.muscle_density * l0)
+        lmax = np.array(
+            [
+                s.lmax
+                if s.lmax is not None
+                else float(lmax_from_path_length_max(s.path_length_max_m, s.l0_m, s.l0t_m, g))
+                for s in specs
+            ]
+        )
+        return cls(
+            f0=g.specific_tension * pcsa, l0=l0, l0t=l0t, mass=mass, m_eff=mass / 2.0, lmax=lmax
+        )
+
+
+def contractile_force_normalised(l, v, activity, lmax, fibre: FibreTypeParams, g: GenericParams):
+    """F_CE / F0 and the per-type FL, FV.
+
+    ``l``, ``v``: (..., n) in L0 and L0/s; ``activity``: (n, 2) effective activation per fibre
+    type; ``fibre`` arrays of shape (2,). Returns (f_ce (..., n), fl (..., n, 2), fv (..., n, 2)).
+    """
+    lt, vt = l[..., None], v[..., None]
+    fl = curves.force_length_cheng2000(lt, fibre.omega, fibre.beta, fibre.rho)
+    fv = curves.force_velocity_cheng2000(
+        vt,
+        lt,
+        fibre.vmax,
+        fibre.cv0,
+        fibre.cv1,
+        fibre.av0,
+        fibre.av1,
+        fibre.av2,
+        fibre.bv,
+        g.fv_denominator_min,
+    )
+    pe1 = curves.passive_parallel_elastic_cheng2000(l, v, lmax, g.c1, g.k1, g.lr1, g.eta)
+    pe2 = curves.thick_filament_compression_cheng2000(lt, g.c2, g.k2, g.lr2)
+    active = (activity * (fl * fv + pe2)).sum(axis=-1)
+    return np.maximum(0.0, pe1 + active), fl, fv
+
+
+def musculotendon_forces(
+    x,
+    xdot,
+    path_length,
+    activity,
+    geometry: MuscleGeometry,
+    fibre: FibreTypeParams,
+    g: GenericParams,
+):
+    """Tendon and contractile forces (N), each (..., n), for fascicle length x (m), velocity xdot
+    (m/s) and path length (m)."""
+    l_se = (path_length - x) / geometry.l0t
+    f_se = geometry.f0 * curves.tendon_force_cheng2000(l_se, g.ct, g.kt, g.lrt)
+    f_ce, _, _ = contractile_force_normalised(
+        x / geometry.l0, xdot / geometry.l0, activity, geometry.lmax, fibre, g
+    )
+    return f_se, geometry.f0 * f_ce
+
+
+def rosenbrock_step(x, xdot, path_length, path_velocity, dt, forces, m_eff, length_scale):
+    """Advance (x, xdot) by dt with ROS2, the path length moving at ``path_velocity``.
+
+    ``forces(x, xdot, path_length) -> (f_se, f_ce)`` broadcasts over leading axes. The Jacobian
+    is taken by one-sided differences in a single stacked evaluation; the path length enters as a
+    third state with dLp/dt = path_velocity (so the step is exact for a linear path ramp).
+
+        (I - gamma h J) k1 = F(y_n)
+        (I - gamma h J) k2 = F(y_n + h k1) - 2 k1
+        y_{n+1} = y_n + h (3 k1 + k2) / 2,      gamma = 1 + 1/sqrt(2)
+    """
+    hx = 1e-7 * length_scale
+    hv = 1e-6 * length_scale
+    stacked_x = np.stack([x, x + hx, x])
+    stacked_v = np.stack([xdot, xdot, xdot + hv])
+    f_se, f_ce = forces(stacked_x, stacked_v, path_length)
+    accel = (f_se[0] - f_ce[0]) / m_eff
+    d_se_dx = (f_se[1] - f_se[0]) / hx
+    a_x = (d_se_dx - (f_ce[1] - f_ce[0]) / hx) / m_eff
+    a_v = -(f_ce[2] - f_ce[0]) / (hv * m_eff)
+    a_p = -d_se_dx / m_eff  # F_SE depends on (Lp - x)
+    gh = ROS2_GAMMA * dt
+    det = (1.0 - gh * a_v) - gh * gh * a_x
+    det = np.where(np.abs(det) > 1e-12, det, 1e-12)
+
+    def solve(r_x, r_v):
+        return ((1.0 - gh * a_v) * r_x + gh * r_v) / det, (gh * a_x * r_x + r_v) / det
+
+    k1_x, k1_v = solve(xdot, accel + gh * a_p * path_velocity)
+    x2, v2 = x + dt * k1_x, xdot + dt * k1_v
+    f_se2, f_ce2 = forces(x2, v2, path_length + dt * path_velocity)
+    accel2 = (f_se2 - f_ce2) / m_eff
+    k2_x, k2_v = solve(v2 - 2.0 * k1_x, accel2 - 2.0 * k1_v - gh * a_p * path_velocity)
+    return x + dt * (1.5 * k1_x + 0.5 * k2_x), xdot + dt * (1.5 * k1_v + 0.5 * k2_v)
+
+
+def equilibrium_fascicle_length(
+    path_length,
+    geometry: MuscleGeometry,
+    activity_at,
+    fibre: FibreTypeParams,
+    g: GenericParams,
+    l_min: float,
+):
+    """Fascicle length (m) at which F_SE = F_CE with zero velocity, per muscle.
+
+    ``activity_at(l, index)`` gives the (k, 2) effective activation of muscles ``index`` at
+    normalised lengths ``l`` (k,). Solved with scipy's elementwise bracketing root finder on
+    [l_min L0, the length at which the tendon is slack]; where the bracket holds no sign change
+    (a path length outside the muscle's range) the end with the smaller imbalance is returned.
+    """
+    n = geometry.f0.shape[0]
+    index = np.arange(n)
+
+    def imbalance(x, idx):
+        idx = idx.astype(int)
+        l0, l0t = geometry.l0[idx], geometry.l0t[idx]
+        f_se = curves.tendon_force_cheng2000((path_length[idx] - x) / l0t, g.ct, g.kt, g.lrt)
+        l = x / l0
+        f_ce, _, _ = contractile_force_normalised(
+            l, np.zeros_like(l), activity_at(l, idx), geometry.lmax[idx], fibre, g
+        )
+        return f_se - f_ce
+
+    slack = path_length - geometry.l0t * (g.lrt - 30.0 * g.kt)
+    upper = np.minimum(slack, geometry.lmax * geometry.l0 * 1.5)
+    lower = np.minimum(l_min * geometry.l0, upper - 1e-6 * geometry.l0)
+    g_low, g_up = imbalance(lower, index.astype(float)), imbalance(upper, index.astype(float))
+    bracketed = np.sign(g_low) != np.sign(g_up)
+    result = np.where(np.abs(g_low) < np.abs(g_up), lower, upper)
+    if np.any(bracketed):
+        sol = elementwise.find_root(
+            imbalance,
+            (lower[bracketed], upper[bracketed]),
+            args=(index[bracketed].astype(float),),
+            tolerances={"xatol": 1e-12, "xrtol": 1e-12},
+        )
+        result[bracketed] = sol.x
+    return result

@@ -1,0 +1,263 @@
+"""Recruitment schemes: how drive U maps onto motor-unit pools and their weights.
+
+A scheme describes P pools per muscle (P = 2 for lumped and continuous: one slow, one fast; P = 2N
+for N natural units per type). Every pool fires through the same activation path (activation.py)
+from its firing threshold; the scheme supplies, per muscle and pool:
+
+| attribute / method | shape | meaning |
+| ``fibre_index`` | (P,) | fibre type of each pool (0 slow, 1 fast) |
+| ``thresholds`` | (n, P) | drive at which the pool starts firing (raw U) |
+| ``pool_pcsa`` | (n, P) | PCSA fraction of the pool (sums to 1 per muscle) |
+| ``drive_tau(u, ueff)`` | (n,) | time constant of the filtered drive Ueff (None: no filter) |
+| ``pool_weights(ueff)`` | (n, P) | weight so that effective activation = weight * Af |
+| ``recruited_fraction(u, ueff)`` | (n, P) | recruited PCSA fraction of the pool |
+
+References: Cheng, Brown & Loeb 2000 (natural units); Song et al. 2008 (continuous);
+Tsianos, Rustin & Loeb 2012 Appendix A (lumped units).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from vm_ros.model.params import FAST, SLOW, ContinuousParams, LumpedParams, NaturalParams
+
+SCHEMES = ("lumped", "natural", "continuous")
+_TINY = 1e-12
+
+
+def _safe_ratio(numerator, denominator):
+    return numerator / np.where(np.abs(denominator) > _TINY, denominator, _TINY)
+
+
+def fast_threshold(fpcsa_slow, ur):
+    """U2 = Ur * Fpcsa_S, the drive at which the first fast unit is recruited."""
+    return ur * fpcsa_slow
+
+
+# --- Tsianos 2012 lumped units -------------------------------------------------------------------
+
+
+def lumped_drive_time_constant_tsianos2012(u, ueff, u2, p: LumpedParams):
+    """Time constant (s) of the lumped model's filtered drive Ueff.
+
+    U >= Ueff: T_U = T_rise exp(-(U - Ueff) ln(1000 T_rise)),  T_rise = 0.38 U2^2 + 0.8 U2 + 0.14
+    U <  Ueff: T_U = -0.32 U2^4 + 0.82 U2^3 - 0.28 U2^2 + 0.014 U2 + 0.09
+    T_U is T_rise for small steps and 1 ms for a full 0 -> 1 step. Constants for Ur = 0.8.
+    """
+    t_rise = np.polyval(p.t_rise_poly, u2)
+    t_fall = np.polyval(p.t_fall_poly, u2)
+    rising = t_rise * np.exp(-(u - ueff) * np.log(p.t_rise_step_scale * t_rise))
+    return np.where(u >= ueff, rising, t_fall)
+
+
+def lumped_recruited_fraction_tsianos2012(ueff, fpcsa, lower, upper):
+    """rF_i = Fpcsa_i clip((Ueff - lower_i) / (upper_i - lower_i), 0, 1); 0 for an absent type.
+
+    lower = (U1, U2); upper = (U2, Ur) capped (model.md 5b note) or (1, 1) as the paper reads.
+    """
+    fraction = np.clip(_safe_ratio(ueff[..., None] - lower, upper - lower), 0.0, 1.0)
+    return np.where(fpcsa > 0.0, fpcsa * fraction, 0.0)
+
+
+def lumped_weighting_slow_tsianos2012(ueff, u1, u2, p: LumpedParams):
+    """W_S(Ueff): 0 below U1; 1.56 Ueff^2 - 1.20 Ueff + 0.884 up to U2;
+    W_S(U2) + A (1 - exp(-(Ueff - U2)/0.26)) above, A = -1.99 U2^4 + 1.90 U2^3 - 1.75 U2^2
+    + 1.19 U2 + 0.13."""
+    quadratic = np.polyval(p.w_slow_poly, np.minimum(ueff, u2))
+    at_u2 = np.polyval(p.w_slow_poly, u2)
+    amplitude = np.polyval(p.w_slow_a_poly, u2)
+    above = at_u2 - amplitude * np.expm1(-np.maximum(ueff - u2, 0.0) / p.w_slow_tau)
+    return np.where(ueff < u1, 0.0, np.where(ueff <= u2, quadratic, above))
+
+
+def lumped_weighting_fast_tsianos2012(ueff, u2, ur, p: LumpedParams):
+    """W_F(Ueff): 0 below U2; ((Ueff - B)/C)^2 + 0.65 up to Ur;
+    W_F(Ur) + 0.35 (1 - exp(-(Ueff - Ur)/tau_f)) above, with B = 0.59 U2 + 0.39,
+    C = -98.82 U2^5 + 155.7 U2^4 - 85.96 U2^3 + 19.32 U2^2 - 2.62 U2 + 1.02,
+    tau_f = -0.27 U2 + 0.25.
+    """
+    b = np.polyval(p.w_fast_b_poly, u2)
+    c = np.polyval(p.w_fast_c_poly, u2)
+    tau_f = np.maximum(np.polyval(p.w_fast_tau_poly, u2), _TINY)
+
+    def quadratic(x):
+        return _safe_ratio(x - b, c) ** 2 + p.w_fast_offset
+
+    above = quadratic(ur) - p.w_fast_rise * np.expm1(-np.maximum(ueff - ur, 0.0) / tau_f)
+    return np.where(ueff < u2, 0.0, np.where(ueff < ur, quadratic(np.minimum(ueff, ur)), above))
+
+
+@dataclass(frozen=True)
+class LumpedRecruitment:
+    """One lumped unit per fibre type (Tsianos 2012 Appendix A), the default scheme."""
+
+    fpcsa: np.ndarray  # (n, 2)
+    ur: np.ndarray  # (n,)
+    params: LumpedParams
+    name: str = "lumped"
+
+    @cached_property
+    def fibre_index(self):
+        return np.array([SLOW, FAST])
+
+    @cached_property
+    def u2(self):
+        return fast_threshold(self.fpcsa[:, SLOW], self.ur)
+
+    @cached_property
+    def thresholds(self):
+        return np.stack([np.full_like(self.ur, self.params.u1), self.u2], axis=-1)
+
+    @cached_property
+    def pool_pcsa(self):
+        return self.fpcsa
+
+    def drive_tau(self, u, ueff):
+        return lumped_drive_time_constant_tsianos2012(u, ueff, self.u2, self.params)
+
+    @cached_property
+    def _recruitment_range(self):
+        lower = self.thresholds
+        if self.params.cap_recruitment_at_full:
+            upper = np.stack([self.u2, self.ur], axis=-1)
+        else:
+            upper = np.ones_like(lower)
+        return lower, upper
+
+    def recruited_fraction(self, u, ueff):
+        lower, upper = self._recruitment_range
+        return lumped_recruited_fraction_tsianos2012(ueff, self.fpcsa, lower, upper)
+
+    def pool_weights(self, ueff):
+        u2 = self.u2
+        weighting = np.stack(
+            [
+                lumped_weighting_slow_tsianos2012(ueff, self.params.u1, u2, self.params),
+                lumped_weighting_fast_tsianos2012(ueff, u2, self.ur, self.params),
+            ],
+            axis=-1,
+        )
+        return self.recruited_fraction(ueff, ueff) * weighting
+
+
+# --- Cheng 2000 natural (discrete) units ---------------------------------------------------------
+
+
+def natural_unit_pcsa_cheng2000(fpcsa, units_per_type: int, apportioning: str, ratio: float):
+    """PCSA fraction of each unit, slow units then fast, shape (n, 2 N).
+
+    equal: each of a type's N units gets Fpcsa_t / N.
+    geometric: within a type unit sizes grow geometrically from smallest (recruited first) to
+    largest, largest/smallest = ``ratio``; normalised to Fpcsa_t.
+    """
+    n = int(units_per_type)
+    if apportioning == "geometric" and n > 1:
+        shape = ratio ** (np.arange(n) / (n - 1))
+    else:
+        shape = np.ones(n)
+    shape = shape / shape.sum()
+    return np.concatenate([fpcsa[:, SLOW, None] * shape, fpcsa[:, FAST, None] * shape], axis=-1)
+
+
+def natural_thresholds_cheng2000(unit_pcsa, ur, u_min):
+    """Uth_j = max(u_min, Ur * sum_{k <= j} p_k): the last unit is recruited at Ur."""
+    return np.maximum(u_min, ur[:, None] * np.cumsum(unit_pcsa, axis=-1))
+
+
+@dataclass(frozen=True)
+class NaturalRecruitment:
+    """N discrete units per fibre type (Cheng 2000; VM 4.0 'natural discrete', no Leff)."""
+
+    fpcsa: np.ndarray  # (n, 2)
+    ur: np.ndarray  # (n,)
+    params: NaturalParams
+    name: str = "natural"
+
+    @cached_property
+    def units_per_type(self) -> int:
+        return int(self.params.units_per_type)
+
+    @cached_property
+    def fibre_index(self):
+        return np.repeat([SLOW, FAST], self.units_per_type)
+
+    @cached_property
+    def pool_pcsa(self):
+        return natural_unit_pcsa_cheng2000(
+            self.fpcsa, self.units_per_type, self.params.apportioning, self.params.geometric_ratio
+        )
+
+    @cached_property
+    def thresholds(self):
+        return natural_thresholds_cheng2000(self.pool_pcsa, self.ur, self.params.u_threshold_min)
+
+    def drive_tau(self, u, ueff):
+        return None
+
+    def recruited_fraction(self, u, ueff):
+        return np.where(u[:, None] >= self.thresholds, self.pool_pcsa, 0.0)
+
+    def pool_weights(self, ueff):
+        return self.pool_pcsa
+
+
+# --- Song 2008 continuous recruitment ------------------------------------------------------------
+
+
+def continuous_weighting_song2008(ueff, thresholds, present):
+    """W_i = max(Ueff - Uth_i, 0) / D, D = sum_i max(Ueff - Uth_i, 0) (1 if 0); absent types 0."""
+    excess = np.where(present, np.maximum(ueff[:, None] - thresholds, 0.0), 0.0)
+    total = excess.sum(axis=-1, keepdims=True)
+    return excess / np.where(total > 0.0, total, 1.0)
+
+
+@dataclass(frozen=True)
+class ContinuousRecruitment:
+    """Continuous recruitment (Song 2008; VM 4.0 'natural continuous')."""
+
+    fpcsa: np.ndarray  # (n, 2)
+    ur: np.ndarray  # (n,)
+    params: ContinuousParams
+    name: str = "continuous"
+
+    @cached_property
+    def fibre_index(self):
+        return np.array([SLOW, FAST])
+
+    @cached_property
+    def thresholds(self):
+        u_min = self.params.u_threshold_min
+        u2 = np.maximum(fast_threshold(self.fpcsa[:, SLOW], self.ur), u_min)
+        return np.stack([np.full_like(u2, u_min), u2], axis=-1)
+
+    @cached_property
+    def pool_pcsa(self):
+        return self.fpcsa
+
+    def drive_tau(self, u, ueff):
+        return np.where(u >= ueff, self.params.tau_rise, self.params.tau_fall)
+
+    def recruited_fraction(self, u, ueff):
+        """Reported as the lumped scheme's linear recruitment (it does not enter the force)."""
+        lower = self.thresholds
+        upper = np.stack([lower[:, FAST], self.ur], axis=-1)
+        return lumped_recruited_fraction_tsianos2012(ueff, self.fpcsa, lower, upper)
+
+    def pool_weights(self, ueff):
+        weighting = continuous_weighting_song2008(ueff, self.thresholds, self.fpcsa > 0.0)
+        return ueff[:, None] * weighting
+
+
+def make_recruitment(scheme: str, fpcsa, ur, params):
+    """Build the scheme named ``scheme`` from (n, 2) PCSA fractions, (n,) Ur and ModelParams."""
+    if scheme == "lumped":
+        return LumpedRecruitment(fpcsa, ur, params.lumped)
+    if scheme == "natural":
+        return NaturalRecruitment(fpcsa, ur, params.natural)
+    if scheme == "continuous":
+        return ContinuousRecruitment(fpcsa, ur, params.continuous)
+    raise ValueError(f"unknown recruitment scheme {scheme!r}; choose one of {SCHEMES}")

@@ -1,0 +1,149 @@
+"""Built-in scenarios: named input time series for offline runs, validation and the demo.
+
+    scenario = load_scenario("knee_extension")
+    bank = scenario.make_bank(recruitment="lumped")
+    inputs = scenario.inputs(bank)
+    u, lp, vp = inputs.excitation(t), inputs.path_length(t), inputs.path_velocity(t)
+
+Constants live in ``config/scenarios.yaml`` with their sources. Path lengths are placed so that at
+the middle of the motion the fascicles sit at ``mid_range_length`` (L0) with the tendon carrying
+``mid_range_tendon_force`` (F0).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from vm_ros.errors import ConfigError
+from vm_ros.model import MuscleBank
+from vm_ros.model.curves import tendon_length_at_force
+from vm_ros.resources import config_dir
+
+_UNITS = {"deg": np.pi / 180.0}
+
+
+@dataclass(frozen=True)
+class ScenarioInputs:
+    """Input functions of time (s) returning arrays of shape (n_muscles,)."""
+
+    excitation: Callable[[float], np.ndarray]
+    path_length: Callable[[float], np.ndarray]
+    path_velocity: Callable[[float], np.ndarray]
+    joint_angle: Callable[[float], float] | None = None  # rad, where the scenario has a joint
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A named scenario; ``values`` holds its constants in SI (angles in rad)."""
+
+    name: str
+    description: str
+    muscles: tuple
+    values: dict = field(default_factory=dict)
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.values["duration"])
+
+    @property
+    def recovery_mode(self) -> str:
+        return str(self.values.get("recovery_mode", "static"))
+
+    def make_bank(self, recruitment: str = "lumped", **kwargs) -> MuscleBank:
+        kwargs.setdefault("recovery_mode", self.recovery_mode)
+        return MuscleBank.from_config(list(self.muscles), recruitment=recruitment, **kwargs)
+
+    def mid_path_length(self, bank: MuscleBank) -> np.ndarray:
+        g = bank.params.generic
+        l_se = tendon_length_at_force(self.values["mid_range_tendon_force"], g.ct, g.kt, g.lrt)
+        return bank.l0_m * self.values["mid_range_length"] + bank.l0t_m * l_se
+
+    def inputs(self, bank: MuscleBank) -> ScenarioInputs:
+        return _BUILDERS[self.name](self, bank)
+
+
+def _knee_extension(s: Scenario, bank: MuscleBank) -> ScenarioInputs:
+    v = s.values
+    w = 2 * np.pi * v["frequency"]
+    mid_angle = 0.5 * (v["angle_min"] + v["angle_max"])
+    half_range = 0.5 * (v["angle_max"] - v["angle_min"])
+    mid = s.mid_path_length(bank)
+    arm = v["moment_arm"]
+
+    def angle(t):  # extension angle: starts flexed (angle_min), extends during the first half
+        return mid_angle - half_range * np.cos(w * t)
+
+    def excitation(t):
+        phase = (t * v["frequency"]) % 1.0
+        return np.full(bank.n, v["drive"] if phase < v["drive_fraction"] else 0.0)
+
+    def path_length(t):  # extension shortens the knee extensors
+        return mid - arm * (angle(t) - mid_angle)
+
+    def path_velocity(t):
+        return np.full(bank.n, -arm * half_range * w * np.sin(w * t))
+
+    return ScenarioInputs(excitation, path_length, path_velocity, angle)
+
+
+def _isometric_ramp(s: Scenario, bank: MuscleBank) -> ScenarioInputs:
+    peak, duration = s.values["drive"], s.duration_s
+    lp = s.mid_path_length(bank)
+    return ScenarioInputs(
+        lambda t: np.full(bank.n, peak * max(0.0, 1.0 - abs(2.0 * t / duration - 1.0))),
+        lambda t: lp, lambda t: np.zeros(bank.n))
+
+
+def _sinusoidal_drive(s: Scenario, bank: MuscleBank) -> ScenarioInputs:
+    v = s.values
+    lp = s.mid_path_length(bank)
+    return ScenarioInputs(
+        lambda t: np.full(bank.n, v["drive"] + v["drive_amplitude"]
+                          * np.sin(2 * np.pi * v["frequency"] * t)),
+        lambda t: lp, lambda t: np.zeros(bank.n))
+
+
+def _isovelocity(s: Scenario, bank: MuscleBank) -> ScenarioInputs:
+    v = s.values
+    half = 0.5 * s.duration_s
+    speed = v["path_speed"] * bank.l0_m
+    mid = s.mid_path_length(bank)
+
+    def path_length(t):  # shorten for the first half, lengthen back in the second
+        return mid + speed * (abs(t - half) - 0.5 * half)
+
+    def path_velocity(t):
+        return speed * (1.0 if t >= half else -1.0)
+
+    return ScenarioInputs(lambda t: np.full(bank.n, v["drive"]), path_length, path_velocity)
+
+
+_BUILDERS = {"knee_extension": _knee_extension, "isometric_ramp": _isometric_ramp,
+             "sinusoidal_drive": _sinusoidal_drive, "isovelocity": _isovelocity}
+
+
+def scenario_names() -> tuple:
+    return tuple(_BUILDERS)
+
+
+def load_scenario(name: str, path: str | Path | None = None) -> Scenario:
+    """Load a built-in scenario's constants from ``config/scenarios.yaml`` (or ``path``)."""
+    path = Path(path) if path is not None else config_dir() / "scenarios.yaml"
+    data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    entries = data.get("scenarios", {})
+    if name not in _BUILDERS or name not in entries:
+        raise ConfigError(path, f"scenarios.{name}", name,
+                          f"unknown scenario (have: {', '.join(scenario_names())})")
+    entry = entries[name]
+    values = {}
+    for key, item in entry.items():
+        if isinstance(item, dict) and "value" in item:
+            value = item["value"]
+            values[key] = value * _UNITS.get(item.get("unit"), 1.0) if isinstance(
+                value, (int, float)) and not isinstance(value, bool) else value
+    return Scenario(name, entry.get("description", ""), tuple(entry["muscles"]), values)

@@ -1,0 +1,97 @@
+"""What the node publishes and the logs record: topic names, message types and array layouts.
+
+Defined once here; the node (rclpy messages) and the offline recorder (CDR from dicts, no ROS)
+both build their messages from these functions, so live and offline logs have the same channels.
+
+Topics (relative names, so namespaces and remapping apply):
+
+| topic | type | content |
+| excitation | sensor_msgs/msg/JointState | in: name[] muscles, position[] drive U in [0, 1] |
+| excitation_array | std_msgs/msg/Float64MultiArray | in: drive U ordered as the muscles parameter |
+| muscle_kinematics | sensor_msgs/msg/JointState | in: position[] path length (m), velocity[]
+  path lengthening velocity (m/s, optional) |
+| muscle_force | sensor_msgs/msg/JointState | out: effort[] tendon force (N), position[] fascicle
+  length (m), velocity[] fascicle velocity (m/s), stamped with model time |
+| energy_rate | std_msgs/msg/Float64MultiArray | out: W, layout (muscle, fibre, component) below |
+| energy_rate_total | std_msgs/msg/Float64 | out: whole-body energy rate (W) |
+| energy_total | std_msgs/msg/Float64 | out: whole-body energy since start (J) |
+| /diagnostics | diagnostic_msgs/msg/DiagnosticArray | out: node health at about 1 Hz |
+
+energy_rate layout: ``data[i*12 + j*4 + k]`` = muscle i (order of the ``muscles`` parameter),
+fibre j in FIBRE_LABELS = (slow, fast, all), component k in COMPONENT_LABELS = (activation,
+cross_bridge, recovery, total). layout.dim[0..2] carry the labels "muscle", "fibre", "component"
+with sizes and strides; layout.data_offset = 0.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from vm_ros.model.bank import ENERGY_COMPONENTS, StepOutput
+
+TOPIC_EXCITATION = "excitation"
+TOPIC_EXCITATION_ARRAY = "excitation_array"
+TOPIC_KINEMATICS = "muscle_kinematics"
+TOPIC_FORCE = "muscle_force"
+TOPIC_ENERGY_RATE = "energy_rate"
+TOPIC_ENERGY_RATE_TOTAL = "energy_rate_total"
+TOPIC_ENERGY_TOTAL = "energy_total"
+TOPIC_DIAGNOSTICS = "/diagnostics"
+
+TYPE_JOINT_STATE = "sensor_msgs/msg/JointState"
+TYPE_FLOAT64_MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
+TYPE_FLOAT64 = "std_msgs/msg/Float64"
+TYPE_DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
+
+TOPIC_TYPES = {
+    TOPIC_EXCITATION: TYPE_JOINT_STATE,
+    TOPIC_EXCITATION_ARRAY: TYPE_FLOAT64_MULTI_ARRAY,
+    TOPIC_KINEMATICS: TYPE_JOINT_STATE,
+    TOPIC_FORCE: TYPE_JOINT_STATE,
+    TOPIC_ENERGY_RATE: TYPE_FLOAT64_MULTI_ARRAY,
+    TOPIC_ENERGY_RATE_TOTAL: TYPE_FLOAT64,
+    TOPIC_ENERGY_TOTAL: TYPE_FLOAT64,
+    TOPIC_DIAGNOSTICS: TYPE_DIAGNOSTIC_ARRAY,
+}
+
+FIBRE_LABELS = ("slow", "fast", "all")
+COMPONENT_LABELS = ENERGY_COMPONENTS  # activation, cross_bridge, recovery, total
+
+
+def energy_rate_array(out: StepOutput) -> np.ndarray:
+    """Energy rates (W) as (n_muscles, 3 fibre labels, 4 components)."""
+    by_fibre = out.energy_rate_by_fiber.as_array()  # (n, 2, 4)
+    return np.concatenate([by_fibre, out.energy_rate.as_array()[:, None, :]], axis=1)
+
+
+def energy_rate_layout(n_muscles: int) -> list[dict]:
+    """MultiArrayDimension fields (label, size, stride) of energy_rate, outermost first."""
+    f, c = len(FIBRE_LABELS), len(COMPONENT_LABELS)
+    return [
+        {"label": "muscle", "size": n_muscles, "stride": n_muscles * f * c},
+        {"label": "fibre", "size": f, "stride": f * c},
+        {"label": "component", "size": c, "stride": c},
+    ]
+
+
+def stamp_fields(time_ns: int) -> dict:
+    """builtin_interfaces/Time fields for an integer nanosecond time."""
+    return {"sec": int(time_ns // 1_000_000_000), "nanosec": int(time_ns % 1_000_000_000)}
+
+
+def force_fields(out: StepOutput, names, time_ns: int, frame_id: str = "") -> dict:
+    """sensor_msgs/JointState fields of the muscle_force message."""
+    return {
+        "header": {"stamp": stamp_fields(time_ns), "frame_id": frame_id},
+        "name": list(names),
+        "position": out.fascicle_length.tolist(),
+        "velocity": out.fascicle_velocity.tolist(),
+        "effort": out.force.tolist(),
+    }
+
+
+def energy_rate_fields(out: StepOutput) -> dict:
+    """std_msgs/Float64MultiArray fields of the energy_rate message."""
+    array = energy_rate_array(out)
+    return {"layout": {"dim": energy_rate_layout(array.shape[0]), "data_offset": 0},
+            "data": array.ravel().tolist()}
