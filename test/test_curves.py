@@ -77,7 +77,8 @@ def test_activation_frequency_at_unit_rate_is_0509():
 
 def test_activation_frequency_monotone_in_rate_and_zero_at_rest():
     f = np.linspace(0, 3, 61)
-    af = curves.activation_frequency_brown1999(f, 1.0, 1.0, 1.0, F.af[SLOW], F.nf0[SLOW], F.nf1[SLOW])
+    af = curves.activation_frequency_brown1999(f, 1.0, 1.0, 1.0, F.af[SLOW], F.nf0[SLOW],
+                                               F.nf1[SLOW])
     assert af[0] == 0.0
     assert np.all(np.diff(af) > 0)
 

@@ -24,8 +24,9 @@ PARAMS = load_model_params()
 
 def test_fig9_steady_isometric_force_lumped_matches_natural_within_2_percent():
     comparison = compare_steady(PARAMS, ur=0.8, units_per_type=50)
-    print("max error % of F(U=1) per Fpcsa_S", dict(zip(comparison.fpcsa_slow,
-                                                          comparison.max_error_percent.round(2))))
+    errors = comparison.max_error_percent.round(2)
+    print("max error % of F(U=1) per Fpcsa_S",
+          dict(zip(comparison.fpcsa_slow, errors, strict=True)))
     assert np.all(comparison.max_error_percent < 2.0)
     # the comparison is not vacuous: both rise from 0 to full activation
     assert np.all(comparison.natural.sum(-1)[0] < 1e-3)

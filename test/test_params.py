@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-import yaml
 import pytest
+import yaml
 
 from vm_ros.errors import ConfigError
 from vm_ros.model import MuscleBank, load_model_params, load_muscle_library

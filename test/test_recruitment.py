@@ -95,6 +95,5 @@ def test_continuous_weights_follow_song2008():
     w = r.pool_weights(np.array([0.6]))[0]
     d = (0.6 - 0.001) + (0.6 - 0.4)
     assert w == pytest.approx([0.6 * (0.599 / d), 0.6 * (0.2 / d)])
-    assert rc.ContinuousRecruitment(np.array([[0.5, 0.5]]), np.array([0.8]),
-                                    P.continuous).drive_tau(np.array([1.0]), np.array([0.0])) == 0.03
+    assert r.drive_tau(np.array([1.0]), np.array([0.0]))[0] == 0.03
     assert math.isclose(float(r.drive_tau(np.array([0.0]), np.array([1.0]))[0]), 0.15)

@@ -58,10 +58,15 @@ FIBRE_LABELS = ("slow", "fast", "all")
 COMPONENT_LABELS = ENERGY_COMPONENTS  # activation, cross_bridge, recovery, total
 
 
+def energy_partition(by_fibre, total) -> np.ndarray:
+    """(n, 3, 4): fibre (slow, fast, all) x component, from EnergyRates per fibre (n, 2) and per
+    muscle (n,); rates (W) or energies (J)."""
+    return np.concatenate([by_fibre.as_array(), total.as_array()[:, None, :]], axis=1)
+
+
 def energy_rate_array(out: StepOutput) -> np.ndarray:
     """Energy rates (W) as (n_muscles, 3 fibre labels, 4 components)."""
-    by_fibre = out.energy_rate_by_fiber.as_array()  # (n, 2, 4)
-    return np.concatenate([by_fibre, out.energy_rate.as_array()[:, None, :]], axis=1)
+    return energy_partition(out.energy_rate_by_fiber, out.energy_rate)
 
 
 def energy_rate_layout(n_muscles: int) -> list[dict]:

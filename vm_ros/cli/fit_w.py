@@ -103,8 +103,9 @@ def run(args) -> int:
         fields += list(FILTER_FIELDS)
 
     header = ["fpcsa_slow", "published_max_error_percent", "refit_max_error_percent"]
-    rows = [[fs, p, f] for fs, p, f in zip(fit.published.fpcsa_slow, fit.published.max_error_percent,
-                                           fit.fitted.max_error_percent, strict=True)]
+    published, refit = fit.published.max_error_percent, fit.fitted.max_error_percent
+    rows = [[fs, p, f] for fs, p, f in zip(fit.published.fpcsa_slow, published, refit,
+                                           strict=True)]
     if filter_rows is not None:
         header += ["published_step_rms_percent", "refit_step_rms_percent"]
         rows = [r + [p, f] for r, p, f in zip(rows, filter_rows.rms_published_percent,

@@ -92,17 +92,27 @@ def lumped_weighting_fast_tsianos2012(ueff, u2, ur, p: LumpedParams):
 
 
 @dataclass(frozen=True)
-class LumpedRecruitment:
-    """One lumped unit per fibre type (Tsianos 2012 Appendix A), the default scheme."""
+class _OnePoolPerFibreType:
+    """Schemes with one pool per fibre type (lumped, continuous): the pools are the types."""
 
     fpcsa: np.ndarray  # (n, 2)
     ur: np.ndarray  # (n,)
-    params: LumpedParams
-    name: str = "lumped"
 
     @cached_property
     def fibre_index(self):
         return np.array([SLOW, FAST])
+
+    @cached_property
+    def pool_pcsa(self):
+        return self.fpcsa
+
+
+@dataclass(frozen=True)
+class LumpedRecruitment(_OnePoolPerFibreType):
+    """One lumped unit per fibre type (Tsianos 2012 Appendix A), the default scheme."""
+
+    params: LumpedParams
+    name: str = "lumped"
 
     @cached_property
     def u2(self):
@@ -111,10 +121,6 @@ class LumpedRecruitment:
     @cached_property
     def thresholds(self):
         return np.stack([np.full_like(self.ur, self.params.u1), self.u2], axis=-1)
-
-    @cached_property
-    def pool_pcsa(self):
-        return self.fpcsa
 
     def drive_tau(self, u, ueff):
         return lumped_drive_time_constant_tsianos2012(u, ueff, self.u2, self.params)
@@ -216,27 +222,17 @@ def continuous_weighting_song2008(ueff, thresholds, present):
 
 
 @dataclass(frozen=True)
-class ContinuousRecruitment:
+class ContinuousRecruitment(_OnePoolPerFibreType):
     """Continuous recruitment (Song 2008; VM 4.0 'natural continuous')."""
 
-    fpcsa: np.ndarray  # (n, 2)
-    ur: np.ndarray  # (n,)
     params: ContinuousParams
     name: str = "continuous"
-
-    @cached_property
-    def fibre_index(self):
-        return np.array([SLOW, FAST])
 
     @cached_property
     def thresholds(self):
         u_min = self.params.u_threshold_min
         u2 = np.maximum(fast_threshold(self.fpcsa[:, SLOW], self.ur), u_min)
         return np.stack([np.full_like(u2, u_min), u2], axis=-1)
-
-    @cached_property
-    def pool_pcsa(self):
-        return self.fpcsa
 
     def drive_tau(self, u, ueff):
         return np.where(u >= ueff, self.params.tau_rise, self.params.tau_fall)

@@ -1,0 +1,230 @@
+"""McapRecorder: rosbag2-compatible files read back by the mcap library itself, a caller that is
+never blocked, and failures that are reported instead of raised."""
+
+from __future__ import annotations
+
+import errno
+import io
+import threading
+import time
+
+import pytest
+import yaml
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+
+from vm_ros.recording import cdr
+from vm_ros.recording.message_types import schema_text, type_hash
+from vm_ros.recording.qos import INFINITE_DURATION_NS, offered_qos_profiles_yaml
+from vm_ros.recording.reader import LogReader
+from vm_ros.recording.writer import McapRecorder, RecorderError
+
+FLOAT64 = "std_msgs/msg/Float64"
+JOINT_STATE = "sensor_msgs/msg/JointState"
+
+
+def _float64(value: float) -> bytes:
+    return cdr.serialize(FLOAT64, {"data": value})
+
+
+def _read_all(path):
+    with open(path, "rb") as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        header = reader.get_header()
+        summary = reader.get_summary()
+        decoded = [(channel.topic, message.log_time, msg) for _, channel, message, msg in
+                   reader.iter_decoded_messages()]
+        metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
+        attachments = {a.name: (a.media_type, a.data) for a in reader.iter_attachments()}
+    return header, summary, decoded, metadata, attachments
+
+
+def test_round_trip_read_by_mcap_and_mcap_ros2(tmp_path):
+    path = tmp_path / "run.mcap"
+    with McapRecorder(path, metadata={"vm_ros.run": {"dt_s": 0.001}},
+                      attachments={"model.yaml": b"a: 1\n"}) as rec:
+        rec.add_channel("/energy_total", FLOAT64)
+        rec.add_channel("/muscle_force", JOINT_STATE)
+        for k in range(50):
+            assert rec.write("/energy_total", _float64(0.5 * k), 1000 + k)
+            rec.write("/muscle_force", cdr.serialize(JOINT_STATE, {
+                "header": {"stamp": {"sec": 1, "nanosec": k}}, "name": ["a", "b"],
+                "effort": [float(k), -float(k)]}), 1000 + k, publish_time_ns=2000 + k)
+    assert rec.status.ok and rec.status.written == 100 and rec.status.dropped == 0
+    assert rec.status.bytes_written == path.stat().st_size
+    header, summary, decoded, metadata, attachments = _read_all(path)
+    assert header.profile == "ros2"
+    assert summary.statistics.message_count == 100
+    totals = [m.data for topic, _, m in decoded if topic == "/energy_total"]
+    assert totals == [0.5 * k for k in range(50)]
+    forces = [m for topic, _, m in decoded if topic == "/muscle_force"]
+    assert [m.effort for m in forces] == [[float(k), -float(k)] for k in range(50)]
+    assert forces[7].name == ["a", "b"] and forces[7].header.stamp.nanosec == 7
+    assert metadata == {"vm_ros.run": {"dt_s": "0.001"}}
+    assert attachments == {"model.yaml": ("application/yaml", b"a: 1\n")}
+
+
+def test_schemas_and_channels_follow_rosbag2(tmp_path):
+    path = tmp_path / "run.mcap"
+    qos = offered_qos_profiles_yaml(depth=7, reliability="best_effort")
+    with McapRecorder(path) as rec:
+        rec.add_channel("/muscle_force", JOINT_STATE, qos)
+        rec.add_channel("/energy_total", FLOAT64)
+        rec.write("/muscle_force", cdr.serialize(JOINT_STATE, {}), 1)
+    _, summary, _, _, _ = _read_all(path)
+    schemas = {s.name: s for s in summary.schemas.values()}
+    assert set(schemas) == {JOINT_STATE, FLOAT64}
+    for name, schema in schemas.items():
+        assert schema.encoding == "ros2msg"
+        assert schema.data.decode() == schema_text(name)
+    channels = {c.topic: c for c in summary.channels.values()}
+    assert all(c.message_encoding == "cdr" for c in channels.values())
+    force = channels["/muscle_force"].metadata
+    assert force["topic_type_hash"] == type_hash(JOINT_STATE)
+    assert force["topic_type_hash"].startswith("RIHS01_")
+    assert force["offered_qos_profiles"] == qos
+    (profile,) = yaml.safe_load(channels["/energy_total"].metadata["offered_qos_profiles"])
+    assert list(profile) == ["history", "depth", "reliability", "durability", "deadline",
+                             "lifespan", "liveliness", "liveliness_lease_duration",
+                             "avoid_ros_namespace_conventions"]
+    assert (profile["history"], profile["reliability"], profile["durability"],
+            profile["liveliness"]) == ("keep_last", "reliable", "volatile", "automatic")
+    infinite = divmod(INFINITE_DURATION_NS, 1_000_000_000)
+    assert (profile["deadline"]["sec"], profile["deadline"]["nsec"]) == infinite
+
+
+def test_qos_from_an_rclpy_like_profile():
+    class Policy:
+        def __init__(self, name):
+            self.name = name
+
+    class Duration:
+        nanoseconds = 1_500_000_000
+
+    class Profile:
+        history, depth = Policy("KEEP_LAST"), 5
+        reliability, durability = Policy("BEST_EFFORT"), Policy("TRANSIENT_LOCAL")
+        liveliness = Policy("AUTOMATIC")
+        deadline = lifespan = liveliness_lease_duration = Duration()
+        avoid_ros_namespace_conventions = False
+
+    (profile,) = yaml.safe_load(offered_qos_profiles_yaml(Profile()))
+    assert profile["reliability"] == "best_effort" and profile["durability"] == "transient_local"
+    assert profile["depth"] == 5 and profile["lifespan"] == {"sec": 1, "nsec": 500_000_000}
+
+
+class GatedFile(io.RawIOBase):
+    """A file whose writes wait for ``gate`` once ``armed`` is set (a stalled disk)."""
+
+    def __init__(self):
+        self.buffer = bytearray()
+        self.armed = False
+        self.gate = threading.Event()
+
+    def writable(self):
+        return True
+
+    def write(self, data):
+        if self.armed:
+            self.gate.wait()
+        self.buffer += bytes(data)
+        return len(data)
+
+
+def test_write_never_blocks_and_counts_what_it_drops(tmp_path):
+    gated = GatedFile()
+    rec = McapRecorder(tmp_path / "x.mcap", queue_size=20, chunk_size=64,
+                       opener=lambda path: gated)
+    rec.add_channel("/t", FLOAT64)
+    gated.armed = True  # the writer thread stalls on its first chunk
+    durations, accepted = [], 0
+    for k in range(500):
+        start = time.perf_counter()
+        accepted += rec.write("/t", _float64(k), k)
+        durations.append(time.perf_counter() - start)
+    assert max(durations) < 0.05, "write() waited for the stalled file"
+    assert accepted < 500 and rec.status.dropped == 500 - accepted
+    gated.gate.set()
+    rec.close()
+    assert rec.status.ok
+    assert rec.status.written == accepted and rec.status.dropped == 500 - accepted
+
+
+class FailingFile(io.RawIOBase):
+    """A file that fails with ENOSPC once ``limit`` bytes have been written."""
+
+    def __init__(self, limit):
+        self.limit, self.size = limit, 0
+
+    def writable(self):
+        return True
+
+    def write(self, data):
+        if self.size + len(data) > self.limit:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        self.size += len(data)
+        return len(data)
+
+
+def test_write_error_mid_run_is_reported_not_raised(tmp_path):
+    rec = McapRecorder(tmp_path / "full.mcap", chunk_size=256,
+                       opener=lambda path: FailingFile(limit=4096))
+    rec.add_channel("/t", FLOAT64)
+    results = []
+    deadline = time.monotonic() + 5
+    k = 0
+    while rec.status.ok and time.monotonic() < deadline:
+        results.append(rec.write("/t", _float64(k), k))
+        k += 1
+        if k % 50 == 0:
+            time.sleep(0.001)
+    status = rec.status
+    assert not status.ok and "No space left on device" in status.error
+    assert "full.mcap" in status.error
+    assert not rec.write("/t", _float64(-1.0), k)  # refused at once after the failure
+    rec.close()  # finishing is impossible: still no exception
+    final = rec.status
+    assert final.written + final.dropped == len(results) + 1
+    assert final.dropped >= 1 and 0 < final.bytes_written <= 4096
+
+
+def test_unwritable_path_is_named_at_start(tmp_path):
+    blocker = tmp_path / "not_a_dir"
+    blocker.write_text("")
+    target = blocker / "run.mcap"
+    with pytest.raises(RecorderError) as info:
+        McapRecorder(target)
+    assert info.value.path == str(target) and str(target) in str(info.value)
+
+
+def test_channel_errors_and_idempotence(tmp_path):
+    with McapRecorder(tmp_path / "c.mcap") as rec:
+        rec.add_channel("/t", FLOAT64)
+        rec.add_channel("/t", "std_msgs/Float64")  # same type, short form: no-op
+        with pytest.raises(RecorderError, match="already has type"):
+            rec.add_channel("/t", JOINT_STATE)
+        with pytest.raises(RecorderError, match="geometry_msgs/msg/Twist"):
+            rec.add_channel("/u", "geometry_msgs/msg/Twist")
+        with pytest.raises(RecorderError, match="undeclared"):
+            rec.write("/u", b"", 0)
+        assert rec.write("/t", _float64(1.0), 5)
+    rec.close()  # idempotent
+    assert not rec.write("/t", _float64(2.0), 6)
+    assert rec.status.written == 1 and rec.status.dropped == 1
+    assert [m.topic for m in LogReader(tmp_path / "c.mcap").messages()] == ["/t"]
+
+
+def test_open_chunk_reaches_the_file_after_flush_interval(tmp_path):
+    """A crash loses at most flush_interval_s of messages, even at a low data rate."""
+    path = tmp_path / "slow.mcap"
+    rec = McapRecorder(path, flush_interval_s=0.1)
+    rec.add_channel("/t", FLOAT64)
+    for k in range(3):
+        rec.write("/t", _float64(k), k)
+    deadline = time.monotonic() + 5
+    seen = []
+    while time.monotonic() < deadline and len(seen) < 3:
+        time.sleep(0.05)
+        seen = list(LogReader(path).messages())  # the file is still open: no footer yet
+    assert [cdr.deserialize(FLOAT64, m.data).data for m in seen] == [0.0, 1.0, 2.0]
+    rec.close()

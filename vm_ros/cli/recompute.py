@@ -1,0 +1,139 @@
+"""Re-run the model from a run log's recorded inputs, optionally with other parameters, into a
+new MCAP log (same channels; inputs copied verbatim, outputs recomputed).
+
+The model files attached to the log (model.yaml, muscles.yaml) and its recorded settings are the
+starting point; the options below replace them. Inputs are applied as the log's metadata says:
+the model step [t, t + dt) uses the latest input with log time <= t (zero-order hold). Without
+changes, a log written by `vm-ros simulate` is reproduced to floating-point precision; a
+muscle_node log is reproduced approximately (the node also extrapolates path lengths between
+kinematics messages and its steps follow its timer).
+
+At the end the recomputed tendon forces are compared with the recorded ones at equal model time
+(header stamps).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from vm_ros import telemetry as tm
+from vm_ros.cli.progress import Progress
+from vm_ros.cli.runs import (
+    StopOnSignal,
+    add_model_options,
+    add_output_options,
+    apply_model_options,
+    default_log_path,
+)
+from vm_ros.errors import VmRosError
+from vm_ros.recording.offline import OfflineRun, RecordedInputs
+from vm_ros.recording.run_log import (
+    INPUT_TOPICS,
+    RunInfo,
+    RunLog,
+    RunTiming,
+    open_run_log,
+    read_run,
+)
+from vm_ros.recording.summary import summarize, summary_table
+from vm_ros.telemetry import energy_partition
+
+HELP = "re-run the model from a log's recorded inputs (other parameters optional) into a new MCAP"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("log", type=Path, metavar="FILE.mcap", help="run log to recompute")
+    parser.add_argument("--dt", type=float, metavar="S", help="model step (default: recorded)")
+    add_model_options(parser, "as recorded, with the attached model files")
+    add_output_options(parser, "default out/<log name>-recomputed-<date>-<time>.mcap")
+
+
+def _start_and_end_ns(run: RunLog, timing: RunTiming) -> tuple[int, int]:
+    """Model time of the reset (recorded, else the first force stamp, else the first input) and
+    of the last recorded output (else the last input)."""
+    force = run.get(tm.TOPIC_FORCE)
+    stamps = force.fields["stamp_ns"] if force is not None and len(force) else None
+    inputs = [s.time_ns for s in map(run.get, INPUT_TOPICS) if s is not None and len(s)]
+    if not inputs:
+        raise VmRosError(f"{run.path}: no recorded inputs to recompute from")
+    first_input = min(int(t[0]) for t in inputs)
+    last_input = max(int(t[-1]) for t in inputs)
+    start = timing.start_time_ns
+    if start is None:
+        start = int(stamps[0]) if stamps is not None else first_input
+    end = int(stamps[-1]) if stamps is not None else last_input + timing.dt_ns
+    return int(start), end
+
+
+def compare_forces(run: RunLog, sample_times_ns, forces) -> str | None:
+    """'max |difference|' line for the recomputed vs recorded tendon forces at equal stamps."""
+    recorded = run.get(tm.TOPIC_FORCE)
+    if recorded is None or not len(recorded) or not len(sample_times_ns):
+        return None
+    common, mine, theirs = np.intersect1d(sample_times_ns, recorded.fields["stamp_ns"],
+                                          return_indices=True)
+    if not len(common):
+        return "recorded and recomputed forces share no model time"
+    diff = np.abs(forces[mine] - recorded.fields["effort"][theirs])
+    return (f"tendon force vs recorded: max |difference| {np.nanmax(diff):.3g} N over "
+            f"{len(common)} samples")
+
+
+def run(args) -> int:
+    log_path = args.log
+    with Progress(f"read {log_path.name}", 1.0, enabled=True if args.progress else None) as p:
+        recorded = read_run(log_path, topics=(*INPUT_TOPICS, tm.TOPIC_FORCE), raw=INPUT_TOPICS,
+                            progress=lambda done, size: p.update(done / max(size, 1)))
+    if recorded.info is None:
+        raise VmRosError(f"{log_path}: not a vm_ros run log (no 'vm_ros.run' metadata record)")
+    info = recorded.info
+    if not recorded.complete:
+        print(f"vm-ros recompute: {log_path} is cut short ({recorded.stop_reason}); using "
+              "what it holds", file=sys.stderr)
+    timing = RunTiming(
+        dt_s=args.dt or info.timing.dt_s,
+        publish_rate_hz=args.publish_rate or info.timing.publish_rate_hz,
+        telemetry_rate_hz=info.timing.telemetry_rate_hz if args.telemetry_rate is None
+        else max(args.telemetry_rate, 0.0),
+        start_time_ns=info.timing.start_time_ns)
+    start_ns, end_ns = _start_and_end_ns(recorded, timing)
+    timing = RunTiming(timing.dt_s, timing.publish_rate_hz, timing.telemetry_rate_hz, start_ns)
+    n_steps = max(0, (end_ns - start_ns) // timing.dt_ns)
+    out_path = args.out or default_log_path(f"{log_path.stem}-recomputed")
+    with tempfile.TemporaryDirectory(prefix="vm_ros-recompute-") as tmp:
+        config = apply_model_options(recorded.config(tmp), args)
+        bank = config.make_bank()
+        new_info = RunInfo(config, timing, "recompute", info.namespace, info.time_base,
+                           {**info.extra, "recomputed_from": str(log_path)}, info.topics)
+        # open while the attached files exist: the new log attaches them again
+        recorder = open_run_log(out_path, new_info, bank, chunk_size=args.chunk_size)
+    with StopOnSignal() as stop, recorder, Progress(
+            f"recompute {log_path.name}", n_steps, enabled=True if args.progress else None) \
+            as progress:
+        offline = OfflineRun(bank, timing, recorder, new_info.log_topic)
+        inputs = RecordedInputs(recorded, bank.n, offline.sink)
+        result = offline.run(inputs, n_steps, should_stop=stop, progress=progress.update)
+    status = recorder.status
+    print(f"recomputed {result.steps * timing.dt_s:.3f} s of {', '.join(bank.names)} "
+          f"({config.recruitment} recruitment, {bank.recovery_mode} recovery)")
+    if result.last is not None:
+        last = result.last
+        print(summary_table(summarize(bank.names, result.force_samples,
+                                      energy_partition(last.energy_by_fiber, last.energy),
+                                      last.mechanical_work)))
+    comparison = compare_forces(recorded, result.sample_times_ns, result.force_samples)
+    if comparison:
+        print(comparison)
+    print(f"log: {status.path} ({status.written} messages, {status.bytes_written / 1e6:.2f} MB)")
+    if stop.signum:
+        print(f"vm-ros recompute: stopped by signal {stop.signum}", file=sys.stderr)
+        return stop.exit_code
+    if not status.ok:
+        print(f"vm-ros recompute: error: {status.error}", file=sys.stderr)
+        return 1
+    return 0

@@ -1,0 +1,131 @@
+"""Republish the topics of a run log over ROS 2 at the recorded pace (needs rclpy: the [ros]
+extra; run it where DDS may talk, e.g. inside scripts/netns-run on the development machines).
+
+The recorded CDR bytes are published as they are, each topic with its recorded type and offered
+reliability/durability (default reliable, volatile). The pace follows the log times (model time
+for `vm-ros simulate` logs); --rate 2 plays twice as fast. Channels typed with vm_ros's own
+offline definitions (muscle_telemetry) cannot be published without a colcon build and are
+skipped. Names may be given with or without the leading slash.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+import time
+from pathlib import Path
+
+import yaml
+
+from vm_ros.errors import VmRosError
+from vm_ros.recording.reader import log_channels
+from vm_ros.recording.replay import is_offline_type, replay
+from vm_ros.recording.run_log import resolve_topic
+
+HELP = "republish a log's topics over ROS 2 at the recorded pace"
+NODE_NAME = "vm_ros_replay"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("log", type=Path, metavar="FILE.mcap", help="run log")
+    parser.add_argument("--rate", type=float, default=1.0, metavar="FACTOR",
+                        help="playback speed factor (default 1: recorded pace)")
+    parser.add_argument("--topics", metavar="A,B",
+                        help="comma-separated topics to publish (default: every ROS-typed one)")
+    parser.add_argument("--loop", action="store_true", help="start over at the end, until "
+                        "interrupted")
+    parser.add_argument("--wait", type=float, default=0.0, metavar="S",
+                        help="before the first message, wait up to S seconds until every "
+                             "replayed topic has a subscriber (default 0: start at once)")
+
+
+def _rclpy():
+    try:
+        import rclpy
+    except Exception as exc:  # ImportError, or the wheels failing to load their RMW
+        raise VmRosError(f"vm-ros replay needs rclpy (pip install 'vm_ros[ros]' in a venv, or a "
+                         f"sourced ROS 2 install): {type(exc).__name__}: {exc}") from exc
+    return rclpy
+
+
+def message_class(type_name: str):
+    """The rclpy message class of ``pkg/msg/Type``."""
+    package, _, name = type_name.split("/")
+    try:
+        return getattr(importlib.import_module(f"{package}.msg"), name)
+    except (ImportError, AttributeError) as exc:
+        raise VmRosError(f"message type {type_name} is not installed: {exc}") from exc
+
+
+def _qos(channel_metadata: dict):
+    """The offered reliability and durability of a channel, as an rclpy QoSProfile."""
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+    profile = QoSProfile(depth=100)
+    try:
+        offered = yaml.safe_load(channel_metadata.get("offered_qos_profiles") or "") or []
+    except yaml.YAMLError:
+        offered = []
+    if offered and isinstance(offered[0], dict):
+        if offered[0].get("reliability") == "best_effort":
+            profile.reliability = ReliabilityPolicy.BEST_EFFORT
+        if offered[0].get("durability") == "transient_local":
+            profile.durability = DurabilityPolicy.TRANSIENT_LOCAL
+    return profile
+
+
+def wait_for_subscribers(publishers, timeout_s: float, settle_s: float = 0.2) -> bool:
+    """True once every publisher has matched a subscription (then ``settle_s`` more, for the
+    subscription to match back), False after ``timeout_s``."""
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        if all(p.get_subscription_count() > 0 for p in publishers):
+            time.sleep(settle_s)
+            return True
+        time.sleep(0.02)
+    return False
+
+
+def select_topics(log: Path, requested: str | None) -> dict:
+    """``{topic: (type_name, channel metadata)}`` of the channels to publish."""
+    channels = log_channels(log)
+    if requested:
+        names = [resolve_topic(t.strip()) for t in requested.split(",") if t.strip()]
+        unknown = [t for t in names if t not in channels]
+        if unknown:
+            raise VmRosError(f"{log}: no topic {unknown[0]} (have: {', '.join(sorted(channels))})")
+        channels = {t: channels[t] for t in names}
+    skipped = [t for t, (type_name, _) in channels.items() if is_offline_type(type_name)]
+    if skipped:
+        print(f"vm-ros replay: skipping offline-only {', '.join(skipped)}", file=sys.stderr)
+    return {t: v for t, v in channels.items() if t not in skipped}
+
+
+def run(args) -> int:
+    if not args.rate > 0:
+        raise VmRosError(f"--rate must be > 0 (got {args.rate})")
+    channels = select_topics(args.log, args.topics)
+    if not channels:
+        raise VmRosError(f"{args.log}: nothing to replay")
+    rclpy = _rclpy()
+    rclpy.init(args=None)
+    node = rclpy.create_node(NODE_NAME)
+    count = 0
+    try:
+        publishers = {topic: node.create_publisher(message_class(type_name), topic, _qos(meta))
+                      for topic, (type_name, meta) in channels.items()}
+        node.get_logger().info(f"replaying {args.log} ({', '.join(publishers)}) at "
+                               f"x{args.rate:g}{', looping' if args.loop else ''}")
+        if args.wait > 0 and not wait_for_subscribers(publishers.values(), args.wait):
+            node.get_logger().warning(f"not every topic has a subscriber after {args.wait:g} s")
+        for message in replay(args.log, topics=set(publishers), rate=args.rate, loop=args.loop):
+            publishers[message.topic].publish(bytes(message.data))
+            count += 1
+    except KeyboardInterrupt:
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    print(f"replayed {count} messages")
+    return 0

@@ -1,0 +1,200 @@
+"""Tables (CSV) and plots (PNG) of a run log: forces, drive, fascicle kinematics, partitioned
+energy per muscle and fibre type, and whole-body totals.
+
+Files written to --out (default: <log name>-report/ beside the log):
+  summary.csv        per muscle and fibre type: peak and mean force (N), energy per component (J),
+                     mechanical work (J), efficiency; also printed
+  forces.csv         time_s, <muscle>.force_N, .fascicle_length_m, .fascicle_velocity_m_per_s
+  energy_rate.csv    time_s, <muscle>.<slow|fast|all>.<component>_W
+  totals.csv         time_s, energy_rate_total_W, energy_total_J
+  telemetry.csv      every muscle_telemetry field (when the log has them)
+  force.png, drive.png, kinematics.png, energy_<muscle>.png, energy_partition.png, totals.png
+Times are seconds of model time from the first output. Plots need matplotlib (the [plot]
+extra); --no-plots writes the CSV files only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+from pathlib import Path
+
+import numpy as np
+
+from vm_ros import telemetry as tm
+from vm_ros.cli.progress import Progress
+from vm_ros.errors import VmRosError
+from vm_ros.recording.messages import TOPIC_TELEMETRY
+from vm_ros.recording.run_log import RunLog, read_run
+from vm_ros.recording.summary import summary_records, summary_table
+from vm_ros.recording.tables import (
+    FIBRE_TYPES,
+    Table,
+    bin_means,
+    energy_rate_table,
+    force_table,
+    muscle_names,
+    run_summary,
+    telemetry_table,
+    time_origin_ns,
+    totals_table,
+)
+
+HELP = "CSV tables and PNG plots of forces and partitioned energy from a run log"
+COMPONENTS = tm.COMPONENT_LABELS[:3]  # the parts of the total
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("log", type=Path, metavar="FILE.mcap", help="run log")
+    parser.add_argument("--out", type=Path, metavar="DIR",
+                        help="output folder (default: <log name>-report/ beside the log)")
+    parser.add_argument("--bin", type=float, default=0.0, metavar="S",
+                        help="average energy rates over bins of S seconds in the plots "
+                             "(e.g. 1 as in Tsianos 2012 Fig. 7; default: no binning)")
+    parser.add_argument("--no-plots", action="store_true", help="CSV files only")
+    parser.add_argument("--progress", action="store_true",
+                        help="show progress on stderr even when it is not a terminal")
+
+
+def _pyplot():
+    try:
+        import matplotlib
+    except ImportError as exc:
+        raise VmRosError("vm-ros report needs matplotlib for its plots: pip install matplotlib "
+                         "(or vm_ros[plot]); --no-plots writes the CSV files only") from exc
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def write_csv(path: Path, columns: list, rows) -> None:
+    with open(path, "w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(columns)
+        writer.writerows(rows)
+
+
+def _save(plt, fig, path: Path, written: list) -> None:
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    written.append(path)
+
+
+def _per_muscle_figure(plt, rows: int, ylabels: list, title: str):
+    fig, axes = plt.subplots(rows, 1, figsize=(9, 2.6 * rows), sharex=True, squeeze=False)
+    for ax, label in zip(axes[:, 0], ylabels, strict=True):
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[-1, 0].set_xlabel("time (s)")
+    fig.suptitle(title)
+    return fig, axes[:, 0]
+
+
+def plot_run(plt, run: RunLog, tables: dict, out: Path, bin_s: float) -> list:
+    names = muscle_names(run)
+    written: list = []
+    force = tables.get("forces")
+    if force is not None:
+        t = force.column("time_s")
+        fig, axes = _per_muscle_figure(plt, 1, ["tendon force (N)"], "force")
+        for m in names:
+            axes[0].plot(t, force.column(f"{m}.force_N"), label=m)
+        axes[0].legend(fontsize=8)
+        _save(plt, fig, out / "force.png", written)
+        fig, axes = _per_muscle_figure(plt, 2, ["fascicle length (m)", "fascicle velocity (m/s)"],
+                                       "fascicle kinematics (velocity < 0: shortening)")
+        for m in names:
+            axes[0].plot(t, force.column(f"{m}.fascicle_length_m"), label=m)
+            axes[1].plot(t, force.column(f"{m}.fascicle_velocity_m_per_s"), label=m)
+        axes[0].legend(fontsize=8)
+        _save(plt, fig, out / "kinematics.png", written)
+    telemetry = tables.get("telemetry")
+    excitation = run.get(tm.TOPIC_EXCITATION)
+    if telemetry is not None or (excitation is not None and len(excitation)):
+        fig, axes = _per_muscle_figure(plt, 2, ["drive (1)", "effective activation (1)"],
+                                       "drive U, filtered drive Ueff, and Acteff per fibre type")
+        for m in names:
+            if telemetry is not None:
+                t = telemetry.column("time_s")
+                axes[0].plot(t, telemetry.column(f"{m}.excitation_1"), label=f"{m} U")
+                axes[0].plot(t, telemetry.column(f"{m}.effective_drive_1"), "--",
+                             label=f"{m} Ueff")
+                for f in FIBRE_TYPES:
+                    axes[1].plot(t, telemetry.column(f"{m}.{f}.effective_activation_1"),
+                                 label=f"{m} {f}")
+            else:
+                t = (excitation.time_ns - time_origin_ns(run)) * 1e-9
+                axes[0].plot(t, excitation.fields["position"][:, names.index(m)], label=f"{m} U")
+        for ax in axes:
+            ax.legend(fontsize=7)
+        _save(plt, fig, out / "drive.png", written)
+    rates = tables.get("energy_rate")
+    if rates is not None:
+        t_all = rates.column("time_s")
+        for m in names:
+            fig, axes = _per_muscle_figure(plt, 2, [f"{f} fibres (W)" for f in FIBRE_TYPES],
+                                           f"{m}: energy rate by component")
+            for ax, f in zip(axes, FIBRE_TYPES, strict=True):
+                parts = np.column_stack([rates.column(f"{m}.{f}.{c}_W") for c in COMPONENTS])
+                t, parts = bin_means(t_all, parts, bin_s)
+                ax.stackplot(t, parts.T, labels=COMPONENTS, alpha=0.8)
+                ax.legend(fontsize=7, loc="upper left")
+            _save(plt, fig, out / f"energy_{m}.png", written)
+    summary = run_summary(run)
+    if summary:
+        fig, ax = plt.subplots(figsize=(max(5, 1.6 * len(summary) * 2), 4))
+        labels = [f"{row.name}\n{f}" for row in summary for f in FIBRE_TYPES]
+        bottom = np.zeros(len(labels))
+        for k, component in enumerate(COMPONENTS):
+            values = np.array([row.energy[j, k] for row in summary for j in range(2)])
+            ax.bar(labels, values, bottom=bottom, label=component)
+            bottom += values
+        ax.set_ylabel("energy (J)")
+        ax.set_title("energy partition per muscle and fibre type")
+        ax.legend(fontsize=8)
+        _save(plt, fig, out / "energy_partition.png", written)
+    totals = tables.get("totals")
+    if totals is not None:
+        fig, axes = _per_muscle_figure(plt, 2, ["energy rate (W)", "energy (J)"],
+                                       "whole body")
+        t, rate = bin_means(totals.column("time_s"), totals.column("energy_rate_total_W"), bin_s)
+        axes[0].plot(t, rate)
+        axes[1].plot(totals.column("time_s"), totals.column("energy_total_J"))
+        _save(plt, fig, out / "totals.png", written)
+    return written
+
+
+def run(args) -> int:
+    log_path = args.log
+    plt = None if args.no_plots else _pyplot()  # fail before the (long) read
+    with Progress(f"read {log_path.name}", 1.0, enabled=True if args.progress else None) as p:
+        log = read_run(log_path, topics=(tm.TOPIC_FORCE, tm.TOPIC_ENERGY_RATE,
+                                         tm.TOPIC_ENERGY_RATE_TOTAL, tm.TOPIC_ENERGY_TOTAL,
+                                         tm.TOPIC_EXCITATION, TOPIC_TELEMETRY),
+                       progress=lambda done, size: p.update(done / max(size, 1)))
+    if not muscle_names(log):
+        raise VmRosError(f"{log_path}: no muscle_force channel and no vm_ros.run metadata: "
+                         "not a vm_ros run log")
+    out = args.out or log_path.with_name(f"{log_path.stem}-report")
+    out.mkdir(parents=True, exist_ok=True)
+    builders = (force_table, energy_rate_table, totals_table, telemetry_table)
+    tables: dict[str, Table] = {}
+    for build in builders:
+        table = build(log)
+        if table is not None:
+            tables[table.name] = table
+            write_csv(out / f"{table.name}.csv", table.columns, table.data.tolist())
+    summary = run_summary(log)
+    records = summary_records(summary)
+    if records:
+        write_csv(out / "summary.csv", list(records[0]), [r.values() for r in records])
+    print(summary_table(summary))
+    if not log.complete:
+        print(f"note: {log_path} is cut short ({log.stop_reason}); the report covers what it "
+              "holds")
+    written = plot_run(plt, log, tables, out, args.bin) if plt is not None else []
+    files = len(tables) + bool(records) + len(written)
+    print(f"report: {out} ({files} files)")
+    return 0

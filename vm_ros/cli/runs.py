@@ -1,0 +1,85 @@
+"""Options and helpers shared by the verbs that run the model offline (simulate, recompute)."""
+
+from __future__ import annotations
+
+import signal
+import time
+from pathlib import Path
+
+from vm_ros.model import SCHEMES
+from vm_ros.model.params import RECOVERY_MODES
+from vm_ros.recording.run_config import RunConfig, parse_overrides
+
+
+def add_model_options(parser, defaults_from: str) -> None:
+    """--recruitment, --recovery-mode, --override, --params, --library, --units-per-type."""
+    group = parser.add_argument_group(f"model (default: {defaults_from})")
+    group.add_argument("--recruitment", choices=SCHEMES, help="recruitment scheme")
+    group.add_argument("--recovery-mode", choices=RECOVERY_MODES,
+                       help="recovery energy: static ratio or dynamic (filtered)")
+    group.add_argument("--override", action="append", default=[], metavar="MUSCLE.FIELD=VALUE",
+                       help="change one muscle-library field, e.g. vasti.fpcsa_slow=0.5 "
+                            "(repeatable)")
+    group.add_argument("--params", type=Path, metavar="MODEL.yaml",
+                       help="model-parameter file instead")
+    group.add_argument("--library", type=Path, metavar="MUSCLES.yaml",
+                       help="muscle-library file instead")
+    group.add_argument("--units-per-type", type=int, metavar="N",
+                       help="motor units per fibre type (natural recruitment)")
+
+
+def add_output_options(parser, default_out: str) -> None:
+    """--out, --publish-rate, --telemetry-rate, --chunk-size, --progress."""
+    group = parser.add_argument_group("output")
+    group.add_argument("--out", type=Path, metavar="FILE.mcap", help=f"log file ({default_out})")
+    group.add_argument("--publish-rate", type=float, metavar="HZ",
+                       help="rate of the output channels (default 100 Hz)")
+    group.add_argument("--telemetry-rate", type=float, metavar="HZ",
+                       help="rate of muscle_telemetry records, 0 for none (default 100 Hz)")
+    group.add_argument("--chunk-size", type=int, default=1 << 20, metavar="BYTES",
+                       help="MCAP chunk size before compression (default 1 MiB); a crash loses "
+                            "at most the open chunk, smaller chunks compress less")
+    group.add_argument("--progress", action="store_true",
+                       help="show progress on stderr even when it is not a terminal")
+
+
+def apply_model_options(config: RunConfig, args) -> RunConfig:
+    """``config`` with the command line's model options applied on top."""
+    changes = {key: getattr(args, key) for key in
+               ("recruitment", "recovery_mode", "params", "library", "units_per_type")
+               if getattr(args, key) is not None}
+    return config.replace(**changes).with_overrides(parse_overrides(args.override))
+
+
+def default_log_path(stem: str) -> Path:
+    return Path("out") / f"{stem}-{time.strftime('%Y%m%d-%H%M%S')}.mcap"
+
+
+class StopOnSignal:
+    """While active, SIGINT and SIGTERM only set ``signum``, so a run can stop between two steps
+    and finish its log cleanly: ``with StopOnSignal() as stop: ... if stop.signum: break``."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self):
+        self.signum: int | None = None
+        self._previous = {}
+
+    def _handle(self, signum, frame) -> None:
+        self.signum = signum
+
+    def __call__(self) -> bool:
+        return self.signum is not None
+
+    def __enter__(self) -> StopOnSignal:
+        for sig in self.SIGNALS:
+            self._previous[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+
+    @property
+    def exit_code(self) -> int:
+        return 128 + int(self.signum) if self.signum else 0

@@ -1,0 +1,78 @@
+"""Reproduce the checks of Tsianos, Rustin & Loeb 2012 (spec/validation.md): each item is run,
+compared with explicit criteria, drawn (one PNG per figure) and tabulated (validation.csv).
+Exits 1 when any criterion fails. Fig. 7 simulates 180 s of knee extension (a few minutes);
+`--quick` shortens it to 30 s (its energy and rise criteria then do not apply).
+"""
+
+from __future__ import annotations
+
+import csv
+import sys
+import time
+from pathlib import Path
+
+from vm_ros.cli.progress import Progress
+from vm_ros.model import load_model_params
+from vm_ros.validation import CHECKS
+
+HELP = "reproduce the paper's checks and figures; non-zero exit on a failure"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--out", type=Path, default=Path("out/validate"),
+                        help="folder for the PNGs and validation.csv (default out/validate)")
+    parser.add_argument("--only", nargs="+", choices=sorted(CHECKS), metavar="CHECK",
+                        help=f"run only these ({', '.join(CHECKS)})")
+    parser.add_argument("--params", type=Path, default=None, help="model parameter YAML")
+    parser.add_argument("--quick", action="store_true",
+                        help="Fig. 7 over 30 s instead of 180 s (energy/rise criteria dropped)")
+    parser.add_argument("--no-plots", action="store_true", help="skip the figures")
+
+
+def run(args) -> int:
+    params = load_model_params(args.params)
+    args.out.mkdir(parents=True, exist_ok=True)
+    names = args.only or list(CHECKS)
+    plots = None
+    if not args.no_plots:
+        try:
+            from vm_ros import validation_plots
+
+            plots = validation_plots.PLOTS
+        except ImportError:
+            print("matplotlib is not installed: no figures (pip install 'vm_ros[plot]')",
+                  file=sys.stderr)
+    results = []
+    for i, name in enumerate(names, 1):
+        print(f"[{i}/{len(names)}] {name} ...", file=sys.stderr, flush=True)
+        start = time.monotonic()
+        if name == "fig7":
+            with Progress("  knee extension", 1.0) as bar:
+                result = CHECKS[name](params=params, duration_s=30.0 if args.quick else None,
+                                      progress=lambda k, n: bar.update(k / n))
+            if args.quick:
+                result.criteria = result.criteria[:2]
+        else:
+            result = CHECKS[name](params=params)
+        result.seconds = time.monotonic() - start
+        if plots is not None:
+            plots[name](result, args.out / f"{name}.png")
+        results.append((name, result))
+    with open(args.out / "validation.csv", "w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["check", "item", "criterion", "value", "low", "high", "passed"])
+        for name, result in results:
+            for c in result.criteria:
+                writer.writerow([name, result.item, c.description, f"{c.value:.6g}",
+                                 "" if c.low is None else c.low, "" if c.high is None else c.high,
+                                 c.passed])
+    failed = 0
+    print(f"\n{'check':6} {'criterion':70} {'value':>12} {'bounds':>18}  result")
+    for name, result in results:
+        for c in result.criteria:
+            failed += not c.passed
+            print(f"{name:6} {c.description[:70]:70} {c.value:12.4g} {c.bounds():>18}  "
+                  f"{'pass' if c.passed else 'FAIL'}")
+    total = sum(len(r.criteria) for _, r in results)
+    print(f"\n{total - failed} passed, {failed} failed  (figures and validation.csv in {args.out})")
+    return 1 if failed else 0

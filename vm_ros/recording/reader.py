@@ -1,0 +1,126 @@
+"""Sequential reading of an MCAP log that survives truncation (a recorder killed mid-run).
+
+    log = LogReader("run.mcap")
+    for msg in log.messages(topics={"/muscle_force"}):
+        msg.topic, msg.type_name, msg.data, msg.log_time_ns
+    log.metadata, log.attachments, log.complete, log.stop_reason
+
+The file is read front to back with mcap's StreamReader (no summary or index needed), with chunk
+CRCs checked: a chunk cut short by a crash fails its check, so everything up to the last complete
+chunk is returned and ``complete`` is False with the reason in ``stop_reason``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Container, Iterator
+from pathlib import Path
+from typing import NamedTuple
+
+from mcap.reader import make_reader
+from mcap.records import Attachment, Channel, Footer, Header, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader
+
+from vm_ros.errors import VmRosError
+
+
+class LogReadError(VmRosError):
+    """The file is not an MCAP log (or cannot be opened). Attributes: ``path``, ``reason``."""
+
+    def __init__(self, path, reason: str):
+        self.path = str(path)
+        self.reason = reason
+        super().__init__(f"cannot read MCAP log {self.path}: {reason}")
+
+
+class RecordedMessage(NamedTuple):
+    topic: str
+    type_name: str  # schema name, pkg/msg/Type
+    data: bytes  # CDR, as recorded
+    log_time_ns: int
+    publish_time_ns: int
+
+
+class LogReader:
+    """One pass over a log (see module docstring). ``progress(bytes_read, file_size)`` is called
+    now and then while reading."""
+
+    def __init__(self, path, progress: Callable[[int, int], None] | None = None):
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise LogReadError(path, "no such file")
+        self.size = self.path.stat().st_size
+        self._progress = progress
+        self.profile: str | None = None
+        self.schemas: dict[int, Schema] = {}
+        self.channels: dict[int, Channel] = {}
+        self.metadata: dict[str, dict[str, str]] = {}
+        self.attachments: dict[str, bytes] = {}
+        self.complete = False
+        self.stop_reason: str | None = None
+
+    def topic_types(self) -> dict[str, str]:
+        """``{topic: pkg/msg/Type}`` of the channels seen so far."""
+        return {c.topic: self._type_name(c) for c in self.channels.values()}
+
+    def _type_name(self, channel: Channel) -> str:
+        schema = self.schemas.get(channel.schema_id)
+        return schema.name if schema is not None else ""
+
+    def messages(self, topics: Container[str] | None = None) -> Iterator[RecordedMessage]:
+        """Messages in file order (topics: full topic names to keep; None keeps all). Metadata,
+        attachments, schemas and channels are collected on the way."""
+        with open(self.path, "rb") as stream:
+            records = StreamReader(stream, validate_crcs=True).records
+            count = 0
+            while True:
+                try:
+                    record = next(records)
+                except StopIteration:
+                    break
+                except Exception as exc:  # truncated or corrupt: keep what was read
+                    if count == 0:
+                        raise LogReadError(self.path, f"not an MCAP file ({exc})") from exc
+                    self.stop_reason = f"{type(exc).__name__}: {exc}".rstrip(": ")
+                    return
+                count += 1
+                if isinstance(record, Message):
+                    channel = self.channels[record.channel_id]
+                    if topics is None or channel.topic in topics:
+                        yield RecordedMessage(channel.topic, self._type_name(channel),
+                                              record.data, record.log_time, record.publish_time)
+                    if self._progress is not None and count % 2000 == 0:
+                        self._progress(stream.tell(), self.size)
+                else:
+                    self._collect(record)
+
+    def _collect(self, record) -> None:
+        if isinstance(record, Header):
+            self.profile = record.profile
+        elif isinstance(record, Schema):
+            self.schemas[record.id] = record
+        elif isinstance(record, Channel):
+            self.channels[record.id] = record
+        elif isinstance(record, Metadata):
+            self.metadata[record.name] = dict(record.metadata)
+        elif isinstance(record, Attachment):
+            self.attachments[record.name] = bytes(record.data)
+        elif isinstance(record, Footer):
+            self.complete = True
+
+
+def log_channels(path) -> dict[str, tuple[str, dict]]:
+    """``{topic: (pkg/msg/Type, channel metadata)}``: from the summary section when the file has
+    one, else (a file cut short) from a pass over the whole file."""
+    try:
+        with open(path, "rb") as stream:
+            summary = make_reader(stream).get_summary()
+    except Exception:  # no footer or summary: read everything instead
+        summary = None
+    if summary is not None and summary.channels:
+        return {c.topic: (summary.schemas[c.schema_id].name if c.schema_id in summary.schemas
+                          else "", dict(c.metadata)) for c in summary.channels.values()}
+    reader = LogReader(path)
+    for _ in reader.messages(topics=()):
+        pass
+    types = reader.topic_types()
+    return {c.topic: (types[c.topic], dict(c.metadata)) for c in reader.channels.values()}

@@ -1,0 +1,60 @@
+"""Replay of a log's messages at the recorded pace, as a generator (no ROS here; the replay
+verb publishes what it yields).
+
+    for item in replay("run.mcap", topics={"/energy_rate"}, rate=2.0):
+        publish(item.topic, item.type_name, item.data)
+
+Messages come in file order (log-time order for vm_ros logs). The pace follows the log times:
+item k is yielded (t_k - t_0) / rate after the first, on a monotonic clock; a message whose log
+time is earlier than the previous one is yielded at once. Types this package defines itself
+(vm_ros/msg/...) have no typesupport outside a colcon build and are skipped unless asked for.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterable, Iterator
+
+from vm_ros.recording.reader import LogReader, RecordedMessage
+
+OFFLINE_PACKAGES = ("vm_ros",)
+
+
+def is_offline_type(type_name: str) -> bool:
+    return type_name.split("/")[0] in OFFLINE_PACKAGES
+
+
+def recorded_messages(path, topics: Iterable[str] | None = None,
+                      include_offline: bool = False) -> Iterator[RecordedMessage]:
+    """The log's messages in file order; ``topics``: full topic names (None: all)."""
+    wanted = None if topics is None else set(topics)
+    for message in LogReader(path).messages(wanted):
+        if include_offline or not is_offline_type(message.type_name):
+            yield message
+
+
+def paced(messages: Iterable[RecordedMessage], rate: float = 1.0,
+          clock: Callable[[], float] = time.monotonic,
+          sleep: Callable[[float], None] = time.sleep) -> Iterator[RecordedMessage]:
+    """Yield each message when (its log time - the first's) / rate has elapsed on ``clock``."""
+    if not rate > 0:
+        raise ValueError(f"rate must be > 0, got {rate}")
+    origin_log = origin_clock = None
+    for message in messages:
+        if origin_log is None:
+            origin_log, origin_clock = message.log_time_ns, clock()
+        due = origin_clock + (message.log_time_ns - origin_log) * 1e-9 / rate
+        delay = due - clock()
+        if delay > 0:
+            sleep(delay)
+        yield message
+
+
+def replay(path, topics: Iterable[str] | None = None, rate: float = 1.0, loop: bool = False,
+           include_offline: bool = False, clock: Callable[[], float] = time.monotonic,
+           sleep: Callable[[float], None] = time.sleep) -> Iterator[RecordedMessage]:
+    """Paced messages of the log; with ``loop`` the log starts over after its end, forever."""
+    while True:
+        yield from paced(recorded_messages(path, topics, include_offline), rate, clock, sleep)
+        if not loop:
+            return

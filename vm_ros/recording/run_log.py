@@ -1,0 +1,286 @@
+"""What a vm_ros run log holds, how to open one for writing and how to read one back.
+
+Channels (topic names as the node resolves them, ``/`` + name in the root namespace):
+
+| topic | type | recorded |
+| excitation, excitation_array, muscle_kinematics | as in vm_ros.telemetry | inputs as received |
+| muscle_force, energy_rate, energy_rate_total, energy_total | as in vm_ros.telemetry | outputs
+  as published (same bytes) |
+| muscle_telemetry | vm_ros/msg/MuscleTelemetry | per-step record, offline only |
+| /diagnostics | diagnostic_msgs/msg/DiagnosticArray | node health (muscle_node only) |
+
+Metadata record ``vm_ros.run`` (RunInfo.to_metadata): muscles, recruitment, recovery mode,
+overrides, dt, model/publish/telemetry rates, start time, time base, input hold rule, source
+(simulate, muscle_node, recompute), scenario, versions. Attachments: ``model.yaml`` and
+``muscles.yaml`` (exact bytes of the files used) and ``overrides.yaml``: with the recorded
+inputs, enough to recompute the run (vm_ros.recording.offline).
+
+Times: log_time is the model time in integer ns (offline runs start at 0; muscle_node uses the
+ROS clock). Inputs follow a zero-order hold: the model step [t, t + dt) uses the latest input
+with log_time <= t.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from vm_ros import telemetry as tm
+from vm_ros.model import MuscleBank
+from vm_ros.model.params import RECOVERY_MODES
+from vm_ros.recording.messages import TOPIC_TELEMETRY, TYPE_MUSCLE_TELEMETRY
+from vm_ros.recording.reader import LogReader
+from vm_ros.recording.run_config import RunConfig
+from vm_ros.recording.series import SeriesBuilder, TopicSeries
+from vm_ros.recording.versions import library_versions
+from vm_ros.recording.writer import McapRecorder
+
+METADATA_NAME = "vm_ros.run"
+FORMAT = "vm_ros.run/1"
+ATTACHMENT_MODEL = "model.yaml"
+ATTACHMENT_LIBRARY = "muscles.yaml"
+ATTACHMENT_OVERRIDES = "overrides.yaml"
+INPUT_HOLD = "zero-order hold: the step [t, t + dt) uses the latest input with log_time <= t"
+
+INPUT_TOPICS = (tm.TOPIC_EXCITATION, tm.TOPIC_EXCITATION_ARRAY, tm.TOPIC_KINEMATICS)
+OUTPUT_TOPICS = (tm.TOPIC_FORCE, tm.TOPIC_ENERGY_RATE, tm.TOPIC_ENERGY_RATE_TOTAL,
+                 tm.TOPIC_ENERGY_TOTAL)
+LOG_TOPIC_TYPES = {
+    **{topic: tm.TOPIC_TYPES[topic] for topic in INPUT_TOPICS + OUTPUT_TOPICS},
+    TOPIC_TELEMETRY: TYPE_MUSCLE_TELEMETRY,
+    tm.TOPIC_DIAGNOSTICS: tm.TYPE_DIAGNOSTIC_ARRAY,
+}
+
+
+def resolve_topic(name: str, namespace: str = "/") -> str:
+    """A relative topic name resolved as ROS does for a node in ``namespace``."""
+    if name.startswith("/"):
+        return name
+    return f"{namespace.rstrip('/')}/{name}"
+
+
+# --- the metadata record -------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class RunTiming:
+    """Model step and output rates. Outputs every ``steps_per(publish_rate_hz)`` steps;
+    telemetry_rate_hz 0 records no telemetry. start_time_ns: model time of the reset (None when
+    not known when the log was opened, as for muscle_node, which starts on the first
+    kinematics)."""
+
+    dt_s: float = 0.001
+    publish_rate_hz: float = 100.0
+    telemetry_rate_hz: float = 100.0
+    start_time_ns: int | None = 0
+
+    @property
+    def dt_ns(self) -> int:
+        return round(self.dt_s * 1e9)
+
+    @property
+    def model_rate_hz(self) -> float:
+        return 1.0 / self.dt_s
+
+    def steps_per(self, rate_hz: float) -> int:
+        """Model steps between two samples at ``rate_hz`` (at least 1; 0 for rate 0)."""
+        if rate_hz <= 0:
+            return 0
+        return max(1, round(self.model_rate_hz / rate_hz))
+
+
+@dataclass(frozen=True)
+class RunInfo:
+    """The ``vm_ros.run`` metadata record, parsed. ``topics`` maps base names to the recorded
+    topic names where they are not ``namespace`` + name (remapping); ``extra`` keeps the other
+    keys (scenario, inputs file, versions...) as strings."""
+
+    config: RunConfig
+    timing: RunTiming
+    source: str
+    namespace: str = "/"
+    time_base: str = "model time"
+    extra: Mapping = field(default_factory=dict)
+    topics: Mapping = field(default_factory=dict)
+
+    def log_topic(self, name: str) -> str:
+        """The recorded topic name of a base name such as ``muscle_force``."""
+        return self.topics.get(name) or resolve_topic(name, self.namespace)
+
+    def to_metadata(self) -> dict[str, str]:
+        c, t = self.config, self.timing
+        record = {
+            "format": FORMAT,
+            "source": self.source,
+            "muscles": json.dumps(list(c.muscles)),
+            "recruitment": c.recruitment,
+            "recovery_mode": c.recovery_mode or "",
+            "units_per_type": "" if c.units_per_type is None else str(c.units_per_type),
+            "overrides": json.dumps(_plain(c.overrides), sort_keys=True),
+            "model_params_file": str(c.params_path),
+            "muscle_library_file": str(c.library_path),
+            "dt_s": repr(float(t.dt_s)),
+            "model_rate_hz": repr(t.model_rate_hz),
+            "publish_rate_hz": repr(float(t.publish_rate_hz)),
+            "telemetry_rate_hz": repr(float(t.telemetry_rate_hz)),
+            "start_time_ns": "" if t.start_time_ns is None else str(int(t.start_time_ns)),
+            "initial_state": "rest",
+            "input_hold": INPUT_HOLD,
+            "namespace": self.namespace,
+            "topics": json.dumps(dict(self.topics), sort_keys=True),
+            "time_base": self.time_base,
+            "versions": json.dumps(library_versions(), sort_keys=True),
+        }
+        record.update({str(k): str(v) for k, v in self.extra.items()})
+        return record
+
+    @classmethod
+    def from_metadata(cls, record: Mapping[str, str]) -> RunInfo:
+        """Parse a record; tolerant of older writers (muscles as "a,b", missing rates)."""
+        known = {"format", "source", "muscles", "recruitment", "recovery_mode", "units_per_type",
+                 "overrides", "model_params_file", "muscle_library_file", "dt_s",
+                 "model_rate_hz", "publish_rate_hz", "telemetry_rate_hz", "start_time_ns",
+                 "initial_state", "input_hold", "namespace", "time_base", "topics"}
+        muscles = record["muscles"]
+        config = RunConfig(
+            muscles=tuple(json.loads(muscles) if muscles.startswith("[") else
+                          (m.strip() for m in muscles.split(",") if m.strip())),
+            recruitment=record.get("recruitment", "lumped"),
+            recovery_mode=record.get("recovery_mode") if record.get("recovery_mode") in
+            RECOVERY_MODES else None,
+            overrides=json.loads(record.get("overrides") or "{}"),
+            units_per_type=int(record["units_per_type"]) if record.get("units_per_type")
+            else None,
+        )
+        timing = RunTiming(
+            dt_s=float(record["dt_s"]),
+            publish_rate_hz=float(record.get("publish_rate_hz", 100.0)),
+            telemetry_rate_hz=float(record.get("telemetry_rate_hz", 0.0)),
+            start_time_ns=int(record["start_time_ns"]) if record.get("start_time_ns") else None,
+        )
+        return cls(config, timing, record.get("source", ""), record.get("namespace", "/"),
+                   record.get("time_base", ""),
+                   {k: v for k, v in record.items() if k not in known},
+                   json.loads(record.get("topics") or "{}"))
+
+
+def _plain(value):
+    """Mappings and numpy scalars as plain JSON/YAML-able Python values."""
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def run_attachments(config: RunConfig) -> dict[str, bytes]:
+    """The model YAML and muscle library used (exact bytes) and the overrides as YAML."""
+    return {
+        ATTACHMENT_MODEL: config.params_path.read_bytes(),
+        ATTACHMENT_LIBRARY: config.library_path.read_bytes(),
+        ATTACHMENT_OVERRIDES: yaml.safe_dump(_plain(config.overrides), sort_keys=True).encode(),
+    }
+
+
+def open_run_log(path, info: RunInfo, bank: MuscleBank | None = None,
+                 topics: Iterable[str] | None = None, qos: Mapping[str, str] | None = None,
+                 **recorder_options) -> McapRecorder:
+    """A McapRecorder with the run's metadata and attachments, its channels declared.
+
+    info: the run (RunInfo; ``info.config.recovery_mode`` None is filled from ``bank``);
+    topics: base names to declare (default: all of LOG_TOPIC_TYPES but telemetry when
+    telemetry_rate_hz is 0); qos: ``{base name: offered_qos_profiles YAML}``.
+    Raises RecorderError naming the path when the file cannot be created.
+    """
+    if bank is not None and info.config.recovery_mode is None:
+        info = dataclasses.replace(info, config=info.config.replace(
+            recovery_mode=bank.recovery_mode))
+    if topics is None:
+        topics = [t for t in LOG_TOPIC_TYPES if t != tm.TOPIC_DIAGNOSTICS
+                  and (t != TOPIC_TELEMETRY or info.timing.telemetry_rate_hz > 0)]
+    recorder = McapRecorder(path, metadata={METADATA_NAME: info.to_metadata()},
+                            attachments=run_attachments(info.config), **recorder_options)
+    for topic in topics:
+        recorder.add_channel(info.log_topic(topic), LOG_TOPIC_TYPES[topic],
+                             (qos or {}).get(topic))
+    return recorder
+
+
+# --- reading back ----------------------------------------------------------------------------
+
+
+@dataclass
+class RunLog:
+    """A run log read back (read_run). ``series`` is keyed by recorded topic name; ``get(name)``
+    finds a base name such as ``muscle_force`` as the run recorded it (RunInfo.log_topic).
+    ``complete`` is False for a file cut short (the series then end at the last complete chunk;
+    ``stop_reason`` says why)."""
+
+    path: Path
+    info: RunInfo | None
+    metadata: dict
+    attachments: dict
+    series: dict
+    topic_types: dict
+    complete: bool
+    stop_reason: str | None
+
+    def get(self, name: str) -> TopicSeries | None:
+        if self.info is None:
+            return self.series.get(resolve_topic(name))
+        return self.series.get(self.info.log_topic(name))
+
+    def config(self, directory) -> RunConfig:
+        """The run's RunConfig with its attached model and library YAML written to
+        ``directory`` (which must outlive any use of the returned paths)."""
+        if self.info is None:
+            raise ValueError(f"{self.path} has no '{METADATA_NAME}' metadata record")
+        directory = Path(directory)
+        paths = {}
+        for name in (ATTACHMENT_MODEL, ATTACHMENT_LIBRARY):
+            if name not in self.attachments:
+                raise ValueError(f"{self.path} lacks the '{name}' attachment")
+            paths[name] = directory / name
+            paths[name].write_bytes(self.attachments[name])
+        return self.info.config.replace(params=paths[ATTACHMENT_MODEL],
+                                        library=paths[ATTACHMENT_LIBRARY])
+
+
+def read_run(path, topics: Iterable[str] | None = None, raw: Iterable[str] = (),
+             progress: Callable[[int, int], None] | None = None) -> RunLog:
+    """Read a run log (any ROS 2 MCAP works; vm_ros logs get muscle-aligned arrays).
+
+    topics: base or full names to decode (default all); raw: base names whose CDR bytes to keep
+    (recompute copies inputs verbatim); progress(bytes_read, size) for long files.
+    Raises LogReadError when the file is missing or not MCAP.
+    """
+    reader = LogReader(path, progress=progress)
+    builders: dict[str, SeriesBuilder] = {}
+    info: RunInfo | None = None
+    wanted = keep_raw = None
+    for message in reader.messages():
+        if info is None and METADATA_NAME in reader.metadata:
+            info = RunInfo.from_metadata(reader.metadata[METADATA_NAME])
+        if wanted is None:
+            log_topic = info.log_topic if info is not None else resolve_topic
+            wanted = None if topics is None else {log_topic(t) for t in topics}
+            keep_raw = {log_topic(t) for t in raw}
+        if wanted is not None and message.topic not in wanted:
+            continue
+        builder = builders.get(message.topic)
+        if builder is None:
+            columns = info.config.muscles if info is not None else None
+            builder = builders[message.topic] = SeriesBuilder(
+                message.topic, message.type_name, columns, message.topic in keep_raw)
+        builder.add(message.data, message.log_time_ns)
+    if info is None and METADATA_NAME in reader.metadata:
+        info = RunInfo.from_metadata(reader.metadata[METADATA_NAME])
+    return RunLog(Path(path), info, reader.metadata, reader.attachments,
+                  {topic: b.build() for topic, b in builders.items()}, reader.topic_types(),
+                  reader.complete, reader.stop_reason)

@@ -1,0 +1,97 @@
+"""Per-muscle summary of a run: force, partitioned energy, mechanical work and efficiency.
+
+    rows = summarize(names, force_samples, energy, work)
+    print(summary_table(rows))
+
+energy: (n, 3, 4) J, fibre (slow, fast, all) x component (activation, cross_bridge, recovery,
+total), the layout of the energy_rate topic. Efficiency is the net mechanical efficiency,
+mechanical work over total energy (work done on the load while shortening counts positive).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from vm_ros.telemetry import COMPONENT_LABELS, FIBRE_LABELS
+
+
+@dataclass(frozen=True)
+class MuscleSummary:
+    """| field | unit |
+    | name | |
+    | peak_force, mean_force | N (over the published samples) |
+    | energy | J, (3 fibre labels, 4 components) |
+    | mechanical_work | J (NaN when the log has no telemetry) |
+    | efficiency | 1, mechanical work / total energy (NaN when undefined) |
+    """
+
+    name: str
+    peak_force: float
+    mean_force: float
+    energy: np.ndarray
+    mechanical_work: float
+
+    @property
+    def efficiency(self) -> float:
+        total = float(self.energy[-1, -1])
+        return self.mechanical_work / total if total > 0 else float("nan")
+
+
+def summarize(names, force_samples, energy, mechanical_work) -> list[MuscleSummary]:
+    """force_samples (k, n) N; energy (n, 3, 4) J; mechanical_work (n,) J."""
+    force = np.asarray(force_samples, dtype=float).reshape(-1, len(names))
+    energy = np.asarray(energy, dtype=float)
+    work = np.asarray(mechanical_work, dtype=float)
+    rows = []
+    for i, name in enumerate(names):
+        column = force[:, i]
+        peak = float(np.nanmax(column)) if column.size else float("nan")
+        mean = float(np.nanmean(column)) if column.size else float("nan")
+        rows.append(MuscleSummary(name, peak, mean, energy[i], float(work[i])))
+    return rows
+
+
+def summary_records(rows: list[MuscleSummary]) -> list[dict]:
+    """One flat dict per muscle and fibre label (for CSV); force, work and efficiency appear on
+    the ``all`` rows."""
+    records = []
+    for row in rows:
+        for j, fibre in enumerate(FIBRE_LABELS):
+            record = {"muscle": row.name, "fibre": fibre}
+            whole = fibre == "all"
+            record["peak_force_N"] = row.peak_force if whole else ""
+            record["mean_force_N"] = row.mean_force if whole else ""
+            for k, component in enumerate(COMPONENT_LABELS):
+                record[f"{component}_energy_J"] = float(row.energy[j, k])
+            record["mechanical_work_J"] = row.mechanical_work if whole else ""
+            record["efficiency"] = row.efficiency if whole else ""
+            records.append(record)
+    return records
+
+
+def summary_table(rows: list[MuscleSummary]) -> str:
+    """A fixed-width text table: one line per muscle and fibre type, then the totals."""
+    header = (f"{'muscle':<22}{'fibre':<6}{'peak F':>10}{'mean F':>10}{'E act':>11}{'E xb':>11}"
+              f"{'E rec':>11}{'E total':>11}{'W mech':>10}{'eff':>7}")
+    units = (f"{'':<22}{'':<6}{'(N)':>10}{'(N)':>10}{'(J)':>11}{'(J)':>11}{'(J)':>11}"
+             f"{'(J)':>11}{'(J)':>10}{'(%)':>7}")
+    lines = [header, units, "-" * len(header)]
+    for row in rows:
+        for j, fibre in enumerate(FIBRE_LABELS):
+            whole = fibre == "all"
+            name = row.name if j == 0 else ""
+            force = f"{row.peak_force:>10.1f}{row.mean_force:>10.1f}" if whole else " " * 20
+            energies = "".join(f"{row.energy[j, k]:>11.2f}" for k in range(4))
+            tail = f"{row.mechanical_work:>10.2f}{100 * row.efficiency:>7.1f}" if whole else ""
+            lines.append(f"{name:<22}{fibre:<6}{force}{energies}{tail}")
+    total = sum(row.energy for row in rows)
+    work = sum(row.mechanical_work for row in rows)
+    if len(rows) > 1:
+        lines.append("-" * len(header))
+        energies = "".join(f"{total[-1, k]:>11.2f}" for k in range(4))
+        efficiency = 100 * work / total[-1, -1] if total[-1, -1] > 0 else float("nan")
+        lines.append(f"{'all muscles':<22}{'all':<6}{'':>20}{energies}{work:>10.2f}"
+                     f"{efficiency:>7.1f}")
+    return "\n".join(lines)

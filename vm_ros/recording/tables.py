@@ -1,0 +1,140 @@
+"""Tables (column names and rows) of a run log, for CSV files and plots, and its summary.
+
+Times are seconds from the first output stamp (model time). Column names carry units.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from vm_ros import telemetry as tm
+from vm_ros.recording.messages import TOPIC_TELEMETRY
+from vm_ros.recording.run_log import RunLog, TopicSeries
+from vm_ros.recording.summary import MuscleSummary, summarize
+
+# MuscleTelemetry fields per muscle and per fibre type, with their units (msg_defs/)
+TELEMETRY_PER_MUSCLE = {
+    "excitation": "1", "effective_drive": "1", "path_length": "m", "path_velocity": "m_per_s",
+    "force": "N", "contractile_force": "N", "fascicle_length": "m",
+    "fascicle_velocity": "m_per_s", "mechanical_power": "W", "mechanical_work": "J",
+}
+TELEMETRY_PER_FIBRE = {"firing_rate": "f05", "recruited_fraction": "1",
+                       "effective_activation": "1"}
+FIBRE_TYPES = tm.FIBRE_LABELS[:2]
+
+
+class Table:
+    """A named table: ``columns`` (names with units) and ``data`` (rows x columns array)."""
+
+    def __init__(self, name: str, columns: list[str], data: np.ndarray):
+        self.name, self.columns, self.data = name, columns, data
+
+    def column(self, name: str) -> np.ndarray:
+        return self.data[:, self.columns.index(name)]
+
+
+def muscle_names(run: RunLog) -> tuple:
+    if run.info is not None:
+        return tuple(run.info.config.muscles)
+    force = run.get(tm.TOPIC_FORCE)
+    return tuple(force.names or ()) if force is not None else ()
+
+
+def time_origin_ns(run: RunLog) -> int:
+    """Model time of the first output (or of the first message): time zero of the tables."""
+    force = run.get(tm.TOPIC_FORCE)
+    if force is not None and len(force):
+        return int(force.fields["stamp_ns"][0])
+    firsts = [int(s.time_ns[0]) for s in run.series.values() if len(s)]
+    return min(firsts) if firsts else 0
+
+
+def _times(run: RunLog, series: TopicSeries) -> np.ndarray:
+    stamps = series.fields.get("stamp_ns")
+    times = stamps if stamps is not None else series.time_ns
+    return (np.asarray(times, dtype=np.int64) - time_origin_ns(run)) * 1e-9
+
+
+def force_table(run: RunLog) -> Table | None:
+    series = run.get(tm.TOPIC_FORCE)
+    if series is None or not len(series):
+        return None
+    columns, blocks = ["time_s"], [_times(run, series)[:, None]]
+    for key, label in (("effort", "force_N"), ("position", "fascicle_length_m"),
+                       ("velocity", "fascicle_velocity_m_per_s")):
+        columns += [f"{m}.{label}" for m in muscle_names(run)]
+        blocks.append(series.fields[key])
+    return Table("forces", columns, np.hstack(blocks))
+
+
+def energy_rate_table(run: RunLog) -> Table | None:
+    series = run.get(tm.TOPIC_ENERGY_RATE)
+    if series is None or not len(series):
+        return None
+    columns = ["time_s"] + [f"{m}.{f}.{c}_W" for m in muscle_names(run) for f in tm.FIBRE_LABELS
+                            for c in tm.COMPONENT_LABELS]
+    data = series.fields["data"]
+    if data.shape[1] != len(columns) - 1:
+        return None
+    return Table("energy_rate", columns, np.hstack([_times(run, series)[:, None], data]))
+
+
+def totals_table(run: RunLog) -> Table | None:
+    rate, total = run.get(tm.TOPIC_ENERGY_RATE_TOTAL), run.get(tm.TOPIC_ENERGY_TOTAL)
+    if rate is None or total is None or not len(rate):
+        return None
+    common, i, j = np.intersect1d(rate.time_ns, total.time_ns, return_indices=True)
+    times = (common - common[0]) * 1e-9 if len(common) else common * 1.0
+    return Table("totals", ["time_s", "energy_rate_total_W", "energy_total_J"],
+                 np.column_stack([times, rate.fields["data"][i], total.fields["data"][j]]))
+
+
+def telemetry_table(run: RunLog) -> Table | None:
+    series = run.get(TOPIC_TELEMETRY)
+    if series is None or not len(series):
+        return None
+    names = series.names or muscle_names(run)
+    columns, blocks = ["time_s"], [_times(run, series)[:, None]]
+    for key, unit in TELEMETRY_PER_MUSCLE.items():
+        columns += [f"{m}.{key}_{unit}" for m in names]
+        blocks.append(series.fields[key])
+    for key, unit in TELEMETRY_PER_FIBRE.items():
+        columns += [f"{m}.{f}.{key}_{unit}" for m in names for f in FIBRE_TYPES]
+        blocks.append(series.fields[key])
+    for key, unit in (("energy_rate", "W"), ("energy", "J")):
+        columns += [f"{m}.{f}.{c}_{key}_{unit}" for m in names for f in tm.FIBRE_LABELS
+                    for c in tm.COMPONENT_LABELS]
+        blocks.append(series.fields[key])
+    return Table("telemetry", columns, np.hstack(blocks))
+
+
+def run_summary(run: RunLog) -> list[MuscleSummary]:
+    """Per-muscle summary. Energies and work from the last telemetry record; without telemetry
+    the energy is the trapezoidal integral of energy_rate and the work is unknown (NaN)."""
+    names = muscle_names(run)
+    n = len(names)
+    force = run.get(tm.TOPIC_FORCE)
+    forces = force.fields["effort"] if force is not None and len(force) else np.zeros((0, n))
+    telemetry = run.get(TOPIC_TELEMETRY)
+    if telemetry is not None and len(telemetry):
+        energy = telemetry.fields["energy"][-1].reshape(n, 3, 4)
+        work = telemetry.fields["mechanical_work"][-1]
+    else:
+        rates = energy_rate_table(run)
+        energy = np.full((n, 3, 4), np.nan)
+        if rates is not None and len(rates.data) > 1:
+            t, y = rates.data[:, 0], rates.data[:, 1:]
+            integral = (0.5 * (y[1:] + y[:-1]) * np.diff(t)[:, None]).sum(axis=0)
+            energy = integral.reshape(n, 3, 4)
+        work = np.full(n, np.nan)
+    return summarize(names, forces, energy, work)
+
+
+def bin_means(time_s: np.ndarray, values: np.ndarray, bin_s: float):
+    """Means of ``values`` (k, ...) over consecutive ``bin_s`` windows: (bin centres, means)."""
+    if bin_s <= 0 or len(time_s) == 0:
+        return time_s, values
+    index = np.floor((time_s - time_s[0]) / bin_s).astype(int)
+    bins = np.unique(index)
+    means = np.array([values[index == b].mean(axis=0) for b in bins])
+    return time_s[0] + (bins + 0.5) * bin_s, means

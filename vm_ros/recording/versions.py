@@ -1,0 +1,25 @@
+"""Versions of vm_ros and of the libraries a run depends on, for the log's metadata."""
+
+from __future__ import annotations
+
+import platform
+from importlib.metadata import PackageNotFoundError, version
+
+
+def package_version(name: str) -> str:
+    """Installed version of a distribution, or "unknown" (e.g. vm_ros from a bare source tree)."""
+    try:
+        return version(name)
+    except PackageNotFoundError:
+        return "unknown"
+
+
+VM_ROS_VERSION = package_version("vm_ros")
+
+
+def library_versions() -> dict[str, str]:
+    """``{name: version}`` of Python, vm_ros and the numerical and MCAP libraries."""
+    versions = {"python": platform.python_version()}
+    for name in ("vm_ros", "numpy", "scipy", "mcap", "mcap-ros2-support"):
+        versions[name] = package_version(name)
+    return versions

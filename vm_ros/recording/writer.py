@@ -1,0 +1,379 @@
+"""McapRecorder: a ROS 2 MCAP log written by a background thread, never blocking the caller.
+
+    with McapRecorder("run.mcap", metadata={"vm_ros.run": {...}}) as rec:
+        rec.add_channel("/muscle_force", "sensor_msgs/msg/JointState")
+        rec.write("/muscle_force", cdr_bytes, log_time_ns)
+    rec.status      # RecorderStatus(ok, error, written, dropped, bytes_written, path)
+
+The file follows rosbag2's MCAP conventions (profile ``ros2``; schema ``pkg/msg/Type``,
+encoding ``ros2msg``, text as rosbag2 concatenates it; message encoding ``cdr``; channel
+metadata ``offered_qos_profiles`` and ``topic_type_hash``), so ``ros2 bag info/play``, Foxglove
+and the ``mcap`` library read it.
+
+Threading: ``write`` puts (topic, bytes, times) on a bounded queue and returns; a writer thread
+owns the ``mcap.writer.Writer`` and yields the GIL every few messages. When the queue is full,
+or after the writer failed, ``write`` returns False and counts the message as dropped. A write
+error (disk full...) is caught by the writer thread: ``status.ok`` turns False with the error
+text and later messages are dropped; the caller never sees an exception.
+
+Crash safety: messages are written in zstd chunks of ``chunk_size`` bytes (uncompressed); each
+closed chunk goes straight to the OS (the sink is unbuffered), so a process killed with SIGKILL
+leaves a file readable up to its last complete chunk (vm_ros.recording.reader). A chunk is also
+closed when it has been open for ``flush_interval_s`` of wall time, bounding what a crash loses.
+Metadata and attachments are written at start-up, before any message.
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import BinaryIO
+
+from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
+
+from vm_ros.errors import VmRosError
+from vm_ros.recording.message_types import UnknownMessageTypeError, schema_text, type_hash
+from vm_ros.recording.qos import offered_qos_profiles_yaml
+from vm_ros.recording.schema import MESSAGE_ENCODING, SCHEMA_ENCODING, full_type_name
+from vm_ros.recording.versions import VM_ROS_VERSION
+
+PROFILE = "ros2"
+COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
+                "none": CompressionType.NONE}
+_MEDIA_TYPES = {".yaml": "application/yaml", ".yml": "application/yaml",
+                ".json": "application/json", ".csv": "text/csv", ".txt": "text/plain"}
+_CLOSE = object()
+# The writer thread gives up the GIL after this many messages, so that a caller waiting for it
+# (a 1 kHz loop) waits about one batch (~0.3 ms), not CPython's 5 ms switch interval; it stops
+# doing so while the queue is more than a quarter full, to catch up.
+_YIELD_EVERY = 32
+
+
+class RecorderError(VmRosError):
+    """The MCAP log cannot be written as asked. Attributes: ``path``, ``reason``."""
+
+    def __init__(self, path, reason: str):
+        self.path = str(path)
+        self.reason = reason
+        super().__init__(f"MCAP log {self.path}: {reason}")
+
+
+@dataclass(frozen=True)
+class RecorderStatus:
+    """A snapshot of the recorder.
+
+    | field | meaning |
+    | ok | False once a write failed (the file is then incomplete) |
+    | error | the failure, as text, or None |
+    | written | messages handed to the MCAP writer (if a chunk cannot be written, its messages
+      move to dropped) |
+    | dropped | messages not recorded (queue full, lost with a failed chunk, after a failure or
+      after close) |
+    | bytes_written | bytes that reached the file |
+    | path | the file |
+    """
+
+    ok: bool
+    error: str | None
+    written: int
+    dropped: int
+    bytes_written: int
+    path: str
+
+
+@dataclass(frozen=True)
+class _ChannelSpec:
+    topic: str
+    type_name: str
+    metadata: dict
+
+
+class _FileSink:
+    """Unbuffered output for mcap's Writer: each record it emits is handed to the OS at once."""
+
+    def __init__(self, raw: BinaryIO):
+        self._raw = raw
+        self.position = 0
+
+    def write(self, data) -> int:
+        view = memoryview(data)
+        while view.nbytes:
+            count = self._raw.write(view)
+            if not count:
+                raise OSError("short write: the file accepted no bytes")
+            self.position += count
+            view = view[count:]
+        return len(data)
+
+    def tell(self) -> int:
+        return self.position
+
+    def flush(self) -> None:
+        self._raw.flush()
+
+    def close(self) -> None:
+        self._raw.close()
+
+
+def open_unbuffered(path: Path) -> BinaryIO:
+    """The default opener: create or truncate ``path`` for unbuffered binary writing."""
+    return open(path, "wb", buffering=0)
+
+
+def _media_type(name: str) -> str:
+    return _MEDIA_TYPES.get(Path(name).suffix.lower(), "application/octet-stream")
+
+
+class McapRecorder:
+    """Writes a ROS 2 MCAP log from a background thread (see the module docstring).
+
+    path: the file (parent folders are created); metadata: MCAP metadata records
+    ``{name: {key: value}}``; attachments: ``{name: bytes}`` (media type from the extension);
+    compression: "zstd", "lz4" or "none"; chunk_size: uncompressed bytes per chunk; queue_size:
+    messages that may wait for the writer thread; flush_interval_s: longest wall time a chunk
+    stays open; opener: ``opener(path) -> binary file`` (tests inject failing files).
+    Raises RecorderError naming the path when the file cannot be created or started.
+    """
+
+    def __init__(
+        self,
+        path,
+        *,
+        metadata: dict[str, dict[str, str]] | None = None,
+        attachments: dict[str, bytes] | None = None,
+        compression: str = "zstd",
+        chunk_size: int = 1 << 20,
+        queue_size: int = 20000,
+        flush_interval_s: float = 5.0,
+        opener: Callable[[Path], BinaryIO] = open_unbuffered,
+    ):
+        self._path = Path(path)
+        if compression not in COMPRESSIONS:
+            raise RecorderError(path, f"compression {compression!r} is not one of "
+                                      f"{', '.join(COMPRESSIONS)}")
+        if chunk_size <= 0 or queue_size <= 0 or flush_interval_s <= 0:
+            raise RecorderError(path, "chunk_size, queue_size and flush_interval_s must be > 0")
+        self._flush_interval_s = float(flush_interval_s)
+        self._queue: queue.Queue = queue.Queue(maxsize=queue_size)
+        self._catch_up_size = max(1, queue_size // 4)
+        self._channel_lock = threading.Lock()
+        self._channels: dict[str, _ChannelSpec] = {}
+        self._pending: list[_ChannelSpec] = []
+        self._counter_lock = threading.Lock()
+        self._dropped = 0
+        self._written = 0
+        self._error: str | None = None
+        self._closing = False
+        self._closed = False
+        self._close_lock = threading.Lock()
+        self._sink = self._open(opener)
+        try:
+            self._writer = Writer(self._sink, chunk_size=chunk_size,
+                                  compression=COMPRESSIONS[compression])
+            self._writer.start(profile=PROFILE,
+                               library=f"vm_ros/{VM_ROS_VERSION} {LIBRARY_IDENTIFIER}")
+            now = time.time_ns()
+            for name, record in (metadata or {}).items():
+                self._writer.add_metadata(name, {str(k): str(v) for k, v in record.items()})
+            for name, data in (attachments or {}).items():
+                self._writer.add_attachment(now, now, name, _media_type(name), bytes(data))
+        except Exception as exc:
+            self._sink.close()
+            raise RecorderError(path, f"cannot start the log: {exc}") from exc
+        self._schema_ids: dict[str, int] = {}
+        self._channel_ids: dict[str, int] = {}
+        self._sequence: dict[str, int] = {}
+        # writer thread only: messages in the chunk being built, wall time of its first one
+        self._open_chunk_count = 0
+        self._chunk_opened_at: float | None = None
+        self._thread = threading.Thread(target=self._run, name=f"mcap-recorder {self._path.name}",
+                                        daemon=True)
+        self._thread.start()
+
+    def _open(self, opener) -> _FileSink:
+        try:
+            self._path.parent.mkdir(parents=True, exist_ok=True)
+            return _FileSink(opener(self._path))
+        except OSError as exc:
+            raise RecorderError(self._path, f"cannot create the file: {exc.strerror or exc}") \
+                from exc
+
+    # --- caller side ----------------------------------------------------------------------
+
+    @property
+    def path(self) -> Path:
+        return self._path
+
+    def add_channel(self, topic: str, type_name: str, qos_profiles_yaml: str | None = None) -> None:
+        """Declare a channel (idempotent). type_name: ``pkg/msg/Type``, a bundled type;
+        qos_profiles_yaml: the publisher's offered QoS (vm_ros.recording.qos), default reliable,
+        volatile, keep last 10."""
+        try:
+            full_name = full_type_name(type_name)
+            metadata = {
+                "offered_qos_profiles": qos_profiles_yaml or offered_qos_profiles_yaml(),
+                "topic_type_hash": type_hash(full_name),
+            }
+            schema_text(full_name)
+        except (UnknownMessageTypeError, ValueError) as exc:
+            raise RecorderError(self._path, f"channel {topic!r}: {exc}") from exc
+        with self._channel_lock:
+            existing = self._channels.get(topic)
+            if existing is not None:
+                if existing.type_name != full_name:
+                    raise RecorderError(self._path, f"channel {topic!r} already has type "
+                                                    f"{existing.type_name}, not {full_name}")
+                return
+            spec = _ChannelSpec(topic, full_name, metadata)
+            self._channels[topic] = spec
+            self._pending.append(spec)
+
+    def write(self, topic: str, data: bytes, log_time_ns: int,
+              publish_time_ns: int | None = None) -> bool:
+        """Queue one serialised message; never blocks. False (and counted as dropped) when the
+        queue is full, the writer failed or the recorder is closed. ``data`` must not change
+        afterwards. Raises RecorderError for a topic never declared with add_channel (a bug)."""
+        if topic not in self._channels:
+            raise RecorderError(self._path, f"write to undeclared channel {topic!r}")
+        if self._error is not None or self._closing:
+            self._count_dropped(1)
+            return False
+        publish = log_time_ns if publish_time_ns is None else publish_time_ns
+        try:
+            self._queue.put_nowait((topic, data, int(log_time_ns), int(publish)))
+        except queue.Full:
+            self._count_dropped(1)
+            return False
+        return True
+
+    @property
+    def status(self) -> RecorderStatus:
+        return RecorderStatus(ok=self._error is None, error=self._error, written=self._written,
+                              dropped=self._dropped, bytes_written=self._sink.position,
+                              path=str(self._path))
+
+    def close(self) -> None:
+        """Write what is queued, finish the file (summary and indexes) and close it. Idempotent;
+        blocks until the writer thread is done."""
+        with self._close_lock:
+            if self._closed:
+                return
+            self._closing = True
+            self._queue.put(_CLOSE)
+            self._thread.join()
+            late = 0
+            while not self._queue.empty():  # written after close() began: never recorded
+                self._queue.get_nowait()
+                late += 1
+            self._count_dropped(late)
+            self._closed = True
+
+    def __enter__(self) -> McapRecorder:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _count_dropped(self, count: int) -> None:
+        if count:
+            with self._counter_lock:
+                self._dropped += count
+
+    # --- writer thread --------------------------------------------------------------------
+
+    def _run(self) -> None:
+        handled = 0
+        while True:
+            item = self._next_item()
+            if item is _CLOSE:
+                break
+            handled += 1
+            if handled % _YIELD_EVERY == 0 and self._queue.qsize() < self._catch_up_size:
+                time.sleep(0)
+            if self._error is not None:
+                if item is not None:
+                    self._count_dropped(1)
+                continue
+            try:
+                if item is not None:
+                    self._add_message(*item)
+                self._flush_if_old()
+            except Exception as exc:  # disk full, I/O error: record it, keep draining
+                self._fail(exc)
+        self._finish()
+
+    def _next_item(self):
+        """The next queued item, or None when the open chunk is due to be flushed first."""
+        timeout = None
+        if self._chunk_opened_at is not None:
+            timeout = max(0.0, self._chunk_opened_at + self._flush_interval_s - time.monotonic())
+        try:
+            return self._queue.get(timeout=timeout)
+        except queue.Empty:
+            return None
+
+    def _add_message(self, topic: str, data: bytes, log_time: int, publish_time: int) -> None:
+        if topic not in self._channel_ids:
+            self._register_pending()
+        sequence = self._sequence[topic] = self._sequence[topic] + 1
+        position = self._sink.position
+        try:
+            self._writer.add_message(self._channel_ids[topic], log_time, data, publish_time,
+                                     sequence)
+        except Exception:
+            self._count_dropped(1)
+            raise
+        self._written += 1
+        if self._sink.position != position:  # this message closed the chunk, which is written
+            self._chunk_written()
+        else:
+            self._open_chunk_count += 1
+            if self._chunk_opened_at is None:
+                self._chunk_opened_at = time.monotonic()
+
+    def _chunk_written(self) -> None:
+        self._chunk_opened_at, self._open_chunk_count = None, 0
+
+    def _flush_if_old(self) -> None:
+        if self._chunk_opened_at is not None and (
+                time.monotonic() - self._chunk_opened_at >= self._flush_interval_s):
+            self._writer.flush()
+            self._chunk_written()
+
+    def _register_pending(self) -> None:
+        with self._channel_lock:
+            pending, self._pending = self._pending, []
+        for spec in pending:
+            schema_id = self._schema_ids.get(spec.type_name)
+            if schema_id is None:
+                schema_id = self._writer.register_schema(
+                    spec.type_name, SCHEMA_ENCODING, schema_text(spec.type_name).encode())
+                self._schema_ids[spec.type_name] = schema_id
+            self._channel_ids[spec.topic] = self._writer.register_channel(
+                spec.topic, MESSAGE_ENCODING, schema_id, spec.metadata)
+            self._sequence[spec.topic] = 0
+
+    def _finish(self) -> None:
+        if self._error is None:
+            try:
+                self._register_pending()
+                self._writer.finish()
+            except Exception as exc:
+                self._fail(exc)
+        try:
+            self._sink.close()
+        except OSError as exc:
+            if self._error is None:
+                self._fail(exc)
+
+    def _fail(self, exc: Exception) -> None:
+        """Record the first failure; the open chunk's messages are lost with it."""
+        lost, self._open_chunk_count = self._open_chunk_count, 0
+        self._written -= lost
+        self._count_dropped(lost)
+        if self._error is None:
+            self._error = f"writing {self._path} failed: {type(exc).__name__}: {exc}"
