@@ -1,0 +1,395 @@
+"""muscle_node in-process: outputs equal the model run offline, layouts, bad inputs and time,
+parameters, the MCAP log. Plain rclpy: a node, a probe node and one executor spun in short slices
+until a predicate holds (test/conftest.py)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from vm_ros import telemetry as tm
+from vm_ros.errors import ConfigError, VmRosError
+from vm_ros.model import MuscleBank
+from vm_ros.node_health import ISSUE_KINDS
+from vm_ros.node_inputs import InputLimits, NodeInputs, physical_path_length_range
+from vm_ros.node_params import NodeConfig
+
+pytestmark = pytest.mark.ros
+
+MUSCLES = ["vasti", "rectus_femoris"]
+MS = 1_000_000
+SIM_T0 = 1_000 * MS
+
+
+@pytest.fixture(scope="module")
+def lengths():
+    lo, hi = physical_path_length_range(MuscleBank.from_config(MUSCLES), 0.0)
+    return 0.5 * (lo + hi)
+
+
+def stamp_ns(msg) -> int:
+    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+
+def connected(ros, node, probe) -> None:
+    """Wait until the probe and the node see each other on every topic used here."""
+    assert ros.spin_until(lambda: all(p.get_subscription_count() > 0 for p in (
+        probe.excitation, probe.excitation_array, probe.kinematics))
+        and all(p.get_subscription_count() > 0
+                for p in node._publishers_by_topic.values()), timeout_s=10)
+
+
+def set_clock(ros, probe, node, time_ns: int, tick: bool = True) -> None:
+    """Publish /clock until the node's clock shows ``time_ns`` and (``tick``) a model tick ran
+    after that. A backward jump re-arms the timer one period later: use tick=False."""
+    ticks = node.ticks
+
+    def done():
+        if node.get_clock().now().nanoseconds != time_ns:
+            probe.send_clock(time_ns)
+            return False
+        return not tick or node.ticks > ticks
+    assert ros.spin_until(done, timeout_s=5), f"clock {time_ns} not reached"
+
+
+def sim_node(ros, lengths, **params):
+    node = ros.muscle_node(use_sim_time=True, muscles=MUSCLES, stale_input_policy="hold",
+                           input_timeout_s=1000.0, **params)
+    probe = ros.probe()
+    connected(ros, node, probe)
+    set_clock(ros, probe, node, SIM_T0)
+    probe.send_kinematics(MUSCLES, lengths)
+    assert ros.spin_until(lambda: node.inputs.ready, timeout_s=5)
+    return node, probe
+
+
+# --- outputs -------------------------------------------------------------------------------------
+
+
+def test_outputs_equal_the_bank_run_offline_under_sim_time(ros, lengths, tmp_path):
+    """/clock drives the model: every published force, energy rate and total equals an offline
+    MuscleBank run on the same inputs, step for step; the MCAP log replays to the same forces."""
+    path = tmp_path / "run.mcap"
+    node, probe = sim_node(ros, lengths, mcap__enabled=True, mcap__path=str(path))
+    u1, u2 = np.array([0.6, 0.2]), np.array([0.1, 0.9])
+    probe.send_excitation_array(u1)
+    assert ros.spin_until(lambda: np.array_equal(node.inputs.drive, u1))
+    start = SIM_T0 + MS
+    set_clock(ros, probe, node, start)
+    assert node.scheduler.started and node.scheduler.anchor_ns == start
+    for k in range(1, 31):  # 300 steps in jumps of 10 steps
+        if k == 16:
+            probe.send_excitation(MUSCLES[::-1], u2[::-1])  # by name, in another order
+            assert ros.spin_until(lambda: np.array_equal(node.inputs.drive, u2))
+        set_clock(ros, probe, node, start + k * 10 * MS)
+    assert ros.spin_until(lambda: len(probe.energy_totals) >= 31 and len(probe.forces) >= 31)
+
+    bank = MuscleBank.from_config(MUSCLES)
+    offline = [bank.reset(path_length=lengths)]
+    offline += [bank.step(1e-3, u1 if i < 150 else u2, lengths) for i in range(300)]
+    assert len(probe.forces) == 31
+    for msg, rate, rate_total, total in zip(probe.forces, probe.energy_rates,
+                                            probe.energy_rate_totals, probe.energy_totals,
+                                            strict=True):
+        steps, rest = divmod(stamp_ns(msg) - start, MS)
+        assert rest == 0 and steps % 10 == 0
+        out = offline[steps]
+        assert list(msg.name) == MUSCLES
+        np.testing.assert_allclose(msg.effort, out.force, rtol=1e-12)
+        np.testing.assert_allclose(msg.position, out.fascicle_length, rtol=1e-12)
+        np.testing.assert_allclose(msg.velocity, out.fascicle_velocity, rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(rate.data, tm.energy_rate_array(out).ravel(), rtol=1e-12)
+        assert rate_total.data == pytest.approx(out.total_energy_rate, rel=1e-12)
+        assert total.data == pytest.approx(out.total_energy, rel=1e-12)
+    assert probe.forces[-1].effort[1] > probe.forces[15].effort[1]  # the new drive took effect
+
+    node.close_run_log()
+    assert_log_replays(path, lengths, [np.array(m.effort) for m in probe.forces])
+
+
+def assert_log_replays(path, lengths, forces):
+    """The log holds what recomputing needs: inputs at the time the node applied them,
+    conditioned as the node did (NodeInputs), from the recorded start give the same forces."""
+    from vm_ros.recording import read_run
+
+    run = read_run(path, raw=[tm.TOPIC_EXCITATION, tm.TOPIC_EXCITATION_ARRAY,
+                              tm.TOPIC_KINEMATICS])
+    assert run.complete and run.info.source == "muscle_node"
+    config = NodeConfig.from_values(json.loads(run.info.extra["node_parameters"]))
+    bank = run.info.config.make_bank()
+    inputs = NodeInputs(bank.names, InputLimits.for_bank(bank, config))
+    events = sorted((int(t), topic, i) for topic in (tm.TOPIC_EXCITATION,
+                                                     tm.TOPIC_EXCITATION_ARRAY,
+                                                     tm.TOPIC_KINEMATICS)
+                    for i, t in enumerate(run.get(topic).time_ns))
+
+    def apply_until(t_ns):
+        while events and events[0][0] <= t_ns:
+            time_ns, topic, i = events.pop(0)
+            series = run.get(topic)
+            if topic == tm.TOPIC_EXCITATION_ARRAY:
+                inputs.on_excitation_array(series.fields["data"][i], time_ns)
+            else:
+                names = series.names
+                values = series.fields["position"][i]
+                if topic == tm.TOPIC_EXCITATION:
+                    inputs.on_excitation(names, values, time_ns)
+                else:
+                    inputs.on_kinematics(names, values, np.nan_to_num(series.fields["velocity"][i]),
+                                         time_ns)
+
+    start, dt_ns = run.info.timing.start_time_ns, run.info.timing.dt_ns
+    apply_until(start)
+    replayed = [bank.reset(path_length=inputs.sample(start)[1]).force]
+    for k in range(300):
+        apply_until(start + k * dt_ns)
+        out = bank.step(dt_ns * 1e-9, *inputs.sample(start + k * dt_ns))
+        if (k + 1) % 10 == 0:
+            replayed.append(out.force)
+    np.testing.assert_allclose(np.array(replayed), np.array(forces), rtol=1e-12)
+    logged = run.get(tm.TOPIC_FORCE)
+    np.testing.assert_allclose(logged.fields["effort"], np.array(forces), rtol=0)
+    assert np.array_equal(logged.time_ns, logged.fields["stamp_ns"])  # outputs at model time
+
+
+def test_energy_rate_layout_is_as_documented(ros, lengths):
+    node = ros.muscle_node(muscles=MUSCLES, initial_path_length_m=list(lengths))
+    probe = ros.probe()
+    connected(ros, node, probe)
+    probe.send_excitation_array([0.8, 0.4])
+    assert ros.spin_until(lambda: np.array_equal(node.inputs.drive, [0.8, 0.4]))
+    n = len(probe.energy_rates)
+    assert ros.spin_until(lambda: len(probe.energy_rates) >= n + 20
+                          and len(probe.energy_rates) == len(probe.energy_rate_totals))
+    msg = probe.energy_rates[-1]
+    assert [(d.label, d.size, d.stride) for d in msg.layout.dim] == [
+        ("muscle", 2, 24), ("fibre", 3, 12), ("component", 4, 4)]
+    assert msg.layout.data_offset == 0
+    assert tm.FIBRE_LABELS == ("slow", "fast", "all")
+    assert tm.COMPONENT_LABELS == ("activation", "cross_bridge", "recovery", "total")
+    data = np.array(msg.data).reshape(2, 3, 4)  # data[i*12 + j*4 + k]
+    assert np.all(data >= 0) and data[0, 2, 3] > 0
+    np.testing.assert_allclose(data[:, 0] + data[:, 1], data[:, 2], rtol=1e-12)  # slow + fast
+    np.testing.assert_allclose(data[..., :3].sum(axis=-1), data[..., 3], rtol=1e-12)
+    index = len(probe.energy_rates) - 1
+    assert probe.energy_rate_totals[index].data == pytest.approx(data[:, 2, 3].sum(), rel=1e-12)
+    force = probe.forces[-1]
+    assert list(force.name) == MUSCLES and np.all(np.array(force.effort) > 0)
+
+
+# --- bad inputs ----------------------------------------------------------------------------------
+
+
+def hostile_cases(lengths):
+    far = list(lengths * 1000)  # mm sent as m
+    return [
+        ("excitation", (["vasti"], [float("nan")]), "non_finite", 1),
+        ("excitation", (["vasti", "nobody", "biceps"], [0.3, 0.2, 0.9]), "unknown_name", 2),
+        ("excitation", (["vasti"], [0.1, 0.2]), "wrong_size", 1),
+        ("excitation", ([], [0.1, 0.2, 0.3]), "wrong_size", 1),
+        ("excitation", (["vasti"], [1e300]), "drive_clipped", 1),
+        ("excitation", (["vasti", "vasti"], [0.1, 0.2]), "duplicate_name", 1),
+        ("excitation_array", ([0.1],), "wrong_size", 1),
+        ("excitation_array", ([float("-inf"), 0.1],), "non_finite", 1),
+        ("kinematics", (MUSCLES, far), "non_physical_length", 1),
+        ("kinematics", (MUSCLES, list(lengths), [1e3, 0.0]), "non_physical_velocity", 1),
+        ("kinematics", (MUSCLES, [float("nan"), lengths[1]]), "non_finite", 1),
+        ("kinematics", (MUSCLES, list(lengths), [0.0]), "wrong_size", 1),
+        ("raw", (b"\x00\x01\x00\x00" + b"\xff" * 12,), "undecodable", 1),
+    ]
+
+
+def send(probe, topic, args):
+    if topic == "excitation":
+        probe.send_excitation(*args)
+    elif topic == "excitation_array":
+        probe.send_excitation_array(*args)
+    elif topic == "kinematics":
+        probe.send_kinematics(*args)
+    else:
+        probe.excitation.publish(args[0])  # bytes: published as an already serialised message
+
+
+def test_each_bad_input_is_counted_and_reported_in_diagnostics(ros, lengths):
+    node = ros.muscle_node(muscles=MUSCLES, initial_path_length_m=list(lengths),
+                           diagnostics_period_s=0.1, input_timeout_s=1000.0)
+    probe = ros.probe()
+    connected(ros, node, probe)
+    probe.send_excitation_array([0.3, 0.3])
+    assert ros.spin_until(lambda: np.array_equal(node.inputs.drive, [0.3, 0.3]))
+    cases = hostile_cases(lengths)
+    for topic, args, kind, count in cases:
+        before = node.issues.counts[kind]
+        send(probe, topic, args)
+        assert ros.spin_until(lambda k=kind, b=before, c=count: node.issues.counts[k] == b + c,
+                              timeout_s=3), (topic, args, kind)
+        drive = [1.0, 0.3] if kind == "drive_clipped" else [0.3, 0.3]
+        assert np.array_equal(node.inputs.drive, drive), kind
+        assert np.array_equal(node.inputs.length_m, lengths), kind  # bad lengths never stored
+        if kind == "drive_clipped":
+            probe.send_excitation_array([0.3, 0.3])
+            assert ros.spin_until(lambda: np.array_equal(node.inputs.drive, [0.3, 0.3]))
+
+    counts = {kind: node.issues.counts[kind] for _, _, kind, _ in cases}  # timing kinds vary
+    labels = {kind: label for kind, (label, _) in ISSUE_KINDS.items()}
+
+    def reported():
+        diag = probe.last_diagnostics()
+        return bool(diag) and all(diag.get(labels[k]) == str(v) for k, v in counts.items())
+    assert ros.spin_until(reported, timeout_s=3)
+    diag = probe.last_diagnostics()
+    assert diag[labels["non_finite"]] == "3" and diag[labels["wrong_size"]] == "4"
+    assert diag["_level"] == 1 or diag["state"] == "running"  # WARN while issues are recent
+    assert {"step time p99 (ms)", "tick rate (Hz)", "excitation age (s)", "kinematics age (s)",
+            "overruns (ticks longer than a step)", "mcap"} <= set(diag)
+    n = len(probe.forces)
+    assert ros.spin_until(lambda: len(probe.forces) > n + 3)  # still running
+    assert np.all(np.isfinite(probe.forces[-1].effort))
+
+
+def test_bursts_of_hostile_messages_leave_the_node_running(ros, lengths):
+    node = ros.muscle_node(muscles=MUSCLES, initial_path_length_m=list(lengths), qos_depth=50)
+    probe = ros.probe()
+    connected(ros, node, probe)
+    cases = hostile_cases(lengths)
+    rng = np.random.default_rng(1)
+    for i in range(3000):
+        topic, args, _, _ = cases[rng.integers(len(cases))]
+        send(probe, topic, args)
+        if i % 100 == 0:
+            ros.spin_for(0.002)
+    n = len(probe.forces)
+    assert ros.spin_until(lambda: len(probe.forces) > n + 20, timeout_s=10)
+    assert 0 < node.issues.total() <= 3000 * 2
+    for msg in probe.forces[-20:]:
+        assert np.all(np.isfinite(msg.effort)) and np.all(np.isfinite(msg.position))
+    assert all(np.isfinite(m.data) for m in probe.energy_totals[-20:])
+    assert np.array_equal(node.inputs.length_m, lengths)
+
+
+# --- time ----------------------------------------------------------------------------------------
+
+
+def test_time_jumps_and_stalls(ros, lengths):
+    node, probe = sim_node(ros, lengths, max_catch_up_steps=20, diagnostics_period_s=0.1)
+    start = SIM_T0 + MS
+    set_clock(ros, probe, node, start)
+    set_clock(ros, probe, node, start + 10 * MS)
+    assert node.scheduler.total_steps == 10
+    # backwards (a simulator reset): model state kept, time base restarts
+    steps = node.scheduler.total_steps
+    set_clock(ros, probe, node, 500 * MS, tick=False)
+    set_clock(ros, probe, node, 501 * MS)
+    assert node.issues.counts["time_backwards"] == 1
+    set_clock(ros, probe, node, 520 * MS)
+    assert node.scheduler.total_steps == steps + 19
+    assert ros.spin_until(lambda: 501 * MS < stamp_ns(probe.forces[-1]) <= 520 * MS)
+    # forward by 10 s: max_catch_up_steps run, the rest is skipped and counted
+    set_clock(ros, probe, node, 10_510 * MS)
+    assert node.issues.counts["skipped_time"] >= 1
+    assert node.scheduler.skipped_ns >= 9_900 * MS
+    assert ros.spin_until(
+        lambda: float(probe.last_diagnostics().get("skipped model time (s)", "0")) >= 9.9,
+        timeout_s=3)
+    assert probe.last_diagnostics()["time jumps backwards"] == "1"
+    assert np.all(np.isfinite(probe.forces[-1].effort))
+
+
+def test_pause_policy_stops_model_time_while_inputs_are_stale(ros, lengths):
+    from rclpy.parameter import Parameter
+
+    node, probe = sim_node(ros, lengths, diagnostics_period_s=0.1)
+    node.set_parameters([Parameter("stale_input_policy", value="pause"),
+                         Parameter("input_timeout_s", value=0.05)])
+    assert node.config.stale_input_policy == "pause" and node.inputs.limits.timeout_ns == 50 * MS
+    probe.send_excitation_array([0.5, 0.5])
+    assert ros.spin_until(lambda: node.inputs.drive_seen.all())
+    start = SIM_T0 + MS
+    set_clock(ros, probe, node, start)
+    for k in range(1, 21):
+        set_clock(ros, probe, node, start + k * 10 * MS)
+    # inputs arrived at SIM_T0, stale after SIM_T0 + 50 ms: the tick at start + 50 ms (and every
+    # later one) finds them stale and pauses the whole interval since the last tick
+    assert node.scheduler.total_steps == 40
+    assert node.scheduler.paused_ns == 160 * MS
+    assert node.issues.counts["stale_excitation"] == 1
+    assert ros.spin_until(lambda: probe.last_diagnostics().get("state", "").startswith("paused"),
+                          timeout_s=3)
+    probe.send_excitation_array([0.5, 0.5])
+    probe.send_kinematics(MUSCLES, lengths)
+    assert ros.spin_until(lambda: node.inputs.length_time_ns.min() > SIM_T0)
+    steps = node.scheduler.total_steps
+    set_clock(ros, probe, node, start + 210 * MS)
+    assert node.scheduler.total_steps == steps + 10  # resumed, no catch-up of the paused time
+
+
+# --- parameters ----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("params", "field"),
+    [
+        ({"muscles": ["vasti", "no_such_muscle"]}, "muscles.no_such_muscle"),
+        ({"model_rate_hz": -5.0}, "model_rate_hz"),
+        ({"model_rate_hz": "fast"}, "model_rate_hz"),
+        ({"publish_rate_hz": 5000.0}, "publish_rate_hz"),
+        ({"stale_input_policy": "whatever"}, "stale_input_policy"),
+        ({"recruitment": 3}, "recruitment"),
+        ({"qos_depth": 0}, "qos_depth"),
+        ({"overrides": "{vasti: {no_field: 1}}"}, "muscles.vasti.no_field"),
+        ({"initial_path_length_m": [0.3]}, "initial_path_length_m"),
+        ({"initial_path_length_m": [5.0, 5.0]}, "initial_path_length_m"),
+        ({"model_rate": 500.0}, "model_rate"),
+        ({"qos_overrides./no_topic.publisher.depth": 5}, "qos_overrides./no_topic.publisher.depth"),
+    ],
+)
+def test_bad_parameters_stop_the_node_naming_the_field(ros, params, field):
+    with pytest.raises(ConfigError) as info:
+        ros.muscle_node(**params)
+    assert info.value.field == field
+    assert field in str(info.value)
+
+
+def test_unwritable_mcap_path_stops_the_node(ros, tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    with pytest.raises(VmRosError, match=str(blocker)):
+        ros.muscle_node(mcap__enabled=True, mcap__path=str(blocker / "x.mcap"))
+
+
+def test_runtime_parameters(ros):
+    from rclpy.parameter import Parameter
+
+    node = ros.muscle_node(model_rate_hz=500)  # an integer for a double is fine
+    assert node.config.step_ns == 2 * MS
+    ok = node.set_parameters([Parameter("input_timeout_s", value=2.0)])[0]
+    assert ok.successful and node.inputs.limits.timeout_ns == 2_000 * MS
+    bad = node.set_parameters([Parameter("stale_input_policy", value="bogus")])[0]
+    assert not bad.successful and node.config.stale_input_policy == "zero_drive"
+    read_only = node.set_parameters([Parameter("model_rate_hz", value=100.0)])[0]
+    assert not read_only.successful and node.config.model_rate_hz == 500.0
+    descriptor = node.describe_parameter("model_rate_hz")
+    assert descriptor.read_only and "[Hz]" in descriptor.description
+    assert descriptor.floating_point_range[0].to_value == 20000.0
+
+
+def test_qos_overrides_let_best_effort_publishers_in(ros, lengths):
+    from rclpy.qos import qos_profile_sensor_data
+    from std_msgs.msg import Float64MultiArray
+
+    node = ros.muscle_node(muscles=MUSCLES, initial_path_length_m=list(lengths), **{
+        "qos_overrides./excitation_array.subscription.reliability": "best_effort"})
+    probe = ros.probe()
+    sensor = probe.node.create_publisher(Float64MultiArray, "excitation_array",
+                                         qos_profile_sensor_data)
+    assert ros.spin_until(lambda: sensor.get_subscription_count() == 1, timeout_s=10)
+    assert ros.spin_until(lambda: (sensor.publish(Float64MultiArray(data=[0.4, 0.6]))
+                                   or np.array_equal(node.inputs.drive, [0.4, 0.6])))
+    assert node._subscriptions_by_topic["excitation"].qos_profile.reliability.name == "RELIABLE"
+
+
+def test_bad_qos_override_is_a_config_error(ros):
+    with pytest.raises(ConfigError, match="qos_overrides"):
+        ros.muscle_node(**{"qos_overrides./muscle_force.publisher.reliability": "sometimes"})

@@ -1,0 +1,89 @@
+"""muscle_node's run log (vm_ros.node_recording): opened at the model start, earlier messages
+buffered, readable by read_run (no ROS needed: messages are CDR-encoded from bundled
+definitions)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from vm_ros import telemetry as tm
+from vm_ros.node_recording import NodeRunLog, node_run_extra
+from vm_ros.recording import RecorderError, RunInfo, RunTiming, read_run
+from vm_ros.recording.cdr import serialize
+from vm_ros.recording.messages import excitation_fields, float64_fields, kinematics_fields
+from vm_ros.recording.run_config import RunConfig
+
+MUSCLES = ("vasti", "rectus_femoris")
+T0 = 1_700_000_000_000_000_000
+
+
+def run_info(start_time_ns):
+    extra = node_run_extra("/muscle_node", {"muscles": list(MUSCLES)})
+    if start_time_ns is None:
+        extra["started"] = "false"
+    return RunInfo(RunConfig(MUSCLES, recovery_mode="static"),
+                   RunTiming(dt_s=1e-3, publish_rate_hz=100.0, telemetry_rate_hz=0.0,
+                             start_time_ns=start_time_ns or 0),
+                   source="muscle_node", namespace="/", extra=extra)
+
+
+def test_messages_before_the_start_are_buffered_then_logged(tmp_path):
+    path = tmp_path / "sub" / "run.mcap"
+    log = NodeRunLog(path, run_info, buffer_size=100)
+    assert path.exists() and not log.started  # the path is checked at once
+    log.write(tm.TOPIC_KINEMATICS,
+              serialize(tm.TYPE_JOINT_STATE, kinematics_fields(MUSCLES, [0.3, 0.5], None, T0)),
+              T0, T0)
+    log.write(tm.TOPIC_EXCITATION,
+              serialize(tm.TYPE_JOINT_STATE, excitation_fields(MUSCLES, [0.2, 0.1], T0)), T0)
+    log.start(T0 + 5_000_000)
+    assert log.started
+    log.write(tm.TOPIC_ENERGY_TOTAL, serialize(tm.TYPE_FLOAT64, float64_fields(1.5)),
+              T0 + 15_000_000)
+    log.close()
+    log.close()  # idempotent
+    assert log.status.ok and log.status.written == 3 and log.status.dropped == 0
+
+    run = read_run(path)
+    assert run.complete
+    assert run.info.source == "muscle_node"
+    assert run.info.timing.start_time_ns == T0 + 5_000_000
+    assert json.loads(run.info.extra["node_parameters"]) == {"muscles": list(MUSCLES)}
+    assert run.info.extra["started"] == "true"
+    assert run.get(tm.TOPIC_KINEMATICS).fields["position"][0].tolist() == [0.3, 0.5]
+    assert run.get(tm.TOPIC_ENERGY_TOTAL).fields["data"].tolist() == [1.5]
+    assert {"model.yaml", "muscles.yaml"} <= set(run.attachments)
+    assert "/diagnostics" in run.topic_types
+
+
+def test_buffer_is_bounded(tmp_path):
+    log = NodeRunLog(tmp_path / "run.mcap", run_info, buffer_size=3)
+    data = serialize(tm.TYPE_FLOAT64, float64_fields(0.0))
+    for k in range(5):
+        log.write(tm.TOPIC_ENERGY_TOTAL, data, T0 + k)
+    assert log.status.dropped == 2
+    log.start(T0)
+    log.close()
+    assert log.status.written == 3 and log.status.dropped == 2
+
+
+def test_closing_before_the_start_leaves_a_complete_file(tmp_path):
+    path = tmp_path / "run.mcap"
+    log = NodeRunLog(path, run_info)
+    log.write(tm.TOPIC_EXCITATION,
+              serialize(tm.TYPE_JOINT_STATE, excitation_fields(MUSCLES, [0.2, 0.1], T0)), T0)
+    log.close()
+    assert not log.write(tm.TOPIC_EXCITATION, b"", T0)
+    run = read_run(path)
+    assert run.complete and run.info.extra["started"] == "false"
+    assert len(run.get(tm.TOPIC_EXCITATION)) == 1
+
+
+def test_unwritable_path_fails_at_once(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    with pytest.raises(RecorderError) as info:
+        NodeRunLog(blocker / "run.mcap", run_info)
+    assert str(blocker) in str(info.value)

@@ -1,0 +1,107 @@
+"""muscle_node's step scheduling and health bookkeeping (vm_ros.node_timing, vm_ros.node_health;
+no ROS needed)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from vm_ros.node_health import ISSUE_KINDS, DurationWindow, Issue, IssueLog, format_value
+from vm_ros.node_timing import StepScheduler
+
+MS = 1_000_000
+
+
+def run(scheduler: StepScheduler, now_ns: int) -> int:
+    scheduler.went_backwards(now_ns)
+    due = scheduler.due(now_ns)
+    for _ in range(due):
+        scheduler.advance()
+    return due
+
+
+def test_steps_follow_elapsed_time_exactly():
+    s = StepScheduler(MS, max_catch_up_steps=50)
+    s.start(5_000 * MS)
+    assert run(s, 5_000 * MS + MS // 2) == 0
+    assert run(s, 5_001 * MS) == 1
+    assert run(s, 5_011 * MS + 999_999) == 10  # a late tick catches up
+    assert s.model_time_ns == 5_011 * MS
+    assert s.catch_up_ticks == 1 and s.skipped_ns == 0
+
+
+def test_catch_up_is_bounded_and_the_rest_skipped():
+    s = StepScheduler(MS, max_catch_up_steps=20)
+    s.start(0)
+    assert run(s, 500 * MS) == 20
+    assert s.model_time_ns == 500 * MS  # skipped 480 steps: the model is back on time
+    assert s.skipped_ns == 480 * MS and s.stalls == 1
+    assert s.total_steps == 20
+    assert run(s, 501 * MS) == 1
+
+
+def test_time_going_backwards_reanchors():
+    s = StepScheduler(MS, max_catch_up_steps=50)
+    s.start(10_000 * MS)
+    run(s, 10_005 * MS)
+    assert s.went_backwards(2_000 * MS)
+    assert s.backward_jumps == 1 and s.model_time_ns == 2_000 * MS
+    assert s.due(2_000 * MS) == 0
+    assert run(s, 2_003 * MS) == 3
+    assert s.total_steps == 8
+
+
+def test_hold_pauses_without_catch_up():
+    s = StepScheduler(MS, max_catch_up_steps=50)
+    s.start(0)
+    run(s, 10 * MS)
+    s.hold(110 * MS)
+    assert s.paused_ns == 100 * MS
+    assert run(s, 111 * MS) == 1 and s.stalls == 0
+
+
+def test_scheduler_rejects_nonsense():
+    with pytest.raises(ValueError):
+        StepScheduler(0, 10)
+    with pytest.raises(RuntimeError):
+        _ = StepScheduler(MS, 10).model_time_ns
+
+
+def test_issue_log_counts_everything_and_throttles_per_kind():
+    log = IssueLog(throttle_s=2.0)
+    first = log.record(Issue("non_finite", "excitation: nan"), now_s=0.0)
+    assert first is not None and "excitation: nan" in first
+    assert log.record(Issue("non_finite", "again"), now_s=0.5) is None
+    assert log.record(Issue("unknown_name", "x", count=3), now_s=0.6) is not None  # other kind
+    assert log.record(Issue("non_finite", "again"), now_s=1.0) is None
+    later = log.record(Issue("non_finite", "later"), now_s=2.5)
+    assert later is not None and "+2 more" in later
+    assert log.counts["non_finite"] == 4 and log.counts["unknown_name"] == 3
+    assert log.total() == 7
+
+
+def test_every_issue_kind_has_a_label_with_and_a_behaviour():
+    for kind, (label, behaviour) in ISSUE_KINDS.items():
+        assert label and behaviour, kind
+    with pytest.raises(ValueError):
+        Issue("bogus", "text")
+
+
+def test_duration_window_percentiles():
+    window = DurationWindow(capacity=8)
+    assert all(math.isnan(v) for v in window.percentiles_ms())
+    for ms in range(1, 11):  # 10 samples into 8 slots: the last 8 are kept
+        window.add(ms * MS)
+    p50, p99, top = window.percentiles_ms()
+    assert window.count == 10 and top == pytest.approx(10.0) and 3.0 <= p50 <= 8.0 <= p99
+    window.clear()
+    assert window.count == 0
+
+
+def test_format_value():
+    assert format_value(None) == "never"
+    assert format_value(0.123456) == "0.1235"
+    assert format_value(float("nan")) == "nan"
+    assert format_value(True) == "true"
+    assert format_value(12) == "12"

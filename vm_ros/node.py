@@ -1,0 +1,589 @@
+"""muscle_node: the ROS 2 shell around MuscleBank.
+
+Messages in -> arrays (vm_ros.node_inputs) -> MuscleBank.step on a timer, in fixed steps of
+1/model_rate_hz by elapsed ROS time (vm_ros.node_timing) -> messages out (vm_ros.telemetry
+layouts). Parameters: vm_ros.node_params; bad-input behaviours and diagnostics counters:
+vm_ros.node_health. Topics (relative names, so namespaces and remapping apply):
+
+- in ``excitation`` (JointState), ``excitation_array`` (Float64MultiArray), ``muscle_kinematics``
+  (JointState): reliable, keep last qos_depth, volatile. A drive sent once must arrive (best
+  effort lost messages on a loaded machine); a best-effort (sensor-data) publisher needs
+  ``qos_overrides./<topic>.subscription.reliability: best_effort``.
+- out ``muscle_force`` (JointState), ``energy_rate`` (Float64MultiArray), ``energy_rate_total``
+  and ``energy_total`` (Float64): reliable, keep last qos_depth, volatile.
+- out ``/diagnostics`` (DiagnosticArray): reliable, keep last qos_depth, volatile; on a
+  steady-clock timer, so it keeps coming while a simulated clock is paused.
+
+Every publisher and subscription accepts the standard ``qos_overrides`` parameters (history,
+depth, reliability).
+
+Outgoing messages are serialised once; the same bytes are published and logged. Inputs are
+subscribed raw, logged as received, then deserialised.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import math
+import signal
+import sys
+import time
+from datetime import datetime
+from pathlib import Path
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    ParameterType,
+    SetParametersResult,
+)
+from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import (
+    InvalidParameterTypeException,
+    InvalidParameterValueException,
+    ParameterUninitializedException,
+)
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos_overriding_options import InvalidQosOverridesError, QoSOverridingOptions
+from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.signals import SignalHandlerOptions
+from rclpy.utilities import remove_ros_args
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64, Float64MultiArray
+
+from vm_ros import telemetry as tm
+from vm_ros.errors import ConfigError, VmRosError
+from vm_ros.node_health import ISSUE_KINDS, DurationWindow, Issue, IssueLog, format_value
+from vm_ros.node_inputs import InputLimits, NodeInputs
+from vm_ros.node_params import PARAMS, PARAMS_SOURCE, NodeConfig, ParamSpec
+from vm_ros.node_params import runtime_parameter_names as _runtime_names
+from vm_ros.node_recording import NodeRunLog, node_run_extra
+from vm_ros.node_timing import StepScheduler
+from vm_ros.recording.qos import offered_qos_profiles_yaml
+from vm_ros.recording.run_config import RunConfig
+from vm_ros.recording.run_log import RunInfo, RunTiming
+
+NODE_NAME = "muscle_node"
+RCLError = _rclpy.RCLError
+LOG_THROTTLE_S = 2.0
+
+_ROS_TYPES = {"bool": ParameterType.PARAMETER_BOOL, "integer": ParameterType.PARAMETER_INTEGER,
+              "double": ParameterType.PARAMETER_DOUBLE, "string": ParameterType.PARAMETER_STRING,
+              "string_array": ParameterType.PARAMETER_STRING_ARRAY,
+              "double_array": ParameterType.PARAMETER_DOUBLE_ARRAY}
+
+
+def parameter_descriptor(spec: ParamSpec) -> ParameterDescriptor:
+    """The ROS descriptor of one ParamSpec. Doubles are dynamically typed so that a params file
+    may write 1000 for 1000.0; NodeConfig checks the type."""
+    descriptor = ParameterDescriptor(
+        description=spec.describe(), read_only=not spec.runtime,
+        dynamic_typing=spec.kind == "double", type=_ROS_TYPES[spec.kind],
+        additional_constraints=f"one of: {', '.join(spec.choices)}" if spec.choices else "")
+    if spec.kind == "double" and spec.low is not None:
+        descriptor.floating_point_range = [
+            FloatingPointRange(from_value=float(spec.low), to_value=float(spec.high), step=0.0)]
+    if spec.kind == "integer" and spec.low is not None:
+        descriptor.integer_range = [
+            IntegerRange(from_value=int(spec.low), to_value=int(spec.high), step=0)]
+    return descriptor
+
+
+def stream_qos(depth: int) -> QoSProfile:
+    """Every stream, in and out: reliable, keep last ``depth``, volatile. Reliable inputs because
+    a drive sent once (on change) must arrive: best effort lost such messages on a loaded
+    machine. Best-effort (sensor-data) peers need the qos_overrides parameters."""
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE)
+
+
+def fill_message(msg, fields: dict):
+    """Set a ROS message's fields from vm_ros.telemetry's nested dicts; returns ``msg``."""
+    slot_types = dict(zip(msg.get_fields_and_field_types(), msg.SLOT_TYPES, strict=True))
+    for key, value in fields.items():
+        if isinstance(value, dict):
+            fill_message(getattr(msg, key), value)
+        elif value and isinstance(value, list) and isinstance(value[0], dict):
+            element = slot_types[key].value_type  # a NamespacedType of a message
+            module = importlib.import_module(".".join(element.namespaces))
+            setattr(msg, key, [fill_message(getattr(module, element.name)(), v) for v in value])
+        else:
+            setattr(msg, key, value)
+    return msg
+
+
+def _finite(out) -> bool:
+    """Force, fascicle state and energy rate all finite (a NaN or inf makes the sum so)."""
+    return math.isfinite(float(out.force.sum() + out.fascicle_length.sum()
+                               + out.fascicle_velocity.sum()) + out.total_energy_rate)
+
+
+class MuscleNode(Node):
+    """The muscle model as a ROS 2 node (see the module docstring and vm_ros.node_params).
+
+    Raises ConfigError (naming the parameter or file field) for bad parameters; the partly
+    built node is destroyed first.
+    """
+
+    def __init__(self, node_name: str = NODE_NAME, **kwargs):
+        super().__init__(node_name, **kwargs)
+        self.run_log: NodeRunLog | None = None
+        try:
+            self._setup()
+        except BaseException:
+            self.destroy_node()
+            raise
+
+    # --- set-up -----------------------------------------------------------------------------
+
+    def _setup(self) -> None:
+        self.config = self._declare_parameters()
+        c = self.config
+        self.run_config = RunConfig(
+            tuple(c.muscles), recruitment=c.recruitment, recovery_mode=c.recovery_mode,
+            overrides=c.overrides_mapping(), library=Path(c.library) if c.library else None,
+            params=Path(c.model) if c.model else None,
+            units_per_type=c.units_per_type or None)
+        self.bank = self.run_config.make_bank()
+        limits = InputLimits.for_bank(self.bank, c)
+        initial = np.array(c.initial_path_length_m) if c.initial_path_length_m else None
+        if initial is not None and np.any(
+                (initial < limits.path_length_min_m) | (initial > limits.path_length_max_m)):
+            raise ConfigError(PARAMS_SOURCE, "initial_path_length_m", list(initial),
+                              "outside the physical range "
+                              f"{np.round(limits.path_length_min_m, 4).tolist()} .. "
+                              f"{np.round(limits.path_length_max_m, 4).tolist()} m")
+        self.inputs = NodeInputs(self.bank.names, limits, initial)
+        self.scheduler = StepScheduler(c.step_ns, c.max_catch_up_steps)
+        self.issues = IssueLog(LOG_THROTTLE_S)
+        self._reported_counts = dict(self.issues.counts)
+        self._dt_s = c.step_ns * 1e-9
+        self._step_times = DurationWindow()
+        self._tick_times = DurationWindow()
+        self.ticks = self._overruns = self._window_ticks = self._window_steps = 0
+        self._window_start_s = time.monotonic()
+        self._energy_offset_j = 0.0
+        self._last_output = None
+
+        self._create_endpoints(c.qos_depth)
+        self._check_no_unknown_parameters()
+        self.run_log = self._open_run_log()
+        self._model_timer = self.create_timer(self._dt_s, self._on_tick)
+        self._diagnostics_timer = self.create_timer(
+            c.diagnostics_period_s, self._publish_diagnostics,
+            clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.get_logger().info(
+            f"{self.bank.n} muscles ({', '.join(self.bank.names)}), {c.recruitment} recruitment, "
+            f"{c.recovery_mode} recovery, model {c.model_rate_hz:g} Hz, publish every "
+            f"{c.publish_every_steps} steps; "
+            + ("waiting for muscle_kinematics" if not self.inputs.ready else "starting"))
+
+    def _create_endpoints(self, depth: int) -> None:
+        """Publishers and raw subscriptions, each with its own QoS profile that the standard
+        ``qos_overrides.<topic>.<publisher|subscription>.<history|depth|reliability>``
+        parameters may change."""
+        overridable = QoSOverridingOptions.with_default_policies()
+        try:
+            self._publishers_by_topic = {
+                topic: self.create_publisher(msg_type, topic, stream_qos(depth),
+                                             qos_overriding_options=overridable)
+                for topic, msg_type in ((tm.TOPIC_FORCE, JointState),
+                                        (tm.TOPIC_ENERGY_RATE, Float64MultiArray),
+                                        (tm.TOPIC_ENERGY_RATE_TOTAL, Float64),
+                                        (tm.TOPIC_ENERGY_TOTAL, Float64),
+                                        (tm.TOPIC_DIAGNOSTICS, DiagnosticArray))}
+            self._subscriptions_by_topic = {
+                topic: self.create_subscription(
+                    msg_type, topic, self._receiver(topic, msg_type), stream_qos(depth),
+                    qos_overriding_options=overridable, raw=True)
+                for topic, msg_type in ((tm.TOPIC_EXCITATION, JointState),
+                                        (tm.TOPIC_EXCITATION_ARRAY, Float64MultiArray),
+                                        (tm.TOPIC_KINEMATICS, JointState))}
+        except (RuntimeError, InvalidQosOverridesError, InvalidParameterTypeException) as exc:
+            raise ConfigError(PARAMS_SOURCE, "qos_overrides", None, str(exc)) from exc
+
+    def _declare_parameters(self) -> NodeConfig:
+        values = {}
+        for spec in PARAMS:
+            try:
+                if spec.kind == "double_array" and not spec.default:
+                    # an empty list has no type for rclpy: declare typed, unset
+                    self.declare_parameter(spec.name, Parameter.Type.DOUBLE_ARRAY,
+                                           parameter_descriptor(spec))
+                    try:
+                        values[spec.name] = list(self.get_parameter(spec.name).value)
+                    except ParameterUninitializedException:
+                        values[spec.name] = []
+                else:
+                    values[spec.name] = self.declare_parameter(
+                        spec.name, spec.default, parameter_descriptor(spec)).value
+            except (InvalidParameterTypeException, InvalidParameterValueException) as exc:
+                raise ConfigError(PARAMS_SOURCE, spec.name, None, str(exc)) from exc
+        return NodeConfig.from_values(values)
+
+    def _check_no_unknown_parameters(self) -> None:
+        """A misspelt name in a params file or -p would otherwise be ignored silently."""
+        unknown = sorted(name for name in self._parameter_overrides if not self.has_parameter(name))
+        if unknown:
+            value = self._parameter_overrides[unknown[0]].value
+            known = ", ".join(p.name for p in PARAMS)
+            raise ConfigError(PARAMS_SOURCE, unknown[0], value,
+                              f"unknown parameter of {self.get_name()} (known: {known}, "
+                              "use_sim_time and qos_overrides.<topic>.<publisher|subscription>."
+                              "<history|depth|reliability>)")
+
+    def _on_set_parameters(self, parameters) -> SetParametersResult:
+        runtime = set(_runtime_names())
+        changes = {p.name: p.value for p in parameters if p.name in runtime}
+        if not changes:
+            return SetParametersResult(successful=True)
+        try:
+            config = self.config.with_values(changes)
+        except ConfigError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        self.config = config
+        self.inputs.limits = InputLimits.for_bank(self.bank, config)
+        return SetParametersResult(successful=True)
+
+    def _open_run_log(self) -> NodeRunLog | None:
+        """The MCAP run log (vm_ros.node_recording); inputs' offered QoS is not known here."""
+        if not self.config.mcap_enabled:
+            return None
+        path = self.config.mcap_path or datetime.now().strftime(
+            "muscle_node-%Y%m%d-%H%M%S.mcap")
+        offered = {topic: offered_qos_profiles_yaml(publisher.qos_profile)
+                   for topic, publisher in self._publishers_by_topic.items()}
+        run_log = NodeRunLog(path, self._run_info, namespace=self.get_namespace(), qos=offered)
+        self.get_logger().info(f"recording to {run_log.path.resolve()}")
+        return run_log
+
+    def _run_info(self, start_time_ns: int | None) -> RunInfo:
+        """The log's vm_ros.run record: what `vm-ros recompute` needs to redo this run."""
+        c = self.config
+        extra = node_run_extra(self.get_fully_qualified_name(), c.as_parameters())
+        if start_time_ns is None:
+            extra["started"] = "false"
+        timing = RunTiming(dt_s=self._dt_s, publish_rate_hz=c.publish_rate_hz,
+                           telemetry_rate_hz=0.0, start_time_ns=start_time_ns or 0)
+        return RunInfo(self.run_config, timing, source=NODE_NAME,
+                       namespace=self.get_namespace(),
+                       time_base="ROS time (simulated with use_sim_time)", extra=extra)
+
+    # --- inputs -----------------------------------------------------------------------------
+
+    def _receiver(self, topic: str, msg_type):
+        handle = {tm.TOPIC_EXCITATION: self._on_excitation,
+                  tm.TOPIC_EXCITATION_ARRAY: self._on_excitation_array,
+                  tm.TOPIC_KINEMATICS: self._on_kinematics}[topic]
+        def receive(data: bytes) -> None:
+            now_ns = self.get_clock().now().nanoseconds
+            # the model time of the first step that will use this message (vm_ros.node_recording)
+            effective_ns = self.scheduler.model_time_ns if self.scheduler.started else now_ns
+            if self.run_log is not None:
+                self.run_log.write(topic, data, effective_ns, now_ns)
+            try:
+                msg = deserialize_message(data, msg_type)
+            except Exception as exc:  # corrupt bytes: never let them stop the node
+                self._report([Issue("undecodable", f"{topic}: {type(exc).__name__}: {exc}")])
+                return
+            self._report(handle(msg, effective_ns))
+
+        return receive
+
+    def _on_excitation(self, msg: JointState, now_ns: int):
+        return self.inputs.on_excitation(msg.name, msg.position, now_ns)
+
+    def _on_excitation_array(self, msg: Float64MultiArray, now_ns: int):
+        return self.inputs.on_excitation_array(msg.data, now_ns)
+
+    def _on_kinematics(self, msg: JointState, now_ns: int):
+        return self.inputs.on_kinematics(msg.name, msg.position, msg.velocity, now_ns)
+
+    def _report(self, issues) -> None:
+        for issue in issues:
+            line = self.issues.record(issue, time.monotonic())
+            if line is not None:
+                self.get_logger().warning(line)
+
+    # --- the model loop ---------------------------------------------------------------------
+
+    def _on_tick(self) -> None:
+        if not self.context.ok():  # shutting down (a signal): publishing would fail
+            return
+        tick_start_ns = time.perf_counter_ns()
+        now_ns = self.get_clock().now().nanoseconds
+        self.ticks += 1  # timer callbacks so far
+        self._window_ticks += 1
+        if self.scheduler.went_backwards(now_ns):
+            self.inputs.rebase(now_ns)
+            self._report([Issue("time_backwards", f"ROS time went back to {now_ns * 1e-9:.6f} s")])
+        self._report(self.inputs.update_staleness(now_ns))
+        if not self.scheduler.started:
+            if self.inputs.ready:
+                self._start(now_ns)
+        elif self.config.stale_input_policy == "pause" and self.inputs.any_stale:
+            self.scheduler.hold(now_ns)
+        else:
+            self._run_steps(now_ns)
+        tick_ns = time.perf_counter_ns() - tick_start_ns
+        self._tick_times.add(tick_ns)
+        if tick_ns > self.scheduler.step_ns:
+            self._overruns += 1
+
+    def _start(self, now_ns: int) -> None:
+        self.scheduler.start(now_ns)
+        if self.run_log is not None:
+            self.run_log.start(now_ns)
+        _, lp, _ = self.inputs.sample(now_ns)
+        out = self.bank.reset(path_length=lp)
+        self.get_logger().info(f"model started at {now_ns * 1e-9:.6f} s, path lengths "
+                               f"{np.round(lp, 5).tolist()} m")
+        self._publish(out)
+
+    def _run_steps(self, now_ns: int) -> None:
+        stalls = self.scheduler.stalls
+        due = self.scheduler.due(now_ns)
+        if self.scheduler.stalls != stalls:
+            self._report([Issue("skipped_time", f"model fell behind by more than "
+                                f"{self.scheduler.max_catch_up_steps} steps at "
+                                f"{now_ns * 1e-9:.6f} s")])
+        every = self.config.publish_every_steps
+        for _ in range(due):
+            u, lp, vp = self.inputs.sample(self.scheduler.model_time_ns)
+            step_start_ns = time.perf_counter_ns()
+            out = self.bank.step(self._dt_s, u, lp, vp)
+            self._step_times.add(time.perf_counter_ns() - step_start_ns)
+            self.scheduler.advance()
+            if not _finite(out):
+                out = self._reset_model(lp)
+            if self.scheduler.total_steps % every == 0:  # also inside a catch-up: a steady grid
+                self._publish(out)
+        self._window_steps += due
+
+    def _reset_model(self, lp):
+        """Recover from a non-finite model output: equilibrium at the current path lengths."""
+        if self._last_output is not None:
+            self._energy_offset_j += self._last_output.total_energy
+        self._report([Issue("model_reset", "model output not finite at "
+                            f"{self.scheduler.model_time_ns * 1e-9:.6f} s")])
+        return self.bank.reset(path_length=lp, time_s=self.bank.time_s)
+
+    # --- outputs ----------------------------------------------------------------------------
+
+    def _send(self, topic: str, msg, log_time_ns: int, publish_time_ns: int) -> None:
+        """Serialise once; publish and log the same bytes."""
+        data = serialize_message(msg)
+        try:
+            self._publishers_by_topic[topic].publish(data)
+        except RCLError:
+            if self.context.ok():
+                raise
+            return  # the context was shut down during this callback (a signal)
+        if self.run_log is not None:
+            self.run_log.write(topic, data, log_time_ns, publish_time_ns)
+
+    def _publish(self, out) -> None:
+        """The outputs, stamped and logged at the model time."""
+        self._last_output = out
+        now_ns = self.get_clock().now().nanoseconds
+        stamp_ns = self.scheduler.model_time_ns
+        messages = (
+            (tm.TOPIC_FORCE,
+             fill_message(JointState(), tm.force_fields(out, self.bank.names, stamp_ns))),
+            (tm.TOPIC_ENERGY_RATE, fill_message(Float64MultiArray(), tm.energy_rate_fields(out))),
+            (tm.TOPIC_ENERGY_RATE_TOTAL, Float64(data=out.total_energy_rate)),
+            (tm.TOPIC_ENERGY_TOTAL, Float64(data=self._energy_offset_j + out.total_energy)))
+        for topic, msg in messages:
+            self._send(topic, msg, stamp_ns, now_ns)
+
+    # --- diagnostics ------------------------------------------------------------------------
+
+    def health(self) -> tuple[int, str, list]:
+        """(level, message, [(key, value)]) of the node's state since the last report."""
+        now_ns = self.get_clock().now().nanoseconds
+        wall_s = max(time.monotonic() - self._window_start_s, 1e-9)
+        s, c = self.scheduler, self.config
+        step_p50, step_p99, step_max = self._step_times.percentiles_ms()
+        _, tick_p99, _ = self._tick_times.percentiles_ms()
+        ages = self.inputs.ages_s(now_ns)
+        stale = self.inputs.stale_names()
+        values = [
+            ("state", self._state_text()),
+            ("model time (s)", f"{s.model_time_ns * 1e-9:.6f}" if s.started else None),
+            ("model rate (Hz)", c.model_rate_hz),
+            ("tick rate (Hz)", self._window_ticks / wall_s),
+            ("step rate (Hz)", self._window_steps / wall_s),
+            ("step time p50 (ms)", step_p50),
+            ("step time p99 (ms)", step_p99),
+            ("step time max (ms)", step_max),
+            ("tick time p99 (ms)", tick_p99),
+            ("overruns (ticks longer than a step)", self._overruns),
+            ("catch-up ticks", s.catch_up_ticks),
+            ("skipped model time (s)", s.skipped_ns * 1e-9),
+            ("paused model time (s)", s.paused_ns * 1e-9),
+            ("excitation age (s)", ages["excitation"]),
+            ("kinematics age (s)", ages["kinematics"]),
+            ("stale excitation", ", ".join(stale["excitation"]) or "-"),
+            ("stale kinematics", ", ".join(stale["kinematics"]) or "-"),
+        ]
+        values += [(ISSUE_KINDS[kind][0], count) for kind, count in self.issues.counts.items()]
+        values += self._recorder_values()
+        level, message = self._level(stale)
+        return level, message, [(key, format_value(value)) for key, value in values]
+
+    def _state_text(self) -> str:
+        if not self.scheduler.started:
+            have = np.isfinite(self.inputs.length_m)
+            missing = [n for n, ok in zip(self.bank.names, have, strict=True) if not ok]
+            return f"waiting for muscle_kinematics ({', '.join(missing)})"
+        if self.config.stale_input_policy == "pause" and self.inputs.any_stale:
+            return "paused (stale inputs)"
+        return "running"
+
+    def _recorder_values(self) -> list:
+        if self.run_log is None:
+            return [("mcap", "off")]
+        st = self.run_log.status
+        state = "ok" if self.run_log.started else "waiting for the model start (buffering)"
+        return [("mcap", state if st.ok else f"error: {st.error}"), ("mcap path", st.path),
+                ("mcap messages written", st.written), ("mcap messages dropped", st.dropped),
+                ("mcap bytes written", st.bytes_written)]
+
+    def _level(self, stale) -> tuple[int, str]:
+        """ERROR: recording failed, or a model reset since the last report; WARN: not started,
+        stale inputs, or issues since the last report; else OK."""
+        new = {k: v - self._reported_counts[k] for k, v in self.issues.counts.items()}
+        if self.run_log is not None and not self.run_log.status.ok:
+            return DiagnosticStatus.ERROR, "MCAP recording failed"
+        if new["model_reset"]:
+            return DiagnosticStatus.ERROR, "model output was not finite (model reset)"
+        if not self.scheduler.started:
+            return DiagnosticStatus.WARN, self._state_text()
+        if stale["excitation"] or stale["kinematics"]:
+            return DiagnosticStatus.WARN, "stale inputs"
+        if any(new.values()):
+            kinds = ", ".join(k for k, v in new.items() if v)
+            return DiagnosticStatus.WARN, f"input or timing issues: {kinds}"
+        return DiagnosticStatus.OK, "running"
+
+    def _publish_diagnostics(self) -> None:
+        level, message, values = self.health()
+        status = DiagnosticStatus(level=level, name=f"{self.get_name()}: muscle model",
+                                  message=message, hardware_id="vm_ros",
+                                  values=[KeyValue(key=k, value=v) for k, v in values])
+        array = DiagnosticArray(status=[status])
+        now = self.get_clock().now()
+        array.header.stamp = now.to_msg()
+        self._send(tm.TOPIC_DIAGNOSTICS, array, now.nanoseconds, now.nanoseconds)
+        self._reported_counts = dict(self.issues.counts)
+        self._step_times.clear()
+        self._tick_times.clear()
+        self._window_ticks = self._window_steps = 0
+        self._window_start_s = time.monotonic()
+
+    # --- shutdown ---------------------------------------------------------------------------
+
+    def close_run_log(self) -> None:
+        """Finish the MCAP file (idempotent)."""
+        if self.run_log is not None and not self.run_log.closed:
+            self.run_log.close()
+            st = self.run_log.status
+            log = self.get_logger().info if st.ok else self.get_logger().error
+            log(f"MCAP {st.path}: {st.written} messages, {st.dropped} dropped"
+                + ("" if st.ok else f", {st.error}"))
+
+    def destroy_node(self):
+        self.close_run_log()
+        return super().destroy_node()
+
+
+# --- main --------------------------------------------------------------------------------------
+
+
+def make_executor(kind: str, context=None):
+    """'events' (rclpy.experimental.EventsExecutor) or 'single_threaded'."""
+    if kind == "events":
+        from rclpy.experimental import EventsExecutor
+
+        return EventsExecutor(context=context)
+    return SingleThreadedExecutor(context=context)
+
+
+class ShutdownRequest:
+    """SIGINT/SIGTERM handlers that only set a flag, checked between spin_once calls.
+
+    rclpy's own handlers are not used: they shut the context down from the signal handler
+    while a callback may be publishing (RCLError), chain a KeyboardInterrupt that can land in
+    the middle of the clean-up, and in rclpy 7.1.6 EventsExecutor.spin() never returns after
+    them (measured with a 1 kHz timer). A second signal interrupts at once.
+    """
+
+    def __init__(self):
+        self.requested = False
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, self._handle)
+
+    def _handle(self, signum, frame):
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+
+def spin(executor, context, stop: ShutdownRequest) -> None:
+    """spin_once until a shutdown is requested or the context is shut down."""
+    while not stop.requested and context.ok():
+        executor.spin_once(timeout_sec=0.1)
+
+
+def _argument_parser() -> argparse.ArgumentParser:
+    lines = [f"  {p.name} ({p.kind}, default {p.default!r}): {p.describe()}" for p in PARAMS]
+    return argparse.ArgumentParser(
+        prog="muscle_node", formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Virtual Muscle force and fibre-type energetics as a ROS 2 node. Set "
+                    "parameters with --ros-args -p NAME:=VALUE or --params-file FILE.",
+        epilog="parameters:\n" + "\n".join(lines))
+
+
+def main(args=None) -> int:
+    """muscle_node [--help] [--ros-args ...]: init, node, spin, destroy, shutdown."""
+    argv = sys.argv if args is None else list(args)
+    try:
+        _argument_parser().parse_args(remove_ros_args(argv)[1:])
+        stop = ShutdownRequest()
+        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    except RCLError as exc:  # e.g. an unparsable --params-file: rcl's message names it
+        print(f"muscle_node: error: {exc}", file=sys.stderr)
+        return 2
+    node = executor = None
+    try:
+        node = MuscleNode()
+        executor = make_executor(node.config.executor)
+        executor.add_node(node)
+        spin(executor, node.context, stop)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except VmRosError as exc:
+        print(f"muscle_node: error: {exc}", file=sys.stderr)
+        return 2
+    finally:
+        if executor is not None:
+            executor.shutdown()
+        if node is not None:
+            node.destroy_node()  # finishes the MCAP file
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

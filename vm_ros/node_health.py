@@ -1,0 +1,133 @@
+"""muscle_node's health bookkeeping: input issues, throttled reporting, step-time statistics
+(no rclpy here; vm_ros.node turns these into log lines and /diagnostics).
+
+Every bad input or timing event is an :class:`Issue` of one of the kinds in :data:`ISSUE_KINDS`,
+each with its diagnostics label and its documented behaviour. :class:`IssueLog` counts them and
+decides when a log line is due (at most one per kind per ``throttle_s``, carrying the number
+suppressed meanwhile). rclpy's own ``throttle_duration_sec`` is not used: in rclpy 7.1.6 every
+logging call, suppressed or not, inspects the caller's source (about 1 ms a call), which a burst of
+bad messages would turn into seconds of stalled model time.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# kind -> (diagnostics key, behaviour). The README's bad-input table is this table.
+ISSUE_KINDS = {
+    "wrong_size": ("rejected: wrong size (messages)",
+                   "message dropped: name/position/velocity sizes differ, or an unnamed array is "
+                   "not one value per muscle"),
+    "non_finite": ("rejected: NaN or inf (messages)",
+                   "message dropped: a value for a known muscle is NaN or inf"),
+    "duplicate_name": ("rejected: duplicate name (messages)",
+                       "message dropped: a muscle is named twice"),
+    "non_physical_length": ("rejected: non-physical length (messages)",
+                            "message dropped: a path length lies outside the muscle's physical "
+                            "range (library range widened by path_length_margin_l0)"),
+    "non_physical_velocity": ("rejected: non-physical velocity (messages)",
+                              "message dropped: |path velocity| > path_speed_max_m_per_s"),
+    "undecodable": ("rejected: undecodable (messages)",
+                    "message dropped: the bytes do not deserialize to the topic's type"),
+    "unknown_name": ("ignored: unknown names",
+                     "entries whose name is not in the muscles parameter are ignored, the rest "
+                     "of the message is used (counted per name)"),
+    "drive_clipped": ("clipped: drive outside [0, 1] (messages)",
+                      "drive values clipped to [0, 1], the message is used"),
+    "stale_excitation": ("stale: excitation (events)",
+                         "excitation older than input_timeout_s: stale_input_policy applies"),
+    "stale_kinematics": ("stale: kinematics (events)",
+                         "kinematics older than input_timeout_s: length held, velocity 0 (pause "
+                         "policy: model paused)"),
+    "time_backwards": ("time jumps backwards",
+                       "ROS time went backwards (e.g. a simulator reset): model state kept, model "
+                       "time base and input ages re-anchored at the new time"),
+    "skipped_time": ("stalls beyond catch-up",
+                     "more than max_catch_up_steps steps due: that many run, the rest of the "
+                     "elapsed time is skipped (see 'skipped model time (s)')"),
+    "model_reset": ("model resets",
+                    "a model output was not finite: model reset to equilibrium at the current "
+                    "path lengths, cumulative energy carried over"),
+}
+
+
+@dataclass(frozen=True)
+class Issue:
+    """One bad input or timing event; ``count`` > 1 for per-name kinds."""
+
+    kind: str
+    text: str
+    count: int = 1
+
+    def __post_init__(self):
+        if self.kind not in ISSUE_KINDS:
+            raise ValueError(f"unknown issue kind {self.kind!r}")
+
+
+class IssueLog:
+    """Counters per issue kind, and at most one log line per kind per ``throttle_s``."""
+
+    def __init__(self, throttle_s: float = 2.0):
+        self.throttle_s = float(throttle_s)
+        self.counts = dict.fromkeys(ISSUE_KINDS, 0)
+        self._last_logged_s: dict[str, float] = {}
+        self._suppressed = dict.fromkeys(ISSUE_KINDS, 0)
+
+    def record(self, issue: Issue, now_s: float) -> str | None:
+        """Count ``issue``; return the line to log now (None while throttled).
+
+        ``now_s``: a steady clock (s), so that sim-time pauses do not silence the log.
+        """
+        self.counts[issue.kind] += issue.count
+        last = self._last_logged_s.get(issue.kind)
+        if last is not None and now_s - last < self.throttle_s:
+            self._suppressed[issue.kind] += 1
+            return None
+        suppressed, self._suppressed[issue.kind] = self._suppressed[issue.kind], 0
+        self._last_logged_s[issue.kind] = now_s
+        more = f" (+{suppressed} more in the last {self.throttle_s:g} s)" if suppressed else ""
+        return f"{issue.text}{more}; {ISSUE_KINDS[issue.kind][1]}"
+
+    def total(self) -> int:
+        return sum(self.counts.values())
+
+
+class DurationWindow:
+    """Durations (ns) collected over one diagnostics window: percentiles in ms."""
+
+    def __init__(self, capacity: int = 16384):
+        self._values = np.zeros(capacity, dtype=np.int64)
+        self._n = 0  # samples seen this window (the ring keeps the last `capacity`)
+
+    def add(self, duration_ns: int) -> None:
+        self._values[self._n % self._values.size] = duration_ns
+        self._n += 1
+
+    @property
+    def count(self) -> int:
+        return self._n
+
+    def percentiles_ms(self, qs=(50.0, 99.0, 100.0)) -> tuple:
+        if self._n == 0:
+            return tuple(float("nan") for _ in qs)
+        values = self._values[: min(self._n, self._values.size)]
+        return tuple(float(v) * 1e-6 for v in np.percentile(values, qs))
+
+    def clear(self) -> None:
+        self._n = 0
+
+
+def format_value(value) -> str:
+    """A diagnostics value: floats to 4 significant digits, None as 'never'."""
+    if value is None:
+        return "never"
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, float):
+        return "nan" if value != value else f"{value:.4g}"
+    return str(value)
+
+
+__all__ = ["ISSUE_KINDS", "DurationWindow", "Issue", "IssueLog", "format_value"]

@@ -1,0 +1,260 @@
+"""Input conditioning for muscle_node: message arrays in, the drive and path length each model
+step uses out (no rclpy here; vm_ros.node unpacks the messages).
+
+Every message is checked before anything is stored, so a bad message never reaches the model:
+it is dropped whole (or, for unknown names, those entries are) and reported as an
+:class:`~vm_ros.node_health.Issue`. Times are ROS-clock receipt times in integer ns; a message's
+header stamp is not used (publishers often leave it zero or use another clock).
+
+Kinematics between samples: the path length is extrapolated with the sample's velocity for at most
+``extrapolation_max_s`` (and never past ``input_timeout_s``), then held with velocity 0; the result
+is clamped to the physical range.
+
+Physical path-length range per muscle: [lo - m L0, hi + m L0] with lo = library
+``path_length_min_m`` (else 0.97 L0T + 0.6 L0, the library's slack convention), hi = library
+``path_length_max_m`` (else L0T + Lmax L0), m = ``path_length_margin_l0``.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from vm_ros.node_health import Issue
+from vm_ros.node_params import NodeConfig
+
+
+@dataclass(frozen=True)
+class InputLimits:
+    """Per-muscle physical ranges and the input-handling parameters (SI; times in ns)."""
+
+    path_length_min_m: np.ndarray
+    path_length_max_m: np.ndarray
+    path_speed_max_m_per_s: float
+    timeout_ns: int
+    extrapolation_max_ns: int
+    stale_policy: str
+
+    @classmethod
+    def for_bank(cls, bank, config: NodeConfig) -> InputLimits:
+        lo, hi = physical_path_length_range(bank, config.path_length_margin_l0)
+        timeout_ns = int(round(config.input_timeout_s * 1e9))
+        return cls(
+            path_length_min_m=lo,
+            path_length_max_m=hi,
+            path_speed_max_m_per_s=config.path_speed_max_m_per_s,
+            timeout_ns=timeout_ns,
+            extrapolation_max_ns=min(int(round(config.extrapolation_max_s * 1e9)), timeout_ns),
+            stale_policy=config.stale_input_policy,
+        )
+
+
+def physical_path_length_range(bank, margin_l0: float) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi) path length (m) per muscle accepted from muscle_kinematics (module docstring)."""
+    l0, l0t = bank.l0_m, bank.l0t_m
+    lo = np.array([s.path_length_min_m if s.path_length_min_m is not None
+                   else 0.97 * s.l0t_m + 0.6 * s.l0_m for s in bank.specs])
+    hi = np.array([s.path_length_max_m if s.path_length_max_m is not None
+                   else s.l0t_m + lmax * s.l0_m
+                   for s, lmax in zip(bank.specs, bank.lmax, strict=True)])
+    lo = np.maximum(lo - margin_l0 * l0, 0.1 * l0t)  # never down to 0: the bank needs > 0
+    return lo, hi + margin_l0 * l0
+
+
+class NodeInputs:
+    """Latest valid drive and kinematics per muscle, and what a model step at time t uses."""
+
+    def __init__(self, names: Sequence[str], limits: InputLimits, initial_path_length=None):
+        self.names = tuple(names)
+        self.n = len(self.names)
+        self._index = {name: i for i, name in enumerate(self.names)}
+        self.limits = limits
+        self.drive = np.zeros(self.n)
+        self.drive_seen = np.zeros(self.n, dtype=bool)
+        self.drive_time_ns = np.zeros(self.n, dtype=np.int64)
+        self.length_m = np.full(self.n, np.nan)
+        if initial_path_length is not None and len(initial_path_length):
+            self.length_m[:] = initial_path_length
+        self.velocity_m_per_s = np.zeros(self.n)
+        self.length_seen = np.zeros(self.n, dtype=bool)
+        self.length_time_ns = np.zeros(self.n, dtype=np.int64)
+        self.last_excitation_ns: int | None = None
+        self.last_kinematics_ns: int | None = None
+        self.drive_stale = np.ones(self.n, dtype=bool)
+        self.length_stale = np.ones(self.n, dtype=bool)
+        self._was_stale = {"excitation": True, "kinematics": True}
+
+    # --- messages ---------------------------------------------------------------------------
+
+    def _select(self, topic: str, names, size: int) -> tuple[list, np.ndarray | None, list]:
+        """Indices into the message and into the muscles for ``names`` (or positional when
+        there are no names); returns (issues, muscle index or None when rejected, message index).
+        """
+        if len(names) == 0:
+            if size != self.n:
+                text = (f"{topic}: {size} values without names, expected {self.n} (one per "
+                        "muscle, in the muscles parameter order)")
+                return [Issue("wrong_size", text)], None, []
+            return [], np.arange(self.n), list(range(self.n))
+        if len(names) != size:
+            return [Issue("wrong_size", f"{topic}: {len(names)} names but {size} values")], None, []
+        issues, muscles, entries = [], [], []
+        unknown = [name for name in names if name not in self._index]
+        if unknown:
+            shown = ", ".join(repr(str(u)[:40]) for u in unknown[:3])
+            issues.append(Issue("unknown_name", f"{topic}: unknown muscle name(s) {shown}",
+                                count=len(unknown)))
+        for entry, name in enumerate(names):
+            if name in self._index:
+                muscles.append(self._index[name])
+                entries.append(entry)
+        repeated = [self.names[i] for i, k in Counter(muscles).items() if k > 1]
+        if repeated:
+            issues.append(Issue("duplicate_name", f"{topic}: {repeated[0]!r} named twice"))
+            return issues, None, []
+        return issues, np.array(muscles, dtype=int), entries
+
+    def _set_drive(self, topic: str, muscles, values: np.ndarray, now_ns: int) -> list[Issue]:
+        if not np.all(np.isfinite(values)):
+            return [Issue("non_finite", f"{topic}: drive is not finite ({values.tolist()[:4]})")]
+        issues = []
+        clipped = np.clip(values, 0.0, 1.0)
+        if np.any(clipped != values):
+            issues.append(Issue("drive_clipped", f"{topic}: drive outside [0, 1] "
+                                f"({values.min():.3g} .. {values.max():.3g})"))
+        self.drive[muscles] = clipped
+        self.drive_seen[muscles] = True
+        self.drive_time_ns[muscles] = now_ns
+        self.last_excitation_ns = now_ns
+        return issues
+
+    def on_excitation(self, names: Sequence[str], drive, now_ns: int) -> list[Issue]:
+        """JointState on excitation: name[] muscles (or empty: all, in order), position[] drive."""
+        drive = np.asarray(drive, dtype=float).ravel()
+        issues, muscles, entries = self._select("excitation", names, drive.size)
+        if muscles is None:
+            return issues
+        if muscles.size == 0:
+            return issues
+        return issues + self._set_drive("excitation", muscles, drive[entries], now_ns)
+
+    def on_excitation_array(self, drive, now_ns: int) -> list[Issue]:
+        """Float64MultiArray on excitation_array: one drive per muscle, muscles-parameter order."""
+        drive = np.asarray(drive, dtype=float).ravel()
+        if drive.size != self.n:
+            return [Issue("wrong_size", f"excitation_array: {drive.size} values, expected "
+                          f"{self.n} (one per muscle)")]
+        return self._set_drive("excitation_array", np.arange(self.n), drive, now_ns)
+
+    def on_kinematics(self, names: Sequence[str], length, velocity, now_ns: int) -> list[Issue]:
+        """JointState on muscle_kinematics: position[] path length (m), velocity[] (m/s, or
+        empty for 0)."""
+        topic = "muscle_kinematics"
+        length = np.asarray(length, dtype=float).ravel()
+        velocity = np.asarray(velocity, dtype=float).ravel()
+        if velocity.size not in (0, length.size):
+            return [Issue("wrong_size", f"{topic}: {velocity.size} velocities for "
+                          f"{length.size} positions (give none or one per position)")]
+        issues, muscles, entries = self._select(topic, names, length.size)
+        if muscles is None or muscles.size == 0:
+            return issues
+        lp = length[entries]
+        vp = velocity[entries] if velocity.size else np.zeros(lp.size)
+        if not (np.all(np.isfinite(lp)) and np.all(np.isfinite(vp))):
+            return issues + [Issue("non_finite", f"{topic}: length or velocity is not finite")]
+        lo, hi = self.limits.path_length_min_m[muscles], self.limits.path_length_max_m[muscles]
+        bad = (lp < lo) | (lp > hi)
+        if np.any(bad):
+            i = int(np.argmax(bad))
+            return issues + [Issue("non_physical_length", f"{topic}: {self.names[muscles[i]]} "
+                                   f"path length {lp[i]:.6g} m outside [{lo[i]:.4g}, "
+                                   f"{hi[i]:.4g}] m")]
+        fast = np.abs(vp) > self.limits.path_speed_max_m_per_s
+        if np.any(fast):
+            i = int(np.argmax(fast))
+            return issues + [Issue("non_physical_velocity", f"{topic}: {self.names[muscles[i]]} "
+                                   f"path velocity {vp[i]:.6g} m/s beyond "
+                                   f"{self.limits.path_speed_max_m_per_s:g} m/s")]
+        self.length_m[muscles] = lp
+        self.velocity_m_per_s[muscles] = vp
+        self.length_seen[muscles] = True
+        self.length_time_ns[muscles] = now_ns
+        self.last_kinematics_ns = now_ns
+        return issues
+
+    # --- time -------------------------------------------------------------------------------
+
+    @property
+    def ready(self) -> bool:
+        """Every muscle has a path length (from kinematics or initial_path_length_m)."""
+        return bool(np.all(np.isfinite(self.length_m)))
+
+    def update_staleness(self, now_ns: int) -> list[Issue]:
+        """Which muscles' inputs are stale at ``now_ns`` (for the pause policy, diagnostics and
+        the fresh -> stale reports; sample() judges staleness at its own time)."""
+        timeout = self.limits.timeout_ns
+        self.drive_stale = ~self.drive_seen | (now_ns - self.drive_time_ns > timeout)
+        self.length_stale = ~self.length_seen | (now_ns - self.length_time_ns > timeout)
+        issues = []
+        for name, stale in (("excitation", self.drive_stale), ("kinematics", self.length_stale)):
+            now_stale = bool(np.any(stale))
+            if now_stale and not self._was_stale[name]:
+                muscles = ", ".join(n for n, s in zip(self.names, stale, strict=True) if s)
+                issues.append(Issue(f"stale_{name}", f"{name} stale for {muscles} (older than "
+                                    f"{timeout * 1e-9:g} s)"))
+            self._was_stale[name] = now_stale
+        return issues
+
+    @property
+    def any_stale(self) -> bool:
+        return bool(np.any(self.drive_stale) or np.any(self.length_stale))
+
+    def rebase(self, now_ns: int) -> None:
+        """After the clock went backwards: count the latest samples as received at ``now_ns``."""
+        self.drive_time_ns[self.drive_seen] = now_ns
+        self.length_time_ns[self.length_seen] = now_ns
+        if self.last_excitation_ns is not None:
+            self.last_excitation_ns = now_ns
+        if self.last_kinematics_ns is not None:
+            self.last_kinematics_ns = now_ns
+
+    def sample(self, t_ns: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(drive, path length m, path velocity m/s) for a model step starting at ``t_ns``.
+
+        Staleness is judged at ``t_ns`` itself, so a replay of the same messages at the same
+        times gives the same inputs step by step.
+        """
+        timeout = self.limits.timeout_ns
+        u = self.drive
+        if self.limits.stale_policy == "zero_drive":
+            drive_stale = ~self.drive_seen | (t_ns - self.drive_time_ns > timeout)
+            if np.any(drive_stale):
+                u = np.where(drive_stale, 0.0, u)
+        since_ns = np.maximum(t_ns - self.length_time_ns, 0)
+        horizon_ns = self.limits.extrapolation_max_ns  # <= timeout
+        moving = self.length_seen & (since_ns < horizon_ns)
+        lp = self.length_m + self.velocity_m_per_s * (np.minimum(since_ns, horizon_ns) * 1e-9
+                                                      * self.length_seen)
+        clamped = np.clip(lp, self.limits.path_length_min_m, self.limits.path_length_max_m)
+        vp = np.where(moving & (clamped == lp), self.velocity_m_per_s, 0.0)
+        return u.copy(), clamped, vp
+
+    def ages_s(self, now_ns: int) -> dict:
+        """Age (s) of the newest excitation and kinematics message; None if never received."""
+        def age(t):
+            return None if t is None else max(now_ns - t, 0) * 1e-9
+
+        return {"excitation": age(self.last_excitation_ns),
+                "kinematics": age(self.last_kinematics_ns)}
+
+    def stale_names(self) -> dict:
+        def names(mask):
+            return [n for n, s in zip(self.names, mask, strict=True) if s]
+
+        return {"excitation": names(self.drive_stale), "kinematics": names(self.length_stale)}
+
+
+__all__ = ["InputLimits", "NodeInputs", "physical_path_length_range"]

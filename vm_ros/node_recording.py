@@ -1,0 +1,119 @@
+"""muscle_node's MCAP run log (no rclpy here).
+
+The file is a vm_ros run log (vm_ros.recording.run_log): its ``vm_ros.run`` metadata needs the
+model's start time, known only when the first kinematics arrive. So the path is checked (and the
+file created) when the node starts, the log itself is opened when the model starts, and what is
+written before that is held in a bounded buffer and written first. A node stopped before the model
+started still leaves a complete file (metadata key ``started`` = false).
+
+Times, chosen so that `vm-ros recompute` applies every input at the step where the node did:
+inputs are logged at the model time of the first step that uses them (the current model time when
+they arrive; ROS time before the start) with the ROS receipt time as publish time; outputs at their
+stamp (model time); /diagnostics at the ROS time.
+"""
+
+from __future__ import annotations
+
+import json
+from collections import deque
+from collections.abc import Callable
+from pathlib import Path
+
+from vm_ros import telemetry as tm
+from vm_ros.recording.run_log import (
+    INPUT_TOPICS,
+    OUTPUT_TOPICS,
+    RunInfo,
+    open_run_log,
+    resolve_topic,
+)
+from vm_ros.recording.writer import McapRecorder, RecorderError, RecorderStatus
+
+LOG_TOPICS = (*INPUT_TOPICS, *OUTPUT_TOPICS, tm.TOPIC_DIAGNOSTICS)
+INPUT_RULE = ("muscle_node: inputs conditioned by vm_ros.node_inputs.NodeInputs with the "
+              "node_parameters (bad messages dropped, drive clipped, kinematics extrapolated for "
+              "at most extrapolation_max_s, stale_input_policy); each input is logged at the "
+              "model time of the first step that uses it")
+
+
+def node_run_extra(node_name: str, parameters: dict) -> dict:
+    """Extra ``vm_ros.run`` metadata keys of a muscle_node log."""
+    return {"node": node_name, "node_parameters": json.dumps(parameters, sort_keys=True),
+            "input_hold": INPUT_RULE, "started": "true"}
+
+
+class NodeRunLog:
+    """A run log opened at the model start; writes before it are buffered (at most
+    ``buffer_size`` messages, the oldest dropped first).
+
+    run_info(start_time_ns or None) -> RunInfo; qos: ``{base topic: offered_qos_profiles YAML}``.
+    Raises RecorderError naming the path when the file cannot be created.
+    """
+
+    def __init__(self, path, run_info: Callable[[int | None], RunInfo], namespace: str = "/",
+                 qos: dict | None = None, buffer_size: int = 10000):
+        self.path = Path(path)
+        self._run_info = run_info
+        self._namespace = namespace
+        self._qos = dict(qos or {})
+        self._buffer: deque = deque(maxlen=buffer_size)
+        self._buffer_dropped = 0
+        self.recorder: McapRecorder | None = None
+        self._closed = False
+        try:  # fail at start-up, not at the model start
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self.path.open("wb").close()
+        except OSError as exc:
+            raise RecorderError(self.path, f"cannot create the file: {exc.strerror or exc}") \
+                from exc
+
+    @property
+    def started(self) -> bool:
+        return self.recorder is not None
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    def write(self, topic: str, data: bytes, log_time_ns: int,
+              publish_time_ns: int | None = None) -> bool:
+        """Log one serialised message on a base topic name (never blocks)."""
+        full = resolve_topic(topic, self._namespace)
+        if self.recorder is not None:
+            return self.recorder.write(full, data, log_time_ns, publish_time_ns)
+        if self._closed:
+            return False
+        if len(self._buffer) == self._buffer.maxlen:
+            self._buffer_dropped += 1
+        self._buffer.append((full, data, log_time_ns, publish_time_ns))
+        return True
+
+    def start(self, start_time_ns: int | None) -> None:
+        """Open the run log with the model's start time and write the buffered messages."""
+        if self.recorder is not None:
+            return
+        self.recorder = open_run_log(self.path, self._run_info(start_time_ns),
+                                     topics=LOG_TOPICS, qos=self._qos)
+        while self._buffer:
+            self.recorder.write(*self._buffer.popleft())
+
+    def close(self) -> None:
+        """Finish the file (idempotent); opens it first if the model never started."""
+        if self._closed:
+            return
+        if self.recorder is None:
+            self.start(None)
+        self._closed = True
+        self.recorder.close()
+
+    @property
+    def status(self) -> RecorderStatus:
+        if self.recorder is None:
+            return RecorderStatus(ok=True, error=None, written=0, dropped=self._buffer_dropped,
+                                  bytes_written=0, path=str(self.path))
+        st = self.recorder.status
+        return RecorderStatus(st.ok, st.error, st.written, st.dropped + self._buffer_dropped,
+                              st.bytes_written, st.path)
+
+
+__all__ = ["LOG_TOPICS", "NodeRunLog", "node_run_extra"]
