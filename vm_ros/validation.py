@@ -442,8 +442,4 @@ CHECKS: dict[str, Callable[..., CheckResult]] = {
 }
 
 
-def with_params(check: Callable[..., CheckResult], params) -> CheckResult:
-    return check(params=params)
-
-
-__all__ = ["CHECKS", "CheckResult", "Criterion", "dataclasses"]
+__all__ = ["CHECKS", "CheckResult", "Criterion"]

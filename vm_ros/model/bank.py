@@ -374,14 +374,15 @@ class MuscleBank:
         )
         assert proto.sag.shape == (n, pools)
 
+        weights = self.recruitment.pool_weights(proto.effective_drive)
+
         def activity_at(l, idx):
             return self._effective_activation(
-                proto.effective_drive[idx],
+                weights[idx],
                 proto.firing_rate_effective[idx],
                 proto.sag[idx],
                 proto.yield_factor[idx],
                 l,
-                idx,
             )[0]
 
         proto.fascicle_length_m = equilibrium_fascicle_length(
@@ -402,27 +403,18 @@ class MuscleBank:
         g = self.params.generic
         return np.clip(l[:, None], g.l_activation_min, self._pool_l_max)
 
-    def _effective_activation(self, ueff, f_eff, sag, yield_factor, l, idx=slice(None)):
-        """Per-type effective activation (n, 2) and stimulation activity (n, 2).
+    def _effective_activation(self, weights, f_eff, sag, yield_factor, l):
+        """Per-type effective activation (n, 2) and stimulation activity (n, 2), from the pool
+        weights (recruitment.pool_weights(Ueff)) and the pool states.
 
         Acteff_type = sum over the type's pools of weight(Ueff) Af(f_eff, L, Y, S)
         stimulation  = sum over the type's pools of weight(Ueff) Af(f_eff, L=1, Y=1, S) (STEP 5)
         """
         p = self._pool_fibre
-        weights = (
-            self.recruitment.pool_weights(ueff)
-            if isinstance(idx, slice)
-            else self._pool_weights_subset(ueff, idx)
-        )
         l_pool = np.clip(l[:, None], self.params.generic.l_activation_min, self._pool_l_max)
         af = activation_frequency_brown1999(f_eff, l_pool, yield_factor, sag, p.af, p.nf0, p.nf1)
         af_l0 = activation_frequency_brown1999(f_eff, 1.0, 1.0, sag, p.af, p.nf0, p.nf1)
         return (weights * af) @ self._membership, (weights * af_l0) @ self._membership
-
-    def _pool_weights_subset(self, ueff, idx):
-        full = np.zeros(self.n)
-        full[idx] = ueff
-        return self.recruitment.pool_weights(full)[idx]
 
     def _rates(self, state: BankState, u) -> _Dynamics:
         """Targets and time constants of every first-order state, at ``state`` and drive ``u``."""
@@ -462,7 +454,8 @@ class MuscleBank:
         """Forces, activation and energy rates at ``state`` (instantaneous, for output and ODE)."""
         l = state.fascicle_length_m / self.geometry.l0
         activity, stimulation = self._effective_activation(
-            state.effective_drive, state.firing_rate_effective, state.sag, state.yield_factor, l
+            self.recruitment.pool_weights(state.effective_drive),
+            state.firing_rate_effective, state.sag, state.yield_factor, l,
         )
         return self._instant(state, activity, stimulation, lp)
 
@@ -564,7 +557,8 @@ class MuscleBank:
         new.sag = act.lag_step(old.sag, r.sag_target, p.ts, dt)
         new.yield_factor = act.lag_step(old.yield_factor, r.yield_target, p.ty, dt)
         activity, stimulation = self._effective_activation(
-            new.effective_drive, new.firing_rate_effective, new.sag, new.yield_factor, r.l
+            self.recruitment.pool_weights(new.effective_drive),
+            new.firing_rate_effective, new.sag, new.yield_factor, r.l,
         )
         return new, activity, stimulation
 
@@ -573,8 +567,9 @@ class MuscleBank:
         fascicles held at ``length_l0`` (isometric): rF W Af (lumped), sum p_j Af_j (natural)."""
         s = self.steady_activation(excitation)
         l = np.full(self.n, float(length_l0))
-        return self._effective_activation(s["effective_drive"], s["firing_rate_effective"],
-                                          s["sag"], s["yield_factor"], l)[0]
+        weights = self.recruitment.pool_weights(s["effective_drive"])
+        return self._effective_activation(weights, s["firing_rate_effective"], s["sag"],
+                                          s["yield_factor"], l)[0]
 
     def activation_trace(self, dt: float, excitation, length_l0: float = 1.0) -> np.ndarray:
         """Effective activation per fibre type, shape (k, n, 2), for a drive series (k, n) with
