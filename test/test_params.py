@@ -32,7 +32,7 @@ def test_library_has_required_muscles_with_sources_and_sane_lmax():
         assert spec.source, name
         for field in ("mass_kg", "l0_m", "l0t_m", "fpcsa_slow"):
             assert field in spec.source, (name, field)
-        assert 1.1 <= lmax <= 1.4, (name, lmax)
+        assert lmax >= 1.1 and lmax <= 1.4, (name, lmax)
     assert bank.specs[bank.names.index("biceps_long_head")].fpcsa_slow == pytest.approx(0.4)
 
 

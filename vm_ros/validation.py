@@ -95,6 +95,14 @@ def _isovelocity(bank: MuscleBank, drive, v_l0_per_s, settle_s=0.15, l_mid=1.0):
     return out
 
 
+def _pure_fibre_banks(params):
+    """(fibre index, name, bank) for a 100 % slow and a 100 % fast vastus lateralis."""
+    for t, name in ((SLOW, "slow"), (FAST, "fast")):
+        yield t, name, MuscleBank.from_config(
+            ["vastus_lateralis"], params=params,
+            overrides={"vastus_lateralis": {"fpcsa_slow": 1.0 - t}})
+
+
 # --- item 1: Fig. 2 ---------------------------------------------------------------------------
 
 
@@ -106,9 +114,7 @@ def check_fig2_energy_velocity(params=None) -> CheckResult:
                          "initial energy vs velocity equals Barclay 1996; E_a is 30-40 % of E_i "
                          "isometric; E_a does not depend on velocity or length")
     velocities = np.linspace(-6.0, 0.6, 34)
-    for t, name in ((SLOW, "slow"), (FAST, "fast")):
-        bank = MuscleBank.from_config(["vastus_lateralis"], params=params,
-                                      overrides={"vastus_lateralis": {"fpcsa_slow": 1.0 - t}})
+    for t, name, bank in _pure_fibre_banks(params):
         iso = _isometric_at(bank, [1.0])
         act0 = float(iso.effective_activation[0, t])
         model, e_act, realised = [], [], []
@@ -153,9 +159,7 @@ def check_fig3_fibre_type_energy(params=None) -> CheckResult:
                          "shortening speed, falls on both sides of L0 asymmetrically; E_a constant "
                          "across V and L")
     per_newton, curves = {}, {}
-    for t, name in ((SLOW, "slow"), (FAST, "fast")):
-        bank = MuscleBank.from_config(["vastus_lateralis"], params=params,
-                                      overrides={"vastus_lateralis": {"fpcsa_slow": 1.0 - t}})
+    for t, name, bank in _pure_fibre_banks(params):
         drives = np.linspace(0.1, 1.0, 10)
         by_drive = [_isometric_at(bank, [u]) for u in drives]
         initial = np.array([o.energy_rate.activation[0] + o.energy_rate.cross_bridge[0]
