@@ -4,8 +4,6 @@ until a predicate holds (test/conftest.py)."""
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pytest
 
@@ -13,8 +11,7 @@ from vm_ros import telemetry as tm
 from vm_ros.errors import ConfigError, VmRosError
 from vm_ros.model import MuscleBank
 from vm_ros.node_health import ISSUE_KINDS
-from vm_ros.node_inputs import InputLimits, NodeInputs, physical_path_length_range
-from vm_ros.node_params import NodeConfig
+from vm_ros.node_inputs import physical_path_length_range
 
 pytestmark = pytest.mark.ros
 
@@ -111,47 +108,54 @@ def test_outputs_equal_the_bank_run_offline_under_sim_time(ros, lengths, tmp_pat
 
 def assert_log_replays(path, lengths, forces):
     """The log holds what recomputing needs: inputs at the time the node applied them,
-    conditioned as the node did (NodeInputs), from the recorded start give the same forces."""
+    conditioned as the node did (vm_ros.recording.node_replay), from the recorded start give the
+    same forces."""
     from vm_ros.recording import read_run
+    from vm_ros.recording.node_replay import NodeReplayInputs
 
     run = read_run(path, raw=[tm.TOPIC_EXCITATION, tm.TOPIC_EXCITATION_ARRAY,
                               tm.TOPIC_KINEMATICS])
     assert run.complete and run.info.source == "muscle_node"
-    config = NodeConfig.from_values(json.loads(run.info.extra["node_parameters"]))
     bank = run.info.config.make_bank()
-    inputs = NodeInputs(bank.names, InputLimits.for_bank(bank, config))
-    events = sorted((int(t), topic, i) for topic in (tm.TOPIC_EXCITATION,
-                                                     tm.TOPIC_EXCITATION_ARRAY,
-                                                     tm.TOPIC_KINEMATICS)
-                    for i, t in enumerate(run.get(topic).time_ns))
-
-    def apply_until(t_ns):
-        while events and events[0][0] <= t_ns:
-            time_ns, topic, i = events.pop(0)
-            series = run.get(topic)
-            if topic == tm.TOPIC_EXCITATION_ARRAY:
-                inputs.on_excitation_array(series.fields["data"][i], time_ns)
-            else:
-                names = series.names
-                values = series.fields["position"][i]
-                if topic == tm.TOPIC_EXCITATION:
-                    inputs.on_excitation(names, values, time_ns)
-                else:
-                    inputs.on_kinematics(names, values, np.nan_to_num(series.fields["velocity"][i]),
-                                         time_ns)
-
+    inputs = NodeReplayInputs(run, bank)
     start, dt_ns = run.info.timing.start_time_ns, run.info.timing.dt_ns
-    apply_until(start)
-    replayed = [bank.reset(path_length=inputs.sample(start)[1]).force]
+    replayed = [bank.reset(path_length=inputs.advance_to(start)[1]).force]
     for k in range(300):
-        apply_until(start + k * dt_ns)
-        out = bank.step(dt_ns * 1e-9, *inputs.sample(start + k * dt_ns))
+        out = bank.step(dt_ns * 1e-9, *inputs.advance_to(start + k * dt_ns))
         if (k + 1) % 10 == 0:
             replayed.append(out.force)
     np.testing.assert_allclose(np.array(replayed), np.array(forces), rtol=1e-12)
     logged = run.get(tm.TOPIC_FORCE)
     np.testing.assert_allclose(logged.fields["effort"], np.array(forces), rtol=0)
     assert np.array_equal(logged.time_ns, logged.fields["stamp_ns"])  # outputs at model time
+    assert_recompute_reproduces(path)
+
+
+def assert_recompute_reproduces(path):
+    """`vm-ros recompute` of the node log gives the logged outputs, by node conditioning."""
+    import contextlib
+    import io
+
+    from vm_ros.cli import main
+    from vm_ros.recording import read_run
+
+    out = path.with_name(path.stem + "-recomputed.mcap")
+    text = io.StringIO()
+    with contextlib.redirect_stdout(text):
+        assert main(["recompute", str(path), "--out", str(out)]) == 0
+    assert "inputs: muscle_node conditioning" in text.getvalue()
+    assert "approximate" not in text.getvalue()
+    original, again = read_run(path), read_run(out)
+    assert again.info.source == "recompute"
+    for topic, key in ((tm.TOPIC_FORCE, "effort"), (tm.TOPIC_ENERGY_RATE, "data")):
+        logged, recomputed = original.get(topic), again.get(topic)
+        assert len(logged) == 31
+        np.testing.assert_array_equal(recomputed.time_ns, logged.time_ns)
+        np.testing.assert_allclose(recomputed.fields[key], logged.fields[key], rtol=1e-9,
+                                   atol=0, err_msg=topic)
+    for topic in (tm.TOPIC_ENERGY_RATE_TOTAL, tm.TOPIC_ENERGY_TOTAL):
+        np.testing.assert_allclose(again.get(topic).fields["data"],
+                                   original.get(topic).fields["data"], rtol=1e-9, atol=0)
 
 
 def test_energy_rate_layout_is_as_documented(ros, lengths):

@@ -2,11 +2,19 @@
 new MCAP log (same channels; inputs copied verbatim, outputs recomputed).
 
 The model files attached to the log (model.yaml, muscles.yaml) and its recorded settings are the
-starting point; the options below replace them. Inputs are applied as the log's metadata says:
-the model step [t, t + dt) uses the latest input with log time <= t (zero-order hold). Without
-changes, a log written by `vm-ros simulate` is reproduced to floating-point precision; a
-muscle_node log is reproduced approximately (the node also extrapolates path lengths between
-kinematics messages and its steps follow its timer).
+starting point; the options below replace them. Inputs are applied by the rule the log was made
+with:
+
+- `vm-ros simulate` logs: zero-order hold, the model step [t, t + dt) uses the latest input with
+  log time <= t;
+- muscle_node logs (``node_parameters`` in the metadata): node conditioning, the recorded messages
+  at their log times (the model time of the first step that used them) through
+  vm_ros.node_inputs.NodeInputs with the logged node parameters (vm_ros.recording.node_replay),
+  and the initial state published at the start time as the node does.
+
+Without changes either is reproduced to floating-point precision, except where a node's model time
+left its step grid (skipped or paused time, a backward clock jump): the summary then says the
+result is approximate and why.
 
 At the end the recomputed tendon forces are compared with the recorded ones at equal model time
 (header stamps).
@@ -31,6 +39,8 @@ from vm_ros.cli.runs import (
     default_log_path,
 )
 from vm_ros.errors import VmRosError
+from vm_ros.node_recording import INPUT_RULE as NODE_INPUT_RULE
+from vm_ros.recording.node_replay import NodeReplayInputs, model_time_irregularities, node_config
 from vm_ros.recording.offline import OfflineRun, RecordedInputs
 from vm_ros.recording.run_log import (
     INPUT_TOPICS,
@@ -104,23 +114,43 @@ def run(args) -> int:
     start_ns, end_ns = _start_and_end_ns(recorded, timing)
     timing = RunTiming(timing.dt_s, timing.publish_rate_hz, timing.telemetry_rate_hz, start_ns)
     n_steps = max(0, (end_ns - start_ns) // timing.dt_ns)
+    node = node_config(recorded)
+    extra = {**info.extra, "recomputed_from": str(log_path)}
+    if node is not None:
+        extra["input_hold"] = NODE_INPUT_RULE
+        irregular = model_time_irregularities(recorded, info.timing.dt_ns,
+                                              info.timing.steps_per(info.timing.publish_rate_hz))
     out_path = args.out or default_log_path(f"{log_path.stem}-recomputed")
     with tempfile.TemporaryDirectory(prefix="vm_ros-recompute-") as tmp:
         config = apply_model_options(recorded.config(tmp), args)
         bank = config.make_bank()
-        new_info = RunInfo(config, timing, "recompute", info.namespace, info.time_base,
-                           {**info.extra, "recomputed_from": str(log_path)}, info.topics)
+        new_info = RunInfo(config, timing, "recompute", info.namespace, info.time_base, extra,
+                           info.topics)
         # open while the attached files exist: the new log attaches them again
         recorder = open_run_log(out_path, new_info, bank, chunk_size=args.chunk_size)
     with StopOnSignal() as stop, recorder, Progress(
             f"recompute {log_path.name}", n_steps, enabled=True if args.progress else None) \
             as progress:
         offline = OfflineRun(bank, timing, recorder, new_info.log_topic)
-        inputs = RecordedInputs(recorded, bank.n, offline.sink)
-        result = offline.run(inputs, n_steps, should_stop=stop, progress=progress.update)
+        if node is not None:
+            inputs = NodeReplayInputs(recorded, bank, offline.sink, node)
+        else:
+            inputs = RecordedInputs(recorded, bank.n, offline.sink)
+        result = offline.run(inputs, n_steps, should_stop=stop, progress=progress.update,
+                             publish_start=node is not None)
     status = recorder.status
     print(f"recomputed {result.steps * timing.dt_s:.3f} s of {', '.join(bank.names)} "
           f"({config.recruitment} recruitment, {bank.recovery_mode} recovery)")
+    if node is None:
+        print("inputs: zero-order hold (the step [t, t + dt) uses the latest input with log "
+              "time <= t)")
+    else:
+        print("inputs: muscle_node conditioning (NodeInputs with the logged node_parameters: "
+              f"{node.stale_input_policy} stale policy, extrapolation at most "
+              f"{node.extrapolation_max_s:g} s)")
+        if irregular:
+            print("approximate: the node's model time left its step grid ("
+                  + "; ".join(irregular) + "); recomputed on one continuous grid")
     if result.last is not None:
         last = result.last
         print(summary_table(summarize(bank.names, result.force_samples,

@@ -2,14 +2,16 @@
 `vm-ros recompute` share this loop.
 
     run = OfflineRun(bank, timing, recorder)
-    result = run.run(inputs, n_steps)        # inputs: SampledInputs or RecordedInputs
+    result = run.run(inputs, n_steps)        # inputs: SampledInputs, RecordedInputs or
+                                             # node_replay.NodeReplayInputs
 
 Step k covers model time [t_k, t_k + dt) with t_k = start + k dt (integer ns). Inputs follow the
 run log's zero-order hold: the step uses the latest input with log_time <= t_k. Outputs
 (muscle_force, energy_rate, energy_rate_total, energy_total) are written every
 ``timing.steps_per(publish_rate_hz)`` steps and telemetry every
 ``timing.steps_per(telemetry_rate_hz)`` steps, stamped and logged at the end of the step. The
-bank starts at rest, at static equilibrium for the path length held at the start time.
+bank starts at rest, at static equilibrium for the path length held at the start time; with
+``publish_start`` (as muscle_node does) that initial state is published too, at the start time.
 """
 
 from __future__ import annotations
@@ -186,14 +188,19 @@ class OfflineRun:
               time_ns)
 
     def run(self, inputs, n_steps: int, should_stop: Callable[[], bool] = lambda: False,
-            progress: Callable[[int, int], None] | None = None) -> OfflineResult:
+            progress: Callable[[int, int], None] | None = None,
+            publish_start: bool = False) -> OfflineResult:
         t = self.timing
         dt_ns, start = t.dt_ns, int(t.start_time_ns or 0)
         per_publish, per_telemetry = t.steps_per(t.publish_rate_hz), t.steps_per(
             t.telemetry_rate_hz)
         _, lp, _ = inputs.advance_to(start)
-        self.bank.reset(path_length=lp, time_s=start * 1e-9)
+        initial = self.bank.reset(path_length=lp, time_s=start * 1e-9)
         forces, times, out, k = [], [], None, 0
+        if publish_start and per_publish:
+            self._publish(initial, start)
+            forces.append(initial.force.copy())
+            times.append(start)
         interrupted = False
         for k in range(n_steps):
             if should_stop():
