@@ -6,10 +6,10 @@ from __future__ import annotations
 import importlib
 
 import numpy as np
+from conftest import require_ros
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
-from conftest import require_ros
 from vm_ros.cli import main
 
 
