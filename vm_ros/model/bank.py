@@ -26,7 +26,7 @@ import numpy as np
 from vm_ros.errors import InputError
 from vm_ros.model import activation as act
 from vm_ros.model import energetics as en
-from vm_ros.model.curves import activation_frequency_brown1999, force_length_cheng2000
+from vm_ros.model.curves import activation_frequency_brown1999
 from vm_ros.model.mechanics import (
     MuscleGeometry,
     equilibrium_fascicle_length,
@@ -411,7 +411,7 @@ class MuscleBank:
         stimulation  = sum over the type's pools of weight(Ueff) Af(f_eff, L=1, Y=1, S) (STEP 5)
         """
         p = self._pool_fibre
-        l_pool = np.clip(l[:, None], self.params.generic.l_activation_min, self._pool_l_max)
+        l_pool = self._pool_length(l)
         af = activation_frequency_brown1999(f_eff, l_pool, yield_factor, sag, p.af, p.nf0, p.nf1)
         af_l0 = activation_frequency_brown1999(f_eff, 1.0, 1.0, sag, p.af, p.nf0, p.nf1)
         return (weights * af) @ self._membership, (weights * af_l0) @ self._membership
@@ -462,9 +462,8 @@ class MuscleBank:
     def _instant(self, state: BankState, activity, stimulation, lp):
         fibre, g, e = self.params.fibre, self.params.generic, self.params.energetics
         x, xdot = state.fascicle_length_m, state.fascicle_velocity_m_per_s
-        f_se, f_ce = musculotendon_forces(x, xdot, lp, activity, self.geometry, fibre, g)
-        l, v = x / self.geometry.l0, xdot / self.geometry.l0
-        fl = force_length_cheng2000(l[:, None], fibre.omega, fibre.beta, fibre.rho)
+        f_se, f_ce, fl = musculotendon_forces(x, xdot, lp, activity, self.geometry, fibre, g)
+        v = xdot / self.geometry.l0
         e_act, e_xb = en.initial_energy_rates_tsianos2012(
             stimulation,
             activity,
@@ -600,7 +599,7 @@ class MuscleBank:
         fibre, g = self.params.fibre, self.params.generic
 
         def forces(x, xdot, lp_now):
-            return musculotendon_forces(x, xdot, lp_now, activity, self.geometry, fibre, g)
+            return musculotendon_forces(x, xdot, lp_now, activity, self.geometry, fibre, g)[:2]
 
         x, xdot = rosenbrock_step(
             old.fascicle_length_m,

@@ -114,13 +114,13 @@ def musculotendon_forces(
     g: GenericParams,
 ):
     """Tendon and contractile forces (N), each (..., n), for fascicle length x (m), velocity xdot
-    (m/s) and path length (m)."""
+    (m/s) and path length (m); also the per-type FL (..., n, 2) they used."""
     l_se = (path_length - x) / geometry.l0t
     f_se = geometry.f0 * curves.tendon_force_cheng2000(l_se, g.ct, g.kt, g.lrt)
-    f_ce, _, _ = contractile_force_normalised(
+    f_ce, fl, _ = contractile_force_normalised(
         x / geometry.l0, xdot / geometry.l0, activity, geometry.lmax, fibre, g
     )
-    return f_se, geometry.f0 * f_ce
+    return f_se, geometry.f0 * f_ce, fl
 
 
 def rosenbrock_step(x, xdot, path_length, path_velocity, dt, forces, m_eff, length_scale):
