@@ -1,8 +1,9 @@
 # vm_ros developer and CI entry points. Nothing here needs an activated venv.
 #
-#   make venv         create/refresh $(VENV) with ".[ros,dev]" pinned by constraints.txt
+#   make venv         create/refresh $(VENV) with ".[ros,dev,fast]" pinned by constraints.txt
 #   make test         the whole pytest suite (ruff included) in a loopback-only network namespace
 #   make demo         the demo, in a loopback-only network namespace
+#   make bench        vm-ros bench (results in bench-results/), in a loopback-only namespace
 #   make lint         ruff only
 #   make constraints  re-resolve constraints.txt in fresh venvs (needs PyPI)
 #   make clean
@@ -18,7 +19,7 @@ PKG_STAMP := $(VENV)/.vm_ros-pkg
 PKG_SOURCES := setup.py package.xml \
 	$(shell find vm_ros config msg_defs resource -name __pycache__ -prune -o -print 2>/dev/null)
 
-.PHONY: all venv test demo lint clean constraints colcon-venv host-tools
+.PHONY: all venv test demo bench lint clean constraints colcon-venv host-tools
 .DEFAULT_GOAL := test
 
 all: test
@@ -37,8 +38,8 @@ $(PKG_STAMP): setup.py constraints.txt $(PKG_SOURCES)
 	    echo "$(VENV)/bin/pip install --no-deps --force-reinstall ."; \
 	    $(VENV)/bin/pip install --quiet --no-deps --force-reinstall .; \
 	else \
-	    echo '$(VENV)/bin/pip install -c constraints.txt ".[ros,dev]"'; \
-	    $(VENV)/bin/pip install -c constraints.txt ".[ros,dev]" && touch $(DEPS_STAMP); \
+	    echo '$(VENV)/bin/pip install -c constraints.txt ".[ros,dev,fast]"'; \
+	    $(VENV)/bin/pip install -c constraints.txt ".[ros,dev,fast]" && touch $(DEPS_STAMP); \
 	fi
 	@touch $@
 
@@ -67,6 +68,9 @@ test: venv colcon-venv
 
 demo: venv
 	scripts/netns-run $(VENV)/bin/vm-ros demo
+
+bench: venv
+	scripts/netns-run $(VENV)/bin/vm-ros bench --out bench-results
 
 lint: $(PKG_STAMP)
 	$(VENV)/bin/ruff check .

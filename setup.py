@@ -41,6 +41,8 @@ setup(
             "ros-diagnostic-msgs==5.3.6",
         ],
         "plot": ["matplotlib>=3.6"],
+        # the compiled model step (vm_ros.model.kernel); without it the NumPy step is used
+        "fast": ["numba>=0.60"],
         "dev": ["pytest>=7.4", "ruff>=0.5", "hypothesis>=6.80", "matplotlib>=3.6"],
     },
     entry_points={

@@ -4,7 +4,14 @@ Public API: :class:`MuscleBank` (vectorised muscles that own their state), its o
 :class:`StepOutput` and :class:`EnergyRates`, and the parameter loaders.
 """
 
-from vm_ros.model.bank import ENERGY_COMPONENTS, BankState, EnergyRates, MuscleBank, StepOutput
+from vm_ros.model.bank import (
+    ENERGY_COMPONENTS,
+    BankState,
+    EnergyRates,
+    MuscleBank,
+    StepOutput,
+    Trajectory,
+)
 from vm_ros.model.params import (
     FIBRE_TYPES,
     ModelParams,
@@ -24,6 +31,7 @@ __all__ = [
     "MuscleBank",
     "MuscleSpec",
     "StepOutput",
+    "Trajectory",
     "load_model_params",
     "load_muscle_library",
 ]

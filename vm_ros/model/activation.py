@@ -13,17 +13,22 @@ from __future__ import annotations
 
 import numpy as np
 
+from vm_ros.model.jit import clip, jitable, where
 
+
+@jitable
 def lag_derivative(y, target, tau):
     """dy/dt of a first-order lag."""
     return (target - y) / tau
 
 
+@jitable
 def lag_step(y, target, tau, dt):
     """Exact update of a first-order lag over dt with target and tau held constant."""
     return target + (y - target) * np.exp(-dt / tau)
 
 
+@jitable
 def cascade_step(y1, y2, target, tau, dt):
     """Exact update of two cascaded lags sharing one tau (dy1 = (target - y1)/tau,
     dy2 = (y1 - y2)/tau), target and tau held constant over dt. Returns (y1, y2)."""
@@ -33,6 +38,7 @@ def cascade_step(y1, y2, target, tau, dt):
     return target + d1 * decay, target + ((y2 - target) + d1 * ratio) * decay
 
 
+@jitable
 def firing_envelope(u, u_threshold, fmin, fmax):
     """Firing rate (f0.5) of a unit of threshold Uth at drive U.
 
@@ -41,9 +47,10 @@ def firing_envelope(u, u_threshold, fmin, fmax):
     """
     span = np.maximum(1.0 - u_threshold, 1e-9)
     rate = fmin + (fmax - fmin) * (u - u_threshold) / span
-    return np.where(u >= u_threshold, rate, 0.0)
+    return where(u >= u_threshold, rate, 0.0)
 
 
+@jitable
 def rise_fall_time_constant(f_env, f_int, f_eff, l, af_value, tf1, tf2, tf3, tf4):
     """Shared time constant (s) of the two cascaded rise/fall stages.
 
@@ -52,20 +59,23 @@ def rise_fall_time_constant(f_env, f_int, f_eff, l, af_value, tf1, tf2, tf3, tf4
     """
     rise = tf1 * l * l + tf2 * f_env
     fall = (tf3 + tf4 * af_value) / l
-    return np.where(f_int >= f_eff, rise, fall)
+    return where(f_int >= f_eff, rise, fall)
 
 
+@jitable
 def sag_target(f_eff, as1, as2, threshold):
     """Sag target aS: aS1 below f_eff = 0.1 f0.5, aS2 above (fast fibres; neutral 1 for slow)."""
-    return np.where(f_eff < threshold, as1, as2)
+    return where(f_eff < threshold, as1, as2)
 
 
+@jitable
 def yield_target(v, cy, vy):
     """Yield target 1 - cY (1 - exp(-|V|/VY)) (slow fibres; cY = 0 makes it 1 for fast)."""
     return 1.0 - cy * (-np.expm1(-np.abs(v) / vy))
 
 
+@jitable
 def clamp_activation_length(l, nf0, nf1, l_min, max_fraction):
     """L as used inside the activation relations: clipped to [l_min, max_fraction * L_nf0],
     where L_nf0 = nf1 / (nf1 - nf0) is the length at which nf reaches zero."""
-    return np.clip(l, l_min, max_fraction * nf1 / (nf1 - nf0))
+    return clip(l, l_min, max_fraction * nf1 / (nf1 - nf0))

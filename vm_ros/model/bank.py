@@ -17,8 +17,10 @@ types (slow, fast).
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +28,7 @@ import numpy as np
 from vm_ros.errors import InputError
 from vm_ros.model import activation as act
 from vm_ros.model import energetics as en
+from vm_ros.model import kernel
 from vm_ros.model.curves import activation_frequency_brown1999
 from vm_ros.model.mechanics import (
     MuscleGeometry,
@@ -45,6 +48,7 @@ from vm_ros.model.params import (
 from vm_ros.model.recruitment import SCHEMES, make_recruitment
 
 ENERGY_COMPONENTS = ("activation", "cross_bridge", "recovery", "total")
+BACKENDS = ("auto", "numba", "numpy")
 
 
 @dataclass(frozen=True)
@@ -78,9 +82,11 @@ class EnergyRates:
         return EnergyRates(*(getattr(self, f.name).sum(axis=-1) for f in dataclasses.fields(self)))
 
 
-@dataclass(frozen=True)
 class StepOutput:
     """What one step reports (SI unless the name says otherwise).
+
+    Every field is a fresh array (changing it does not touch the bank); the derived ones are
+    computed on first access, so a step costs only what the caller reads.
 
     | field | shape | unit | meaning |
     | time_s | () | s | model time at the end of the step |
@@ -105,26 +111,119 @@ class StepOutput:
     | total_energy | () | J | whole bank, cumulative |
     """
 
-    time_s: float
+    FIELDS = (
+        "time_s", "force", "contractile_force", "fascicle_length", "fascicle_velocity",
+        "length_l0", "velocity_l0_per_s", "excitation", "effective_drive", "firing_rate_f05",
+        "recruited_fraction", "effective_activation", "energy_rate", "energy_rate_by_fiber",
+        "energy", "energy_by_fiber", "mechanical_power", "mechanical_work", "total_energy_rate",
+        "total_energy",
+    )  # fmt: skip
+
+    def __init__(self, bank: MuscleBank, state: BankState, ev: dict, excitation):
+        self._bank = bank
+        self._state = state  # never modified once published (every step works on a copy)
+        self._ev = ev
+        self.time_s = float(state.time_s)
+        self.force = ev["f_se"]
+        self.contractile_force = ev["f_ce"]
+        self.effective_activation = ev["activity"]
+        self.mechanical_power = ev["mechanical_power"]
+        self.excitation = np.array(excitation, dtype=float)
+
+    def __repr__(self) -> str:
+        return f"StepOutput(time_s={self.time_s}, force={self.force!r})"
+
+    @cached_property
+    def fascicle_length(self) -> np.ndarray:
+        return self._state.fascicle_length_m.copy()
+
+    @cached_property
+    def fascicle_velocity(self) -> np.ndarray:
+        return self._state.fascicle_velocity_m_per_s.copy()
+
+    @cached_property
+    def length_l0(self) -> np.ndarray:
+        return self._state.fascicle_length_m / self._bank.l0_m
+
+    @cached_property
+    def velocity_l0_per_s(self) -> np.ndarray:
+        return self._state.fascicle_velocity_m_per_s / self._bank.l0_m
+
+    @cached_property
+    def effective_drive(self) -> np.ndarray:
+        return self._state.effective_drive.copy()
+
+    @cached_property
+    def firing_rate_f05(self) -> np.ndarray:
+        return self._bank._per_type_mean(self._state.firing_rate_effective)
+
+    @cached_property
+    def recruited_fraction(self) -> np.ndarray:
+        bank = self._bank
+        recruited = bank.recruitment.recruited_fraction(
+            self.excitation, self._state.effective_drive
+        )
+        return recruited @ bank._membership
+
+    @cached_property
+    def energy_rate_by_fiber(self) -> EnergyRates:
+        return EnergyRates.from_components(self._ev["components"])
+
+    @cached_property
+    def energy_rate(self) -> EnergyRates:
+        return self.energy_rate_by_fiber.summed_over_fibres()
+
+    @cached_property
+    def energy_by_fiber(self) -> EnergyRates:
+        return EnergyRates.from_components(self._state.energy_j.copy())
+
+    @cached_property
+    def energy(self) -> EnergyRates:
+        return self.energy_by_fiber.summed_over_fibres()
+
+    @cached_property
+    def mechanical_work(self) -> np.ndarray:
+        return self._state.mechanical_work_j.copy()
+
+    @cached_property
+    def total_energy_rate(self) -> float:
+        return float(self._ev["components"].sum())
+
+    @cached_property
+    def total_energy(self) -> float:
+        return float(self._state.energy_j.sum())
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Every step of :meth:`MuscleBank.run` (k steps, n muscles; SI as in StepOutput).
+
+    | field | shape | unit |
+    | time_s | (k,) | s, model time at the end of each step |
+    | excitation | (k, n) | 1, as used (clipped) |
+    | force, contractile_force | (k, n) | N |
+    | fascicle_length, fascicle_velocity | (k, n) | m, m/s |
+    | effective_activation | (k, n, 2) | 1 |
+    | energy_rate_by_fiber | EnergyRates (k, n, 2) | W |
+    | mechanical_power | (k, n) | W |
+    | last | StepOutput | the last step, with the cumulative energies and work |
+    """
+
+    time_s: np.ndarray
+    excitation: np.ndarray
     force: np.ndarray
     contractile_force: np.ndarray
     fascicle_length: np.ndarray
     fascicle_velocity: np.ndarray
-    length_l0: np.ndarray
-    velocity_l0_per_s: np.ndarray
-    excitation: np.ndarray
-    effective_drive: np.ndarray
-    firing_rate_f05: np.ndarray
-    recruited_fraction: np.ndarray
     effective_activation: np.ndarray
-    energy_rate: EnergyRates
     energy_rate_by_fiber: EnergyRates
-    energy: EnergyRates
-    energy_by_fiber: EnergyRates
     mechanical_power: np.ndarray
-    mechanical_work: np.ndarray
-    total_energy_rate: float
-    total_energy: float
+    last: StepOutput
+
+    @property
+    def energy_rate(self) -> EnergyRates:
+        """Per muscle (k, n), summed over the fibre types."""
+        return self.energy_rate_by_fiber.summed_over_fibres()
 
 
 @dataclass
@@ -155,9 +254,8 @@ class BankState:
     mechanical_work_j: np.ndarray
 
     def copy(self) -> BankState:
-        return BankState(
-            **{f.name: np.copy(getattr(self, f.name)) for f in dataclasses.fields(self)}
-        )
+        copied = {name: getattr(self, name).copy() for name in ODE_FIELDS}
+        return BankState(time_s=self.time_s, **copied)
 
 
 # Order and layout of the states integrated by the reference ODE (vm_ros.model.reference).
@@ -203,7 +301,15 @@ class MuscleBank:
         params: ModelParams,
         recruitment: str = "lumped",
         recovery_mode: str | None = None,
+        backend: str = "auto",
     ):
+        if backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+        if backend == "numba" and not kernel.AVAILABLE:
+            raise ValueError(
+                "backend 'numba' needs the numba package (pip install 'vm_ros[fast]'); "
+                "it is not importable or VM_ROS_NUMBA=0 is set"
+            )
         if recruitment not in SCHEMES:
             raise ValueError(f"recruitment must be one of {SCHEMES}, got {recruitment!r}")
         recovery_mode = recovery_mode or params.energetics.recovery_mode
@@ -233,6 +339,15 @@ class MuscleBank:
         self._dry_mass = (e.dry_to_wet_mass * self.geometry.mass)[:, None]
         self._recovery_taus = en.recovery_filter_taus(e.recovery_tau_rise, e.recovery_tau_decay)
         self._state: BankState | None = None
+        self.backend = "numpy" if backend == "numpy" or not kernel.AVAILABLE else "numba"
+        self._kernel_constants = None
+        if self.backend == "numba":
+            self._kernel_constants = kernel.KernelConstants.from_bank(self)
+            kernel.warm_up()
+        # the (L, V) terms of F_CE at the (x, xdot) of the last compiled step's end (NaN: none)
+        self._terms_end = np.zeros((self.n, kernel.N_TERMS))
+        self._xv_end = np.full((self.n, 2), np.nan)
+        self._zeros = np.zeros(self.n)
 
     # --- construction ---------------------------------------------------------------------
 
@@ -246,11 +361,13 @@ class MuscleBank:
         params: ModelParams | str | Path | None = None,
         recovery_mode: str | None = None,
         units_per_type: int | None = None,
+        backend: str = "auto",
     ):
         """Build a bank from the muscle library (default: the shipped ``config/muscles.yaml``).
 
         muscles: names from the library; overrides: ``{name: {field: value}}``; params: a
-        ModelParams or a path to a model YAML; units_per_type: natural units per fibre type.
+        ModelParams or a path to a model YAML; units_per_type: natural units per fibre type;
+        backend: "auto" (the compiled step when Numba is importable), "numba" or "numpy".
         """
         if not isinstance(params, ModelParams):
             params = load_model_params(params)
@@ -260,7 +377,9 @@ class MuscleBank:
                 natural=dataclasses.replace(params.natural, units_per_type=int(units_per_type)),
             )
         specs = resolve_muscles(muscles, library, overrides, params.generic.ur_default)
-        return cls(specs, params, recruitment=recruitment, recovery_mode=recovery_mode)
+        return cls(
+            specs, params, recruitment=recruitment, recovery_mode=recovery_mode, backend=backend
+        )
 
     @property
     def n(self) -> int:
@@ -590,10 +709,14 @@ class MuscleBank:
         the start of the step; path_velocity: its rate (m/s) over the step (None: held constant).
         Raises InputError (state untouched) for non-finite values, wrong shapes, dt <= 0.
         """
-        if not (isinstance(dt, (int, float, np.floating)) and np.isfinite(dt) and dt > 0):
+        if not (isinstance(dt, (int, float, np.floating)) and math.isfinite(dt) and dt > 0):
             raise InputError("dt", dt, "must be a finite number > 0 s")
-        u, lp, vp = self.check_inputs(excitation, path_length, path_velocity)
         old = self._require_state()
+        if self._kernel_constants is not None:
+            out = self._step_compiled(old, float(dt), excitation, path_length, path_velocity)
+            if out is not None:
+                return out
+        u, lp, vp = self.check_inputs(excitation, path_length, path_velocity)
         new, activity, stimulation = self._advance_activation(old, u, dt)
 
         fibre, g = self.params.fibre, self.params.generic
@@ -633,6 +756,137 @@ class MuscleBank:
         self._state = new
         return self._output(new, ev, u)
 
+    def run(self, dt: float, excitation, path_length, path_velocity=None) -> Trajectory:
+        """Advance k steps of ``dt`` s in one call, inputs given per step as (k, n) arrays (row j
+        drives step j, as :meth:`step` takes them); returns every step's outputs as arrays.
+
+        With the compiled back end the whole loop runs in compiled code (for long offline runs
+        and sweeps). On a bad input InputError names the step, and the state is left as it was
+        before the call.
+        """
+        if not (isinstance(dt, (int, float, np.floating)) and math.isfinite(dt) and dt > 0):
+            raise InputError("dt", dt, "must be a finite number > 0 s")
+        old = self._require_state()
+        u, lp = self._series("excitation", excitation), self._series("path_length", path_length)
+        k, n = u.shape
+        vp = np.zeros((k, n)) if path_velocity is None else self._series(
+            "path_velocity", path_velocity)
+        if lp.shape[0] != k or vp.shape[0] != k:
+            raise InputError("path_length", lp.shape, f"expected {k} rows like excitation")
+        if self._kernel_constants is None:
+            return self._run_stepwise(dt, u, lp, vp)
+        c = self._kernel_constants
+        new = old.copy()
+        clipped = np.empty((k, n))
+        f_se, f_ce, power, length, velocity = (np.empty((k, n)) for _ in range(5))
+        activity, stimulation = np.empty((k, n, 2)), np.empty((k, n, 2))
+        components = np.empty((k, n, 2, 3))
+        status = kernel.advance_series(
+            float(dt), u, lp, vp, clipped, *c.arguments(), *kernel.state_arguments(new),
+            self._terms_end, self._xv_end,
+            f_se, f_ce, activity, stimulation, components, power, length, velocity,
+        )  # fmt: skip
+        if status != 0:
+            row = (status - 1) // n
+            try:
+                self.check_inputs(u[row], lp[row], vp[row])
+            except InputError as error:
+                raise InputError(f"{error.name} at step {row}", error.value, error.reason) from None
+            raise RuntimeError(f"compiled run stopped at step {row} without a bad input")
+        new.time_s = old.time_s + k * dt
+        self._state = new
+        last = StepOutput(self, new, {
+            "f_se": f_se[-1].copy(), "f_ce": f_ce[-1].copy(), "activity": activity[-1].copy(),
+            "stimulation": stimulation[-1].copy(), "components": components[-1].copy(),
+            "mechanical_power": power[-1].copy(),
+        }, clipped[-1])  # fmt: skip
+        return Trajectory(
+            time_s=old.time_s + dt * np.arange(1, k + 1),
+            excitation=clipped,
+            force=f_se,
+            contractile_force=f_ce,
+            fascicle_length=length,
+            fascicle_velocity=velocity,
+            effective_activation=activity,
+            energy_rate_by_fiber=EnergyRates.from_components(components),
+            mechanical_power=power,
+            last=last,
+        )
+
+    def _series(self, name, value) -> np.ndarray:
+        array = np.asarray(value, dtype=float)
+        if array.ndim != 2 or array.shape[1] != self.n or array.shape[0] < 1:
+            raise InputError(name, array.shape, f"expected shape (k >= 1, {self.n})")
+        return np.ascontiguousarray(array)
+
+    def _run_stepwise(self, dt, u, lp, vp) -> Trajectory:
+        """:meth:`run` by repeated :meth:`step` (the NumPy back end)."""
+        saved = self._require_state()
+        outs = []
+        try:
+            for row in range(u.shape[0]):
+                outs.append(self.step(dt, u[row], lp[row], vp[row]))
+        except InputError as error:
+            self._state = saved
+            raise InputError(f"{error.name} at step {len(outs)}", error.value,
+                             error.reason) from None
+        return Trajectory(
+            time_s=np.array([o.time_s for o in outs]),
+            excitation=np.array([o.excitation for o in outs]),
+            force=np.array([o.force for o in outs]),
+            contractile_force=np.array([o.contractile_force for o in outs]),
+            fascicle_length=np.array([o.fascicle_length for o in outs]),
+            fascicle_velocity=np.array([o.fascicle_velocity for o in outs]),
+            effective_activation=np.array([o.effective_activation for o in outs]),
+            energy_rate_by_fiber=EnergyRates.from_components(
+                np.array([o._ev["components"] for o in outs])
+            ),
+            mechanical_power=np.array([o.mechanical_power for o in outs]),
+            last=outs[-1],
+        )
+
+    def _raw_vector(self, value):
+        """``value`` as a float (n,) array without checks (a scalar is broadcast); None if the
+        shape is wrong."""
+        array = np.asarray(value, dtype=float)
+        if array.shape == ():
+            return np.full(self.n, float(array))
+        return array if array.shape == (self.n,) else None
+
+    def _step_compiled(self, old: BankState, dt: float, excitation, path_length, path_velocity):
+        """:meth:`step` by the compiled kernel (vm_ros.model.kernel): same equations, same order.
+
+        The kernel checks the inputs itself (finite, path length > 0) and works on a copy of the
+        state; on a bad input this returns None and :meth:`step` raises the InputError."""
+        c = self._kernel_constants
+        n = self.n
+        u = self._raw_vector(excitation)
+        lp = self._raw_vector(path_length)
+        vp = self._zeros if path_velocity is None else self._raw_vector(path_velocity)
+        if u is None or lp is None or vp is None:
+            return None
+        new = old.copy()
+        clipped = np.empty(n)
+        ev = {
+            "f_se": np.empty(n),
+            "f_ce": np.empty(n),
+            "activity": np.empty((n, 2)),
+            "stimulation": np.empty((n, 2)),
+            "components": np.empty((n, 2, 3)),
+            "mechanical_power": np.empty(n),
+        }
+        status = kernel.advance(
+            dt, u, lp, vp, clipped, *c.arguments(), *kernel.state_arguments(new),
+            self._terms_end, self._xv_end,
+            ev["f_se"], ev["f_ce"], ev["activity"], ev["stimulation"], ev["components"],
+            ev["mechanical_power"],
+        )  # fmt: skip
+        if status != 0:
+            return None
+        new.time_s = old.time_s + dt
+        self._state = new
+        return self._output(new, ev, clipped)
+
     # --- output ---------------------------------------------------------------------------
 
     def _per_type_mean(self, pool_values):
@@ -641,34 +895,7 @@ class MuscleBank:
         return (pcsa * pool_values) @ self._membership / np.where(weight > 0, weight, 1.0)
 
     def _output(self, state: BankState, ev: dict, u) -> StepOutput:
-        l0 = self.geometry.l0
-        by_fibre = EnergyRates.from_components(ev["components"])
-        energy_by_fibre = EnergyRates.from_components(state.energy_j)
-        rate = by_fibre.summed_over_fibres()
-        energy = energy_by_fibre.summed_over_fibres()
-        recruited = self.recruitment.recruited_fraction(u, state.effective_drive)
-        return StepOutput(
-            time_s=float(state.time_s),
-            force=ev["f_se"],
-            contractile_force=ev["f_ce"],
-            fascicle_length=state.fascicle_length_m.copy(),
-            fascicle_velocity=state.fascicle_velocity_m_per_s.copy(),
-            length_l0=state.fascicle_length_m / l0,
-            velocity_l0_per_s=state.fascicle_velocity_m_per_s / l0,
-            excitation=np.asarray(u, dtype=float),
-            effective_drive=state.effective_drive.copy(),
-            firing_rate_f05=self._per_type_mean(state.firing_rate_effective),
-            recruited_fraction=recruited @ self._membership,
-            effective_activation=ev["activity"],
-            energy_rate=rate,
-            energy_rate_by_fiber=by_fibre,
-            energy=energy,
-            energy_by_fiber=energy_by_fibre,
-            mechanical_power=ev["mechanical_power"],
-            mechanical_work=state.mechanical_work_j.copy(),
-            total_energy_rate=float(rate.total.sum()),
-            total_energy=float(energy.total.sum()),
-        )
+        return StepOutput(self, state, ev, u)
 
 
 __all__ = [
@@ -679,4 +906,5 @@ __all__ = [
     "EnergyRates",
     "MuscleBank",
     "StepOutput",
+    "Trajectory",
 ]

@@ -14,7 +14,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import expit
 
+from vm_ros.model.jit import jitable, where
 
+
+@jitable
 def force_length_cheng2000(l, omega, beta, rho):
     """Active force-length relation.
 
@@ -26,6 +29,7 @@ def force_length_cheng2000(l, omega, beta, rho):
     return np.exp(-(np.abs((l**beta - 1.0) / omega) ** rho))
 
 
+@jitable
 def force_velocity_cheng2000(v, l, vmax, cv0, cv1, av0, av1, av2, bv, denominator_min):
     """Active force-velocity relation (shortening V <= 0, lengthening V > 0).
 
@@ -41,9 +45,10 @@ def force_velocity_cheng2000(v, l, vmax, cv0, cv1, av0, av1, av2, bv, denominato
     denominator = np.minimum(vmax + (cv0 + cv1 * l) * v_short, -denominator_min * np.abs(vmax))
     shortening = (vmax - v_short) / denominator
     lengthening = (bv - (av0 + av1 * l + av2 * l * l) * v_long) / (bv + v_long)
-    return np.where(v <= 0.0, shortening, lengthening)
+    return where(v <= 0.0, shortening, lengthening)
 
 
+@jitable
 def passive_parallel_elastic_cheng2000(l, v, lmax, c1, k1, lr1, eta):
     """PE1, the parallel elastic element with its viscosity (F0).
 
@@ -54,6 +59,7 @@ def passive_parallel_elastic_cheng2000(l, v, lmax, c1, k1, lr1, eta):
     return c1 * k1 * np.logaddexp(0.0, (l / lmax - lr1) / k1) + eta * v
 
 
+@jitable
 def thick_filament_compression_cheng2000(l, c2, k2, lr2):
     """PE2, compression of thick filaments at short lengths (F0, <= 0).
 
@@ -65,6 +71,7 @@ def thick_filament_compression_cheng2000(l, c2, k2, lr2):
     return np.minimum(0.0, c2 * np.expm1(exponent))
 
 
+@jitable
 def tendon_force_cheng2000(l_se, ct, kt, lrt):
     """Series elastic element (tendon and aponeurosis) force (F0).
 
@@ -80,6 +87,7 @@ def tendon_stiffness_cheng2000(l_se, ct, kt, lrt):
     return ct * expit((l_se - lrt) / kt)
 
 
+@jitable
 def tendon_length_at_force(force, ct, kt, lrt):
     """Inverse of :func:`tendon_force_cheng2000`: L_SE (L0T) at which the tendon carries ``force``.
 
@@ -90,6 +98,7 @@ def tendon_length_at_force(force, ct, kt, lrt):
     return kt * (z + np.log(-np.expm1(-z))) + lrt
 
 
+@jitable
 def activation_frequency_brown1999(f_eff, l, yield_factor, sag_factor, af, nf0, nf1):
     """Activation-frequency relation Af (fraction of tetanic force at that rate).
 

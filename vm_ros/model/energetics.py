@@ -19,7 +19,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from vm_ros.model.jit import jitable, where
 
+
+@jitable
 def tetanic_energy_rate_barclay1996(v, e1, e2, e3, e4):
     """E_tet(V) = (e1 V^2 + e2 V + e3) / (e4 - V), W/kg dry, for V <= 0 (V clipped at 0).
 
@@ -30,6 +33,7 @@ def tetanic_energy_rate_barclay1996(v, e1, e2, e3, e4):
     return (e1 * v * v + e2 * v + e3) / (e4 - v)
 
 
+@jitable
 def cross_bridge_tetanic_rate_tsianos2012(v, e1, e2, e3, e4, activation_fraction, vmax):
     """Cross-bridge part of the tetanic rate, W/kg dry (STEPs 2-3).
 
@@ -44,14 +48,16 @@ def cross_bridge_tetanic_rate_tsianos2012(v, e1, e2, e3, e4, activation_fraction
     )
     slope = (e2 * e4 + e3) / (e4 * e4)
     lengthening = e_xb_0 + slope * np.maximum(v, 0.0)
-    return np.maximum(np.where(v <= 0.0, shortening, lengthening), 0.0)
+    return np.maximum(where(v <= 0.0, shortening, lengthening), 0.0)
 
 
+@jitable
 def activation_tetanic_rate_tsianos2012(e3, e4, activation_fraction):
     """E_a_tet = a E_tet(0) = a/(1-a) E_xb_tet(0), W/kg dry (STEPs 1, 5)."""
     return activation_fraction * e3 / e4
 
 
+@jitable
 def initial_energy_rates_tsianos2012(
     stimulation_activity,
     contractile_activity,
@@ -83,18 +89,27 @@ def initial_energy_rates_tsianos2012(
 # --- recovery (STEP 6 and Appendix B) -------------------------------------------------------------
 
 
+@jitable
 def static_recovery_rate(initial_rate, recovery_ratio):
     """E_rec = R E_i (STEP 6): R = 1.5 slow, 1.0 fast."""
     return recovery_ratio * initial_rate
 
 
-def dynamic_recovery_rate(filter_states, recovery_ratio, tau_rise, tau_decay):
-    """E_rec = R (z_d - z_r) / (td - tr) from the two filter states z = (z_d, z_r) on the last axis.
+@jitable
+def recovery_rate_from_filter(z_decay, z_rise, recovery_ratio, tau_rise, tau_decay):
+    """E_rec = R (z_d - z_r) / (td - tr) from the two recovery filter states.
 
-    The states obey dz_k/dt = E_i - z_k / tau_k (see :func:`recovery_filter_step`), so E_rec is the
+    The states obey dz_k/dt = E_i - z_k / tau_k (see :func:`recovery_state_step`), so E_rec is the
     convolution of E_i with h(t) = R (exp(-t/td) - exp(-t/tr)) / (td - tr), whose integral is R.
     """
-    return recovery_ratio * (filter_states[..., 0] - filter_states[..., 1]) / (tau_decay - tau_rise)
+    return recovery_ratio * (z_decay - z_rise) / (tau_decay - tau_rise)
+
+
+def dynamic_recovery_rate(filter_states, recovery_ratio, tau_rise, tau_decay):
+    """:func:`recovery_rate_from_filter` for states z = (z_d, z_r) on the last axis."""
+    return recovery_rate_from_filter(
+        filter_states[..., 0], filter_states[..., 1], recovery_ratio, tau_rise, tau_decay
+    )
 
 
 def recovery_filter_taus(tau_rise, tau_decay):
@@ -107,7 +122,13 @@ def recovery_filter_derivative(filter_states, initial_rate, taus):
     return initial_rate[..., None] - filter_states / taus
 
 
+@jitable
+def recovery_state_step(z, initial_rate, tau, dt):
+    """Exact update of one recovery state dz/dt = E_i - z / tau for E_i held constant over dt."""
+    decay = np.exp(-dt / tau)
+    return z * decay + initial_rate * tau * (1.0 - decay)
+
+
 def recovery_filter_step(filter_states, initial_rate, taus, dt):
-    """Exact update of the recovery states for E_i held constant over dt."""
-    decay = np.exp(-dt / taus)
-    return filter_states * decay + initial_rate[..., None] * taus * (1.0 - decay)
+    """:func:`recovery_state_step` for both states (last axis, ordered as ``taus``)."""
+    return recovery_state_step(filter_states, initial_rate[..., None], taus, dt)

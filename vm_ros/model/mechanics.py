@@ -23,6 +23,7 @@ import numpy as np
 from scipy.optimize import elementwise
 
 from vm_ros.model import curves
+from vm_ros.model.jit import jitable, where
 from vm_ros.model.params import FibreTypeParams, GenericParams, MuscleSpec
 
 ROS2_GAMMA = 1.0 + 1.0 / np.sqrt(2.0)
@@ -100,8 +101,26 @@ def contractile_force_normalised(l, v, activity, lmax, fibre: FibreTypeParams, g
     )
     pe1 = curves.passive_parallel_elastic_cheng2000(l, v, lmax, g.c1, g.k1, g.lr1, g.eta)
     pe2 = curves.thick_filament_compression_cheng2000(lt, g.c2, g.k2, g.lr2)
-    active = (activity * (fl * fv + pe2)).sum(axis=-1)
-    return np.maximum(0.0, pe1 + active), fl, fv
+    active = active_force_term(activity, fl, fv, pe2).sum(axis=-1)
+    return contractile_force_total(pe1, active), fl, fv
+
+
+@jitable
+def active_force_term(activity, fl, fv, pe2):
+    """One fibre type's share of F_CE / F0: Acteff (FL FV + FPE2)."""
+    return activity * (fl * fv + pe2)
+
+
+@jitable
+def contractile_force_total(pe1, active_sum):
+    """F_CE / F0 = max(0, FPE1 + sum over types of the active terms)."""
+    return np.maximum(0.0, pe1 + active_sum)
+
+
+@jitable
+def tendon_length_normalised(path_length, x, l0t):
+    """L_SE = (L_path - x) / L0T."""
+    return (path_length - x) / l0t
 
 
 def musculotendon_forces(
@@ -115,12 +134,56 @@ def musculotendon_forces(
 ):
     """Tendon and contractile forces (N), each (..., n), for fascicle length x (m), velocity xdot
     (m/s) and path length (m); also the per-type FL (..., n, 2) they used."""
-    l_se = (path_length - x) / geometry.l0t
+    l_se = tendon_length_normalised(path_length, x, geometry.l0t)
     f_se = geometry.f0 * curves.tendon_force_cheng2000(l_se, g.ct, g.kt, g.lrt)
     f_ce, fl, _ = contractile_force_normalised(
         x / geometry.l0, xdot / geometry.l0, activity, geometry.lmax, fibre, g
     )
     return f_se, geometry.f0 * f_ce, fl
+
+
+@jitable
+def ros2_jacobian(f_se, f_ce, f_se_dx, f_ce_dx, f_ce_dv, hx, hv, m_eff):
+    """Acceleration and its one-sided-difference Jacobian from forces at (x, v), (x + hx, v) and
+    (x, v + hv). Returns (accel, d accel/dx, d accel/dv, d accel/d path length)."""
+    accel = (f_se - f_ce) / m_eff
+    d_se_dx = (f_se_dx - f_se) / hx
+    a_x = (d_se_dx - (f_ce_dx - f_ce) / hx) / m_eff
+    a_v = -(f_ce_dv - f_ce) / (hv * m_eff)
+    a_p = -d_se_dx / m_eff  # F_SE depends on (Lp - x)
+    return accel, a_x, a_v, a_p
+
+
+@jitable
+def ros2_solve(a_x, a_v, gh, r_x, r_v):
+    """Solve (I - gamma h J) k = r for the 2x2 Jacobian [[0, 1], [a_x, a_v]]."""
+    det = (1.0 - gh * a_v) - gh * gh * a_x
+    det = where(np.abs(det) > 1e-12, det, 1e-12)
+    return ((1.0 - gh * a_v) * r_x + gh * r_v) / det, (gh * a_x * r_x + r_v) / det
+
+
+@jitable
+def ros2_stage1(x, xdot, path_velocity, dt, accel, a_x, a_v, a_p):
+    """First ROS2 stage: k1 and the point (x2, v2) where the second stage evaluates forces."""
+    gh = ROS2_GAMMA * dt
+    k1_x, k1_v = ros2_solve(a_x, a_v, gh, xdot, accel + gh * a_p * path_velocity)
+    return k1_x, k1_v, x + dt * k1_x, xdot + dt * k1_v
+
+
+@jitable
+def ros2_stage2(x, xdot, path_velocity, dt, a_x, a_v, a_p, k1_x, k1_v, v2, accel2):
+    """Second ROS2 stage and the update: returns (x, xdot) at the end of the step."""
+    gh = ROS2_GAMMA * dt
+    k2_x, k2_v = ros2_solve(
+        a_x, a_v, gh, v2 - 2.0 * k1_x, accel2 - 2.0 * k1_v - gh * a_p * path_velocity
+    )
+    return x + dt * (1.5 * k1_x + 0.5 * k2_x), xdot + dt * (1.5 * k1_v + 0.5 * k2_v)
+
+
+@jitable
+def fd_steps(length_scale):
+    """Difference steps (m, m/s) of the Jacobian for a fascicle of optimal length L0 (m)."""
+    return 1e-7 * length_scale, 1e-6 * length_scale
 
 
 def rosenbrock_step(x, xdot, path_length, path_velocity, dt, forces, m_eff, length_scale):
@@ -134,29 +197,18 @@ def rosenbrock_step(x, xdot, path_length, path_velocity, dt, forces, m_eff, leng
         (I - gamma h J) k2 = F(y_n + h k1) - 2 k1
         y_{n+1} = y_n + h (3 k1 + k2) / 2,      gamma = 1 + 1/sqrt(2)
     """
-    hx = 1e-7 * length_scale
-    hv = 1e-6 * length_scale
+    hx, hv = fd_steps(length_scale)
     stacked_x = np.stack([x, x + hx, x])
     stacked_v = np.stack([xdot, xdot, xdot + hv])
     f_se, f_ce = forces(stacked_x, stacked_v, path_length)
-    accel = (f_se[0] - f_ce[0]) / m_eff
-    d_se_dx = (f_se[1] - f_se[0]) / hx
-    a_x = (d_se_dx - (f_ce[1] - f_ce[0]) / hx) / m_eff
-    a_v = -(f_ce[2] - f_ce[0]) / (hv * m_eff)
-    a_p = -d_se_dx / m_eff  # F_SE depends on (Lp - x)
-    gh = ROS2_GAMMA * dt
-    det = (1.0 - gh * a_v) - gh * gh * a_x
-    det = np.where(np.abs(det) > 1e-12, det, 1e-12)
-
-    def solve(r_x, r_v):
-        return ((1.0 - gh * a_v) * r_x + gh * r_v) / det, (gh * a_x * r_x + r_v) / det
-
-    k1_x, k1_v = solve(xdot, accel + gh * a_p * path_velocity)
-    x2, v2 = x + dt * k1_x, xdot + dt * k1_v
+    accel, a_x, a_v, a_p = ros2_jacobian(
+        f_se[0], f_ce[0], f_se[1], f_ce[1], f_ce[2], hx, hv, m_eff
+    )
+    k1_x, k1_v, x2, v2 = ros2_stage1(x, xdot, path_velocity, dt, accel, a_x, a_v, a_p)
     f_se2, f_ce2 = forces(x2, v2, path_length + dt * path_velocity)
-    accel2 = (f_se2 - f_ce2) / m_eff
-    k2_x, k2_v = solve(v2 - 2.0 * k1_x, accel2 - 2.0 * k1_v - gh * a_p * path_velocity)
-    return x + dt * (1.5 * k1_x + 0.5 * k2_x), xdot + dt * (1.5 * k1_v + 0.5 * k2_v)
+    return ros2_stage2(
+        x, xdot, path_velocity, dt, a_x, a_v, a_p, k1_x, k1_v, v2, (f_se2 - f_ce2) / m_eff
+    )
 
 
 def equilibrium_fascicle_length(

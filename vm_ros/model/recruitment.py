@@ -23,14 +23,26 @@ from functools import cached_property
 
 import numpy as np
 
+from vm_ros.model.jit import clip, jitable, where
 from vm_ros.model.params import FAST, SLOW, ContinuousParams, LumpedParams, NaturalParams
 
 SCHEMES = ("lumped", "natural", "continuous")
 _TINY = 1e-12
 
 
-def _safe_ratio(numerator, denominator):
-    return numerator / np.where(np.abs(denominator) > _TINY, denominator, _TINY)
+@jitable
+def safe_ratio(numerator, denominator):
+    """numerator / denominator with |denominator| held at or above 1e-12."""
+    return numerator / where(np.abs(denominator) > _TINY, denominator, _TINY)
+
+
+@jitable
+def polyval_horner(coefficients, x):
+    """Polynomial with ``coefficients`` (highest power first) at x, by Horner's rule."""
+    result = 0.0 * x
+    for c in coefficients:
+        result = result * x + c
+    return result
 
 
 def fast_threshold(fpcsa_slow, ur):
@@ -41,17 +53,58 @@ def fast_threshold(fpcsa_slow, ur):
 # --- Tsianos 2012 lumped units -------------------------------------------------------------------
 
 
-def lumped_drive_time_constant_tsianos2012(u, ueff, u2, p: LumpedParams):
+@dataclass(frozen=True)
+class LumpedCoefficients:
+    """The lumped model's coefficients that depend on U2 only, evaluated once per muscle (n,)."""
+
+    t_rise: np.ndarray
+    t_fall: np.ndarray
+    w_slow_at_u2: np.ndarray
+    w_slow_amplitude: np.ndarray
+    w_fast_b: np.ndarray
+    w_fast_c: np.ndarray
+    w_fast_tau: np.ndarray
+
+    @classmethod
+    def tsianos2012(cls, u2, p: LumpedParams) -> LumpedCoefficients:
+        """T_rise = 0.38 U2^2 + 0.8 U2 + 0.14; T_fall = -0.32 U2^4 + 0.82 U2^3 - 0.28 U2^2
+        + 0.014 U2 + 0.09; W_S(U2); A = -1.99 U2^4 + 1.90 U2^3 - 1.75 U2^2 + 1.19 U2 + 0.13;
+        B = 0.59 U2 + 0.39; C = -98.82 U2^5 + 155.7 U2^4 - 85.96 U2^3 + 19.32 U2^2 - 2.62 U2
+        + 1.02; tau_f = -0.27 U2 + 0.25 (held above 1e-12). Constants for Ur = 0.8."""
+        u2 = np.asarray(u2, dtype=float)
+        return cls(
+            t_rise=np.polyval(p.t_rise_poly, u2),
+            t_fall=np.polyval(p.t_fall_poly, u2),
+            w_slow_at_u2=np.polyval(p.w_slow_poly, u2),
+            w_slow_amplitude=np.polyval(p.w_slow_a_poly, u2),
+            w_fast_b=np.polyval(p.w_fast_b_poly, u2),
+            w_fast_c=np.polyval(p.w_fast_c_poly, u2),
+            w_fast_tau=np.maximum(np.polyval(p.w_fast_tau_poly, u2), _TINY),
+        )
+
+
+@jitable
+def lumped_drive_tau(u, ueff, t_rise, t_fall, step_scale):
     """Time constant (s) of the lumped model's filtered drive Ueff.
 
-    U >= Ueff: T_U = T_rise exp(-(U - Ueff) ln(1000 T_rise)),  T_rise = 0.38 U2^2 + 0.8 U2 + 0.14
-    U <  Ueff: T_U = -0.32 U2^4 + 0.82 U2^3 - 0.28 U2^2 + 0.014 U2 + 0.09
-    T_U is T_rise for small steps and 1 ms for a full 0 -> 1 step. Constants for Ur = 0.8.
+    U >= Ueff: T_U = T_rise exp(-(U - Ueff) ln(1000 T_rise));  U < Ueff: T_U = T_fall.
+    T_U is T_rise for small steps and 1 ms for a full 0 -> 1 step.
     """
-    t_rise = np.polyval(p.t_rise_poly, u2)
-    t_fall = np.polyval(p.t_fall_poly, u2)
-    rising = t_rise * np.exp(-(u - ueff) * np.log(p.t_rise_step_scale * t_rise))
-    return np.where(u >= ueff, rising, t_fall)
+    rising = t_rise * np.exp(-(u - ueff) * np.log(step_scale * t_rise))
+    return where(u >= ueff, rising, t_fall)
+
+
+def lumped_drive_time_constant_tsianos2012(u, ueff, u2, p: LumpedParams):
+    """:func:`lumped_drive_tau` with T_rise and T_fall from U2 (see LumpedCoefficients)."""
+    c = LumpedCoefficients.tsianos2012(u2, p)
+    return lumped_drive_tau(u, ueff, c.t_rise, c.t_fall, p.t_rise_step_scale)
+
+
+@jitable
+def linear_recruited_fraction(ueff, fpcsa, lower, upper):
+    """rF = Fpcsa clip((Ueff - lower) / (upper - lower), 0, 1); 0 for an absent type."""
+    fraction = clip(safe_ratio(ueff - lower, upper - lower), 0.0, 1.0)
+    return where(fpcsa > 0.0, fpcsa * fraction, 0.0)
 
 
 def lumped_recruited_fraction_tsianos2012(ueff, fpcsa, lower, upper):
@@ -59,36 +112,41 @@ def lumped_recruited_fraction_tsianos2012(ueff, fpcsa, lower, upper):
 
     lower = (U1, U2); upper = (U2, Ur) capped (model.md 5b note) or (1, 1) as the paper reads.
     """
-    fraction = np.clip(_safe_ratio(ueff[..., None] - lower, upper - lower), 0.0, 1.0)
-    return np.where(fpcsa > 0.0, fpcsa * fraction, 0.0)
+    return linear_recruited_fraction(ueff[..., None], fpcsa, lower, upper)
+
+
+@jitable
+def lumped_weight_slow(ueff, u1, u2, w_slow_poly, at_u2, amplitude, tau):
+    """W_S(Ueff): 0 below U1; 1.56 Ueff^2 - 1.20 Ueff + 0.884 up to U2;
+    W_S(U2) + A (1 - exp(-(Ueff - U2)/0.26)) above."""
+    quadratic = polyval_horner(w_slow_poly, np.minimum(ueff, u2))
+    above = at_u2 - amplitude * np.expm1(-np.maximum(ueff - u2, 0.0) / tau)
+    return where(ueff < u1, 0.0, where(ueff <= u2, quadratic, above))
+
+
+@jitable
+def lumped_weight_fast(ueff, u2, ur, b, c, tau_f, offset, rise):
+    """W_F(Ueff): 0 below U2; ((Ueff - B)/C)^2 + 0.65 up to Ur;
+    W_F(Ur) + 0.35 (1 - exp(-(Ueff - Ur)/tau_f)) above."""
+    quadratic = safe_ratio(np.minimum(ueff, ur) - b, c) ** 2 + offset
+    at_ur = safe_ratio(ur - b, c) ** 2 + offset
+    above = at_ur - rise * np.expm1(-np.maximum(ueff - ur, 0.0) / tau_f)
+    return where(ueff < u2, 0.0, where(ueff < ur, quadratic, above))
 
 
 def lumped_weighting_slow_tsianos2012(ueff, u1, u2, p: LumpedParams):
-    """W_S(Ueff): 0 below U1; 1.56 Ueff^2 - 1.20 Ueff + 0.884 up to U2;
-    W_S(U2) + A (1 - exp(-(Ueff - U2)/0.26)) above, A = -1.99 U2^4 + 1.90 U2^3 - 1.75 U2^2
-    + 1.19 U2 + 0.13."""
-    quadratic = np.polyval(p.w_slow_poly, np.minimum(ueff, u2))
-    at_u2 = np.polyval(p.w_slow_poly, u2)
-    amplitude = np.polyval(p.w_slow_a_poly, u2)
-    above = at_u2 - amplitude * np.expm1(-np.maximum(ueff - u2, 0.0) / p.w_slow_tau)
-    return np.where(ueff < u1, 0.0, np.where(ueff <= u2, quadratic, above))
+    """W_S(Ueff) (:func:`lumped_weight_slow`) with the U2 coefficients from ``p``."""
+    c = LumpedCoefficients.tsianos2012(u2, p)
+    poly = np.asarray(p.w_slow_poly, dtype=float)
+    return lumped_weight_slow(ueff, u1, u2, poly, c.w_slow_at_u2, c.w_slow_amplitude, p.w_slow_tau)
 
 
 def lumped_weighting_fast_tsianos2012(ueff, u2, ur, p: LumpedParams):
-    """W_F(Ueff): 0 below U2; ((Ueff - B)/C)^2 + 0.65 up to Ur;
-    W_F(Ur) + 0.35 (1 - exp(-(Ueff - Ur)/tau_f)) above, with B = 0.59 U2 + 0.39,
-    C = -98.82 U2^5 + 155.7 U2^4 - 85.96 U2^3 + 19.32 U2^2 - 2.62 U2 + 1.02,
-    tau_f = -0.27 U2 + 0.25.
-    """
-    b = np.polyval(p.w_fast_b_poly, u2)
-    c = np.polyval(p.w_fast_c_poly, u2)
-    tau_f = np.maximum(np.polyval(p.w_fast_tau_poly, u2), _TINY)
-
-    def quadratic(x):
-        return _safe_ratio(x - b, c) ** 2 + p.w_fast_offset
-
-    above = quadratic(ur) - p.w_fast_rise * np.expm1(-np.maximum(ueff - ur, 0.0) / tau_f)
-    return np.where(ueff < u2, 0.0, np.where(ueff < ur, quadratic(np.minimum(ueff, ur)), above))
+    """W_F(Ueff) (:func:`lumped_weight_fast`) with the U2 coefficients from ``p``."""
+    c = LumpedCoefficients.tsianos2012(u2, p)
+    return lumped_weight_fast(
+        ueff, u2, ur, c.w_fast_b, c.w_fast_c, c.w_fast_tau, p.w_fast_offset, p.w_fast_rise
+    )
 
 
 @dataclass(frozen=True)
@@ -122,8 +180,17 @@ class LumpedRecruitment(_OnePoolPerFibreType):
     def thresholds(self):
         return np.stack([np.full_like(self.ur, self.params.u1), self.u2], axis=-1)
 
+    @cached_property
+    def coefficients(self) -> LumpedCoefficients:
+        return LumpedCoefficients.tsianos2012(self.u2, self.params)
+
+    @cached_property
+    def w_slow_poly(self) -> np.ndarray:
+        return np.asarray(self.params.w_slow_poly, dtype=float)
+
     def drive_tau(self, u, ueff):
-        return lumped_drive_time_constant_tsianos2012(u, ueff, self.u2, self.params)
+        c = self.coefficients
+        return lumped_drive_tau(u, ueff, c.t_rise, c.t_fall, self.params.t_rise_step_scale)
 
     @cached_property
     def _recruitment_range(self):
@@ -139,11 +206,17 @@ class LumpedRecruitment(_OnePoolPerFibreType):
         return lumped_recruited_fraction_tsianos2012(ueff, self.fpcsa, lower, upper)
 
     def pool_weights(self, ueff):
-        u2 = self.u2
+        c, p, u2 = self.coefficients, self.params, self.u2
         weighting = np.stack(
             [
-                lumped_weighting_slow_tsianos2012(ueff, self.params.u1, u2, self.params),
-                lumped_weighting_fast_tsianos2012(ueff, u2, self.ur, self.params),
+                lumped_weight_slow(
+                    ueff, p.u1, u2, self.w_slow_poly, c.w_slow_at_u2, c.w_slow_amplitude,
+                    p.w_slow_tau,
+                ),
+                lumped_weight_fast(
+                    ueff, u2, self.ur, c.w_fast_b, c.w_fast_c, c.w_fast_tau, p.w_fast_offset,
+                    p.w_fast_rise,
+                ),
             ],
             axis=-1,
         )
@@ -214,11 +287,28 @@ class NaturalRecruitment:
 # --- Song 2008 continuous recruitment ------------------------------------------------------------
 
 
+@jitable
+def continuous_excess_song2008(ueff, threshold, present):
+    """max(Ueff - Uth_i, 0) for a present fibre type, else 0."""
+    return where(present, np.maximum(ueff - threshold, 0.0), 0.0)
+
+
+@jitable
+def continuous_share_song2008(excess, total_excess):
+    """W_i = excess_i / D, D = sum_i excess_i (1 where D = 0)."""
+    return excess / where(total_excess > 0.0, total_excess, 1.0)
+
+
+@jitable
+def continuous_drive_tau_song2008(u, ueff, tau_rise, tau_fall):
+    """Time constant (s) of the filtered drive: tau_rise while U >= Ueff, else tau_fall."""
+    return where(u >= ueff, tau_rise, tau_fall)
+
+
 def continuous_weighting_song2008(ueff, thresholds, present):
     """W_i = max(Ueff - Uth_i, 0) / D, D = sum_i max(Ueff - Uth_i, 0) (1 if 0); absent types 0."""
-    excess = np.where(present, np.maximum(ueff[:, None] - thresholds, 0.0), 0.0)
-    total = excess.sum(axis=-1, keepdims=True)
-    return excess / np.where(total > 0.0, total, 1.0)
+    excess = continuous_excess_song2008(ueff[:, None], thresholds, present)
+    return continuous_share_song2008(excess, excess.sum(axis=-1, keepdims=True))
 
 
 @dataclass(frozen=True)
@@ -235,7 +325,7 @@ class ContinuousRecruitment(_OnePoolPerFibreType):
         return np.stack([np.full_like(u2, u_min), u2], axis=-1)
 
     def drive_tau(self, u, ueff):
-        return np.where(u >= ueff, self.params.tau_rise, self.params.tau_fall)
+        return continuous_drive_tau_song2008(u, ueff, self.params.tau_rise, self.params.tau_fall)
 
     def recruited_fraction(self, u, ueff):
         """Reported as the lumped scheme's linear recruitment (it does not enter the force)."""

@@ -1,0 +1,206 @@
+"""The compiled step (vm_ros.model.kernel) against the NumPy step: same equations, same numbers.
+
+The NumPy step is the one test_integrator.py holds against the scipy Radau reference; the compiled
+step calls the same equation functions in the same order, so the two must agree to rounding
+(relative 1e-12 here; they are bit-for-bit equal on this machine). Without Numba the compiled
+step is unavailable, the bank falls back to NumPy, and the comparisons are skipped (they are
+recorded as skips, so a Numba-less run shows them).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from vm_ros.errors import InputError
+from vm_ros.model import SCHEMES, MuscleBank, kernel, load_model_params
+from vm_ros.model.params import load_muscle_library, resolve_muscles
+
+DT = 1e-3
+needs_numba = pytest.mark.skipif(not kernel.AVAILABLE, reason="numba not importable")
+
+
+def library_bank(scheme, recovery_mode, backend, count=13, units_per_type=None):
+    params = load_model_params()
+    if units_per_type is not None:
+        params = dataclasses.replace(
+            params, natural=dataclasses.replace(params.natural, units_per_type=units_per_type)
+        )
+    names = list(load_muscle_library())
+    base = resolve_muscles(names, None, None, params.generic.ur_default)
+    specs = [dataclasses.replace(base[i % len(base)], name=f"m{i}") for i in range(count)]
+    return MuscleBank(specs, params, recruitment=scheme, recovery_mode=recovery_mode,
+                      backend=backend)
+
+
+def drive_and_path(k, n, lp0):
+    """A drive sweeping 0..1 and a path moving +-1.5 cm at up to 0.3 m/s, phase-shifted."""
+    phase = np.arange(n)
+    u = 0.5 + 0.6 * np.sin(0.004 * k + phase)  # exceeds [0, 1]: tests the clipping too
+    lp = lp0 + 0.015 * np.sin(0.02 * k + phase)
+    vp = 0.015 * 0.02 / DT * np.cos(0.02 * k + phase)
+    return u, lp, vp
+
+
+FIELDS = ("force", "contractile_force", "fascicle_length", "fascicle_velocity",
+          "effective_drive", "effective_activation", "firing_rate_f05", "mechanical_power",
+          "mechanical_work", "excitation")
+
+
+def assert_outputs_equal(a, b):
+    for name in FIELDS:
+        np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-12, atol=1e-12,
+                                   err_msg=name)
+    np.testing.assert_allclose(a.energy_rate_by_fiber.as_array(),
+                               b.energy_rate_by_fiber.as_array(), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(a.energy_by_fiber.as_array(), b.energy_by_fiber.as_array(),
+                               rtol=1e-12, atol=1e-12)
+
+
+@needs_numba
+@pytest.mark.parametrize("recovery_mode", ["static", "dynamic"])
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_compiled_step_equals_numpy_step(scheme, recovery_mode):
+    kwargs = {"units_per_type": 5} if scheme == "natural" else {}
+    banks = [library_bank(scheme, recovery_mode, b, **kwargs) for b in ("numpy", "numba")]
+    assert [b.backend for b in banks] == ["numpy", "numba"]
+    lp0 = banks[0].l0_m + banks[0].l0t_m
+    for b in banks:
+        b.reset(lp0, excitation=np.full(b.n, 0.2))
+    for k in range(1500):
+        u, lp, vp = drive_and_path(k, banks[0].n, lp0)
+        outs = [b.step(DT, u, lp, vp) for b in banks]
+        if k % 50 == 0 or k > 1450:
+            assert_outputs_equal(*outs)
+    assert np.max(outs[0].force / banks[0].f0) > 0.3  # the comparison covered active states
+
+
+@needs_numba
+def test_compiled_step_after_set_state_and_reset():
+    """FL/FV kept from the last step are reused only for the same (x, xdot): after set_state
+    (going back in time) and after reset the compiled step still equals the NumPy step."""
+    banks = [library_bank("lumped", "dynamic", b, count=4) for b in ("numpy", "numba")]
+    lp0 = banks[0].l0_m + banks[0].l0t_m
+    for b in banks:
+        b.reset(lp0)
+    saved = None
+    for k in range(400):
+        u, lp, vp = drive_and_path(k, 4, lp0)
+        for b in banks:
+            b.step(DT, u, lp, vp)
+        if k == 150:
+            saved = banks[1].state
+    for b in banks:
+        b.set_state(saved)
+    for k in range(151, 300):
+        u, lp, vp = drive_and_path(k, 4, lp0)
+        outs = [b.step(DT, u, lp, vp) for b in banks]
+    assert_outputs_equal(*outs)
+    for b in banks:
+        b.reset(lp0 * 1.01, excitation=np.full(4, 0.4))
+    outs = [b.step(DT, 0.4, lp0 * 1.01) for b in banks]
+    assert_outputs_equal(*outs)
+
+
+@needs_numba
+@pytest.mark.parametrize(
+    "bad",
+    [
+        {"excitation": [0.1, np.nan, 0.2]},
+        {"path_length": [0.3, 0.3, -0.1]},
+        {"path_velocity": [0.0, np.inf, 0.0]},
+        {"excitation": [0.1, 0.2]},
+    ],
+)
+def test_compiled_step_rejects_bad_input_and_keeps_state(bad):
+    bank = MuscleBank.from_config(["vasti", "soleus", "rectus_femoris"], backend="numba")
+    lp = bank.l0_m + bank.l0t_m
+    bank.reset(lp, excitation=0.3)
+    bank.step(DT, 0.3, lp)
+    before = bank.state
+    inputs = {"excitation": [0.3] * 3, "path_length": lp, "path_velocity": None, **bad}
+    with pytest.raises(InputError):
+        bank.step(DT, **inputs)
+    after = bank.state
+    for name in ("fascicle_length_m", "effective_drive", "firing_rate_effective", "energy_j"):
+        np.testing.assert_array_equal(getattr(after, name), getattr(before, name))
+    assert after.time_s == before.time_s
+
+
+@needs_numba
+def test_outputs_are_independent_of_later_steps():
+    """Fields computed on first access reflect the step that returned them."""
+    bank = MuscleBank.from_config(["vasti"])
+    lp = bank.l0_m + bank.l0t_m
+    bank.reset(lp)
+    first = bank.step(DT, 1.0, lp)
+    length, energy = first.fascicle_length.copy(), first.energy.total.copy()
+    for _ in range(100):
+        bank.step(DT, 1.0, lp)
+    late = first  # read only now
+    np.testing.assert_array_equal(late.fascicle_length, length)
+    np.testing.assert_array_equal(late.energy.total, energy)
+
+
+def test_backend_selection_and_numpy_fallback():
+    """backend='numpy' always works; with VM_ROS_NUMBA=0 the package runs without Numba."""
+    bank = MuscleBank.from_config(["soleus"], backend="numpy")
+    assert bank.backend == "numpy"
+    with pytest.raises(ValueError, match="backend must be one of"):
+        MuscleBank.from_config(["soleus"], backend="fortran")
+    code = (
+        "import sys, numpy as np\n"
+        "from vm_ros.model import MuscleBank, kernel\n"
+        "assert not kernel.AVAILABLE and 'numba' not in sys.modules\n"
+        "b = MuscleBank.from_config(['soleus'])\n"
+        "assert b.backend == 'numpy'\n"
+        "lp = b.l0_m + b.l0t_m\n"
+        "b.reset(lp)\n"
+        "out = [b.step(1e-3, 1.0, lp) for _ in range(300)][-1]\n"
+        "assert out.force[0] > 0.3 * b.f0[0]\n"
+        "try:\n"
+        "    MuscleBank.from_config(['soleus'], backend='numba')\n"
+        "    raise SystemExit('numba backend accepted without numba')\n"
+        "except ValueError as e:\n"
+        "    assert 'numba' in str(e)\n"
+    )
+    env = {**os.environ, "VM_ROS_NUMBA": "0"}
+    result = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                            text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+
+
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+def test_run_equals_repeated_steps(backend):
+    """MuscleBank.run (one call for k steps) gives what k calls of step give."""
+    if backend == "numba" and not kernel.AVAILABLE:
+        pytest.skip("numba not importable")
+    banks = [library_bank("lumped", "dynamic", backend, count=3) for _ in range(2)]
+    lp0 = banks[0].l0_m + banks[0].l0t_m
+    rows = [drive_and_path(k, 3, lp0) for k in range(600)]
+    u, lp, vp = (np.array([r[i] for r in rows]) for i in range(3))
+    for b in banks:
+        b.reset(lp0)
+    trajectory = banks[0].run(DT, u, lp, vp)
+    outs = [banks[1].step(DT, u[k], lp[k], vp[k]) for k in range(600)]
+    np.testing.assert_allclose(trajectory.force, [o.force for o in outs], rtol=1e-12)
+    np.testing.assert_allclose(trajectory.fascicle_length, [o.fascicle_length for o in outs],
+                               rtol=1e-12)
+    np.testing.assert_allclose(trajectory.energy_rate.total, [o.energy_rate.total for o in outs],
+                               rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(trajectory.time_s, [o.time_s for o in outs], rtol=1e-12)
+    assert_outputs_equal(trajectory.last, outs[-1])
+    assert banks[0].time_s == pytest.approx(0.6)
+    # a bad row: InputError naming the step, state as before the call
+    before = banks[0].state
+    u_bad = u.copy()
+    u_bad[250, 1] = np.nan
+    with pytest.raises(InputError, match="at step 250"):
+        banks[0].run(DT, u_bad, lp, vp)
+    np.testing.assert_array_equal(banks[0].state.fascicle_length_m, before.fascicle_length_m)
+    assert banks[0].time_s == before.time_s

@@ -1,0 +1,1 @@
+"""Benchmarks behind `vm-ros bench` (model, offline runs, muscle_node)."""

@@ -1,0 +1,156 @@
+"""Benchmarks of the model alone (no ROS): step cost against bank size and back end, natural
+against lumped units, and the 180 s knee-extension scenario offline.
+
+Timings are wall-clock medians over repeats (``time.perf_counter``); one step is
+``MuscleBank.step`` as a user calls it (input checks, state copy, outputs), with a drive that
+changes every step and the path length moving, so neither the activation nor the mechanics sit at
+a fixed point. Energetics are always on.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import statistics
+import time
+
+import numpy as np
+
+from vm_ros.model import MuscleBank, kernel, load_model_params, load_muscle_library
+from vm_ros.model.params import resolve_muscles
+
+DT = 1e-3
+
+
+def library_bank(n: int, recruitment: str = "lumped", backend: str = "auto",
+                 units_per_type: int | None = None, params=None) -> MuscleBank:
+    """A bank of ``n`` muscles cycling through the shipped library (names m0, m1, ...)."""
+    params = params or load_model_params()
+    if units_per_type is not None:
+        params = dataclasses.replace(
+            params, natural=dataclasses.replace(params.natural, units_per_type=units_per_type)
+        )
+    base = resolve_muscles(list(load_muscle_library()), None, None, params.generic.ur_default)
+    specs = [dataclasses.replace(base[i % len(base)], name=f"m{i}") for i in range(n)]
+    return MuscleBank(specs, params, recruitment=recruitment, backend=backend)
+
+
+def _inputs(bank: MuscleBank, steps: int):
+    """(k, n) drive sweeping 0.05..0.95 at 2 Hz and a path moving +-2 % around rest at 1 Hz."""
+    t = DT * np.arange(steps)[:, None]
+    phase = np.arange(bank.n)[None, :]
+    u = 0.5 + 0.45 * np.sin(2 * np.pi * 2.0 * t + phase)
+    rest = bank.l0_m + bank.l0t_m
+    amplitude = 0.02 * rest
+    lp = rest + amplitude * np.sin(2 * np.pi * t + phase)
+    vp = amplitude * 2 * np.pi * np.cos(2 * np.pi * t + phase)
+    return u, lp, vp
+
+
+def time_step(bank: MuscleBank, repeats: int = 7, min_seconds: float = 0.2) -> dict:
+    """Median wall time (s) of one ``bank.step`` over ``repeats`` blocks of steps."""
+    u, lp, vp = _inputs(bank, 4000)
+    bank.reset(lp[0], excitation=u[0])
+    for j in range(20):  # warm-up (compilation, caches)
+        bank.step(DT, u[j], lp[j], vp[j])
+    start = time.perf_counter()
+    probe = 0
+    while time.perf_counter() - start < 0.05 and probe < 2000:
+        bank.step(DT, u[probe % 4000], lp[probe % 4000], vp[probe % 4000])
+        probe += 1
+    per_step = (time.perf_counter() - start) / probe
+    block = int(min(4000, max(5, min_seconds / per_step)))
+    samples = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for j in range(block):
+            bank.step(DT, u[j], lp[j], vp[j])
+        samples.append((time.perf_counter() - t0) / block)
+    return {"median_s": statistics.median(samples), "min_s": min(samples),
+            "max_s": max(samples), "steps_per_repeat": block, "repeats": repeats}
+
+
+def bench_model_step(counts=(1, 10, 100, 1000), backends=("numba", "numpy"), repeats=7,
+                     min_seconds=0.2, progress=None) -> list[dict]:
+    """Step cost for each bank size and back end (lumped units, static recovery)."""
+    rows = []
+    for backend in backends:
+        if backend == "numba" and not kernel.AVAILABLE:
+            rows.append({"backend": backend, "skipped": "numba not importable"})
+            continue
+        for n in counts:
+            bank = library_bank(n, backend=backend)
+            timing = time_step(bank, repeats, min_seconds)
+            rows.append({"backend": backend, "muscles": n, "recruitment": "lumped",
+                         "step_us": 1e6 * timing["median_s"],
+                         "step_us_min": 1e6 * timing["min_s"],
+                         "step_us_max": 1e6 * timing["max_s"],
+                         "us_per_muscle": 1e6 * timing["median_s"] / n,
+                         "realtime_factor_at_1khz": DT / timing["median_s"],
+                         "steps_per_repeat": timing["steps_per_repeat"], "repeats": repeats})
+            if progress:
+                progress(f"step {backend} {n} muscles: {rows[-1]['step_us']:.1f} us")
+    return rows
+
+
+def bench_natural_ratio(units_per_type: int = 20, counts=(1, 10), backends=("numba", "numpy"),
+                        repeats=7, min_seconds=0.2, progress=None) -> list[dict]:
+    """Cost of natural units (``units_per_type`` per fibre type) over lumped units, per step."""
+    rows = []
+    for backend in backends:
+        if backend == "numba" and not kernel.AVAILABLE:
+            continue
+        for n in counts:
+            lumped = time_step(library_bank(n, "lumped", backend), repeats, min_seconds)
+            natural = time_step(library_bank(n, "natural", backend, units_per_type), repeats,
+                                min_seconds)
+            rows.append({"backend": backend, "muscles": n, "units_per_type": units_per_type,
+                         "lumped_step_us": 1e6 * lumped["median_s"],
+                         "natural_step_us": 1e6 * natural["median_s"],
+                         "natural_over_lumped": natural["median_s"] / lumped["median_s"]})
+            if progress:
+                progress(f"natural/lumped {backend} {n} muscles: "
+                         f"{rows[-1]['natural_over_lumped']:.2f}")
+    return rows
+
+
+def knee_extension_offline(duration_s: float | None = None, backend: str = "auto") -> dict:
+    """The Fig. 7 scenario (rectus femoris + vasti, dynamic recovery) offline with
+    ``MuscleBank.run``: wall time of building the bank, sampling the scenario's inputs at every
+    step and running every step, with the total energy as a check of the result."""
+    from vm_ros.scenarios import load_scenario
+
+    t0 = time.perf_counter()
+    scenario = load_scenario("knee_extension")
+    bank = scenario.make_bank(params=load_model_params(), backend=backend)
+    inputs = scenario.inputs(bank)
+    duration = duration_s or scenario.duration_s
+    times = DT * np.arange(int(round(duration / DT)))
+    t1 = time.perf_counter()
+    u = np.array([inputs.excitation(t) for t in times])
+    lp = np.array([inputs.path_length(t) for t in times])
+    vp = np.array([inputs.path_velocity(t) for t in times])
+    t2 = time.perf_counter()
+    bank.reset(lp[0])
+    trajectory = bank.run(DT, u, lp, vp)
+    t3 = time.perf_counter()
+    return {"backend": bank.backend, "simulated_s": float(duration), "steps": len(times),
+            "muscles": bank.n, "recovery_mode": bank.recovery_mode,
+            "wall_s": t3 - t0, "setup_s": t1 - t0, "inputs_s": t2 - t1, "run_s": t3 - t2,
+            "total_energy_j": trajectory.last.total_energy}
+
+
+def bench_knee_offline(repeats: int = 3, progress=None) -> dict:
+    """Median over repeats of :func:`knee_extension_offline` (the first run, which may compile,
+    is reported separately)."""
+    first = knee_extension_offline()
+    runs = [knee_extension_offline() for _ in range(repeats)]
+    result = {key: statistics.median(r[key] for r in runs)
+              for key in ("wall_s", "setup_s", "inputs_s", "run_s")}
+    result.update({key: runs[0][key] for key in
+                   ("backend", "simulated_s", "steps", "muscles", "recovery_mode",
+                    "total_energy_j")})
+    result["first_run_wall_s"] = first["wall_s"]
+    result["repeats"] = repeats
+    if progress:
+        progress(f"knee extension 180 s offline: {result['wall_s']:.2f} s wall")
+    return result

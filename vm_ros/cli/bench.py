@@ -1,0 +1,209 @@
+"""Measure the model, the offline runner and muscle_node against vm_ros's speed targets; write
+the results (JSON and CSV) and print a table.
+
+Sections (all by default; --only picks some):
+  model     MuscleBank.step for 1, 10, 100, 1000 muscles (lumped units, energetics on,
+            dt 1 ms), compiled (Numba) and NumPy back ends
+  natural   natural units (20 per fibre type) over lumped units, cost ratio per step
+  offline   the 180 s rectus femoris + vasti knee extension (dynamic recovery) with
+            MuscleBank.run, wall time including set-up and input sampling
+  node      muscle_node as a separate process: 100 muscles at 1 kHz publishing at 100 Hz with
+            MCAP, and 10 muscles publishing at 1 kHz; CPU, memory, model-time drift, latency.
+            rclpy runs in a loopback-only network namespace: inside scripts/netns-run it runs
+            directly, otherwise this command starts one (unshare -n; needs root).
+
+Timings are medians of repeated runs on a shared machine: compare ratios within one run rather
+than absolute numbers across runs. Targets (issue: performance): 1 muscle <= 30 us per step;
+1000 muscles <= 1 ms per step; knee extension offline < 5 s; node: model time within 1 % of
+wall time and CPU <= 50 % of one core.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import platform
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from vm_ros.errors import VmRosError
+
+HELP = "benchmark the model, offline runs and muscle_node; write JSON/CSV and print a table"
+SECTIONS = ("model", "natural", "offline", "node")
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--out", metavar="DIR", default="bench-results",
+                        help="folder for bench.json and bench.csv (default bench-results)")
+    parser.add_argument("--only", choices=SECTIONS, action="append", metavar="SECTION",
+                        help=f"run only these sections ({', '.join(SECTIONS)}); repeatable")
+    parser.add_argument("--quick", action="store_true",
+                        help="fewer repeats and 10 s node runs (a smoke run, not the targets)")
+    parser.add_argument("--repeats", type=int, default=None, metavar="N",
+                        help="repeats per timing (default 7, --quick 3)")
+    parser.add_argument("--node-duration", type=float, default=None, metavar="S",
+                        help="seconds measured per node configuration (default 60, --quick 10)")
+
+
+def _machine() -> dict:
+    import numpy
+
+    from vm_ros.model import kernel
+
+    info = {
+        "python": platform.python_version(),
+        "platform": platform.platform(),
+        "machine": platform.machine(),
+        "cpus": os.cpu_count(),
+        "numpy": numpy.__version__,
+        "numba": kernel.numba.__version__ if kernel.AVAILABLE else None,
+        "load_average_start": os.getloadavg(),
+        "date": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+    }
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                info["cpu"] = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return info
+
+
+def _say(message: str) -> None:
+    print(f"bench: {message}", file=sys.stderr, flush=True)
+
+
+def _node_rows(duration_s: float, workdir: Path) -> list[dict]:
+    configs = [
+        {"muscles": 100, "model_rate_hz": 1000.0, "publish_rate_hz": 100.0, "mcap": True},
+        {"muscles": 10, "model_rate_hz": 1000.0, "publish_rate_hz": 1000.0, "mcap": False},
+    ]
+    rows = []
+    for config in configs:
+        _say(f"node {config['muscles']} muscles, publish {config['publish_rate_hz']:g} Hz, "
+             f"MCAP {'on' if config['mcap'] else 'off'}, {duration_s:g} s ...")
+        command = [sys.executable, "-m", "vm_ros.bench.node_bench",
+                   "--muscles", str(config["muscles"]),
+                   "--model-rate", str(config["model_rate_hz"]),
+                   "--publish-rate", str(config["publish_rate_hz"]),
+                   "--duration", str(duration_s), "--workdir", str(workdir),
+                   *([] if config["mcap"] else ["--no-mcap"])]
+        if os.environ.get("VM_ROS_NETNS") != "1":
+            command = _loopback_only(command)
+        result = subprocess.run(command, capture_output=True, text=True,
+                                timeout=duration_s * 3 + 180)
+        if result.returncode != 0:
+            tail = (result.stderr or result.stdout).strip().splitlines()[-5:]
+            rows.append({**config, "error": " | ".join(tail)})
+            _say(f"node run failed: {rows[-1]['error']}")
+            continue
+        rows.append({**config, **json.loads(result.stdout.strip().splitlines()[-1])})
+    return rows
+
+
+def _loopback_only(command: list) -> list:
+    """``command`` inside a new network namespace with only loopback (as scripts/netns-run)."""
+    script = ("set -e; ip link set lo up; "
+              "export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST ROS_DOMAIN_ID=42 "
+              "FASTDDS_BUILTIN_TRANSPORTS=UDPv4 VM_ROS_NETNS=1; exec \"$@\"")
+    return ["unshare", "-n", "bash", "-c", script, "netns-run", *command]
+
+
+def _csv_rows(results: dict) -> list[dict]:
+    """Flat (section, case, metric, value, unit, target, met) rows of the main numbers."""
+    rows = []
+
+    def add(section, case, metric, value, unit, target=None, met=None):
+        rows.append({"section": section, "case": case, "metric": metric, "value": value,
+                     "unit": unit, "target": target or "", "met": "" if met is None else met})
+
+    for r in results.get("model", []):
+        if "step_us" not in r:
+            continue
+        target = {1: 30.0, 1000: 1000.0}.get(r["muscles"]) if r["backend"] == "numba" else None
+        add("model", f"{r['backend']} {r['muscles']} muscles", "step median", r["step_us"], "us",
+            f"<= {target:g} us" if target else None,
+            None if target is None else r["step_us"] <= target)
+    for r in results.get("natural", []):
+        add("natural", f"{r['backend']} {r['muscles']} muscles, {r['units_per_type']} units/type",
+            "natural / lumped step cost", r["natural_over_lumped"], "ratio")
+    if "offline" in results:
+        r = results["offline"]
+        add("offline", f"knee extension {r['simulated_s']:g} s, {r['backend']}", "wall",
+            r["wall_s"], "s", "< 5 s", r["wall_s"] < 5.0)
+    for r in results.get("node", []):
+        case = (f"{r['muscles']} muscles, publish {r['publish_rate_hz']:g} Hz"
+                f"{', MCAP' if r['mcap'] else ''}")
+        if "error" in r:
+            add("node", case, "error", r["error"], "")
+            continue
+        main = r["muscles"] == 100
+        for key, value in r.items():
+            if key in ("muscles", "model_rate_hz", "publish_rate_hz", "mcap"):
+                continue
+            target = met = None
+            if main and key == "cpu_percent_one_core":
+                target, met = "<= 50 %", value <= 50.0
+            if main and key == "model_wall_drift_percent":
+                target, met = "within 1 %", abs(value) <= 1.0
+            add("node", case, key, value, "", target, met)
+    return rows
+
+
+def _table(rows: list[dict]) -> str:
+    lines = [f"{'section':8} {'case':44} {'metric':30} {'value':>12} {'target':>12}  met"]
+    for r in rows:
+        value = r["value"]
+        text = f"{value:12.4g}" if isinstance(value, float) else f"{str(value)[:12]:>12}"
+        met = {True: "yes", False: "NO", "": ""}[r["met"]]
+        lines.append(f"{r['section']:8} {r['case'][:44]:44} {r['metric'][:30]:30} {text} "
+                     f"{r['target']:>12}  {met}")
+    return "\n".join(lines)
+
+
+def run(args) -> int:
+    from vm_ros.bench import model_bench
+
+    sections = args.only or list(SECTIONS)
+    repeats = args.repeats or (3 if args.quick else 7)
+    if repeats < 1:
+        raise VmRosError("--repeats must be >= 1")
+    node_duration = args.node_duration or (10.0 if args.quick else 60.0)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    results: dict = {"machine": _machine(), "sections": sections}
+    min_seconds = 0.05 if args.quick else 0.2
+    if "model" in sections:
+        _say("model step ...")
+        results["model"] = model_bench.bench_model_step(repeats=repeats, min_seconds=min_seconds,
+                                                        progress=_say)
+    if "natural" in sections:
+        _say("natural against lumped units ...")
+        results["natural"] = model_bench.bench_natural_ratio(repeats=repeats,
+                                                             min_seconds=min_seconds,
+                                                             progress=_say)
+    if "offline" in sections:
+        _say("knee extension offline ...")
+        results["offline"] = model_bench.bench_knee_offline(repeats=1 if args.quick else 3,
+                                                            progress=_say)
+    if "node" in sections:
+        results["node"] = _node_rows(node_duration, out)
+    results["machine"]["load_average_end"] = os.getloadavg()
+    rows = _csv_rows(results)
+    (out / "bench.json").write_text(json.dumps(results, indent=2, default=str) + "\n")
+    with open(out / "bench.csv", "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]) if rows else ["section"])
+        writer.writeheader()
+        writer.writerows(rows)
+    machine = results["machine"]
+    print(f"vm-ros bench on {machine.get('cpu', machine['machine'])}, {machine['cpus']} CPUs, "
+          f"Python {machine['python']}, NumPy {machine['numpy']}, Numba {machine['numba']}; "
+          f"load average {machine['load_average_start'][0]:.2f} -> "
+          f"{machine['load_average_end'][0]:.2f}")
+    print(_table(rows))
+    print(f"results: {out / 'bench.json'}, {out / 'bench.csv'}")
+    return 0

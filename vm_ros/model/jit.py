@@ -1,0 +1,91 @@
+"""Optional compilation of the model's equations with Numba (one source for both back ends).
+
+Every equation of the model is a small pure function written once, over NumPy arrays. The ones the
+fixed step needs are marked :func:`jitable`: called from Python they are the plain functions
+(vectorised NumPy code); called from the compiled step kernel (``vm_ros.model.kernel``) Numba
+compiles the same source for scalars. Without Numba (not installed, or ``VM_ROS_NUMBA=0``) the
+decorator does nothing and the bank uses the NumPy step.
+
+The two helpers below exist because NumPy's ``np.where`` and ``np.clip`` do not accept plain
+scalars inside Numba: :func:`where` and :func:`clip` are ``np.where`` and ``np.clip`` from Python
+and branch on scalars when compiled.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from pathlib import Path
+
+import numpy as np
+
+ENV_SWITCH = "VM_ROS_NUMBA"
+_MODEL_DIR = Path(__file__).resolve().parent
+
+
+def _numba_wanted() -> bool:
+    return os.environ.get(ENV_SWITCH, "1").strip().lower() not in ("0", "false", "no", "off")
+
+
+def _set_cache_dir() -> None:
+    """Numba's on-disk cache is checked against the kernel module's own file only, not against the
+    modules whose functions it inlines; so the cache lives in a folder named after a hash of every
+    model source file, and any edit to an equation starts a fresh cache."""
+    if "NUMBA_CACHE_DIR" in os.environ:
+        return
+    digest = hashlib.sha256()
+    for path in sorted(_MODEL_DIR.glob("*.py")):
+        digest.update(path.name.encode())
+        digest.update(path.read_bytes())
+    base = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache"))
+    os.environ["NUMBA_CACHE_DIR"] = str(base / "vm_ros" / "numba" / digest.hexdigest()[:16])
+
+
+numba = None
+if _numba_wanted():
+    try:
+        _set_cache_dir()
+        import numba
+        from numba.core import types as _nb_types
+        from numba.extending import overload, register_jitable
+    except ImportError:  # pragma: no cover - exercised where numba is absent
+        numba = None
+
+HAVE_NUMBA = numba is not None
+
+
+def jitable(func):
+    """Mark an equation as callable from the compiled kernel (no-op without Numba)."""
+    return register_jitable(func) if HAVE_NUMBA else func
+
+
+def where(condition, if_true, if_false):
+    """``np.where``; a plain branch when compiled for scalars."""
+    return np.where(condition, if_true, if_false)
+
+
+def clip(value, lower, upper):
+    """``min(max(value, lower), upper)`` elementwise (``np.clip`` for scalars and arrays)."""
+    return np.minimum(np.maximum(value, lower), upper)
+
+
+if HAVE_NUMBA:
+
+    @overload(where)
+    def _where_compiled(condition, if_true, if_false):
+        if isinstance(condition, _nb_types.Boolean):
+
+            def scalar_where(condition, if_true, if_false):
+                return if_true if condition else if_false
+
+            return scalar_where
+
+        def array_where(condition, if_true, if_false):
+            return np.where(condition, if_true, if_false)
+
+        return array_where
+
+    clip = register_jitable(clip)
+
+
+__all__ = ["ENV_SWITCH", "HAVE_NUMBA", "clip", "jitable", "where"]
