@@ -64,17 +64,21 @@ def plot_fig3(result: CheckResult, path: Path) -> None:
                      label=f"{name}: total")
         axes[2].plot(c["length"], np.array(c["e_a_length"]) * per_kg, "--", color=colour,
                      label=f"{name}: activation")
-        at_l0 = np.array(c["total_length"])[np.argmin(np.abs(c["length"] - 1.0))] * per_kg
-        axes[2].plot(c["length"], np.asarray(c["fl_length"]) * at_l0, ":", color=colour,
-                     label=f"{name}: FL x total at L0")
+        xb = np.asarray(c["e_xb_length"]) * per_kg
+        axes[2].plot(c["length"], xb, "-", lw=0.8, color=colour, label=f"{name}: cross-bridge")
+        axes[2].plot(c["length"], np.asarray(c["fl_length"]) * xb[np.argmin(np.abs(
+            c["length"] - 1.0))], ":", color=colour, label=f"{name}: FL x cross-bridge at L0")
     axes[0].set(xlabel="drive U (isometric, L0)", ylabel="energy rate (W/kg wet)")
     axes[1].set(xlabel="fascicle velocity (L0/s), U = 1", ylabel="energy rate (W/kg wet)")
     axes[2].set(xlabel="fascicle length (L0), isometric, U = 1", ylabel="energy rate (W/kg wet)")
+    axes[2].set_title("cross-bridge part follows FL x Af(L) (Af falls at short L)", fontsize=9)
     ratio = result.data["per_newton"]["fast"] / result.data["per_newton"]["slow"]
     axes[0].set_title(f"fast/slow energy per newton: {ratio.min():.1f}-{ratio.max():.1f}",
                       fontsize=9)
-    for ax in axes:
+    for ax in axes[:2]:
         ax.legend(fontsize=7)
+    axes[2].set_ylim(0, 1.6 * axes[2].get_ylim()[1])  # room for the legend above the curves
+    axes[2].legend(fontsize=6, ncol=2, loc="upper center")
     _finish(fig, result, path)
 
 
@@ -106,8 +110,10 @@ def plot_fig5(result: CheckResult, path: Path) -> None:
     order = np.argsort(d["fast_percent"])
     for rank, i in enumerate(order):
         x, y = d["fast_percent"][i], 1e3 * d["rates_k_per_s"][1.0][i]
+        above = rank % 2 == 1  # neighbours alternate: left-above, right-below
         ax.annotate(d["names"][i], (x, y), fontsize=6, textcoords="offset points",
-                    xytext=(4, 4) if rank % 2 else (4, -9))
+                    xytext=(-4, 4) if above else (4, -9), ha="right" if above else "left")
+    ax.set_xlim(0, max(d["fast_percent"]) + 12)
     ax.set(xlabel="fast fibres (% PCSA)", ylabel="temperature rate at MVC (mK/s)")
     ax.legend(fontsize=8)
     _finish(fig, result, path)
@@ -117,7 +123,10 @@ def plot_fig6(result: CheckResult, path: Path) -> None:
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for u, (_levels, force_pct, rate) in result.data["series"].items():
         ax.plot(force_pct, 1e3 * rate, "o-", label=f"U = {u} at MVC")
-    ax.set(xlabel="isometric force (% MVC)", ylabel="temperature rate (mK/s)")
+    ax.set(xlabel="isometric force (% of the force at the 'MVC' drive)",
+           ylabel="temperature rate (mK/s)")
+    ax.set_title("drive at 10-90 % of the 'MVC' drive (U = 1 or U = 0.8), fascicle at L0",
+                 fontsize=9)
     ax.legend(fontsize=8)
     _finish(fig, result, path)
 
@@ -189,8 +198,8 @@ def plot_fig9(result: CheckResult, path: Path) -> None:
     ax.legend(fontsize=6, ncol=2)
     ax_err.axhspan(-2, 2, color="grey", alpha=0.15, label="target +-2 %")
     ax_err.axhline(0, color="grey", lw=0.5)
-    ax_err.set(xlabel="drive U", ylabel="lumped - natural force (% of natural F(U=1))",
-               title=f"error: max {np.abs(error).max():.2f} %")
+    ax_err.set(xlabel="drive U", ylabel="lumped - natural force (% of natural F(U=1))")
+    ax_err.set_title(f"error: max {np.abs(error).max():.2f} %", fontsize=9)
     ax_err.legend(fontsize=7)
     _finish(fig, result, path)
 
@@ -204,15 +213,17 @@ def plot_fig10(result: CheckResult, path: Path) -> None:
     ax_t.plot(table.time_s, table.natural_force[:, pick], lw=2, alpha=0.6, label="natural")
     ax_t.plot(table.time_s, table.lumped_force[:, pick], "--", label="lumped")
     m, a, f = table.rows[pick, :3]
-    ax_t.set(xlabel="time (s)", ylabel="tendon force (N)",
-             title=f"worst case: U = {m} + {a} sin(2 pi {f} t), vastus lateralis")
+    ax_t.set(xlabel="time (s)", ylabel="tendon force (N)")
+    ax_t.set_title(f"worst range error: U = {m} + {a} sin(2 pi {f} t), vastus lateralis",
+                   fontsize=9)
     ax_t.legend(fontsize=8)
     ax_tab.axis("off")
     cell = [[f"{v:.2f}" for v in row] for row in table.rows]
-    tab = ax_tab.table(cellText=cell, colLabels=["mean U", "amp", "Hz", "transient", "mean",
-                                                  "range"], loc="center", fontsize=7)
+    labels = ["mean U", "amplitude", "f (Hz)", "transient RMS", "mean", "range"]
+    tab = ax_tab.table(cellText=cell, colLabels=labels, loc="center", fontsize=7)
     tab.scale(1, 0.9)
-    ax_tab.set_title("errors, % of natural F(U=1)", fontsize=9)
+    ax_tab.set_title("lumped - natural, % of natural F(U=1): transient = RMS over the first "
+                     "cycle;\nmean and range = steady state (last two cycles)", fontsize=9)
     _finish(fig, result, path)
 
 
@@ -225,8 +236,8 @@ def plot_cost(result: CheckResult, path: Path) -> None:
         ax.annotate(f"x{s[('natural', n)] / s[('lumped', n)]:.1f}",
                     (n, 1e6 * s[("natural", n)]), fontsize=8, xytext=(-8, 6),
                     textcoords="offset points")
-    ax.set(xlabel="muscles in the bank", ylabel="median step time (us)",
-           title="labels: natural / lumped step time")
+    ax.set(xlabel="muscles in the bank", ylabel="median step time (us)")
+    ax.set_title("labels: natural / lumped step time", fontsize=9)
     ax.legend(fontsize=8)
     _finish(fig, result, path)
 
