@@ -17,7 +17,8 @@ from vm_ros.validation import CheckResult  # noqa: E402
 
 def _finish(fig, result: CheckResult, path: Path) -> None:
     status = "PASS" if result.passed else "FAIL"
-    claim = textwrap.fill(f"Paper: {result.claim}", 150)
+    # about 13 characters of 9 pt text per inch of figure width
+    claim = textwrap.fill(f"Paper: {result.claim}", int(13 * fig.get_figwidth()))
     fig.suptitle(f"{result.title}  [{status}]\n{claim}", fontsize=9)
     fig.tight_layout(rect=(0, 0, 1, 0.9))
     fig.savefig(path, dpi=100)
@@ -28,9 +29,16 @@ def plot_fig2(result: CheckResult, path: Path) -> None:
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for name, colour in (("slow", "tab:blue"), ("fast", "tab:red")):
         d = result.data[name]
-        ax.plot(d["velocity"], d["barclay"], color=colour, lw=3, alpha=0.4,
-                label=f"Barclay 1996 fit, {name}")
-        ax.plot(d["velocity"], d["model"], "o", color=colour, ms=4, label=f"model, 100 % {name}")
+        v = np.asarray(d["velocity"])
+        short = v <= 0
+        ax.plot(v[short], d["barclay"][short], color=colour, lw=3, alpha=0.4,
+                label=f"Barclay 1996 fit (V <= 0), {name}")
+        ax.plot(v[short], d["model"][short], "o", color=colour, ms=4,
+                label=f"model, 100 % {name}")
+        ax.plot(v[~short], d["model"][~short], "^", color=colour, ms=5, mfc="none",
+                label=f"model, lengthening (STEP 3 extension), {name}")
+        ax.plot(v, d["e_a_per_kg_dry"], ":", color=colour, lw=1.5,
+                label=f"model activation part E_a, {name}")
     ax.set(xlabel="fascicle velocity (L0/s, negative = shortening)",
            ylabel="tetanic initial energy rate (W/kg dry)")
     ax.axvline(0, color="grey", lw=0.5)
@@ -56,14 +64,21 @@ def plot_fig3(result: CheckResult, path: Path) -> None:
                      label=f"{name}: total")
         axes[2].plot(c["length"], np.array(c["e_a_length"]) * per_kg, "--", color=colour,
                      label=f"{name}: activation")
+        xb = np.asarray(c["e_xb_length"]) * per_kg
+        axes[2].plot(c["length"], xb, "-", lw=0.8, color=colour, label=f"{name}: cross-bridge")
+        axes[2].plot(c["length"], np.asarray(c["fl_length"]) * xb[np.argmin(np.abs(
+            c["length"] - 1.0))], ":", color=colour, label=f"{name}: FL x cross-bridge at L0")
     axes[0].set(xlabel="drive U (isometric, L0)", ylabel="energy rate (W/kg wet)")
     axes[1].set(xlabel="fascicle velocity (L0/s), U = 1", ylabel="energy rate (W/kg wet)")
     axes[2].set(xlabel="fascicle length (L0), isometric, U = 1", ylabel="energy rate (W/kg wet)")
+    axes[2].set_title("cross-bridge part follows FL x Af(L) (Af falls at short L)", fontsize=9)
     ratio = result.data["per_newton"]["fast"] / result.data["per_newton"]["slow"]
     axes[0].set_title(f"fast/slow energy per newton: {ratio.min():.1f}-{ratio.max():.1f}",
                       fontsize=9)
-    for ax in axes:
+    for ax in axes[:2]:
         ax.legend(fontsize=7)
+    axes[2].set_ylim(0, 1.6 * axes[2].get_ylim()[1])  # room for the legend above the curves
+    axes[2].legend(fontsize=6, ncol=2, loc="upper center")
     _finish(fig, result, path)
 
 
@@ -92,9 +107,13 @@ def plot_fig5(result: CheckResult, path: Path) -> None:
     fig, ax = plt.subplots(figsize=(7.5, 4.8))
     for u, marker in ((1.0, "o"), (0.8, "s")):
         ax.plot(d["fast_percent"], 1e3 * d["rates_k_per_s"][u], marker, label=f"U = {u} at MVC")
-    for x, y, name in zip(d["fast_percent"], 1e3 * d["rates_k_per_s"][1.0], d["names"],
-                          strict=True):
-        ax.annotate(name, (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points")
+    order = np.argsort(d["fast_percent"])
+    for rank, i in enumerate(order):
+        x, y = d["fast_percent"][i], 1e3 * d["rates_k_per_s"][1.0][i]
+        above = rank % 2 == 1  # neighbours alternate: left-above, right-below
+        ax.annotate(d["names"][i], (x, y), fontsize=6, textcoords="offset points",
+                    xytext=(-4, 4) if above else (4, -9), ha="right" if above else "left")
+    ax.set_xlim(0, max(d["fast_percent"]) + 12)
     ax.set(xlabel="fast fibres (% PCSA)", ylabel="temperature rate at MVC (mK/s)")
     ax.legend(fontsize=8)
     _finish(fig, result, path)
@@ -104,36 +123,84 @@ def plot_fig6(result: CheckResult, path: Path) -> None:
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for u, (_levels, force_pct, rate) in result.data["series"].items():
         ax.plot(force_pct, 1e3 * rate, "o-", label=f"U = {u} at MVC")
-    ax.set(xlabel="isometric force (% MVC)", ylabel="temperature rate (mK/s)")
+    ax.set(xlabel="isometric force (% of the force at the 'MVC' drive)",
+           ylabel="temperature rate (mK/s)")
+    ax.set_title("drive at 10-90 % of the 'MVC' drive (U = 1 or U = 0.8), fascicle at L0",
+                 fontsize=9)
     ax.legend(fontsize=8)
     _finish(fig, result, path)
 
 
 def plot_fig7(result: CheckResult, path: Path) -> None:
     d = result.data
-    fig, ax = plt.subplots(figsize=(8, 4.5))
+    fig, (ax, ax_act, ax_v) = plt.subplots(1, 3, figsize=(15, 4.8),
+                                           gridspec_kw={"width_ratios": [1.4, 1, 1]})
     labels = ("activation", "cross-bridge", "recovery", "total")
     for k, label in enumerate(labels):
         ax.plot(d["time"], d["bins"][:, k], label=label)
     ax.plot(d["time"], d["bins"][:, 0] + d["bins"][:, 1], "k--", lw=1, label="initial")
-    ax.set(xlabel="time (s)", ylabel="energy rate, 1 s bins (W), rectus femoris + vasti")
-    ax.set_title(f"total energy {d['total_energy_j']:.0f} J", fontsize=9)
-    ax.legend(fontsize=8)
+    duration = d["paper_duration_s"]
+    paper_w = d["paper_total_j"] / duration
+    low, high = (e / duration for e in d["experiment_band_j"])
+    ax.axhspan(low, high, color="grey", alpha=0.15,
+               label=f"mean rate of the experiment's 30-40 kJ ({low:.0f}-{high:.0f} W)")
+    ax.axhline(paper_w, color="grey", ls=":", label=f"mean rate of the paper's 35 kJ "
+               f"({paper_w:.0f} W)")
+    ax.set(xlabel="time (s)", ylabel="energy rate, 1 s bins (W), rectus femoris + vasti",
+           ylim=(0, None))
+    work = float(np.sum(d["work_j"]))
+    run_s = d["time"][-1] + 0.5 * (d["time"][1] - d["time"][0])
+    ax.set_title(f"model, {run_s:.0f} s: total {d['total_energy_j'] / 1e3:.1f} kJ = "
+                 f"{d['total_energy_j'] / d['paper_total_j']:.2f} x paper\n"
+                 f"net fascicle work {work / 1e3:.2f} kJ ({work / run_s:.0f} W); "
+                 f"quadriceps {np.sum(d['mass_kg']):.2f} kg", fontsize=9)
+    ax.legend(fontsize=7, loc="center right")
+    c = d["cycle"]
+    t = c["time_s"] - c["time_s"][0]
+    colours = ("tab:purple", "tab:green")
+    for i, name in enumerate(d["names"]):
+        ax_act.plot(t, c["activation"][:, i], color=colours[i],
+                    label=f"{name}: Acteff / steady at U = 0.8")
+        ax_act.plot(t, c["force_f0"][:, i], "--", color=colours[i],
+                    label=f"{name}: tendon force (F0)")
+        ax_v.plot(t, c["velocity_l0_per_s"][:, i], color=colours[i], label=f"{name}: velocity")
+    ax_act.plot(t, c["drive"][:, 0], "k", lw=1, label="drive U")
+    ax_act.plot(t, c["effective_drive"][:, 1], "k:", lw=1, label="Ueff (lumped filter, vasti)")
+    ax_act.set(xlabel="time in the last cycle (s)", ylabel="fraction",
+               ylim=(0, 1.05))
+    ax_act.set_title("one cycle: drive on for 0.25 s, activation builds slowly", fontsize=9)
+    ax_act.legend(fontsize=7)
+    ax_v.axhline(0, color="grey", lw=0.5)
+    ax_v.set(xlabel="time in the last cycle (s)", ylabel="fascicle velocity (L0/s, < 0 shortening)")
+    ax_e = ax_v.twinx()
+    ax_e.plot(t, c["energy_rate_w"].sum(axis=1), color="tab:red", lw=1, label="total energy rate")
+    ax_e.set_ylabel("total energy rate, both muscles (W)", color="tab:red")
+    ax_v.set_title("one cycle: fascicle velocity and energy rate", fontsize=9)
+    ax_v.legend(fontsize=7, loc="upper left")
+    ax_e.legend(fontsize=7, loc="upper right")
     _finish(fig, result, path)
 
 
 def plot_fig9(result: CheckResult, path: Path) -> None:
     c = result.data["comparison"]
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig, (ax, ax_err) = plt.subplots(1, 2, figsize=(12, 4.5))
     colours = plt.cm.viridis(np.linspace(0, 0.9, len(c.fpcsa_slow)))
+    error = c.error_percent
     for i, fs in enumerate(c.fpcsa_slow):
         nat = c.natural.sum(-1)[:, i]
         ax.plot(c.drive, nat / nat[-1], color=colours[i], lw=2.5, alpha=0.5,
                 label=f"natural, {fs:.0%} slow")
-        ax.plot(c.drive, c.lumped.sum(-1)[:, i] / nat[-1], "--", color=colours[i], lw=1)
+        ax.plot(c.drive, c.lumped.sum(-1)[:, i] / nat[-1], "--", color=colours[i], lw=1,
+                label=f"lumped, {fs:.0%} slow")
+        ax_err.plot(c.drive, error[:, i], color=colours[i], label=f"{fs:.0%} slow")
     ax.set(xlabel="drive U", ylabel="steady isometric force at L0 / natural F(U=1)")
     ax.set_title("natural units (50/type, thick) vs lumped (dashed)", fontsize=9)
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=6, ncol=2)
+    ax_err.axhspan(-2, 2, color="grey", alpha=0.15, label="target +-2 %")
+    ax_err.axhline(0, color="grey", lw=0.5)
+    ax_err.set(xlabel="drive U", ylabel="lumped - natural force (% of natural F(U=1))")
+    ax_err.set_title(f"error: max {np.abs(error).max():.2f} %", fontsize=9)
+    ax_err.legend(fontsize=7)
     _finish(fig, result, path)
 
 
@@ -146,24 +213,31 @@ def plot_fig10(result: CheckResult, path: Path) -> None:
     ax_t.plot(table.time_s, table.natural_force[:, pick], lw=2, alpha=0.6, label="natural")
     ax_t.plot(table.time_s, table.lumped_force[:, pick], "--", label="lumped")
     m, a, f = table.rows[pick, :3]
-    ax_t.set(xlabel="time (s)", ylabel="tendon force (N)",
-             title=f"worst case: U = {m} + {a} sin(2 pi {f} t), vastus lateralis")
+    ax_t.set(xlabel="time (s)", ylabel="tendon force (N)")
+    ax_t.set_title(f"worst range error: U = {m} + {a} sin(2 pi {f} t), vastus lateralis",
+                   fontsize=9)
     ax_t.legend(fontsize=8)
     ax_tab.axis("off")
     cell = [[f"{v:.2f}" for v in row] for row in table.rows]
-    tab = ax_tab.table(cellText=cell, colLabels=["mean U", "amp", "Hz", "transient", "mean",
-                                                  "range"], loc="center", fontsize=7)
+    labels = ["mean U", "amplitude", "f (Hz)", "transient RMS", "mean", "range"]
+    tab = ax_tab.table(cellText=cell, colLabels=labels, loc="center", fontsize=7)
     tab.scale(1, 0.9)
-    ax_tab.set_title("errors, % of natural F(U=1)", fontsize=9)
+    ax_tab.set_title("lumped - natural, % of natural F(U=1): transient = RMS over the first "
+                     "cycle;\nmean and range = steady state (last two cycles)", fontsize=9)
     _finish(fig, result, path)
 
 
 def plot_cost(result: CheckResult, path: Path) -> None:
     s, sizes = result.data["seconds_per_step"], result.data["sizes"]
     fig, ax = plt.subplots(figsize=(6, 4))
-    for scheme in ("lumped", "natural"):
-        ax.loglog(sizes, [1e6 * s[(scheme, n)] for n in sizes], "o-", label=scheme)
+    for scheme, label in (("lumped", "lumped units"), ("natural", "natural, 20 units/type")):
+        ax.loglog(sizes, [1e6 * s[(scheme, n)] for n in sizes], "o-", label=label)
+    for n in sizes:
+        ax.annotate(f"x{s[('natural', n)] / s[('lumped', n)]:.1f}",
+                    (n, 1e6 * s[("natural", n)]), fontsize=8, xytext=(-8, 6),
+                    textcoords="offset points")
     ax.set(xlabel="muscles in the bank", ylabel="median step time (us)")
+    ax.set_title("labels: natural / lumped step time", fontsize=9)
     ax.legend(fontsize=8)
     _finish(fig, result, path)
 
