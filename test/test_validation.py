@@ -28,9 +28,10 @@ def test_fig10_lumped_vs_natural_sinusoidal():
 
 @pytest.mark.slow
 def test_fig7_knee_extension_180s():
-    """Item 9 over the paper's full 180 s (minutes until the step is fast; `-m "not slow"` skips
-    it). Held: initial energy constant to 1 %, recovery rising, total rate rising 0.40 +- 0.10,
-    net fascicle work / total energy in 0.25-0.60 (measured 0.32-0.56, Krustrup 2003).
+    """Item 9 over the paper's full 180 s (about 15 s with the compiled step, minutes with NumPy;
+    `-m "not slow"` skips it). Held: initial energy constant to 1 %, recovery rising, total rate
+    rising 0.40 +- 0.10, net fascicle work / total energy in 0.25-0.60 (measured 0.32-0.56,
+    Krustrup 2003).
 
     Known gap, asserted as such: the model's total energy is about 11.6 kJ, a third of the paper's
     ~35 000 J (experiment 30 000-40 000 J); the criterion pins the ratio to 0.30-0.37 so that a

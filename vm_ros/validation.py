@@ -428,12 +428,23 @@ def run_knee_extension(duration_s=None, dt=DT, progress=None, params=None) -> Kn
     steps = int(round(duration / dt))
     bin_steps = int(round(scenario.values["energy_bin"] / dt))
     cycle_steps = int(round(1.0 / (scenario.values["frequency"] * dt)))
-    first_traced = (steps // cycle_steps - 1) * cycle_steps
+    first_traced = max((steps // cycle_steps - 1) * cycle_steps, 0)
     rates = np.zeros((steps, 4))
     trace = {key: [] for key in ("time_s", "drive", "effective_drive", "activation",
                                  "force_f0", "velocity_l0_per_s", "energy_rate_w")}
     out = None
-    for k in range(steps):
+    chunk = 2000
+    for start in range(0, first_traced, chunk):  # whole chunks of steps in one call each
+        stop = min(start + chunk, first_traced)
+        t = dt * np.arange(start, stop)
+        run = bank.run(dt, np.array([inputs.excitation(x) for x in t]),
+                       np.array([inputs.path_length(x) for x in t]),
+                       np.array([inputs.path_velocity(x) for x in t]))
+        rates[start:stop] = run.energy_rate.as_array().sum(axis=1)
+        out = run.last
+        if progress is not None:
+            progress(stop, steps)
+    for k in range(first_traced, steps):  # the traced cycles step by step
         t = k * dt
         out = bank.step(dt, inputs.excitation(t), inputs.path_length(t), inputs.path_velocity(t))
         rates[k] = out.energy_rate.as_array().sum(axis=0)
