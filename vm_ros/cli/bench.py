@@ -12,6 +12,10 @@ Sections (all by default; --only picks some):
             rclpy runs in a loopback-only network namespace: inside scripts/netns-run it runs
             directly, otherwise this command starts one (unshare -n; needs root).
 
+--compare opensim adds OpenSim's Millard 2012 muscle with the Umberger 2010 metabolics probe
+beside one vm_ros muscle, same drive and path, 1 ms steps from Python (vm_ros.bench.
+opensim_compare; needs the opensim wheel).
+
 Timings are medians of repeated runs on a shared machine: compare ratios within one run rather
 than absolute numbers across runs. Targets (issue: performance): 1 muscle <= 30 us per step;
 1000 muscles <= 1 ms per step; knee extension offline < 5 s; node: model time within 1 % of
@@ -46,6 +50,9 @@ def add_arguments(parser) -> None:
                         help="repeats per timing (default 7, --quick 3)")
     parser.add_argument("--node-duration", type=float, default=None, metavar="S",
                         help="seconds measured per node configuration (default 60, --quick 10)")
+    parser.add_argument("--compare", choices=("opensim",), default=None,
+                        help="also time OpenSim's Millard muscle with the Umberger 2010 probe "
+                             "against one vm_ros muscle (needs the opensim wheel)")
 
 
 def _machine() -> dict:
@@ -135,6 +142,14 @@ def _csv_rows(results: dict) -> list[dict]:
         r = results["offline"]
         add("offline", f"knee extension {r['simulated_s']:g} s, {r['backend']}", "wall",
             r["wall_s"], "s", "< 5 s", r["wall_s"] < 5.0)
+    if "opensim" in results:
+        r = results["opensim"]
+        add("opensim", f"1 muscle ({r['muscle']}), OpenSim {r['opensim_version']}",
+            "OpenSim step median", r["opensim_step_us"], "us")
+        add("opensim", f"1 muscle ({r['muscle']}), vm_ros {r['vm_ros_backend']}",
+            "vm_ros step median", r["vm_ros_step_us"], "us")
+        add("opensim", "1 muscle", "OpenSim / vm_ros step cost", r["opensim_over_vm_ros"],
+            "ratio")
     for r in results.get("node", []):
         case = (f"{r['muscles']} muscles, publish {r['publish_rate_hz']:g} Hz"
                 f"{', MCAP' if r['mcap'] else ''}")
@@ -192,6 +207,13 @@ def run(args) -> int:
                                                             progress=_say)
     if "node" in sections:
         results["node"] = _node_rows(node_duration, out)
+    if args.compare == "opensim":
+        from vm_ros.bench import opensim_compare
+
+        if not opensim_compare.available():
+            raise VmRosError("--compare opensim needs the opensim package: pip install opensim")
+        _say("OpenSim (Millard 2012 + Umberger 2010 probe) against vm_ros, one muscle ...")
+        results["opensim"] = opensim_compare.compare(repeats=3 if args.quick else 5)
     results["machine"]["load_average_end"] = os.getloadavg()
     rows = _csv_rows(results)
     (out / "bench.json").write_text(json.dumps(results, indent=2, default=str) + "\n")

@@ -171,7 +171,7 @@ class StepOutput:
 
     @cached_property
     def energy_rate(self) -> EnergyRates:
-        return self.energy_rate_by_fiber.summed_over_fibres()
+        return EnergyRates.from_components(self._ev["components"].sum(axis=1))
 
     @cached_property
     def energy_by_fiber(self) -> EnergyRates:
@@ -179,7 +179,7 @@ class StepOutput:
 
     @cached_property
     def energy(self) -> EnergyRates:
-        return self.energy_by_fiber.summed_over_fibres()
+        return EnergyRates.from_components(self._state.energy_j.sum(axis=1))
 
     @cached_property
     def mechanical_work(self) -> np.ndarray:
