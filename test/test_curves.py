@@ -186,3 +186,53 @@ def test_time_constants_are_loaded_in_seconds():
     assert F.ty[SLOW] == pytest.approx(0.2)
     assert G.specific_tension == pytest.approx(31.8e4)
     assert G.muscle_density == pytest.approx(1060.0)
+
+
+def _central_difference(f, x, h):
+    return (f(x + h) - f(x - h)) / (2.0 * h)
+
+
+@pytest.mark.parametrize("t", [SLOW, FAST])
+def test_slopes_match_central_differences(t):
+    """The analytic slopes the step's Jacobian uses equal central differences of the curves
+    (relative 1e-6; away from the kinks at V = 0 and at the FV denominator bound)."""
+    g = P.generic
+    l = np.linspace(0.55, 1.6, 23)
+    fl = lambda x: curves.force_length_cheng2000(x, F.omega[t], F.beta[t], F.rho[t])  # noqa: E731
+    _, dfl = curves.force_length_and_slope_cheng2000(l, F.omega[t], F.beta[t], F.rho[t])
+    np.testing.assert_allclose(dfl, _central_difference(fl, l, 1e-6), rtol=1e-6, atol=1e-8)
+    fv_args = (F.vmax[t], F.cv0[t], F.cv1[t], F.av0[t], F.av1[t], F.av2[t], F.bv[t],
+               g.fv_denominator_min)
+    for v in (-3.0, -0.7, -0.05, 0.05, 0.4, 2.0):
+        dv, dl = curves.force_velocity_slopes_cheng2000(v, l, *fv_args)
+        num_dv = _central_difference(lambda x: curves.force_velocity_cheng2000(x, l, *fv_args),
+                                     v, 1e-7)
+        num_dl = _central_difference(lambda x, v=v: curves.force_velocity_cheng2000(v, x, *fv_args),
+                                     l, 1e-7)
+        np.testing.assert_allclose(dv, num_dv, rtol=1e-6, atol=1e-8)
+        np.testing.assert_allclose(dl, num_dl, rtol=1e-6, atol=1e-8)
+    lmax = 1.3
+    pe1 = lambda x: curves.passive_parallel_elastic_cheng2000(x, 0.0, lmax, g.c1, g.k1, g.lr1,  # noqa: E731
+                                                               g.eta)
+    np.testing.assert_allclose(
+        curves.passive_parallel_elastic_slope_cheng2000(l, lmax, g.c1, g.k1, g.lr1),
+        _central_difference(pe1, l, 1e-6), rtol=1e-6, atol=1e-8)
+    short = np.linspace(0.3, 0.69, 9)  # PE2 acts below Lr2 = 0.70
+    pe2 = lambda x: curves.thick_filament_compression_cheng2000(x, g.c2, g.k2, g.lr2)  # noqa: E731
+    np.testing.assert_allclose(
+        curves.thick_filament_compression_slope_cheng2000(short, g.c2, g.k2, g.lr2),
+        _central_difference(pe2, short, 1e-7), rtol=1e-6, atol=1e-8)
+    assert np.all(curves.thick_filament_compression_slope_cheng2000(l[l > 0.71], g.c2, g.k2,
+                                                                    g.lr2) == 0.0)
+    l_se = np.linspace(0.94, 1.03, 19)
+    fse = lambda x: curves.tendon_force_cheng2000(x, g.ct, g.kt, g.lrt)  # noqa: E731
+    np.testing.assert_allclose(curves.tendon_stiffness_cheng2000(l_se, g.ct, g.kt, g.lrt),
+                               _central_difference(fse, l_se, 1e-8), rtol=1e-6, atol=1e-6)
+
+
+def test_logistic_is_finite_and_symmetric_for_large_arguments():
+    x = np.array([-1e4, -50.0, 0.0, 50.0, 1e4])
+    y = curves.logistic(x)
+    assert np.all(np.isfinite(y))
+    np.testing.assert_allclose(y + curves.logistic(-x), 1.0, rtol=1e-15)
+    assert y[2] == 0.5

@@ -1,8 +1,12 @@
 """The compiled step (vm_ros.model.kernel) against the NumPy step: same equations, same numbers.
 
 The NumPy step is the one test_integrator.py holds against the scipy Radau reference; the compiled
-step calls the same equation functions in the same order, so the two must agree to rounding
-(relative 1e-12 here; they are bit-for-bit equal on this machine). Without Numba the compiled
+step calls the same equation functions in the same order, so the two must agree to rounding. The
+kernel is compiled with fast-math contraction and reassociation (fused multiply-adds), so they
+differ in the last bits, and the stiff fascicle dynamics carry that on: measured over these 1500
+steps at most 4e-6 of the largest fascicle velocity (where FV is flat a rounding-level force
+difference moves V most), 2e-8 of length, 7e-9 of force. Held here to 1e-5 of each field's scale;
+an error in an equation shows up at 1e-3 or more. Without Numba the compiled
 step is unavailable, the bank falls back to NumPy, and the comparisons are skipped (they are
 recorded as skips, so a Numba-less run shows them).
 """
@@ -52,14 +56,22 @@ FIELDS = ("force", "contractile_force", "fascicle_length", "fascicle_velocity",
           "mechanical_work", "excitation")
 
 
+TOLERANCE = 1e-5
+
+
+def assert_close(a, b, name=""):
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    scale = max(float(np.max(np.abs(b))), 1e-300)
+    # 1e-12 SI floor: a state at rest has velocities of 1e-15 m/s, numerically zero
+    np.testing.assert_allclose(a, b, rtol=TOLERANCE, atol=TOLERANCE * scale + 1e-12,
+                               err_msg=name)
+
+
 def assert_outputs_equal(a, b):
     for name in FIELDS:
-        np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-12, atol=1e-12,
-                                   err_msg=name)
-    np.testing.assert_allclose(a.energy_rate_by_fiber.as_array(),
-                               b.energy_rate_by_fiber.as_array(), rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose(a.energy_by_fiber.as_array(), b.energy_by_fiber.as_array(),
-                               rtol=1e-12, atol=1e-12)
+        assert_close(getattr(a, name), getattr(b, name), name)
+    assert_close(a.energy_rate_by_fiber.as_array(), b.energy_rate_by_fiber.as_array(), "rates")
+    assert_close(a.energy_by_fiber.as_array(), b.energy_by_fiber.as_array(), "energies")
 
 
 @needs_numba
@@ -188,11 +200,9 @@ def test_run_equals_repeated_steps(backend):
         b.reset(lp0)
     trajectory = banks[0].run(DT, u, lp, vp)
     outs = [banks[1].step(DT, u[k], lp[k], vp[k]) for k in range(600)]
-    np.testing.assert_allclose(trajectory.force, [o.force for o in outs], rtol=1e-12)
-    np.testing.assert_allclose(trajectory.fascicle_length, [o.fascicle_length for o in outs],
-                               rtol=1e-12)
-    np.testing.assert_allclose(trajectory.energy_rate.total, [o.energy_rate.total for o in outs],
-                               rtol=1e-12, atol=1e-12)
+    assert_close(trajectory.force, [o.force for o in outs], "force")
+    assert_close(trajectory.fascicle_length, [o.fascicle_length for o in outs], "length")
+    assert_close(trajectory.energy_rate.total, [o.energy_rate.total for o in outs], "energy")
     np.testing.assert_allclose(trajectory.time_s, [o.time_s for o in outs], rtol=1e-12)
     assert_outputs_equal(trajectory.last, outs[-1])
     assert banks[0].time_s == pytest.approx(0.6)

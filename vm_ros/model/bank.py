@@ -34,6 +34,7 @@ from vm_ros.model.mechanics import (
     MuscleGeometry,
     equilibrium_fascicle_length,
     musculotendon_forces,
+    musculotendon_slopes,
     rosenbrock_step,
 )
 from vm_ros.model.params import (
@@ -724,6 +725,9 @@ class MuscleBank:
         def forces(x, xdot, lp_now):
             return musculotendon_forces(x, xdot, lp_now, activity, self.geometry, fibre, g)[:2]
 
+        def slopes(x, xdot, lp_now):
+            return musculotendon_slopes(x, xdot, lp_now, activity, self.geometry, fibre, g)
+
         x, xdot = rosenbrock_step(
             old.fascicle_length_m,
             old.fascicle_velocity_m_per_s,
@@ -731,8 +735,8 @@ class MuscleBank:
             vp,
             dt,
             forces,
+            slopes,
             self.geometry.m_eff,
-            self.geometry.l0,
         )
         floor = g.l_activation_min * self.geometry.l0
         at_floor = x < floor

@@ -12,7 +12,6 @@ References: Brown, Cheng & Loeb 1999 (J Muscle Res Cell Motil 20:627); Cheng, Br
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import expit
 
 from vm_ros.model.jit import jitable, where
 
@@ -25,8 +24,24 @@ def force_length_cheng2000(l, omega, beta, rho):
 
     omega, beta, rho per fibre type (model.md section 8). FL(1) = 1. L is clipped at 0.
     """
+    return force_length_and_slope_cheng2000(l, omega, beta, rho)[0]
+
+
+@jitable
+def force_length_and_slope_cheng2000(l, omega, beta, rho):
+    """FL(L) (:func:`force_length_cheng2000`) and its slope dFL/dL, sharing the powers:
+
+    z = (L^beta - 1) / omega,  FL = exp(-|z|^rho),
+    dFL/dL = -FL rho (|z|^rho / z) beta L^beta / (L omega)      (0 at z = 0 and at L <= 0)
+    """
     l = np.maximum(l, 0.0)
-    return np.exp(-(np.abs((l**beta - 1.0) / omega) ** rho))
+    l_beta = l**beta
+    z = (l_beta - 1.0) / omega
+    z_rho = np.abs(z) ** rho
+    fl = np.exp(-z_rho)
+    defined = (z != 0.0) & (l > 0.0)
+    ratio = where(defined, z_rho / where(defined, z * l, 1.0), 0.0)
+    return fl, -fl * rho * ratio * beta * l_beta / omega
 
 
 @jitable
@@ -49,6 +64,40 @@ def force_velocity_cheng2000(v, l, vmax, cv0, cv1, av0, av1, av2, bv, denominato
 
 
 @jitable
+def force_velocity_slopes_cheng2000(v, l, vmax, cv0, cv1, av0, av1, av2, bv, denominator_min):
+    """(dFV/dV, dFV/dL) of :func:`force_velocity_cheng2000` (the shortening branch at V = 0).
+
+    shortening: D = Vmax + (cV0 + cV1 L) V,  dFV/dV = -(D + (Vmax - V)(cV0 + cV1 L)) / D^2,
+                dFV/dL = -(Vmax - V) cV1 V / D^2   (D held at its bound: only -1/D in dFV/dV)
+    lengthening: a = aV0 + aV1 L + aV2 L^2,  dFV/dV = -bV (a + 1) / (bV + V)^2,
+                 dFV/dL = -(aV1 + 2 aV2 L) V / (bV + V)
+    """
+    v_short = np.minimum(v, 0.0)
+    v_long = np.maximum(v, 0.0)
+    slope_short = cv0 + cv1 * l
+    free = vmax + slope_short * v_short
+    bound = -denominator_min * np.abs(vmax)
+    held = free > bound
+    denominator = np.minimum(free, bound)
+    dv_short = -(denominator + where(held, 0.0, (vmax - v_short) * slope_short)) / (
+        denominator * denominator
+    )
+    dl_short = where(held, 0.0, -(vmax - v_short) * cv1 * v_short / (denominator * denominator))
+    a = av0 + av1 * l + av2 * l * l
+    dv_long = -bv * (a + 1.0) / ((bv + v_long) * (bv + v_long))
+    dl_long = -(av1 + 2.0 * av2 * l) * v_long / (bv + v_long)
+    lengthening = v > 0.0
+    return where(lengthening, dv_long, dv_short), where(lengthening, dl_long, dl_short)
+
+
+@jitable
+def logistic(x):
+    """1 / (1 + exp(-x)), without overflow for large |x|."""
+    e = np.exp(-np.abs(x))
+    return where(x >= 0.0, 1.0 / (1.0 + e), e / (1.0 + e))
+
+
+@jitable
 def passive_parallel_elastic_cheng2000(l, v, lmax, c1, k1, lr1, eta):
     """PE1, the parallel elastic element with its viscosity (F0).
 
@@ -57,6 +106,12 @@ def passive_parallel_elastic_cheng2000(l, v, lmax, c1, k1, lr1, eta):
     Lmax: fascicle length (L0) at the maximum anatomical path length.
     """
     return c1 * k1 * np.logaddexp(0.0, (l / lmax - lr1) / k1) + eta * v
+
+
+@jitable
+def passive_parallel_elastic_slope_cheng2000(l, lmax, c1, k1, lr1):
+    """dFPE1/dL = c1 logistic((L/Lmax - Lr1)/k1) / Lmax (dFPE1/dV is eta)."""
+    return c1 * logistic((l / lmax - lr1) / k1) / lmax
 
 
 @jitable
@@ -72,6 +127,15 @@ def thick_filament_compression_cheng2000(l, c2, k2, lr2):
 
 
 @jitable
+def thick_filament_compression_slope_cheng2000(l, c2, k2, lr2):
+    """dFPE2/dL = c2 k2 exp(k2 (L - Lr2)) where FPE2 < 0 and the exponent is below its cap;
+    else 0."""
+    exponent = k2 * (l - lr2)
+    active = (c2 * np.expm1(np.minimum(exponent, 50.0)) < 0.0) & (exponent < 50.0)
+    return where(active, c2 * k2 * np.exp(np.minimum(exponent, 50.0)), 0.0)
+
+
+@jitable
 def tendon_force_cheng2000(l_se, ct, kt, lrt):
     """Series elastic element (tendon and aponeurosis) force (F0).
 
@@ -82,9 +146,10 @@ def tendon_force_cheng2000(l_se, ct, kt, lrt):
     return ct * kt * np.logaddexp(0.0, (l_se - lrt) / kt)
 
 
+@jitable
 def tendon_stiffness_cheng2000(l_se, ct, kt, lrt):
-    """dF_SE/dL_SE (F0 per L0T) of :func:`tendon_force_cheng2000`."""
-    return ct * expit((l_se - lrt) / kt)
+    """dF_SE/dL_SE (F0 per L0T) of :func:`tendon_force_cheng2000`: cT logistic((L_SE - LrT)/kT)."""
+    return ct * logistic((l_se - lrt) / kt)
 
 
 @jitable

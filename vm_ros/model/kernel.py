@@ -141,33 +141,43 @@ def state_arguments(state) -> tuple:
 # --- the compiled loop -----------------------------------------------------------------------
 
 
-# the terms of F_CE that depend on (L, V) only, as kept per muscle between steps
-FL_SLOW, FL_FAST, FV_SLOW, FV_FAST, PE1, PE2 = range(6)
-N_TERMS = 6
+# the terms of F_CE, and their slopes, that depend on (L, V) only, as kept per muscle
+# fmt: off
+(
+    FL_SLOW, FL_FAST, FV_SLOW, FV_FAST, PE1, PE2,
+    DFL_SLOW, DFL_FAST, DFVDV_SLOW, DFVDV_FAST, DFVDL_SLOW, DFVDL_FAST, DPE1, DPE2,
+) = range(14)
+# fmt: on
+N_TERMS = 14
 
 
 @jitable
-def _velocity_terms(l, v, m, fibre_type, s, terms):
-    """FV of each fibre type and FPE1 at (L, V), into terms."""
+def _fibre_terms(l, v, m, fibre_type, s, terms, with_slopes):
+    """FL, FV of each fibre type, FPE1 and FPE2 at (L, V), into terms; with their slopes (dFL/dL,
+    dFV/dV, dFV/dL, dFPE1/dL, dFPE2/dL) if ``with_slopes``."""
     for t in range(2):
         ft = fibre_type[t]
-        terms[FV_SLOW + t] = curves.force_velocity_cheng2000(
-            v, l, ft[T.vmax], ft[T.cv0], ft[T.cv1], ft[T.av0], ft[T.av1], ft[T.av2], ft[T.bv],
-            s[S.fv_denominator_min],
-        )  # fmt: skip
+        fl, dfl = curves.force_length_and_slope_cheng2000(l, ft[T.omega], ft[T.beta], ft[T.rho])
+        terms[FL_SLOW + t] = fl
+        terms[DFL_SLOW + t] = dfl
+        fv_args = (ft[T.vmax], ft[T.cv0], ft[T.cv1], ft[T.av0], ft[T.av1], ft[T.av2], ft[T.bv],
+                   s[S.fv_denominator_min])  # fmt: skip
+        terms[FV_SLOW + t] = curves.force_velocity_cheng2000(v, l, *fv_args)
+        if with_slopes:
+            dfv_dv, dfv_dl = curves.force_velocity_slopes_cheng2000(v, l, *fv_args)
+            terms[DFVDV_SLOW + t] = dfv_dv
+            terms[DFVDL_SLOW + t] = dfv_dl
     terms[PE1] = curves.passive_parallel_elastic_cheng2000(
         l, v, m[M.lmax], s[S.c1], s[S.k1], s[S.lr1], s[S.eta]
     )
-
-
-@jitable
-def _fibre_terms(l, v, m, fibre_type, s, terms):
-    """FL, FV of each fibre type, FPE1 and FPE2 at (L, V), into terms."""
-    for t in range(2):
-        ft = fibre_type[t]
-        terms[FL_SLOW + t] = curves.force_length_cheng2000(l, ft[T.omega], ft[T.beta], ft[T.rho])
     terms[PE2] = curves.thick_filament_compression_cheng2000(l, s[S.c2], s[S.k2], s[S.lr2])
-    _velocity_terms(l, v, m, fibre_type, s, terms)
+    if with_slopes:
+        terms[DPE1] = curves.passive_parallel_elastic_slope_cheng2000(
+            l, m[M.lmax], s[S.c1], s[S.k1], s[S.lr1]
+        )
+        terms[DPE2] = curves.thick_filament_compression_slope_cheng2000(
+            l, s[S.c2], s[S.k2], s[S.lr2]
+        )
 
 
 @jitable
@@ -179,6 +189,27 @@ def _contractile_force(activity, terms, m):
             activity[t], terms[FL_SLOW + t], terms[FV_SLOW + t], terms[PE2]
         )
     return m[M.f0] * mech.contractile_force_total(terms[PE1], active)
+
+
+@jitable
+def _contractile_slopes(activity, terms, m, s):
+    """dF_CE/dx (N/m) and dF_CE/dxdot (N s/m) from the (L, V) terms and their slopes."""
+    active = active_dl = active_dv = 0.0
+    for t in range(2):
+        active += mech.active_force_term(
+            activity[t], terms[FL_SLOW + t], terms[FV_SLOW + t], terms[PE2]
+        )
+        dl, dv = mech.active_force_slopes(
+            activity[t], terms[FL_SLOW + t], terms[DFL_SLOW + t], terms[FV_SLOW + t],
+            terms[DFVDV_SLOW + t], terms[DFVDL_SLOW + t], terms[DPE2],
+        )  # fmt: skip
+        active_dl += dl
+        active_dv += dv
+    d_ce_dl, d_ce_dv = mech.contractile_force_slopes_total(
+        terms[PE1], active, terms[DPE1], s[S.eta], active_dl, active_dv
+    )
+    scale = m[M.f0] / m[M.l0]
+    return scale * d_ce_dl, scale * d_ce_dv
 
 
 @jitable
@@ -303,28 +334,23 @@ def _advance(
             )
             activity[t] += weight * af
             stimulation[t] += weight * af_l0
-        # fascicle mechanics (ROS2, activation held over the step). FL, FV, FPE1 and FPE2 depend
-        # on (x, xdot) only: those of the last step's end state are kept in terms_end and reused
-        # while (x, xdot) are bit-for-bit the same.
+        # fascicle mechanics (ROS2, activation held over the step, analytic Jacobian). The
+        # curves' terms and slopes depend on (x, xdot) only: those of the last step's end state are
+        # kept in terms_end and reused while (x, xdot) are bit-for-bit the same.
         l0 = m[M.l0]
         base = terms_end[i]
         if not (xv_end[i, 0] == x and xv_end[i, 1] == xdot):
-            _fibre_terms(l, v, m, fibre_type, s, base)
-        hx, hv = mech.fd_steps(l0)
+            _fibre_terms(l, v, m, fibre_type, s, base, True)
         f_se = _tendon_force(x, lp, m, s)
         f_ce = _contractile_force(activity, base, m)
-        l_dx = (x + hx) / l0
-        _fibre_terms(l_dx, v, m, fibre_type, s, terms_tmp)
-        f_se_dx = _tendon_force(x + hx, lp, m, s)
-        f_ce_dx = _contractile_force(activity, terms_tmp, m)
-        terms_tmp[:] = base  # same L: FL and FPE2 as at the base point
-        _velocity_terms(l, (xdot + hv) / l0, m, fibre_type, s, terms_tmp)
-        f_ce_dv = _contractile_force(activity, terms_tmp, m)
-        accel, a_x, a_v, a_p = mech.ros2_jacobian(
-            f_se, f_ce, f_se_dx, f_ce_dx, f_ce_dv, hx, hv, m[M.m_eff]
-        )
+        d_se_dx = mech.tendon_force_slope(
+            mech.tendon_length_normalised(lp, x, m[M.l0t]), m[M.f0], m[M.l0t], s[S.ct], s[S.kt],
+            s[S.lrt],
+        )  # fmt: skip
+        d_ce_dx, d_ce_dv = _contractile_slopes(activity, base, m, s)
+        accel, a_x, a_v, a_p = mech.ros2_jacobian(f_se, f_ce, d_se_dx, d_ce_dx, d_ce_dv, m[M.m_eff])
         k1_x, k1_v, x2, v2 = mech.ros2_stage1(x, xdot, vp, dt, accel, a_x, a_v, a_p)
-        _fibre_terms(x2 / l0, v2 / l0, m, fibre_type, s, terms_tmp)
+        _fibre_terms(x2 / l0, v2 / l0, m, fibre_type, s, terms_tmp, False)
         accel2 = (
             _tendon_force(x2, lp + dt * vp, m, s) - _contractile_force(activity, terms_tmp, m)
         ) / m[M.m_eff]
@@ -336,7 +362,7 @@ def _advance(
         x_state[i], xdot_state[i] = x_new, xdot_new
         # outputs and energetics at the end of the step
         l_new, v_new = x_new / l0, xdot_new / l0
-        _fibre_terms(l_new, v_new, m, fibre_type, s, base)
+        _fibre_terms(l_new, v_new, m, fibre_type, s, base, True)
         xv_end[i, 0], xv_end[i, 1] = x_new, xdot_new
         f_se = _tendon_force(x_new, lp + dt * vp, m, s)
         f_ce = _contractile_force(activity, base, m)
@@ -404,8 +430,16 @@ def _advance_series(
     return 0
 
 
+# LLVM may contract a*b + c into fused multiply-adds, reassociate and use reciprocals; NaN and
+# infinity keep their IEEE meaning (the input checks rely on them). Results differ from the NumPy
+# step in the last bits only (test_kernel holds them equal to 1e-12 relative).
+FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 _advance_step = jitable(_advance)
-_compile = numba.njit(cache=True, nogil=True, error_model="numpy") if HAVE_NUMBA else None
+_compile = (
+    numba.njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH)
+    if HAVE_NUMBA
+    else None
+)
 advance = _compile(_advance) if HAVE_NUMBA else None
 advance_series = _compile(_advance_series) if HAVE_NUMBA else None
 AVAILABLE = advance is not None

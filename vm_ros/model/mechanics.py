@@ -9,7 +9,8 @@ fixed-step integrator, and the equilibrium used to start a run.
 The fascicle mass against a stiff tendon is a stiff system: when active its fast eigenvalue is
 about -1e5 /s for a human muscle. :func:`rosenbrock_step` integrates it with the two-stage,
 second-order, L-stable Rosenbrock W-method ROS2 (Verwer, Spee, Blom & Hundsdorfer 1999, SIAM J Sci
-Comput 20:1456), which stays second order with the finite-difference Jacobian used here. Activation
+Comput 20:1456), a W-method that stays second order with any Jacobian; the one used here is
+analytic, from the slopes of the curves. Activation
 is held over the step (it varies on time scales of 1 ms and longer).
 
 References: Cheng, Brown & Loeb 2000; model.md section 4.
@@ -105,6 +106,44 @@ def contractile_force_normalised(l, v, activity, lmax, fibre: FibreTypeParams, g
     return contractile_force_total(pe1, active), fl, fv
 
 
+def contractile_force_slopes_normalised(
+    l, v, activity, lmax, fibre: FibreTypeParams, g: GenericParams
+):
+    """d(F_CE/F0)/dL and d(F_CE/F0)/dV, each (..., n), from the curves' analytic slopes.
+
+    Same arguments as :func:`contractile_force_normalised`; zero where F_CE is clipped at 0.
+    """
+    lt, vt = l[..., None], v[..., None]
+    fl, dfl = curves.force_length_and_slope_cheng2000(lt, fibre.omega, fibre.beta, fibre.rho)
+    fv_args = (fibre.vmax, fibre.cv0, fibre.cv1, fibre.av0, fibre.av1, fibre.av2, fibre.bv,
+               g.fv_denominator_min)
+    fv = curves.force_velocity_cheng2000(vt, lt, *fv_args)
+    dfv_dv, dfv_dl = curves.force_velocity_slopes_cheng2000(vt, lt, *fv_args)
+    pe1 = curves.passive_parallel_elastic_cheng2000(l, v, lmax, g.c1, g.k1, g.lr1, g.eta)
+    pe2 = curves.thick_filament_compression_cheng2000(lt, g.c2, g.k2, g.lr2)
+    dpe1 = curves.passive_parallel_elastic_slope_cheng2000(l, lmax, g.c1, g.k1, g.lr1)
+    dpe2 = curves.thick_filament_compression_slope_cheng2000(lt, g.c2, g.k2, g.lr2)
+    active = active_force_term(activity, fl, fv, pe2).sum(axis=-1)
+    active_dl, active_dv = active_force_slopes(activity, fl, dfl, fv, dfv_dv, dfv_dl, dpe2)
+    return contractile_force_slopes_total(
+        pe1, active, dpe1, g.eta, active_dl.sum(axis=-1), active_dv.sum(axis=-1)
+    )
+
+
+@jitable
+def active_force_slopes(activity, fl, dfl, fv, dfv_dv, dfv_dl, dpe2):
+    """One fibre type's share of d(F_CE/F0)/dL and /dV:
+    Acteff (FL' FV + FL dFV/dL + FPE2'),  Acteff FL dFV/dV."""
+    return activity * (dfl * fv + fl * dfv_dl + dpe2), activity * fl * dfv_dv
+
+
+@jitable
+def contractile_force_slopes_total(pe1, active_sum, dpe1_dl, eta, active_dl, active_dv):
+    """(d/dL, d/dV) of F_CE/F0 = max(0, FPE1 + sum of active terms); zero where it clips."""
+    on = pe1 + active_sum > 0.0
+    return where(on, dpe1_dl + active_dl, 0.0), where(on, eta + active_dv, 0.0)
+
+
 @jitable
 def active_force_term(activity, fl, fv, pe2):
     """One fibre type's share of F_CE / F0: Acteff (FL FV + FPE2)."""
@@ -142,14 +181,34 @@ def musculotendon_forces(
     return f_se, geometry.f0 * f_ce, fl
 
 
+def musculotendon_slopes(
+    x, xdot, path_length, activity, geometry: MuscleGeometry, fibre: FibreTypeParams,
+    g: GenericParams,
+):  # fmt: skip
+    """dF_SE/dx, dF_CE/dx (N/m) and dF_CE/dxdot (N s/m), each (..., n), at the state of
+    :func:`musculotendon_forces` (F_SE depends on x through L_SE = (L_path - x) / L0T)."""
+    l_se = tendon_length_normalised(path_length, x, geometry.l0t)
+    d_se_dx = tendon_force_slope(l_se, geometry.f0, geometry.l0t, g.ct, g.kt, g.lrt)
+    d_ce_dl, d_ce_dv = contractile_force_slopes_normalised(
+        x / geometry.l0, xdot / geometry.l0, activity, geometry.lmax, fibre, g
+    )
+    scale = geometry.f0 / geometry.l0
+    return d_se_dx, scale * d_ce_dl, scale * d_ce_dv
+
+
 @jitable
-def ros2_jacobian(f_se, f_ce, f_se_dx, f_ce_dx, f_ce_dv, hx, hv, m_eff):
-    """Acceleration and its one-sided-difference Jacobian from forces at (x, v), (x + hx, v) and
-    (x, v + hv). Returns (accel, d accel/dx, d accel/dv, d accel/d path length)."""
+def tendon_force_slope(l_se, f0, l0t, ct, kt, lrt):
+    """dF_SE/dx (N/m) = -F0 / L0T * dFSE/dL_SE."""
+    return -f0 / l0t * curves.tendon_stiffness_cheng2000(l_se, ct, kt, lrt)
+
+
+@jitable
+def ros2_jacobian(f_se, f_ce, d_se_dx, d_ce_dx, d_ce_dv, m_eff):
+    """Acceleration and its Jacobian from the forces and their analytic slopes.
+    Returns (accel, d accel/dx, d accel/dv, d accel/d path length)."""
     accel = (f_se - f_ce) / m_eff
-    d_se_dx = (f_se_dx - f_se) / hx
-    a_x = (d_se_dx - (f_ce_dx - f_ce) / hx) / m_eff
-    a_v = -(f_ce_dv - f_ce) / (hv * m_eff)
+    a_x = (d_se_dx - d_ce_dx) / m_eff
+    a_v = -d_ce_dv / m_eff
     a_p = -d_se_dx / m_eff  # F_SE depends on (Lp - x)
     return accel, a_x, a_v, a_p
 
@@ -180,30 +239,20 @@ def ros2_stage2(x, xdot, path_velocity, dt, a_x, a_v, a_p, k1_x, k1_v, v2, accel
     return x + dt * (1.5 * k1_x + 0.5 * k2_x), xdot + dt * (1.5 * k1_v + 0.5 * k2_v)
 
 
-@jitable
-def fd_steps(length_scale):
-    """Difference steps (m, m/s) of the Jacobian for a fascicle of optimal length L0 (m)."""
-    return 1e-7 * length_scale, 1e-6 * length_scale
-
-
-def rosenbrock_step(x, xdot, path_length, path_velocity, dt, forces, m_eff, length_scale):
+def rosenbrock_step(x, xdot, path_length, path_velocity, dt, forces, slopes, m_eff):
     """Advance (x, xdot) by dt with ROS2, the path length moving at ``path_velocity``.
 
-    ``forces(x, xdot, path_length) -> (f_se, f_ce)`` broadcasts over leading axes. The Jacobian
-    is taken by one-sided differences in a single stacked evaluation; the path length enters as a
-    third state with dLp/dt = path_velocity (so the step is exact for a linear path ramp).
+    ``forces(x, xdot, path_length) -> (f_se, f_ce)`` and ``slopes(x, xdot, path_length) ->
+    (dF_SE/dx, dF_CE/dx, dF_CE/dxdot)`` broadcast over the muscles. The Jacobian is analytic (the
+    curves' slopes); the path length enters as a third state with dLp/dt = path_velocity (so the
+    step is exact for a linear path ramp).
 
         (I - gamma h J) k1 = F(y_n)
         (I - gamma h J) k2 = F(y_n + h k1) - 2 k1
         y_{n+1} = y_n + h (3 k1 + k2) / 2,      gamma = 1 + 1/sqrt(2)
     """
-    hx, hv = fd_steps(length_scale)
-    stacked_x = np.stack([x, x + hx, x])
-    stacked_v = np.stack([xdot, xdot, xdot + hv])
-    f_se, f_ce = forces(stacked_x, stacked_v, path_length)
-    accel, a_x, a_v, a_p = ros2_jacobian(
-        f_se[0], f_ce[0], f_se[1], f_ce[1], f_ce[2], hx, hv, m_eff
-    )
+    f_se, f_ce = forces(x, xdot, path_length)
+    accel, a_x, a_v, a_p = ros2_jacobian(f_se, f_ce, *slopes(x, xdot, path_length), m_eff)
     k1_x, k1_v, x2, v2 = ros2_stage1(x, xdot, path_velocity, dt, accel, a_x, a_v, a_p)
     f_se2, f_ce2 = forces(x2, v2, path_length + dt * path_velocity)
     return ros2_stage2(
