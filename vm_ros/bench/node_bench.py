@@ -18,7 +18,7 @@ Definitions (keys of the returned dict; times are the benchmark's steady clock u
 | cpu_percent_one_core | node process user+sys CPU (/proc/<pid>/stat) over the window / wall time |
 | driver_cpu_percent_one_core | this process (the driver) likewise |
 | other_cpu_percent_one_core | every other process on the machine (/proc/stat) likewise: load
-  that competed with the node (cpu_cores cores in all) |
+  that competed with the node (cpu_cores cores in all; a few % below 0 is accounting noise) |
 | rss_window_start_mib, rss_final_mib | node VmRSS at the window's start and end |
 | rss_peak_mib | node VmHWM at the window's end (peak since the process started) |
 | latency_p50_ms, _p99_ms, _max_ms | excitation-to-force latency, below (latency_samples) |
@@ -486,10 +486,10 @@ def run_node_benchmark(n_muscles: int, model_rate_hz: float = 1000.0,
         context = rclpy.Context()
         rclpy.init(context=context)
         stack.callback(rclpy.try_shutdown, context=context)
-        executor = _make_executor(context)
-        stack.callback(executor.shutdown)
         driver = BenchDriver(context, names, lo, hi, drive_rate_hz)
         stack.callback(driver.node.destroy_node)
+        executor = _make_executor(context)
+        stack.callback(executor.shutdown)  # unwound first: executor, node, context
         executor.add_node(driver.node)
 
         with open(log_path, "wb") as log:
