@@ -1,1 +1,1 @@
-"""Benchmarks behind `vm-ros bench` (model, offline runs, muscle_node)."""
+"""Benchmarks behind `vm-ros bench` (model, offline runs, muscle_node, OpenSim comparison)."""

@@ -1,0 +1,640 @@
+"""muscle_node under load: N muscles at a given model and publish rate, measured from outside.
+
+    result = run_node_benchmark(100, workdir=Path("bench"))  # inside scripts/netns-run
+    python -m vm_ros.bench.node_bench --muscles 100 --duration 60      # prints JSON
+
+What runs: a library YAML in ``workdir`` with ``n_muscles`` uniquely named copies of the shipped
+muscles (every field and source kept), a params YAML, and ``python -m vm_ros.node`` as a child
+process (MCAP to ``workdir/node_bench.mcap`` when ``mcap``). A driver node in this process
+publishes ``muscle_kinematics`` (path lengths oscillating by 10 % of each muscle's anatomical
+range at 0.25 Hz, with their velocities) and ``excitation`` (JointState, every muscle the same
+drive, stepping between 0.2 and 0.7 every 0.5 s) at ``drive_rate_hz``, and subscribes to every
+output. After the model starts and ``warmup_s`` passes, the measurement window of ``duration_s``
+begins.
+
+Definitions (keys of the returned dict; times are the benchmark's steady clock unless stated):
+
+| key | meaning |
+| cpu_percent_one_core | node process user+sys CPU (/proc/<pid>/stat) over the window / wall time |
+| driver_cpu_percent_one_core | this process (the driver) likewise |
+| other_cpu_percent_one_core | every other process on the machine (/proc/stat) likewise: load
+  that competed with the node (cpu_cores cores in all; a few % below 0 is accounting noise) |
+| rss_window_start_mib, rss_final_mib | node VmRSS at the window's start and end |
+| rss_peak_mib | node VmHWM at the window's end (peak since the process started) |
+| latency_p50_ms, _p99_ms, _max_ms | excitation-to-force latency, below (latency_samples) |
+| excitation_not_in_node_log | window excitations the node never logged: dropped from its
+  subscription queue (depth qos_depth) while it was busy (MCAP only) |
+| latency_no_response | window excitations without a muscle_force response here |
+| model_wall_drift_percent | 100 (integrated model time - wall time) / wall time, below |
+| model_time_skipped_s | model time the node skipped (fell more than max_catch_up_steps behind) |
+| model_lag_p50_ms, _p99_ms, _max_ms | ROS time a muscle_force arrived here - its stamp |
+| step_time_p50_ms, _p99_ms | median over the window's /diagnostics reports of the node's values |
+| rate_<topic>_hz | messages received here (outputs) or sent (inputs) per second of window |
+| mcap_file_mib | size of the finished MCAP file |
+
+Excitation-to-force latency: for each excitation message published in the window, the time from
+just before ``publish()`` to the arrival here of the first ``muscle_force`` message whose stamp is
+at or after ``e + 1/model_rate_hz``, where ``e`` is the model time of the first model step that
+used the excitation. With MCAP on, ``e`` is exact: the node logs every input at that model time
+(vm_ros.node_recording); the message is found by its header stamp. Without MCAP
+(``latency_from_node_log`` false), ``e`` is taken as the excitation's publish time (ROS time):
+the force then comes from a step that started after the excitation was sent, so the value is an
+upper bound (too high by up to one publish period plus the model's lag behind ROS time). The
+latency includes waiting for the next publish (outputs go out every
+round(model_rate_hz/publish_rate_hz) steps), DDS delivery both ways and both executors.
+
+Model time vs wall time: the node's /diagnostics report, at one instant, its model time and the
+skipped and paused model time so far (vm_ros.node_timing). Between the first and last report in
+the window, integrated model time = change of model time - change of skipped - change of paused
+time (= steps run x dt); wall time = change of the reports' stamps. Skipping keeps the stamps
+near wall time, so the stamps alone would hide a node that cannot keep up.
+
+ROS time is the system clock here (no use_sim_time), so stamps compare with ``time.time_ns()``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import copy
+import fcntl
+import json
+import math
+import os
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+import vm_ros
+from vm_ros import telemetry as tm
+from vm_ros.model import MuscleBank
+from vm_ros.model.params import load_muscle_library
+from vm_ros.node_inputs import physical_path_length_range
+
+MIB = 1024.0 * 1024.0
+START_TIMEOUT_S = 60.0  # node process start until the first muscle_force (imports, bank build)
+STOP_TIMEOUT_S = 30.0  # SIGINT until exit (the MCAP file is finished), then SIGKILL
+TAIL_S = 0.5  # driving and receiving after the window, so late responses still arrive
+DRIVE_LOW, DRIVE_HIGH = 0.2, 0.7
+DRIVE_STEP_PERIOD_S = 0.5
+LENGTH_SWING = 0.1  # amplitude, as a fraction of the anatomical path-length range
+LENGTH_FREQUENCY_HZ = 0.25
+STAMP_MATCH_NS = 1000  # an excitation's stamp read back from the log (float64) vs as sent
+
+_SIOCGIFFLAGS = 0x8913  # linux/sockios.h
+_IFF_UP = 0x1
+
+
+# --- set-up ------------------------------------------------------------------------------------
+
+
+def check_loopback_only() -> None:
+    """Raise RuntimeError unless loopback is the only interface that is up.
+
+    Asks the kernel about this process's network namespace (if_nameindex, SIOCGIFFLAGS):
+    /sys/class/net would list the host's interfaces inside ``unshare -n`` unless sysfs is
+    remounted.
+    """
+    up, loopback_up = [], False
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        for _, name in socket.if_nameindex():
+            request = struct.pack("16s24x", name.encode()[:15])
+            flags = struct.unpack_from("H", fcntl.ioctl(sock.fileno(), _SIOCGIFFLAGS, request),
+                                       16)[0]
+            if name == "lo":
+                loopback_up = bool(flags & _IFF_UP)
+            elif flags & _IFF_UP:
+                up.append(name)
+    if up:
+        raise RuntimeError(
+            f"network interface(s) {', '.join(up)} are up: the node benchmark starts DDS, whose "
+            "discovery multicasts on every interface. Run it in a loopback-only network "
+            "namespace: scripts/netns-run vm-ros bench ... (interfaces.md section 6)")
+    if not loopback_up:
+        raise RuntimeError("the loopback interface is down: DDS needs it (`ip link set lo up`, "
+                           "as scripts/netns-run does)")
+
+
+def write_library(path: Path, n_muscles: int) -> list[str]:
+    """A muscle library with ``n_muscles`` copies of the shipped muscles, cycled in file order
+    and named ``<muscle>_<k>`` (k = 0..n-1, zero-padded); every field and source kept."""
+    if n_muscles < 1:
+        raise ValueError(f"n_muscles must be >= 1, got {n_muscles}")
+    shipped = list(load_muscle_library().items())
+    width = len(str(n_muscles - 1))
+    entries = {}
+    for k in range(n_muscles):
+        name, fields = shipped[k % len(shipped)]
+        entries[f"{name}_{k:0{width}d}"] = copy.deepcopy(fields)
+    header = (f"# vm_ros node benchmark: {n_muscles} copies of the shipped muscles "
+              "(config/muscles.yaml), renamed <muscle>_<k>\n")
+    path.write_text(header + yaml.safe_dump({"muscles": entries}, sort_keys=False,
+                                            allow_unicode=True, width=100), encoding="utf-8")
+    return list(entries)
+
+
+def write_params(path: Path, names: list[str], library: Path, model_rate_hz: float,
+                 publish_rate_hz: float, mcap_path: Path | None,
+                 diagnostics_period_s: float) -> None:
+    """muscle_node's params YAML (the model starts at the first muscle_kinematics)."""
+    params = {
+        "muscles": list(names), "library": str(library), "model_rate_hz": float(model_rate_hz),
+        "publish_rate_hz": float(publish_rate_hz),
+        "diagnostics_period_s": float(diagnostics_period_s),
+        "mcap": {"enabled": mcap_path is not None,
+                 "path": str(mcap_path) if mcap_path is not None else ""},
+    }
+    path.write_text(yaml.safe_dump({"/**": {"ros__parameters": params}}, sort_keys=False),
+                    encoding="utf-8")
+
+
+def _node_command(params_path: Path) -> list[str]:
+    return [sys.executable, "-m", "vm_ros.node", "--ros-args", "--params-file", str(params_path)]
+
+
+def _node_environment() -> dict:
+    """This environment, with the vm_ros that this process runs first on the child's path."""
+    env = dict(os.environ)
+    root = str(Path(vm_ros.__file__).resolve().parent.parent)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH")) if p)
+    return env
+
+
+# --- /proc -------------------------------------------------------------------------------------
+
+
+def cpu_seconds(pid: int | str) -> float:
+    """User + system CPU time (s) of a process (all its threads) from /proc/<pid>/stat."""
+    text = Path(f"/proc/{pid}/stat").read_text()
+    fields = text[text.rindex(")") + 2:].split()  # fields 3.. (comm may hold spaces)
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def machine_busy_seconds() -> float:
+    """CPU time (s) spent outside idle and iowait by all cores since boot (/proc/stat)."""
+    fields = Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:]
+    user, nice, system, _idle, _iowait, irq, softirq, steal = (int(x) for x in fields[:8])
+    return (user + nice + system + irq + softirq + steal) / os.sysconf("SC_CLK_TCK")
+
+
+def memory_mib(pid: int | str) -> tuple[float, float]:
+    """(VmRSS, VmHWM) of a process in MiB from /proc/<pid>/status."""
+    values = {}
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        key, _, rest = line.partition(":")
+        if key in ("VmRSS", "VmHWM"):
+            values[key] = int(rest.split()[0]) / 1024.0  # kB
+    return values["VmRSS"], values["VmHWM"]
+
+
+# --- the driver --------------------------------------------------------------------------------
+
+
+def _stamp_ns(stamp) -> int:
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+class BenchDriver:
+    """The benchmark's ROS node: publishes the drive and kinematics, records what arrives.
+
+    Outputs are subscribed raw; a muscle_force stamp is read from the CDR bytes (encapsulation
+    header, then header.stamp sec int32 and nanosec uint32), so that receiving costs little.
+    """
+
+    def __init__(self, context, names, path_length_min_m, path_length_max_m,
+                 drive_rate_hz: float):
+        from diagnostic_msgs.msg import DiagnosticArray
+        from rclpy.node import Node
+        from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+        from sensor_msgs.msg import JointState
+        from std_msgs.msg import Float64, Float64MultiArray
+
+        self._joint_state = JointState
+        self.names = list(names)
+        self.node = Node("vm_ros_bench_driver", context=context)
+        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000,
+                         reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.VOLATILE)
+        self._excitation = self.node.create_publisher(JointState, tm.TOPIC_EXCITATION, qos)
+        self._kinematics = self.node.create_publisher(JointState, tm.TOPIC_KINEMATICS, qos)
+        mid = 0.5 * (np.asarray(path_length_min_m) + np.asarray(path_length_max_m))
+        self._mid_m = mid
+        self._swing_m = LENGTH_SWING * (np.asarray(path_length_max_m)
+                                        - np.asarray(path_length_min_m))
+        # received outputs: steady-clock arrival (ns); muscle_force also ROS arrival and stamp
+        self.force_mono_ns: list[int] = []
+        self.force_ros_ns: list[int] = []
+        self.force_stamp_ns: list[int] = []
+        self.last_force: bytes | None = None
+        self.received = {t: [] for t in (tm.TOPIC_ENERGY_RATE, tm.TOPIC_ENERGY_RATE_TOTAL,
+                                         tm.TOPIC_ENERGY_TOTAL)}
+        self.diagnostics: list[tuple[int, dict]] = []  # (stamp ns, key -> value)
+        # sent inputs: steady clock just before publish(); excitation also its stamp (ROS time)
+        self.excitation_mono_ns: list[int] = []
+        self.excitation_stamp_ns: list[int] = []
+        self.kinematics_mono_ns: list[int] = []
+        self.drive_steps = 0
+        self._last_drive: float | None = None
+        self._start_mono_ns: int | None = None
+
+        self.node.create_subscription(JointState, tm.TOPIC_FORCE, self._on_force, qos, raw=True)
+        for topic, msg_type in ((tm.TOPIC_ENERGY_RATE, Float64MultiArray),
+                                (tm.TOPIC_ENERGY_RATE_TOTAL, Float64),
+                                (tm.TOPIC_ENERGY_TOTAL, Float64)):
+            arrivals = self.received[topic]
+            self.node.create_subscription(
+                msg_type, topic, lambda _data, a=arrivals: a.append(time.monotonic_ns()), qos,
+                raw=True)
+        self.node.create_subscription(DiagnosticArray, tm.TOPIC_DIAGNOSTICS,
+                                      self._on_diagnostics, qos)
+        self._timer = self.node.create_timer(1.0 / drive_rate_hz, self._tick)
+
+    def stop_driving(self) -> None:
+        if self._timer is not None:
+            self.node.destroy_timer(self._timer)
+            self._timer = None
+
+    def _tick(self) -> None:
+        mono_ns = time.monotonic_ns()
+        if self._start_mono_ns is None:
+            self._start_mono_ns = mono_ns
+        t = (mono_ns - self._start_mono_ns) * 1e-9
+        phase = 2.0 * math.pi * LENGTH_FREQUENCY_HZ * t
+        length = self._mid_m + self._swing_m * math.sin(phase)
+        velocity = self._swing_m * 2.0 * math.pi * LENGTH_FREQUENCY_HZ * math.cos(phase)
+        drive = DRIVE_HIGH if int(t / DRIVE_STEP_PERIOD_S) % 2 else DRIVE_LOW
+        if self._last_drive is not None and drive != self._last_drive:
+            self.drive_steps += 1
+        self._last_drive = drive
+
+        kinematics = self._joint_state(name=self.names, position=length.tolist(),
+                                       velocity=velocity.tolist())
+        excitation = self._joint_state(name=self.names, position=[drive] * len(self.names))
+        stamp_ns = time.time_ns()
+        for msg in (kinematics, excitation):
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
+        self.kinematics_mono_ns.append(time.monotonic_ns())
+        self._kinematics.publish(kinematics)
+        self.excitation_stamp_ns.append(stamp_ns)
+        self.excitation_mono_ns.append(time.monotonic_ns())
+        self._excitation.publish(excitation)
+
+    def _on_force(self, data: bytes) -> None:
+        self.force_mono_ns.append(time.monotonic_ns())
+        self.force_ros_ns.append(time.time_ns())
+        sec, nanosec = struct.unpack_from("<iI" if data[1] == 1 else ">iI", data, 4)
+        self.force_stamp_ns.append(sec * 1_000_000_000 + nanosec)
+        self.last_force = data
+
+    def _on_diagnostics(self, msg) -> None:
+        for status in msg.status:
+            if status.hardware_id == "vm_ros":
+                self.diagnostics.append((_stamp_ns(msg.header.stamp),
+                                         {kv.key: kv.value for kv in status.values}))
+
+    def last_force_message(self):
+        """The newest muscle_force, deserialised (None before the first)."""
+        from rclpy.serialization import deserialize_message
+
+        if self.last_force is None:
+            return None
+        return deserialize_message(self.last_force, self._joint_state)
+
+
+# --- measuring ---------------------------------------------------------------------------------
+
+
+def _make_executor(context):
+    try:
+        from rclpy.experimental import EventsExecutor
+    except ImportError:  # pragma: no cover - older rclpy
+        from rclpy.executors import SingleThreadedExecutor
+
+        return SingleThreadedExecutor(context=context)
+    return EventsExecutor(context=context)
+
+
+def _percentiles_ms(values_ns) -> tuple[float, float, float]:
+    """(p50, p99, max) in ms; NaN when empty."""
+    if len(values_ns) == 0:
+        return math.nan, math.nan, math.nan
+    a = np.asarray(values_ns, dtype=float) * 1e-6
+    return float(np.percentile(a, 50)), float(np.percentile(a, 99)), float(a.max())
+
+
+def _count_between(times_ns, start_ns: int, end_ns: int) -> int:
+    a = np.asarray(times_ns, dtype=np.int64)
+    return int(np.count_nonzero((a >= start_ns) & (a < end_ns)))
+
+
+def _number(text) -> float:
+    try:
+        return float(text)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def _stop_process(process: subprocess.Popen) -> tuple[int, float]:
+    """SIGINT, wait up to STOP_TIMEOUT_S, then SIGKILL; (exit code, seconds to stop)."""
+    start = time.monotonic()
+    if process.poll() is None:
+        process.send_signal(signal.SIGINT)
+        try:
+            process.wait(timeout=STOP_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+    return process.returncode, time.monotonic() - start
+
+
+def _tail(path: Path, lines: int = 20) -> str:
+    try:
+        return "\n".join(path.read_text(errors="replace").splitlines()[-lines:])
+    except OSError:
+        return ""
+
+
+def _drift(diagnostics, start_ros_ns: int, end_ros_ns: int) -> dict:
+    """Model time vs wall time from the node's /diagnostics reports inside the window."""
+    reports = [(stamp, v) for stamp, v in diagnostics
+               if start_ros_ns <= stamp <= end_ros_ns and _number(v.get("model time (s)")) >= 0]
+    out = {"model_wall_drift_percent": math.nan, "model_time_skipped_s": math.nan,
+           "model_step_rate_hz": math.nan, "diagnostics_span_s": 0.0, "overruns": math.nan,
+           "catch_up_ticks": math.nan, "step_time_p50_ms": math.nan,
+           "step_time_p99_ms": math.nan, "step_time_max_ms": math.nan,
+           "tick_time_p99_ms": math.nan}
+    if len(reports) < 2:
+        return out
+    (t0, first), (t1, last) = reports[0], reports[-1]
+    wall_s = (t1 - t0) * 1e-9
+
+    def change(key):
+        return _number(last.get(key)) - _number(first.get(key))
+
+    skipped_s = change("skipped model time (s)")
+    integrated_s = change("model time (s)") - skipped_s - change("paused model time (s)")
+    out.update(model_wall_drift_percent=100.0 * (integrated_s - wall_s) / wall_s,
+               model_time_skipped_s=skipped_s, diagnostics_span_s=wall_s,
+               overruns=change("overruns (ticks longer than a step)"),
+               catch_up_ticks=change("catch-up ticks"))
+    values = [v for _, v in reports]
+    for key, name in (("step time p50 (ms)", "step_time_p50_ms"),
+                      ("step time p99 (ms)", "step_time_p99_ms"),
+                      ("tick time p99 (ms)", "tick_time_p99_ms"),
+                      ("step rate (Hz)", "model_step_rate_hz")):
+        out[name] = float(np.nanmedian([_number(v.get(key)) for v in values]))
+    out["step_time_max_ms"] = float(np.nanmax([_number(v.get("step time max (ms)"))
+                                               for v in values]))
+    return out
+
+
+def _effective_times(mcap_path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """(header stamps, model times of the first step that used them), ns, sorted by stamp, of
+    the excitation messages in the node's MCAP log (inputs are logged at that model time).
+    read_run gives stamps as float64 (256 ns resolution at today's epoch times)."""
+    from vm_ros.recording import read_run
+
+    series = read_run(mcap_path, topics=[tm.TOPIC_EXCITATION]).get(tm.TOPIC_EXCITATION)
+    if series is None:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    stamps = np.rint(np.asarray(series.fields["stamp_ns"], dtype=float)).astype(np.int64)
+    order = np.argsort(stamps, kind="stable")
+    return stamps[order], np.asarray(series.time_ns, dtype=np.int64)[order]
+
+
+def _lookup(keys: np.ndarray, values: np.ndarray, key: int, tolerance: int) -> int | None:
+    """values[i] for the sorted ``keys[i]`` nearest to ``key`` if within ``tolerance``."""
+    k = int(np.searchsorted(keys, key))
+    best = min((i for i in (k - 1, k) if 0 <= i < len(keys)), key=lambda i: abs(keys[i] - key),
+               default=None)
+    if best is None or abs(int(keys[best]) - key) > tolerance:
+        return None
+    return int(values[best])
+
+
+def _latencies(driver: BenchDriver, start_mono_ns: int, end_mono_ns: int, step_ns: int,
+               effective: tuple[np.ndarray, np.ndarray] | None) -> tuple[list[int], int, int]:
+    """(latencies in ns, number not in the node's log, number without a response) of the
+    window's excitation messages (module docstring). ``effective`` None: the publish time
+    stands for the model time."""
+    stamps = np.asarray(driver.force_stamp_ns, dtype=np.int64)
+    arrivals = np.asarray(driver.force_mono_ns, dtype=np.int64)
+    order = np.argsort(stamps, kind="stable")  # arrival order already, unless time went back
+    stamps, arrivals = stamps[order], arrivals[order]
+    latencies, lost, missing = [], 0, 0
+    for sent_ns, stamp_ns in zip(driver.excitation_mono_ns, driver.excitation_stamp_ns,
+                                 strict=True):
+        if not start_mono_ns <= sent_ns < end_mono_ns:
+            continue
+        applied_ns = (stamp_ns if effective is None
+                      else _lookup(*effective, stamp_ns, tolerance=STAMP_MATCH_NS))
+        if applied_ns is None:  # never reached the node (its subscription queue overflowed)
+            lost += 1
+            continue
+        k = int(np.searchsorted(stamps, applied_ns + step_ns, side="left"))
+        if k == len(stamps):
+            missing += 1
+            continue
+        latencies.append(int(arrivals[k]) - sent_ns)
+    return latencies, lost, missing
+
+
+def run_node_benchmark(n_muscles: int, model_rate_hz: float = 1000.0,
+                       publish_rate_hz: float = 100.0, duration_s: float = 60.0,
+                       mcap: bool = True, workdir: Path | str | None = None,
+                       progress: Callable[[float, float], None] | None = None, *,
+                       warmup_s: float = 5.0, drive_rate_hz: float = 100.0) -> dict:
+    """Run muscle_node with ``n_muscles`` as a process and measure it (module docstring).
+
+    Call inside a loopback-only network namespace (scripts/netns-run); raises RuntimeError when
+    another interface is up, and when the node does not start or dies. ``workdir`` receives the
+    library, params, node log (muscle_node.log) and MCAP file; None: a temporary directory,
+    removed afterwards. ``progress(done_s, total_s)`` is called about twice a second during the
+    warm-up and the window. Returns a flat dict of numbers (units in the key names).
+    """
+    import rclpy
+
+    check_loopback_only()
+    if duration_s <= 0 or warmup_s < 0:
+        raise ValueError("duration_s must be > 0 and warmup_s >= 0")
+    with contextlib.ExitStack() as stack:
+        if workdir is None:
+            workdir = stack.enter_context(tempfile.TemporaryDirectory(prefix="vm_ros-bench-"))
+        workdir = Path(workdir)
+        workdir.mkdir(parents=True, exist_ok=True)
+        library = workdir / "node_bench_muscles.yaml"
+        names = write_library(library, n_muscles)
+        mcap_path = workdir / "node_bench.mcap" if mcap else None
+        if mcap_path is not None and mcap_path.exists():
+            mcap_path.unlink()
+        params_path = workdir / "node_bench_params.yaml"
+        write_params(params_path, names, library, model_rate_hz, publish_rate_hz, mcap_path,
+                     diagnostics_period_s=1.0 if duration_s >= 10.0 else 0.25)
+        lo, hi = physical_path_length_range(MuscleBank.from_config(names, library=library), 0.0)
+        step_ns = int(round(1e9 / model_rate_hz))
+        log_path = workdir / "muscle_node.log"
+
+        context = rclpy.Context()
+        rclpy.init(context=context)
+        stack.callback(rclpy.try_shutdown, context=context)
+        driver = BenchDriver(context, names, lo, hi, drive_rate_hz)
+        stack.callback(driver.node.destroy_node)
+        executor = _make_executor(context)
+        stack.callback(executor.shutdown)  # unwound first: executor, node, context
+        executor.add_node(driver.node)
+
+        with open(log_path, "wb") as log:
+            process = subprocess.Popen(_node_command(params_path), env=_node_environment(),
+                                       cwd=workdir, stdout=log, stderr=subprocess.STDOUT,
+                                       stdin=subprocess.DEVNULL)
+        try:
+            result = _measure(process, driver, executor, duration_s, warmup_s, progress,
+                              log_path)
+            driver.stop_driving()
+            window = result.pop("_window")
+        finally:
+            exit_code, stop_s = _stop_process(process)
+        effective = _effective_times(mcap_path) if mcap_path is not None else None
+        latencies, lost, missing = _latencies(driver, *window, step_ns, effective)
+        p50, p99, pmax = _percentiles_ms(latencies)
+        last = driver.last_force_message()
+        result.update(
+            latency_p50_ms=p50, latency_p99_ms=p99, latency_max_ms=pmax,
+            latency_samples=len(latencies), latency_no_response=missing,
+            excitation_not_in_node_log=lost if effective is not None else math.nan,
+            latency_from_node_log=effective is not None,
+            node_exit_code=exit_code, node_stop_s=stop_s,
+            forces_finite=bool(last is not None and len(last.effort) == n_muscles
+                               and np.all(np.isfinite(last.effort))),
+            mcap_file_mib=mcap_path.stat().st_size / MIB
+            if mcap_path is not None and mcap_path.exists() else math.nan)
+        return {"n_muscles": n_muscles, "model_rate_hz": float(model_rate_hz),
+                "publish_rate_hz": float(publish_rate_hz), "mcap": bool(mcap), **result}
+
+
+def _measure(process, driver: BenchDriver, executor, duration_s: float, warmup_s: float,
+             progress, log_path: Path) -> dict:
+    """Wait for the model start, warm up, measure the window; the numbers known then."""
+
+    def spin_until(end_mono: float, tick: Callable[[float], None] | None = None) -> None:
+        next_report = time.monotonic()
+        while (now := time.monotonic()) < end_mono:
+            if process.poll() is not None:
+                raise RuntimeError(f"muscle_node exited ({process.returncode}) during the "
+                                   f"benchmark; its log ({log_path}):\n{_tail(log_path)}")
+            if tick is not None and now >= next_report:
+                tick(now)
+                next_report = now + 0.5
+            executor.spin_once(timeout_sec=min(0.01, max(end_mono - now, 0.0)))
+
+    deadline = time.monotonic() + START_TIMEOUT_S
+    while not driver.force_mono_ns:
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"muscle_node published no muscle_force within "
+                               f"{START_TIMEOUT_S:g} s; its log ({log_path}):\n{_tail(log_path)}")
+        spin_until(time.monotonic() + 0.05)
+
+    total_s = warmup_s + duration_s
+    started = time.monotonic()
+
+    def report(now: float) -> None:
+        if progress is not None:
+            progress(min(now - started, total_s), total_s)
+
+    spin_until(started + warmup_s, report)
+    pid = process.pid
+    cpu0, self_cpu0, busy0 = cpu_seconds(pid), cpu_seconds("self"), machine_busy_seconds()
+    rss0, _ = memory_mib(pid)
+    mono0, ros0 = time.monotonic_ns(), time.time_ns()
+    spin_until(mono0 * 1e-9 + duration_s, report)
+    mono1, ros1 = time.monotonic_ns(), time.time_ns()
+    cpu1, self_cpu1, busy1 = cpu_seconds(pid), cpu_seconds("self"), machine_busy_seconds()
+    rss1, hwm = memory_mib(pid)
+    report(time.monotonic())
+    spin_until(time.monotonic() + TAIL_S)  # responses to the window's last excitations
+
+    wall_s = (mono1 - mono0) * 1e-9
+    in_window = [k for k, t in enumerate(driver.force_mono_ns) if mono0 <= t < mono1]
+    lags = [driver.force_ros_ns[k] - driver.force_stamp_ns[k] for k in in_window]
+    lag_p50, lag_p99, lag_max = _percentiles_ms(lags)
+    last_diagnostics = driver.diagnostics[-1][1] if driver.diagnostics else {}
+
+    def rate(times) -> float:
+        return _count_between(times, mono0, mono1) / wall_s
+
+    result = {
+        "duration_s": wall_s, "warmup_s": float(warmup_s),
+        "cpu_percent_one_core": 100.0 * (cpu1 - cpu0) / wall_s,
+        "driver_cpu_percent_one_core": 100.0 * (self_cpu1 - self_cpu0) / wall_s,
+        "other_cpu_percent_one_core": 100.0 * ((busy1 - busy0) - (cpu1 - cpu0)
+                                               - (self_cpu1 - self_cpu0)) / wall_s,
+        "cpu_cores": os.cpu_count(),
+        "rss_window_start_mib": rss0, "rss_final_mib": rss1, "rss_peak_mib": hwm,
+        **_drift(driver.diagnostics, ros0, ros1),
+        "model_lag_p50_ms": lag_p50, "model_lag_p99_ms": lag_p99, "model_lag_max_ms": lag_max,
+        "rate_muscle_force_hz": len(in_window) / wall_s,
+        "rate_energy_rate_hz": rate(driver.received[tm.TOPIC_ENERGY_RATE]),
+        "rate_energy_rate_total_hz": rate(driver.received[tm.TOPIC_ENERGY_RATE_TOTAL]),
+        "rate_energy_total_hz": rate(driver.received[tm.TOPIC_ENERGY_TOTAL]),
+        "rate_excitation_sent_hz": rate(driver.excitation_mono_ns),
+        "rate_kinematics_sent_hz": rate(driver.kinematics_mono_ns),
+        "drive_steps": driver.drive_steps,
+        "mcap_messages_written": _number(last_diagnostics.get("mcap messages written")),
+        "mcap_messages_dropped": _number(last_diagnostics.get("mcap messages dropped")),
+        "_window": (mono0, mono1),
+    }
+    return result
+
+
+# --- command line ------------------------------------------------------------------------------
+
+
+def main(argv=None) -> int:
+    """python -m vm_ros.bench.node_bench [--muscles N] [--duration S] ...: the dict as JSON."""
+    parser = argparse.ArgumentParser(
+        prog="python -m vm_ros.bench.node_bench",
+        description="Benchmark muscle_node as a process (run inside scripts/netns-run).")
+    parser.add_argument("--muscles", type=int, default=100, help="number of muscles")
+    parser.add_argument("--model-rate", type=float, default=1000.0, help="model rate (Hz)")
+    parser.add_argument("--publish-rate", type=float, default=100.0, help="publish rate (Hz)")
+    parser.add_argument("--duration", type=float, default=60.0, help="window (s)")
+    parser.add_argument("--warmup", type=float, default=5.0, help="warm-up (s)")
+    parser.add_argument("--drive-rate", type=float, default=100.0,
+                        help="excitation and kinematics rate (Hz)")
+    parser.add_argument("--no-mcap", action="store_true", help="run the node without MCAP")
+    parser.add_argument("--workdir", type=Path, default=None,
+                        help="keep library, params, node log and MCAP here (default: temporary)")
+    args = parser.parse_args(argv)
+
+    def progress(done: float, total: float) -> None:
+        if sys.stderr.isatty():
+            sys.stderr.write(f"\rnode bench {100.0 * done / total:5.1f}% ")
+            sys.stderr.flush()
+
+    try:
+        result = run_node_benchmark(
+            args.muscles, args.model_rate, args.publish_rate, args.duration,
+            mcap=not args.no_mcap, workdir=args.workdir, progress=progress,
+            warmup_s=args.warmup, drive_rate_hz=args.drive_rate)
+    except RuntimeError as exc:
+        print(f"node_bench: error: {exc}", file=sys.stderr)
+        return 1
+    if sys.stderr.isatty():
+        sys.stderr.write("\n")
+    plain = {k: None if isinstance(v, float) and not math.isfinite(v) else v
+             for k, v in result.items()}  # JSON has no NaN
+    print(json.dumps(plain, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
