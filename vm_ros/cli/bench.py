@@ -97,7 +97,8 @@ def _node_rows(duration_s: float, workdir: Path) -> list[dict]:
                    "--muscles", str(config["muscles"]),
                    "--model-rate", str(config["model_rate_hz"]),
                    "--publish-rate", str(config["publish_rate_hz"]),
-                   "--duration", str(duration_s), "--workdir", str(workdir),
+                   "--duration", str(duration_s),
+                   "--workdir", str(workdir / f"node-{config['muscles']}"),
                    *([] if config["mcap"] else ["--no-mcap"])]
         if os.environ.get("VM_ROS_NETNS") != "1":
             command = _loopback_only(command)
@@ -108,7 +109,7 @@ def _node_rows(duration_s: float, workdir: Path) -> list[dict]:
             rows.append({**config, "error": " | ".join(tail)})
             _say(f"node run failed: {rows[-1]['error']}")
             continue
-        rows.append({**config, **json.loads(result.stdout.strip().splitlines()[-1])})
+        rows.append({**config, **json.loads(result.stdout[result.stdout.index("{"):])})
     return rows
 
 
