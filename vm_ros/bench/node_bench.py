@@ -17,8 +17,8 @@ Definitions (keys of the returned dict; times are the benchmark's steady clock u
 | key | meaning |
 | cpu_percent_one_core | node process user+sys CPU (/proc/<pid>/stat) over the window / wall time |
 | driver_cpu_percent_one_core | this process (the driver) likewise |
-| other_cpu_percent_one_core | every other process on the machine (/proc/stat) likewise: load
-  that competed with the node (cpu_cores cores in all; a few % below 0 is accounting noise) |
+| load_average_1min_start, _end | the machine's 1-minute load average around the window (other load
+  competing with the node shows here) |
 | rss_window_start_mib, rss_final_mib | node VmRSS at the window's start and end |
 | rss_peak_mib | node VmHWM at the window's end (peak since the process started) |
 | latency_p50_ms, _p99_ms, _max_ms | excitation-to-force latency, below (latency_samples) |
@@ -177,13 +177,6 @@ def cpu_seconds(pid: int | str) -> float:
     text = Path(f"/proc/{pid}/stat").read_text()
     fields = text[text.rindex(")") + 2:].split()  # fields 3.. (comm may hold spaces)
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-
-
-def machine_busy_seconds() -> float:
-    """CPU time (s) spent outside idle and iowait by all cores since boot (/proc/stat)."""
-    fields = Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:]
-    user, nice, system, _idle, _iowait, irq, softirq, steal = (int(x) for x in fields[:8])
-    return (user + nice + system + irq + softirq + steal) / os.sysconf("SC_CLK_TCK")
 
 
 def memory_mib(pid: int | str) -> tuple[float, float]:
@@ -469,7 +462,7 @@ def run_node_benchmark(n_muscles: int, model_rate_hz: float = 1000.0,
     with contextlib.ExitStack() as stack:
         if workdir is None:
             workdir = stack.enter_context(tempfile.TemporaryDirectory(prefix="vm_ros-bench-"))
-        workdir = Path(workdir)
+        workdir = Path(workdir).resolve()  # the node runs with workdir as its cwd
         workdir.mkdir(parents=True, exist_ok=True)
         library = workdir / "node_bench_muscles.yaml"
         names = write_library(library, n_muscles)
@@ -552,12 +545,12 @@ def _measure(process, driver: BenchDriver, executor, duration_s: float, warmup_s
 
     spin_until(started + warmup_s, report)
     pid = process.pid
-    cpu0, self_cpu0, busy0 = cpu_seconds(pid), cpu_seconds("self"), machine_busy_seconds()
+    cpu0, self_cpu0, load0 = cpu_seconds(pid), cpu_seconds("self"), os.getloadavg()[0]
     rss0, _ = memory_mib(pid)
     mono0, ros0 = time.monotonic_ns(), time.time_ns()
     spin_until(mono0 * 1e-9 + duration_s, report)
     mono1, ros1 = time.monotonic_ns(), time.time_ns()
-    cpu1, self_cpu1, busy1 = cpu_seconds(pid), cpu_seconds("self"), machine_busy_seconds()
+    cpu1, self_cpu1, load1 = cpu_seconds(pid), cpu_seconds("self"), os.getloadavg()[0]
     rss1, hwm = memory_mib(pid)
     report(time.monotonic())
     spin_until(time.monotonic() + TAIL_S)  # responses to the window's last excitations
@@ -575,8 +568,7 @@ def _measure(process, driver: BenchDriver, executor, duration_s: float, warmup_s
         "duration_s": wall_s, "warmup_s": float(warmup_s),
         "cpu_percent_one_core": 100.0 * (cpu1 - cpu0) / wall_s,
         "driver_cpu_percent_one_core": 100.0 * (self_cpu1 - self_cpu0) / wall_s,
-        "other_cpu_percent_one_core": 100.0 * ((busy1 - busy0) - (cpu1 - cpu0)
-                                               - (self_cpu1 - self_cpu0)) / wall_s,
+        "load_average_1min_start": load0, "load_average_1min_end": load1,
         "cpu_cores": os.cpu_count(),
         "rss_window_start_mib": rss0, "rss_final_mib": rss1, "rss_peak_mib": hwm,
         **_drift(driver.diagnostics, ros0, ros1),
