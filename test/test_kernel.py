@@ -214,3 +214,65 @@ def test_run_equals_repeated_steps(backend):
         banks[0].run(DT, u_bad, lp, vp)
     np.testing.assert_array_equal(banks[0].state.fascicle_length_m, before.fascicle_length_m)
     assert banks[0].time_s == before.time_s
+
+
+def test_set_state_checks_shapes_and_converts_to_float():
+    bank = MuscleBank.from_config(["vasti", "soleus", "rectus_femoris"])
+    other = MuscleBank.from_config(["vasti", "soleus"])
+    lp = bank.l0_m + bank.l0t_m
+    bank.reset(lp)
+    other.reset(other.l0_m + other.l0t_m)
+    with pytest.raises(ValueError, match="shape"):
+        bank.set_state(other.state)
+    state = bank.state
+    state.energy_j = state.energy_j.astype(np.int64)
+    state.mechanical_work_j = state.mechanical_work_j.astype(np.int64)
+    bank.set_state(state)
+    for _ in range(100):
+        out = bank.step(DT, 1.0, lp)
+    assert np.all(out.energy.total > 1.0)  # not truncated to whole joules per step
+    assert bank.state.energy_j.dtype == np.float64
+
+
+@needs_numba
+def test_unusual_input_arrays_do_not_recompile_the_kernel():
+    bank = MuscleBank.from_config(["vasti", "soleus"])
+    lp = bank.l0_m + bank.l0t_m
+    bank.reset(lp)
+    signatures = len(kernel.advance.signatures)
+    table = np.column_stack([lp, lp, lp])  # a column of it is a strided view
+    frozen = lp.copy()
+    frozen.flags.writeable = False
+    bank.step(DT, np.array([0.3, 0.3]), table[:, 1])
+    bank.step(DT, [0.3, 0.3], frozen)
+    bank.step(DT, np.array([1, 0]), lp)  # integers
+    assert len(kernel.advance.signatures) == signatures
+
+
+def test_run_names_the_input_with_the_wrong_rows_and_adds_time_like_step():
+    bank = MuscleBank.from_config(["vasti"])
+    lp = bank.l0_m + bank.l0t_m
+    bank.reset(lp)
+    u = np.full((7, 1), 0.4)
+    with pytest.raises(InputError, match="path_velocity"):
+        bank.run(DT, u, np.tile(lp, (7, 1)), np.zeros((6, 1)))
+    with pytest.raises(InputError, match="dt"):
+        bank.step(True, 0.4, lp)
+    trajectory = bank.run(DT, u, np.tile(lp, (7, 1)))
+    t = 0.0
+    for _ in range(7):
+        t += DT
+    assert trajectory.time_s[-1] == t == bank.time_s
+
+
+@needs_numba
+def test_numba_cache_folder_follows_the_model_sources_even_if_numba_came_first():
+    code = (
+        "import numba\n"
+        "from vm_ros.model import kernel, jit\n"
+        "path = kernel.advance.stats.cache_path\n"
+        "assert jit._sources_hash() in path, path\n"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            timeout=120)
+    assert result.returncode == 0, result.stderr

@@ -123,9 +123,10 @@ def fill_message(msg, fields: dict):
 
 
 def _finite(out) -> bool:
-    """Force, fascicle state and energy rate all finite (a NaN or inf makes the sum so)."""
-    return math.isfinite(float(out.force.sum() + out.fascicle_length.sum()
-                               + out.fascicle_velocity.sum()) + out.total_energy_rate)
+    """Tendon force (from the fascicle length), contractile force (length and velocity) and
+    energy rate all finite (a NaN or inf makes the sum so)."""
+    return math.isfinite(float(out.force.sum() + out.contractile_force.sum())
+                         + out.total_energy_rate)
 
 
 class MuscleNode(Node):

@@ -2,9 +2,10 @@
 against lumped units, and the 180 s knee-extension scenario offline.
 
 Timings are wall-clock medians over repeats (``time.perf_counter``); one step is
-``MuscleBank.step`` as a user calls it (input checks, state copy, outputs), with a drive that
-changes every step and the path length moving, so neither the activation nor the mechanics sit at
-a fixed point. Energetics are always on.
+``MuscleBank.step`` as a controller calls it (input checks, state copy) followed by reading the
+force and the total energy rate of every muscle from its StepOutput (the other fields are computed
+only when read), with a drive that changes every step and the path length moving, so neither the
+activation nor the mechanics sit at a fixed point. Energetics are always on.
 """
 
 from __future__ import annotations
@@ -47,7 +48,8 @@ def _inputs(bank: MuscleBank, steps: int):
 
 
 def time_step(bank: MuscleBank, repeats: int = 7, min_seconds: float = 0.2) -> dict:
-    """Median wall time (s) of one ``bank.step`` over ``repeats`` blocks of steps."""
+    """Median wall time (s) of one ``bank.step`` and reading its force and energy rate, over
+    ``repeats`` blocks of steps."""
     u, lp, vp = _inputs(bank, 4000)
     bank.reset(lp[0], excitation=u[0])
     for j in range(20):  # warm-up (compilation, caches)
@@ -63,7 +65,8 @@ def time_step(bank: MuscleBank, repeats: int = 7, min_seconds: float = 0.2) -> d
     for _ in range(repeats):
         t0 = time.perf_counter()
         for j in range(block):
-            bank.step(DT, u[j], lp[j], vp[j])
+            out = bank.step(DT, u[j], lp[j], vp[j])
+            _ = out.force, out.energy_rate.total
         samples.append((time.perf_counter() - t0) / block)
     return {"median_s": statistics.median(samples), "min_s": min(samples),
             "max_s": max(samples), "steps_per_repeat": block, "repeats": repeats}

@@ -52,6 +52,12 @@ ENERGY_COMPONENTS = ("activation", "cross_bridge", "recovery", "total")
 BACKENDS = ("auto", "numba", "numpy")
 
 
+def _valid_dt(dt) -> bool:
+    """dt is a finite real number > 0 (not a bool)."""
+    return (isinstance(dt, (int, float, np.floating)) and not isinstance(dt, bool)
+            and math.isfinite(dt) and dt > 0)
+
+
 @dataclass(frozen=True)
 class EnergyRates:
     """Energy partition. Rates in W (or, for cumulative records, energies in J).
@@ -171,8 +177,18 @@ class StepOutput:
         return EnergyRates.from_components(self._ev["components"])
 
     @cached_property
+    def _rates(self) -> np.ndarray:
+        """(n, 4) energy rates summed over fibre types: the compiled step writes them."""
+        rates = self._ev.get("rates")
+        if rates is None:
+            summed = self._ev["components"].sum(axis=1)
+            rates = np.concatenate([summed, summed.sum(axis=-1, keepdims=True)], axis=-1)
+        return rates
+
+    @cached_property
     def energy_rate(self) -> EnergyRates:
-        return EnergyRates.from_components(self._ev["components"].sum(axis=1))
+        rates = self._rates
+        return EnergyRates(rates[:, 0], rates[:, 1], rates[:, 2], rates[:, 3])
 
     @cached_property
     def energy_by_fiber(self) -> EnergyRates:
@@ -188,7 +204,7 @@ class StepOutput:
 
     @cached_property
     def total_energy_rate(self) -> float:
-        return float(self._ev["components"].sum())
+        return float(self._rates[:, 3].sum())
 
     @cached_property
     def total_energy(self) -> float:
@@ -416,7 +432,23 @@ class MuscleBank:
         return self._require_state().copy()
 
     def set_state(self, state: BankState) -> None:
-        self._state = state.copy()
+        """Replace the state by a copy of ``state`` (from :attr:`state` of a bank with the same
+        muscles and recruitment); raises ValueError for arrays of another shape."""
+        shapes = {
+            "effective_drive": (self.n,), "fascicle_length_m": (self.n,),
+            "fascicle_velocity_m_per_s": (self.n,), "mechanical_work_j": (self.n,),
+            "firing_rate_intermediate": (self.n, self.n_pools),
+            "firing_rate_effective": (self.n, self.n_pools), "sag": (self.n, self.n_pools),
+            "yield_factor": (self.n, self.n_pools), "recovery_filter": (self.n, 2, 2),
+            "energy_j": (self.n, 2, 3),
+        }  # fmt: skip
+        arrays = {}
+        for name, shape in shapes.items():
+            array = np.array(getattr(state, name), dtype=float)  # a float, C-ordered copy
+            if array.shape != shape:
+                raise ValueError(f"state.{name} has shape {array.shape}; this bank needs {shape}")
+            arrays[name] = array
+        self._state = BankState(time_s=float(state.time_s), **arrays)
 
     @property
     def time_s(self) -> float:
@@ -710,7 +742,7 @@ class MuscleBank:
         the start of the step; path_velocity: its rate (m/s) over the step (None: held constant).
         Raises InputError (state untouched) for non-finite values, wrong shapes, dt <= 0.
         """
-        if not (isinstance(dt, (int, float, np.floating)) and math.isfinite(dt) and dt > 0):
+        if not _valid_dt(dt):
             raise InputError("dt", dt, "must be a finite number > 0 s")
         old = self._require_state()
         if self._kernel_constants is not None:
@@ -768,15 +800,14 @@ class MuscleBank:
         and sweeps). On a bad input InputError names the step, and the state is left as it was
         before the call.
         """
-        if not (isinstance(dt, (int, float, np.floating)) and math.isfinite(dt) and dt > 0):
+        if not _valid_dt(dt):
             raise InputError("dt", dt, "must be a finite number > 0 s")
         old = self._require_state()
-        u, lp = self._series("excitation", excitation), self._series("path_length", path_length)
+        u = self._series("excitation", excitation)
         k, n = u.shape
-        vp = np.zeros((k, n)) if path_velocity is None else self._series(
-            "path_velocity", path_velocity)
-        if lp.shape[0] != k or vp.shape[0] != k:
-            raise InputError("path_length", lp.shape, f"expected {k} rows like excitation")
+        lp = self._series("path_length", path_length, rows=k)
+        vp = (np.zeros((k, n)) if path_velocity is None
+              else self._series("path_velocity", path_velocity, rows=k))
         if self._kernel_constants is None:
             return self._run_stepwise(dt, u, lp, vp)
         c = self._kernel_constants
@@ -784,11 +815,11 @@ class MuscleBank:
         clipped = np.empty((k, n))
         f_se, f_ce, power, length, velocity = (np.empty((k, n)) for _ in range(5))
         activity, stimulation = np.empty((k, n, 2)), np.empty((k, n, 2))
-        components = np.empty((k, n, 2, 3))
+        components, rates = np.empty((k, n, 2, 3)), np.empty((k, n, 4))
         status = kernel.advance_series(
             float(dt), u, lp, vp, clipped, *c.arguments(), *kernel.state_arguments(new),
             self._terms_end, self._xv_end,
-            f_se, f_ce, activity, stimulation, components, power, length, velocity,
+            f_se, f_ce, activity, stimulation, components, rates, power, length, velocity,
         )  # fmt: skip
         if status != 0:
             row = (status - 1) // n
@@ -797,15 +828,17 @@ class MuscleBank:
             except InputError as error:
                 raise InputError(f"{error.name} at step {row}", error.value, error.reason) from None
             raise RuntimeError(f"compiled run stopped at step {row} without a bad input")
-        new.time_s = old.time_s + k * dt
+        # model times as repeated steps add them up (t + dt + dt ...), to the last bit
+        times = np.add.accumulate(np.concatenate(([old.time_s], np.full(k, float(dt)))))[1:]
+        new.time_s = float(times[-1])
         self._state = new
         last = StepOutput(self, new, {
             "f_se": f_se[-1].copy(), "f_ce": f_ce[-1].copy(), "activity": activity[-1].copy(),
             "stimulation": stimulation[-1].copy(), "components": components[-1].copy(),
-            "mechanical_power": power[-1].copy(),
+            "rates": rates[-1].copy(), "mechanical_power": power[-1].copy(),
         }, clipped[-1])  # fmt: skip
         return Trajectory(
-            time_s=old.time_s + dt * np.arange(1, k + 1),
+            time_s=times,
             excitation=clipped,
             force=f_se,
             contractile_force=f_ce,
@@ -817,11 +850,14 @@ class MuscleBank:
             last=last,
         )
 
-    def _series(self, name, value) -> np.ndarray:
+    def _series(self, name, value, rows: int | None = None) -> np.ndarray:
         array = np.asarray(value, dtype=float)
-        if array.ndim != 2 or array.shape[1] != self.n or array.shape[0] < 1:
-            raise InputError(name, array.shape, f"expected shape (k >= 1, {self.n})")
-        return np.ascontiguousarray(array)
+        expected = (rows if rows is not None else "k >= 1", self.n)
+        if (array.ndim != 2 or array.shape[1] != self.n or array.shape[0] < 1
+                or (rows is not None and array.shape[0] != rows)):
+            raise InputError(name, array.shape, f"expected shape ({expected[0]}, {self.n})")
+        writable = array.flags.c_contiguous and array.flags.writeable
+        return array if writable else array.copy()
 
     def _run_stepwise(self, dt, u, lp, vp) -> Trajectory:
         """:meth:`run` by repeated :meth:`step` (the NumPy back end)."""
@@ -855,7 +891,10 @@ class MuscleBank:
         array = np.asarray(value, dtype=float)
         if array.shape == ():
             return np.full(self.n, float(array))
-        return array if array.shape == (self.n,) else None
+        if array.shape != (self.n,):
+            return None
+        # the kernel is compiled for writable C-ordered arrays: anything else would recompile it
+        return array if array.flags.c_contiguous and array.flags.writeable else array.copy()
 
     def _step_compiled(self, old: BankState, dt: float, excitation, path_length, path_velocity):
         """:meth:`step` by the compiled kernel (vm_ros.model.kernel): same equations, same order.
@@ -877,13 +916,14 @@ class MuscleBank:
             "activity": np.empty((n, 2)),
             "stimulation": np.empty((n, 2)),
             "components": np.empty((n, 2, 3)),
+            "rates": np.empty((n, 4)),
             "mechanical_power": np.empty(n),
         }
         status = kernel.advance(
             dt, u, lp, vp, clipped, *c.arguments(), *kernel.state_arguments(new),
             self._terms_end, self._xv_end,
             ev["f_se"], ev["f_ce"], ev["activity"], ev["stimulation"], ev["components"],
-            ev["mechanical_power"],
+            ev["rates"], ev["mechanical_power"],
         )  # fmt: skip
         if status != 0:
             return None

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -27,24 +28,34 @@ def _numba_wanted() -> bool:
     return os.environ.get(ENV_SWITCH, "1").strip().lower() not in ("0", "false", "no", "off")
 
 
-def _set_cache_dir() -> None:
-    """Numba's on-disk cache is checked against the kernel module's own file only, not against the
-    modules whose functions it inlines; so the cache lives in a folder named after a hash of every
-    model source file, and any edit to an equation starts a fresh cache."""
-    if "NUMBA_CACHE_DIR" in os.environ:
-        return
+def _sources_hash() -> str:
     digest = hashlib.sha256()
     for path in sorted(_MODEL_DIR.glob("*.py")):
         digest.update(path.name.encode())
         digest.update(path.read_bytes())
-    base = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache"))
-    os.environ["NUMBA_CACHE_DIR"] = str(base / "vm_ros" / "numba" / digest.hexdigest()[:16])
+    return digest.hexdigest()[:16]
+
+
+@contextmanager
+def model_cache_directory():
+    """Numba's on-disk cache is checked against the kernel module's own file only, not against the
+    modules whose functions it inlines. Functions decorated with ``cache=True`` inside this block
+    cache in ``<NUMBA_CACHE_DIR or ~/.cache/vm_ros/numba>/<hash of every model source file>``, so
+    any edit to an equation starts a fresh cache. Numba picks the folder when a function is
+    decorated, so this works whether or not numba was imported before."""
+    saved = numba.config.CACHE_DIR
+    home = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache"))
+    base = Path(saved) if saved else home / "vm_ros" / "numba"
+    numba.config.CACHE_DIR = str(base / _sources_hash())
+    try:
+        yield
+    finally:
+        numba.config.CACHE_DIR = saved
 
 
 numba = None
 if _numba_wanted():
     try:
-        _set_cache_dir()
         import numba
         from numba.core import types as _nb_types
         from numba.extending import overload, register_jitable

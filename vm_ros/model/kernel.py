@@ -20,7 +20,7 @@ from vm_ros.model import curves
 from vm_ros.model import energetics as en
 from vm_ros.model import mechanics as mech
 from vm_ros.model import recruitment as rc
-from vm_ros.model.jit import HAVE_NUMBA, clip, jitable, numba
+from vm_ros.model.jit import HAVE_NUMBA, clip, jitable, model_cache_directory, numba
 
 SCHEME_CODES = {"lumped": 0, "natural": 1, "continuous": 2}
 LUMPED, NATURAL, CONTINUOUS = 0, 1, 2
@@ -247,12 +247,14 @@ def _advance(
     muscle, pool, pool_type, thresholds, pool_pcsa, fibre_type, shared, w_slow_poly,
     effective_drive, f_int, f_eff, sag, yield_factor, x_state, xdot_state, recovery_filter,
     energy, work, terms_end, xv_end,
-    out_f_se, out_f_ce, out_activity, out_stimulation, out_components, out_power,
+    out_f_se, out_f_ce, out_activity, out_stimulation, out_components, out_rates, out_power,
 ):  # fmt: skip
     """Advance every muscle by dt in place (state arrays) and fill the outputs.
 
-    Returns 0, or 1 + the index of the first muscle with a bad input (non-finite, path length
-    <= 0), having stopped there: the caller then discards the partly updated arrays.
+    out_rates (n, 4): the energy rates summed over fibre types (activation, cross-bridge,
+    recovery, total). Returns 0, or 1 + the index of the first muscle with a bad input
+    (non-finite, path length <= 0), having stopped there: the caller then discards the partly
+    updated arrays.
 
     terms_end (n, N_TERMS) and xv_end (n, 2): the (L, V) terms of F_CE at the (x, xdot) in
     xv_end, kept between calls (any content is valid: they are recomputed where xv_end does not
@@ -370,6 +372,8 @@ def _advance(
         power = -f_ce * xdot_new
         out_power[i] = power
         work[i] += dt * power
+        rates = out_rates[i]
+        rates[:] = 0.0
         for t in range(2):
             ft = fibre_type[t]
             e_act, e_xb = en.initial_energy_rates_tsianos2012(
@@ -400,6 +404,10 @@ def _advance(
             energy[i, t, 0] += dt * e_act
             energy[i, t, 1] += dt * e_xb
             energy[i, t, 2] += dt * recovery
+            rates[0] += e_act
+            rates[1] += e_xb
+            rates[2] += recovery
+        rates[3] = rates[0] + rates[1] + rates[2]
     return 0
 
 
@@ -408,7 +416,7 @@ def _advance_series(
     muscle, pool, pool_type, thresholds, pool_pcsa, fibre_type, shared, w_slow_poly,
     effective_drive, f_int, f_eff, sag, yield_factor, x_state, xdot_state, recovery_filter,
     energy, work, terms_end, xv_end,
-    out_f_se, out_f_ce, out_activity, out_stimulation, out_components, out_power,
+    out_f_se, out_f_ce, out_activity, out_stimulation, out_components, out_rates, out_power,
     out_length, out_velocity,
 ):  # fmt: skip
     """:func:`_advance` for k steps: inputs and outputs carry a leading step axis (k, n, ...);
@@ -421,7 +429,7 @@ def _advance_series(
             dynamic_recovery, muscle, pool, pool_type, thresholds, pool_pcsa, fibre_type, shared,
             w_slow_poly, effective_drive, f_int, f_eff, sag, yield_factor, x_state, xdot_state,
             recovery_filter, energy, work, terms_end, xv_end, out_f_se[k], out_f_ce[k],
-            out_activity[k], out_stimulation[k], out_components[k], out_power[k],
+            out_activity[k], out_stimulation[k], out_components[k], out_rates[k], out_power[k],
         )  # fmt: skip
         if status != 0:
             return k * n + status
@@ -435,13 +443,12 @@ def _advance_series(
 # step in the last bits only (test_kernel holds them equal to 1e-12 relative).
 FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 _advance_step = jitable(_advance)
-_compile = (
-    numba.njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH)
-    if HAVE_NUMBA
-    else None
-)
-advance = _compile(_advance) if HAVE_NUMBA else None
-advance_series = _compile(_advance_series) if HAVE_NUMBA else None
+advance = advance_series = None
+if HAVE_NUMBA:
+    with model_cache_directory():
+        _compile = numba.njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH)
+        advance = _compile(_advance)
+        advance_series = _compile(_advance_series)
 AVAILABLE = advance is not None
 
 
@@ -456,7 +463,7 @@ def warm_up() -> None:
         np.zeros((0, len(M))), np.zeros((2, len(P))), np.zeros(2, dtype=np.int64), v2, v2,
         np.zeros((2, len(T))), np.zeros((1, len(S))), np.zeros(3),
         v1, v2, v2, v2, v2, v1, v1, np.zeros((0, 2, 2)), v3, v1, np.zeros((0, N_TERMS)), v2,
-        v1, v1, v2, v2, v3, v1,
+        v1, v1, v2, v2, v3, np.zeros((0, 4)), v1,
     )  # fmt: skip
 
 
