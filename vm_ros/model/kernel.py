@@ -440,7 +440,8 @@ def _advance_series(
 
 # LLVM may contract a*b + c into fused multiply-adds, reassociate and use reciprocals; NaN and
 # infinity keep their IEEE meaning (the input checks rely on them). Results differ from the NumPy
-# step in the last bits only (test_kernel holds them equal to 1e-12 relative).
+# step by rounding, which the stiff fascicle dynamics carry on (test_kernel: measured at most 4e-6
+# of the largest velocity, 7e-9 of force; held to 1e-5 of each field's scale).
 FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 _advance_step = jitable(_advance)
 advance = advance_series = None
