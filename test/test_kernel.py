@@ -13,7 +13,6 @@ recorded as skips, so a Numba-less run shows them).
 
 from __future__ import annotations
 
-import dataclasses
 import os
 import subprocess
 import sys
@@ -21,25 +20,17 @@ import sys
 import numpy as np
 import pytest
 
+from vm_ros.bench import model_bench
 from vm_ros.errors import InputError
-from vm_ros.model import SCHEMES, MuscleBank, kernel, load_model_params
-from vm_ros.model.params import load_muscle_library, resolve_muscles
+from vm_ros.model import SCHEMES, MuscleBank, kernel
 
 DT = 1e-3
 needs_numba = pytest.mark.skipif(not kernel.AVAILABLE, reason="numba not importable")
 
 
 def library_bank(scheme, recovery_mode, backend, count=13, units_per_type=None):
-    params = load_model_params()
-    if units_per_type is not None:
-        params = dataclasses.replace(
-            params, natural=dataclasses.replace(params.natural, units_per_type=units_per_type)
-        )
-    names = list(load_muscle_library())
-    base = resolve_muscles(names, None, None, params.generic.ur_default)
-    specs = [dataclasses.replace(base[i % len(base)], name=f"m{i}") for i in range(count)]
-    return MuscleBank(specs, params, recruitment=scheme, recovery_mode=recovery_mode,
-                      backend=backend)
+    return model_bench.library_bank(count, scheme, backend, units_per_type,
+                                    recovery_mode=recovery_mode)
 
 
 def drive_and_path(k, n, lp0):

@@ -36,6 +36,12 @@ class ScenarioInputs:
     path_velocity: Callable[[float], np.ndarray]
     joint_angle: Callable[[float], float] | None = None  # rad, where the scenario has a joint
 
+    def sample(self, times) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Excitation, path length and path velocity at each of ``times`` (s), each (k, n): the
+        inputs of ``MuscleBank.run``."""
+        return tuple(np.array([fn(t) for t in times], dtype=float)
+                     for fn in (self.excitation, self.path_length, self.path_velocity))
+
 
 @dataclass(frozen=True)
 class Scenario:

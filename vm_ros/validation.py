@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from vm_ros.model import MuscleBank, load_model_params
-from vm_ros.model.curves import tendon_length_at_force
+from vm_ros.model.curves import force_length_cheng2000, tendon_length_at_force
 from vm_ros.model.lumped_fit import compare_sinusoidal, compare_steady
 from vm_ros.model.params import FAST, SLOW, resolve_muscles
 from vm_ros.scenarios import load_scenario
@@ -177,8 +177,8 @@ def check_fig3_fibre_type_energy(params=None) -> CheckResult:
             "length": lengths, "total_length": [o.energy_rate.total[0] for o in by_length],
             "e_a_length": [o.energy_rate.activation[0] for o in by_length],
             "e_xb_length": [o.energy_rate.cross_bridge[0] for o in by_length],
-            "fl_length": np.exp(-np.abs((lengths ** params.fibre.beta[t] - 1)
-                                        / params.fibre.omega[t]) ** params.fibre.rho[t]),
+            "fl_length": force_length_cheng2000(lengths, params.fibre.omega[t],
+                                                params.fibre.beta[t], params.fibre.rho[t]),
             "velocity": velocities, "total_velocity": [o.energy_rate.total[0] for o in by_velocity],
             "e_a_velocity": [o.energy_rate.activation[0] for o in by_velocity],
             "mass_kg": bank.mass_kg[0]}
@@ -436,10 +436,7 @@ def run_knee_extension(duration_s=None, dt=DT, progress=None, params=None) -> Kn
     chunk = 2000
     for start in range(0, first_traced, chunk):  # whole chunks of steps in one call each
         stop = min(start + chunk, first_traced)
-        t = dt * np.arange(start, stop)
-        run = bank.run(dt, np.array([inputs.excitation(x) for x in t]),
-                       np.array([inputs.path_length(x) for x in t]),
-                       np.array([inputs.path_velocity(x) for x in t]))
+        run = bank.run(dt, *inputs.sample(dt * np.arange(start, stop)))
         rates[start:stop] = run.energy_rate.as_array().sum(axis=1)
         out = run.last
         if progress is not None:

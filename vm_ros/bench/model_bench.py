@@ -23,7 +23,8 @@ DT = 1e-3
 
 
 def library_bank(n: int, recruitment: str = "lumped", backend: str = "auto",
-                 units_per_type: int | None = None, params=None) -> MuscleBank:
+                 units_per_type: int | None = None, params=None,
+                 recovery_mode: str | None = None) -> MuscleBank:
     """A bank of ``n`` muscles cycling through the shipped library (names m0, m1, ...)."""
     params = params or load_model_params()
     if units_per_type is not None:
@@ -32,7 +33,8 @@ def library_bank(n: int, recruitment: str = "lumped", backend: str = "auto",
         )
     base = resolve_muscles(list(load_muscle_library()), None, None, params.generic.ur_default)
     specs = [dataclasses.replace(base[i % len(base)], name=f"m{i}") for i in range(n)]
-    return MuscleBank(specs, params, recruitment=recruitment, backend=backend)
+    return MuscleBank(specs, params, recruitment=recruitment, backend=backend,
+                      recovery_mode=recovery_mode)
 
 
 def _inputs(bank: MuscleBank, steps: int):
@@ -129,9 +131,7 @@ def knee_extension_offline(duration_s: float | None = None, backend: str = "auto
     duration = duration_s or scenario.duration_s
     times = DT * np.arange(int(round(duration / DT)))
     t1 = time.perf_counter()
-    u = np.array([inputs.excitation(t) for t in times])
-    lp = np.array([inputs.path_length(t) for t in times])
-    vp = np.array([inputs.path_velocity(t) for t in times])
+    u, lp, vp = inputs.sample(times)
     t2 = time.perf_counter()
     bank.reset(lp[0])
     trajectory = bank.run(DT, u, lp, vp)

@@ -34,7 +34,7 @@ from vm_ros.model.mechanics import (
     MuscleGeometry,
     equilibrium_fascicle_length,
     musculotendon_forces,
-    musculotendon_slopes,
+    musculotendon_forces_and_slopes,
     rosenbrock_step,
 )
 from vm_ros.model.params import (
@@ -757,8 +757,10 @@ class MuscleBank:
         def forces(x, xdot, lp_now):
             return musculotendon_forces(x, xdot, lp_now, activity, self.geometry, fibre, g)[:2]
 
-        def slopes(x, xdot, lp_now):
-            return musculotendon_slopes(x, xdot, lp_now, activity, self.geometry, fibre, g)
+        def forces_and_slopes(x, xdot, lp_now):
+            return musculotendon_forces_and_slopes(
+                x, xdot, lp_now, activity, self.geometry, fibre, g
+            )
 
         x, xdot = rosenbrock_step(
             old.fascicle_length_m,
@@ -767,7 +769,7 @@ class MuscleBank:
             vp,
             dt,
             forces,
-            slopes,
+            forces_and_slopes,
             self.geometry.m_eff,
         )
         floor = g.l_activation_min * self.geometry.l0

@@ -192,8 +192,8 @@ def _contractile_force(activity, terms, m):
 
 
 @jitable
-def _contractile_slopes(activity, terms, m, s):
-    """dF_CE/dx (N/m) and dF_CE/dxdot (N s/m) from the (L, V) terms and their slopes."""
+def _contractile_force_and_slopes(activity, terms, m, s):
+    """F_CE (N), dF_CE/dx (N/m) and dF_CE/dxdot (N s/m) from the (L, V) terms and slopes."""
     active = active_dl = active_dv = 0.0
     for t in range(2):
         active += mech.active_force_term(
@@ -209,7 +209,8 @@ def _contractile_slopes(activity, terms, m, s):
         terms[PE1], active, terms[DPE1], s[S.eta], active_dl, active_dv
     )
     scale = m[M.f0] / m[M.l0]
-    return scale * d_ce_dl, scale * d_ce_dv
+    f_ce = m[M.f0] * mech.contractile_force_total(terms[PE1], active)
+    return f_ce, scale * d_ce_dl, scale * d_ce_dv
 
 
 @jitable
@@ -220,26 +221,29 @@ def _tendon_force(x, path_length, m, s):
 
 
 @jitable
-def _type_weight(scheme, t, ueff, m, threshold_s, threshold_f, w_slow_poly, s):
-    """Weight of fibre type t's pool at drive Ueff (lumped: rF W; continuous: Ueff W)."""
+def _type_weights(scheme, ueff, m, threshold_s, threshold_f, w_slow_poly, s):
+    """Weights of the slow and fast pools at drive Ueff (lumped: rF W; continuous: Ueff W)."""
     if scheme == LUMPED:
-        # the slow and fast columns are adjacent: + t picks the type
-        recruited = rc.linear_recruited_fraction(
-            ueff, m[M.fpcsa_s + t], m[M.rec_lower_s + t], m[M.rec_upper_s + t]
-        )
-        if t == 0:
-            return recruited * rc.lumped_weight_slow(
-                ueff, s[S.u1], m[M.u2], w_slow_poly, m[M.w_slow_at_u2], m[M.w_slow_amplitude],
-                s[S.w_slow_tau],
-            )  # fmt: skip
-        return recruited * rc.lumped_weight_fast(
+        slow = rc.linear_recruited_fraction(
+            ueff, m[M.fpcsa_s], m[M.rec_lower_s], m[M.rec_upper_s]
+        ) * rc.lumped_weight_slow(
+            ueff, s[S.u1], m[M.u2], w_slow_poly, m[M.w_slow_at_u2], m[M.w_slow_amplitude],
+            s[S.w_slow_tau],
+        )  # fmt: skip
+        fast = rc.linear_recruited_fraction(
+            ueff, m[M.fpcsa_f], m[M.rec_lower_f], m[M.rec_upper_f]
+        ) * rc.lumped_weight_fast(
             ueff, m[M.u2], m[M.ur], m[M.w_fast_b], m[M.w_fast_c], m[M.w_fast_tau],
             s[S.w_fast_offset], s[S.w_fast_rise],
         )  # fmt: skip
+        return slow, fast
     excess_s = rc.continuous_excess_song2008(ueff, threshold_s, m[M.fpcsa_s] > 0.0)
     excess_f = rc.continuous_excess_song2008(ueff, threshold_f, m[M.fpcsa_f] > 0.0)
-    excess = excess_s if t == 0 else excess_f
-    return ueff * rc.continuous_share_song2008(excess, excess_s + excess_f)
+    total = excess_s + excess_f
+    return (
+        ueff * rc.continuous_share_song2008(excess_s, total),
+        ueff * rc.continuous_share_song2008(excess_f, total),
+    )
 
 
 def _advance(
@@ -288,11 +292,8 @@ def _advance(
         effective_drive[i] = ueff
         weight_s = weight_f = 0.0
         if scheme != NATURAL:
-            weight_s = _type_weight(
-                scheme, 0, ueff, m, thresholds[i, 0], thresholds[i, 1], w_slow_poly, s
-            )
-            weight_f = _type_weight(
-                scheme, 1, ueff, m, thresholds[i, 0], thresholds[i, 1], w_slow_poly, s
+            weight_s, weight_f = _type_weights(
+                scheme, ueff, m, thresholds[i, 0], thresholds[i, 1], w_slow_poly, s
             )
         # activation path of every pool, then its share of the type's activation
         activity = out_activity[i]
@@ -344,12 +345,11 @@ def _advance(
         if not (xv_end[i, 0] == x and xv_end[i, 1] == xdot):
             _fibre_terms(l, v, m, fibre_type, s, base, True)
         f_se = _tendon_force(x, lp, m, s)
-        f_ce = _contractile_force(activity, base, m)
+        f_ce, d_ce_dx, d_ce_dv = _contractile_force_and_slopes(activity, base, m, s)
         d_se_dx = mech.tendon_force_slope(
             mech.tendon_length_normalised(lp, x, m[M.l0t]), m[M.f0], m[M.l0t], s[S.ct], s[S.kt],
             s[S.lrt],
         )  # fmt: skip
-        d_ce_dx, d_ce_dv = _contractile_slopes(activity, base, m, s)
         accel, a_x, a_v, a_p = mech.ros2_jacobian(f_se, f_ce, d_se_dx, d_ce_dx, d_ce_dv, m[M.m_eff])
         k1_x, k1_v, x2, v2 = mech.ros2_stage1(x, xdot, vp, dt, accel, a_x, a_v, a_p)
         _fibre_terms(x2 / l0, v2 / l0, m, fibre_type, s, terms_tmp, False)

@@ -106,13 +106,12 @@ def contractile_force_normalised(l, v, activity, lmax, fibre: FibreTypeParams, g
     return contractile_force_total(pe1, active), fl, fv
 
 
-def contractile_force_slopes_normalised(
+def contractile_force_and_slopes_normalised(
     l, v, activity, lmax, fibre: FibreTypeParams, g: GenericParams
 ):
-    """d(F_CE/F0)/dL and d(F_CE/F0)/dV, each (..., n), from the curves' analytic slopes.
-
-    Same arguments as :func:`contractile_force_normalised`; zero where F_CE is clipped at 0.
-    """
+    """F_CE/F0, d(F_CE/F0)/dL and d(F_CE/F0)/dV, each (..., n), the slopes analytic from the
+    curves'. Same arguments as :func:`contractile_force_normalised`; the slopes are zero where
+    F_CE is clipped at 0."""
     lt, vt = l[..., None], v[..., None]
     fl, dfl = curves.force_length_and_slope_cheng2000(lt, fibre.omega, fibre.beta, fibre.rho)
     fv_args = (fibre.vmax, fibre.cv0, fibre.cv1, fibre.av0, fibre.av1, fibre.av2, fibre.bv,
@@ -125,9 +124,10 @@ def contractile_force_slopes_normalised(
     dpe2 = curves.thick_filament_compression_slope_cheng2000(lt, g.c2, g.k2, g.lr2)
     active = active_force_term(activity, fl, fv, pe2).sum(axis=-1)
     active_dl, active_dv = active_force_slopes(activity, fl, dfl, fv, dfv_dv, dfv_dl, dpe2)
-    return contractile_force_slopes_total(
+    d_dl, d_dv = contractile_force_slopes_total(
         pe1, active, dpe1, g.eta, active_dl.sum(axis=-1), active_dv.sum(axis=-1)
     )
+    return contractile_force_total(pe1, active), d_dl, d_dv
 
 
 @jitable
@@ -181,19 +181,21 @@ def musculotendon_forces(
     return f_se, geometry.f0 * f_ce, fl
 
 
-def musculotendon_slopes(
+def musculotendon_forces_and_slopes(
     x, xdot, path_length, activity, geometry: MuscleGeometry, fibre: FibreTypeParams,
     g: GenericParams,
 ):  # fmt: skip
-    """dF_SE/dx, dF_CE/dx (N/m) and dF_CE/dxdot (N s/m), each (..., n), at the state of
-    :func:`musculotendon_forces` (F_SE depends on x through L_SE = (L_path - x) / L0T)."""
+    """The forces of :func:`musculotendon_forces` (N) with their slopes: (F_SE, F_CE,
+    dF_SE/dx, dF_CE/dx (N/m), dF_CE/dxdot (N s/m)), each (..., n). F_SE depends on x through
+    L_SE = (L_path - x) / L0T."""
     l_se = tendon_length_normalised(path_length, x, geometry.l0t)
+    f_se = geometry.f0 * curves.tendon_force_cheng2000(l_se, g.ct, g.kt, g.lrt)
     d_se_dx = tendon_force_slope(l_se, geometry.f0, geometry.l0t, g.ct, g.kt, g.lrt)
-    d_ce_dl, d_ce_dv = contractile_force_slopes_normalised(
+    f_ce, d_ce_dl, d_ce_dv = contractile_force_and_slopes_normalised(
         x / geometry.l0, xdot / geometry.l0, activity, geometry.lmax, fibre, g
     )
     scale = geometry.f0 / geometry.l0
-    return d_se_dx, scale * d_ce_dl, scale * d_ce_dv
+    return f_se, geometry.f0 * f_ce, d_se_dx, scale * d_ce_dl, scale * d_ce_dv
 
 
 @jitable
@@ -239,20 +241,19 @@ def ros2_stage2(x, xdot, path_velocity, dt, a_x, a_v, a_p, k1_x, k1_v, v2, accel
     return x + dt * (1.5 * k1_x + 0.5 * k2_x), xdot + dt * (1.5 * k1_v + 0.5 * k2_v)
 
 
-def rosenbrock_step(x, xdot, path_length, path_velocity, dt, forces, slopes, m_eff):
+def rosenbrock_step(x, xdot, path_length, path_velocity, dt, forces, forces_and_slopes, m_eff):
     """Advance (x, xdot) by dt with ROS2, the path length moving at ``path_velocity``.
 
-    ``forces(x, xdot, path_length) -> (f_se, f_ce)`` and ``slopes(x, xdot, path_length) ->
-    (dF_SE/dx, dF_CE/dx, dF_CE/dxdot)`` broadcast over the muscles. The Jacobian is analytic (the
-    curves' slopes); the path length enters as a third state with dLp/dt = path_velocity (so the
-    step is exact for a linear path ramp).
+    ``forces(x, xdot, path_length) -> (f_se, f_ce)`` and ``forces_and_slopes(x, xdot,
+    path_length) -> (f_se, f_ce, dF_SE/dx, dF_CE/dx, dF_CE/dxdot)`` broadcast over the muscles.
+    The Jacobian is analytic (the curves' slopes); the path length enters as a third state with
+    dLp/dt = path_velocity (so the step is exact for a linear path ramp).
 
         (I - gamma h J) k1 = F(y_n)
         (I - gamma h J) k2 = F(y_n + h k1) - 2 k1
         y_{n+1} = y_n + h (3 k1 + k2) / 2,      gamma = 1 + 1/sqrt(2)
     """
-    f_se, f_ce = forces(x, xdot, path_length)
-    accel, a_x, a_v, a_p = ros2_jacobian(f_se, f_ce, *slopes(x, xdot, path_length), m_eff)
+    accel, a_x, a_v, a_p = ros2_jacobian(*forces_and_slopes(x, xdot, path_length), m_eff)
     k1_x, k1_v, x2, v2 = ros2_stage1(x, xdot, path_velocity, dt, accel, a_x, a_v, a_p)
     f_se2, f_ce2 = forces(x2, v2, path_length + dt * path_velocity)
     return ros2_stage2(
