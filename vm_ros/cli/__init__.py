@@ -23,6 +23,9 @@ VERBS = {
     "fit-w": "fit_w",
     "bench": "bench",
     "demo": "demo",
+    "import-osim": "import_osim",
+    "import-mjcf": "import_mjcf",
+    "closed-loop": "closed_loop",
 }
 
 

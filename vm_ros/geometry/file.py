@@ -1,0 +1,190 @@
+"""The geometry file: joint coordinates, fitted muscle paths and how they were made (YAML).
+
+Format ``vm_ros.geometry``, version 1 (documented in docs/geometry.md)::
+
+    format: vm_ros.geometry
+    version: 1
+    source: {model: NAME, file: FILE, sha256: HEX, importer: ..., ...}   # free-form, recorded
+    options: {degree: 6, ...}                                             # importer options
+    coordinates:                                   # the independent inputs, in this order
+      - {name: knee_angle_r, unit: rad, lower: -2.0944, upper: 0.1745}
+    coupled_coordinates:                           # dependent coordinates: not inputs
+      - {name: patella_angle, follows: [knee_angle_r], note: CoordinateCouplerConstraint ...}
+    muscles:
+      - name: vasti_r
+        coordinates: [knee_angle_r]
+        basis: monomial
+        offset: [-0.9599]                          # x_j = (q_j - offset_j) / scale_j
+        scale: [1.1344]
+        exponents: [[0], [1], [2], ...]            # one row per term
+        coefficients: [0.2312, -0.0123, ...]       # m
+        fit: {length_rms_m: ..., length_max_m: ..., moment_arm_rms_m: ..., moment_arm_max_m:
+              ..., poses_fit: N, poses_held_out: N, flags: [...]}
+
+Floats are written with Python's shortest round-trip repr, so write -> read gives back the same
+numbers bit for bit. Every problem reading a file is a ConfigError naming the file and field.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from vm_ros.errors import ConfigError
+from vm_ros.geometry.paths import (
+    Coordinate,
+    CoupledCoordinate,
+    FitReport,
+    MusclePath,
+    PolynomialGeometry,
+)
+
+FORMAT = "vm_ros.geometry"
+VERSION = 1
+_FIT_FIELDS = ("length_rms_m", "length_max_m", "moment_arm_rms_m", "moment_arm_max_m",
+               "poses_fit", "poses_held_out")
+
+
+def content_hash(path) -> str:
+    """sha256 of a file's bytes (the source model's hash recorded in the geometry file)."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def geometry_to_dict(geometry: PolynomialGeometry) -> dict:
+    """The file's content as plain Python data (lists, floats, ints, strings)."""
+    muscles = []
+    for m in geometry.muscles:
+        entry = {"name": m.name, "coordinates": list(m.coordinates), "basis": m.basis,
+                 "offset": [float(v) for v in m.offset], "scale": [float(v) for v in m.scale],
+                 "exponents": m.exponents.tolist(),
+                 "coefficients": [float(v) for v in m.coefficients]}
+        if m.fit is not None:
+            entry["fit"] = {**{k: _plain(getattr(m.fit, k)) for k in _FIT_FIELDS},
+                            "flags": list(m.fit.flags)}
+        muscles.append(entry)
+    return {
+        "format": FORMAT, "version": VERSION,
+        "source": _plain(geometry.source), "options": _plain(geometry.options),
+        "coordinates": [{"name": c.name, "unit": c.unit, "lower": float(c.lower),
+                         "upper": float(c.upper)} for c in geometry.coordinates],
+        "coupled_coordinates": [{"name": c.name, "follows": list(c.follows), "note": c.note}
+                                for c in geometry.coupled],
+        "muscles": muscles,
+    }
+
+
+def dumps(geometry: PolynomialGeometry) -> str:
+    """YAML text of a geometry (leaf lists in flow style)."""
+    return yaml.safe_dump(geometry_to_dict(geometry), sort_keys=False, default_flow_style=None,
+                          width=100)
+
+
+def write_geometry(geometry: PolynomialGeometry, path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(dumps(geometry))
+    return path
+
+
+def load_geometry(path, backend: str = "auto") -> PolynomialGeometry:
+    """Read a geometry file; ConfigError (file, field, value, reason) on any problem."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ConfigError(path, "-", None, f"cannot read the geometry file: "
+                          f"{exc.strerror or exc}") from exc
+    return loads(text, path, backend=backend)
+
+
+def loads(text: str, path="<geometry>", backend: str = "auto") -> PolynomialGeometry:
+    try:
+        data = yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+    except yaml.YAMLError as exc:
+        raise ConfigError(path, "-", None, f"not valid YAML: {exc}".splitlines()[0]) from exc
+    return geometry_from_dict(data, path, backend=backend)
+
+
+def geometry_from_dict(data, path="<geometry>", backend: str = "auto") -> PolynomialGeometry:
+    if not isinstance(data, dict):
+        raise ConfigError(path, "-", type(data).__name__, "a geometry file is a YAML mapping")
+    if data.get("format") != FORMAT:
+        raise ConfigError(path, "format", data.get("format"), f"expected {FORMAT!r}")
+    if data.get("version") != VERSION:
+        raise ConfigError(path, "version", data.get("version"),
+                          f"this vm_ros reads version {VERSION}")
+    coordinates = [_item(path, f"coordinates[{i}]", lambda e: Coordinate(
+        str(e["name"]), str(e["unit"]), float(e["lower"]), float(e["upper"])), entry)
+        for i, entry in enumerate(_list(path, data, "coordinates"))]
+    coupled = [_item(path, f"coupled_coordinates[{i}]", lambda e: CoupledCoordinate(
+        str(e["name"]), tuple(str(n) for n in e.get("follows", ())), str(e.get("note", ""))),
+        entry) for i, entry in enumerate(data.get("coupled_coordinates") or [])]
+    muscles = [_item(path, f"muscles[{i}]", _muscle, entry)
+               for i, entry in enumerate(_list(path, data, "muscles"))]
+    if not muscles:
+        raise ConfigError(path, "muscles", [], "no muscles")
+    try:
+        return PolynomialGeometry(coordinates, muscles, coupled, source=data.get("source"),
+                                  options=data.get("options"), backend=backend)
+    except ValueError as exc:
+        raise ConfigError(path, "muscles", None, str(exc)) from exc
+
+
+def _muscle(entry: dict) -> MusclePath:
+    fit = entry.get("fit")
+    report = None if fit is None else FitReport(
+        **{k: (int(fit[k]) if k.startswith("poses") else float(fit[k])) for k in _FIT_FIELDS},
+        flags=tuple(str(f) for f in fit.get("flags", ())))
+    basis = str(entry.get("basis", "monomial"))
+    if basis != "monomial":
+        raise ValueError(f"basis {basis!r}: this vm_ros reads 'monomial'")
+    coords = tuple(str(c) for c in entry["coordinates"])
+    return MusclePath(str(entry["name"]), coords,
+                      tuple(float(v) for v in entry.get("offset", [0.0] * len(coords))),
+                      tuple(float(v) for v in entry.get("scale", [1.0] * len(coords))),
+                      np.array(entry["exponents"], dtype=np.int64).reshape(-1, len(coords)),
+                      np.array(entry["coefficients"], dtype=float), report, basis)
+
+
+def _list(path, data: dict, key: str) -> list:
+    value = data.get(key)
+    if not isinstance(value, list):
+        raise ConfigError(path, key, value, "must be a list")
+    return value
+
+
+def _item(path, field: str, make, entry):
+    try:
+        return make(entry)
+    except KeyError as exc:
+        raise ConfigError(path, field, None, f"missing key {exc.args[0]!r}") from exc
+    except (TypeError, ValueError, AttributeError) as exc:
+        raise ConfigError(path, field, _short(entry), str(exc)) from exc
+
+
+def _short(entry):
+    if isinstance(entry, dict):
+        return entry.get("name", "<mapping>")
+    return entry
+
+
+def _plain(value):
+    """numpy scalars and tuples -> plain YAML-safe values."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.floating):
+        return float(value)
+    return value
+
+
+__all__ = ["FORMAT", "VERSION", "content_hash", "dumps", "geometry_from_dict",
+           "geometry_to_dict", "load_geometry", "loads", "write_geometry"]

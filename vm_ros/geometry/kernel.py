@@ -1,0 +1,98 @@
+"""Compiled polynomial evaluator (Numba, optional): the sums of
+``vm_ros.geometry.polynomial.evaluate_packed`` as one loop over terms, on the same packed arrays.
+
+Without Numba (not installed, or VM_ROS_NUMBA=0) ``available()`` is False and PolynomialGeometry
+uses the NumPy evaluator; test_geometry holds the two equal to rounding.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from vm_ros.model.jit import HAVE_NUMBA, numba
+
+_evaluate = None
+
+
+def available() -> bool:
+    return HAVE_NUMBA
+
+
+def _compile():
+    global _evaluate
+    if _evaluate is not None:
+        return _evaluate
+    saved = numba.config.CACHE_DIR
+    home = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache"))
+    numba.config.CACHE_DIR = str(Path(saved) if saved else home / "vm_ros" / "numba" / "geometry")
+    try:
+        @numba.njit(cache=True, fastmath=False, error_model="numpy")
+        def evaluate(q, slot_coordinate, slot_offset, slot_scale, term_muscle, term_exponent,
+                     term_coefficient, max_degree):
+            n, width = slot_coordinate.shape
+            n_q = q.shape[0]
+            length = np.zeros(n)
+            gradient = np.zeros((n, n_q))
+            powers = np.ones((width, max_degree + 1))
+            dl_dx = np.zeros(width)
+            current = -1
+            for t in range(term_muscle.shape[0]):
+                m = term_muscle[t]
+                if m != current:
+                    if current >= 0:
+                        for j in range(width):
+                            c = slot_coordinate[current, j]
+                            if c < n_q:
+                                gradient[current, c] += dl_dx[j] / slot_scale[current, j]
+                    current = m
+                    for j in range(width):
+                        dl_dx[j] = 0.0
+                        c = slot_coordinate[m, j]
+                        x = 0.0 if c >= n_q else (q[c] - slot_offset[m, j]) / slot_scale[m, j]
+                        for p in range(1, max_degree + 1):
+                            powers[j, p] = powers[j, p - 1] * x
+                value = term_coefficient[t]
+                for j in range(width):
+                    value *= powers[j, term_exponent[t, j]]
+                length[m] += value
+                for j in range(width):
+                    e = term_exponent[t, j]
+                    if e > 0:
+                        d = term_coefficient[t] * e * powers[j, e - 1]
+                        for i in range(width):
+                            if i != j:
+                                d *= powers[i, term_exponent[t, i]]
+                        dl_dx[j] += d
+            if current >= 0:
+                for j in range(width):
+                    c = slot_coordinate[current, j]
+                    if c < n_q:
+                        gradient[current, c] += dl_dx[j] / slot_scale[current, j]
+            return length, gradient
+    finally:
+        numba.config.CACHE_DIR = saved
+    _evaluate = evaluate
+    return evaluate
+
+
+def compiled_evaluator(packed):
+    """A function q -> (L, dL/dq) over ``packed`` (terms must be grouped by muscle, as
+    PackedPolynomials.pack makes them)."""
+    evaluate = _compile()
+    arrays = (np.ascontiguousarray(packed.slot_coordinate),
+              np.ascontiguousarray(packed.slot_offset), np.ascontiguousarray(packed.slot_scale),
+              np.ascontiguousarray(packed.term_muscle),
+              np.ascontiguousarray(packed.term_exponent),
+              np.ascontiguousarray(packed.term_coefficient))
+    degree = packed.max_degree
+
+    def run(q):
+        return evaluate(np.ascontiguousarray(q, dtype=np.float64), *arrays, degree)
+
+    return run
+
+
+__all__ = ["available", "compiled_evaluator"]
