@@ -43,6 +43,10 @@ setup(
         "plot": ["matplotlib>=3.6"],
         # the compiled model step (vm_ros.model.kernel); without it the NumPy step is used
         "fast": ["numba>=0.60"],
+        # build-time importers of musculoskeletal geometry (vm-ros import-osim / import-mjcf), the
+        # exact MuJoCo geometry back end and the closed-loop simulator; the run time needs neither
+        "opensim": ["opensim==4.6"],
+        "mujoco": ["mujoco==4.0.0", "myo-sim==0.2.3"],
         "dev": ["pytest>=7.4", "ruff>=0.5", "hypothesis>=6.80", "matplotlib>=3.6"],
     },
     entry_points={
