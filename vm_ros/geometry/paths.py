@@ -108,6 +108,10 @@ class MusclePath:
                 s > 0 and np.isfinite(s) for s in self.scale):
             raise ValueError(f"muscle {self.name!r}: offset and scale need {k} values, "
                              "scale > 0")
+        object.__setattr__(self, "name", str(self.name))
+        object.__setattr__(self, "coordinates", tuple(str(c) for c in self.coordinates))
+        object.__setattr__(self, "offset", tuple(float(v) for v in self.offset))
+        object.__setattr__(self, "scale", tuple(float(v) for v in self.scale))
         object.__setattr__(self, "exponents", exponents)
         object.__setattr__(self, "coefficients", coefficients)
 

@@ -1,0 +1,270 @@
+"""vm_ros.geometry core: polynomial paths, exact moment arms, clamping, torques, the file.
+
+References are independent of the evaluator under test: a slow scalar evaluation written here
+from the formula, central finite differences, closed-form polynomials, and the power identity.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from vm_ros.errors import ConfigError, InputError
+from vm_ros.geometry import (
+    Coordinate,
+    CoupledCoordinate,
+    FitReport,
+    MusclePath,
+    PolynomialGeometry,
+    generalized_forces,
+    load_geometry,
+    write_geometry,
+)
+from vm_ros.geometry import kernel as geometry_kernel
+from vm_ros.geometry.file import dumps, loads
+from vm_ros.geometry.fit import fit_path
+from vm_ros.geometry.polynomial import total_degree_exponents
+
+BACKENDS = ["numpy"] + (["compiled"] if geometry_kernel.available() else [])
+
+
+def scalar_length(path: MusclePath, values: dict) -> float:
+    """L = sum_t c_t prod_j ((q_j - offset_j) / scale_j) ** e_tj, one term at a time."""
+    total = 0.0
+    for coefficient, exponents in zip(path.coefficients, path.exponents, strict=True):
+        term = float(coefficient)
+        for name, offset, scale, e in zip(path.coordinates, path.offset, path.scale, exponents,
+                                          strict=True):
+            term *= ((values[name] - offset) / scale) ** int(e)
+        total += term
+    return total
+
+
+def random_geometry(seed=0, n_muscles=12, backend="numpy") -> PolynomialGeometry:
+    rng = np.random.default_rng(seed)
+    coordinates = [Coordinate("hip_flexion", "rad", -0.5, 1.8),
+                   Coordinate("knee_angle", "rad", -2.0, 0.1),
+                   Coordinate("ankle_angle", "rad", -0.7, 0.5),
+                   Coordinate("pelvis_tx", "m", -0.2, 0.2)]
+    names = [c.name for c in coordinates]
+    muscles = []
+    for i in range(n_muscles):
+        k = 1 + i % 3
+        crossed = tuple(rng.choice(names, size=k, replace=False))
+        exponents = total_degree_exponents(k, 2 + i % 5)
+        coefficients = rng.normal(scale=0.01, size=len(exponents))
+        coefficients[0] = 0.3 + 0.1 * rng.random()
+        offset = tuple(rng.normal(scale=0.3, size=k))
+        scale = tuple(0.5 + rng.random(k))
+        muscles.append(MusclePath(f"muscle_{i}", crossed, offset, scale, exponents,
+                                  coefficients))
+    return PolynomialGeometry(coordinates, muscles, backend=backend)
+
+
+def random_pose(geometry, rng) -> np.ndarray:
+    return geometry.lower + (geometry.upper - geometry.lower) * rng.random(len(geometry.lower))
+
+
+def test_total_degree_basis_counts_and_order():
+    for k in range(1, 5):
+        for degree in range(0, 7):
+            exponents = total_degree_exponents(k, degree)
+            assert len(exponents) == math.comb(degree + k, k)
+            assert len({tuple(row) for row in exponents}) == len(exponents)
+            assert np.all(np.diff(exponents.sum(axis=1)) >= 0)
+            assert exponents[0].sum() == 0
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_lengths_equal_scalar_evaluation(backend):
+    geometry = random_geometry(backend=backend)
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        q = random_pose(geometry, rng)
+        values = dict(zip(geometry.coordinate_names, q, strict=True))
+        length, _ = geometry.lengths_and_gradients(q)
+        expected = [scalar_length(m, values) for m in geometry.muscles]
+        np.testing.assert_allclose(length, expected, rtol=1e-13, atol=1e-15)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_moment_arm_is_minus_derivative_of_evaluated_length(backend):
+    """r = -dL/dq of the evaluated polynomial, by central differences (h = 1e-5), to 1e-9 m."""
+    geometry = random_geometry(backend=backend)
+    rng = np.random.default_rng(2)
+    h = 1e-5
+    for _ in range(20):
+        q = random_pose(geometry, rng)
+        # inside the box, so clamping does not interfere with the differences
+        q = np.clip(q, geometry.lower + 2 * h, geometry.upper - 2 * h)
+        out = geometry.evaluate(q)
+        for j in range(len(q)):
+            step = np.zeros_like(q)
+            step[j] = h
+            values_plus = dict(zip(geometry.coordinate_names, q + step, strict=True))
+            values_minus = dict(zip(geometry.coordinate_names, q - step, strict=True))
+            derivative = np.array([(scalar_length(m, values_plus) - scalar_length(m, values_minus))
+                                   / (2 * h) for m in geometry.muscles])
+            np.testing.assert_allclose(out.moment_arm[:, j], -derivative, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_joint_power_equals_muscle_power(backend):
+    geometry = random_geometry(backend=backend)
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        q = random_pose(geometry, rng)
+        qdot = rng.normal(scale=3.0, size=len(q))
+        force = rng.uniform(0, 2000, size=len(geometry.muscle_names))
+        out = geometry.evaluate(q, qdot)
+        tau = generalized_forces(out.moment_arm, force)
+        joint_power = float(tau @ out.qdot)
+        muscle_power = -float(force @ out.velocity_m_per_s)
+        assert joint_power == pytest.approx(muscle_power, rel=1e-9, abs=1e-12)
+        # velocity is the chain rule of the exact gradient
+        np.testing.assert_allclose(out.velocity_m_per_s, -out.moment_arm @ qdot, rtol=1e-12,
+                                   atol=1e-15)
+
+
+def test_compiled_and_numpy_evaluators_agree():
+    if not geometry_kernel.available():
+        pytest.skip("Numba is not available (VM_ROS_NUMBA=0 or not installed): only the NumPy "
+                    "evaluator exists")
+    numpy_geometry = random_geometry(n_muscles=40, backend="numpy")
+    compiled_geometry = random_geometry(n_muscles=40, backend="compiled")
+    assert compiled_geometry.backend == "compiled"
+    rng = np.random.default_rng(4)
+    for _ in range(10):
+        q = random_pose(numpy_geometry, rng)
+        a, b = numpy_geometry.evaluate(q, q), compiled_geometry.evaluate(q, q)
+        np.testing.assert_allclose(a.length_m, b.length_m, rtol=1e-14, atol=0)
+        np.testing.assert_allclose(a.moment_arm, b.moment_arm, rtol=1e-12, atol=1e-16)
+
+
+def test_outside_the_box_is_clamped_not_extrapolated():
+    geometry = random_geometry()
+    inside = (geometry.lower + geometry.upper) / 2
+    q = inside.copy()
+    q[1] = geometry.upper[1] + 0.5          # far outside, above
+    q[3] = geometry.lower[3] - 1.0          # far outside, below
+    qdot = np.ones(4)
+    out = geometry.evaluate(q, qdot)
+    assert out.clamped.tolist() == [False, True, False, True]
+    expected_q = inside.copy()
+    expected_q[1], expected_q[3] = geometry.upper[1], geometry.lower[3]
+    np.testing.assert_array_equal(out.q, expected_q)
+    np.testing.assert_array_equal(out.qdot, [1.0, 0.0, 1.0, 0.0])
+    at_edge = geometry.evaluate(expected_q)
+    np.testing.assert_array_equal(out.length_m, at_edge.length_m)
+
+
+@pytest.mark.parametrize("bad", [[0.0, 0.0, 0.0], [0.0, np.nan, 0.0, 0.0],
+                                 [0.0, np.inf, 0.0, 0.0]])
+def test_bad_pose_raises_input_error(bad):
+    geometry = random_geometry()
+    with pytest.raises(InputError):
+        geometry.evaluate(np.array(bad))
+
+
+def test_fit_reproduces_a_polynomial_path_exactly():
+    """A path that is itself a degree-3 polynomial of two coordinates is recovered to rounding,
+    with its moment arms (the fit uses lengths and gradients)."""
+    rng = np.random.default_rng(5)
+    lower, upper = np.array([-1.0, -2.0]), np.array([1.5, 0.2])
+
+    def length(q):
+        a, b = q[:, 0], q[:, 1]
+        return 0.35 + 0.02 * a - 0.03 * b + 0.004 * a * b - 0.002 * b ** 3 + 0.001 * a ** 2 * b
+
+    def gradient(q):
+        a, b = q[:, 0], q[:, 1]
+        return np.stack([0.02 + 0.004 * b + 0.002 * a * b,
+                         -0.03 + 0.004 * a - 0.006 * b ** 2 + 0.001 * a ** 2], axis=1)
+
+    q_fit = lower + (upper - lower) * rng.random((60, 2))
+    q_test = lower + (upper - lower) * rng.random((40, 2))
+    path = fit_path("m", ("a", "b"), lower, upper, q_fit, length(q_fit), gradient(q_fit),
+                    q_test, length(q_test), gradient(q_test), degrees=(3,))
+    assert path.fit.length_max_m < 1e-12
+    assert path.fit.moment_arm_max_m < 1e-11
+    assert path.fit.poses_fit == 60 and path.fit.poses_held_out == 40
+
+
+def test_fit_of_a_smooth_nonpolynomial_path_meets_the_issue_tolerances():
+    """A smooth cosine-wrap-like path over a knee range: <= 0.1 mm length RMS and <= 1 mm
+    moment-arm RMS on held-out poses (the fit chooses the degree)."""
+    rng = np.random.default_rng(6)
+    lower, upper = np.array([-2.0]), np.array([0.1])
+
+    def length(q):
+        return 0.45 + 0.04 * np.cos(q[:, 0] + 0.3) - 0.01 * q[:, 0]
+
+    def gradient(q):
+        return (-0.04 * np.sin(q[:, 0] + 0.3) - 0.01)[:, None]
+
+    q_fit = lower + (upper - lower) * rng.random((80, 1))
+    q_test = lower + (upper - lower) * rng.random((50, 1))
+    path = fit_path("m", ("knee",), lower, upper, q_fit, length(q_fit), gradient(q_fit),
+                    q_test, length(q_test), gradient(q_test))
+    assert path.fit.length_rms_m <= 1e-4
+    assert path.fit.moment_arm_rms_m <= 1e-3
+
+
+def with_fit_reports(geometry: PolynomialGeometry) -> PolynomialGeometry:
+    muscles = [MusclePath(m.name, m.coordinates, m.offset, m.scale, m.exponents, m.coefficients,
+                          FitReport(1e-6 * i, 2e-6, 3e-5, 1e-4, 100, 50,
+                                    ("discontinuous",) if i == 2 else ()))
+               for i, m in enumerate(geometry.muscles)]
+    return PolynomialGeometry(
+        geometry.coordinates, muscles,
+        coupled=[CoupledCoordinate("patella_angle", ("knee_angle",), "coupler: spline")],
+        source={"model": "test", "sha256": "00ff"}, options={"degree": 6, "samples": 1000})
+
+
+def test_geometry_file_round_trips_exactly(tmp_path):
+    geometry = with_fit_reports(random_geometry())
+    path = write_geometry(geometry, tmp_path / "geometry.yaml")
+    again = load_geometry(path)
+    assert again.coordinates == geometry.coordinates
+    assert again.coupled == geometry.coupled
+    assert again.source == geometry.source and again.options == geometry.options
+    for a, b in zip(geometry.muscles, again.muscles, strict=True):
+        assert (a.name, a.coordinates, a.offset, a.scale, a.fit) == \
+            (b.name, b.coordinates, b.offset, b.scale, b.fit)
+        np.testing.assert_array_equal(a.exponents, b.exponents)
+        assert a.coefficients.tobytes() == b.coefficients.tobytes()   # bit for bit
+    assert dumps(again) == dumps(geometry)
+    q = (geometry.lower + geometry.upper) / 3
+    assert geometry.evaluate(q).length_m.tobytes() == again.evaluate(q).length_m.tobytes()
+
+
+@pytest.mark.parametrize("mutate, field", [
+    (lambda d: d.update(format="other"), "format"),
+    (lambda d: d.update(version=99), "version"),
+    (lambda d: d.update(coordinates="x"), "coordinates"),
+    (lambda d: d["coordinates"][0].update(unit="deg"), "coordinates[0]"),
+    (lambda d: d["coordinates"][0].update(lower=5.0), "coordinates[0]"),
+    (lambda d: d["muscles"][0].pop("coefficients"), "muscles[0]"),
+    (lambda d: d["muscles"][0].update(coefficients=[1.0]), "muscles[0]"),
+    (lambda d: d["muscles"][0].update(coordinates=["nope"]), "muscles"),
+    (lambda d: d["muscles"].append(dict(d["muscles"][0])), "muscles"),
+])
+def test_bad_geometry_files_name_the_field(mutate, field):
+    import yaml
+
+    data = yaml.safe_load(dumps(random_geometry()))
+    mutate(data)
+    with pytest.raises(ConfigError) as info:
+        loads(yaml.safe_dump(data), "bad.yaml")
+    assert info.value.field == field
+    assert "\n" not in str(info.value)
+
+
+def test_unreadable_geometry_files(tmp_path):
+    with pytest.raises(ConfigError, match="cannot read"):
+        load_geometry(tmp_path / "missing.yaml")
+    (tmp_path / "bad.yaml").write_text("muscles: [\n")
+    with pytest.raises(ConfigError, match="not valid YAML"):
+        load_geometry(tmp_path / "bad.yaml")
