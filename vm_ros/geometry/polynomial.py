@@ -16,7 +16,9 @@ evaluates all muscles; the compiled loop in ``vm_ros.geometry.kernel`` reads the
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from itertools import combinations_with_replacement
+from typing import NamedTuple
 
 import numpy as np
 
@@ -61,6 +63,12 @@ def monomial_gradients(x: np.ndarray, exponents: np.ndarray) -> np.ndarray:
     return out
 
 
+class _Lookup(NamedTuple):
+    term_power: np.ndarray      # (K, T) index into powers (n, K, degree + 1), raveled
+    term_slot: np.ndarray       # (K, T) index into (n, K), raveled
+    slot_cell: np.ndarray       # (n * K,) index into the gradient (n, n_q + 1), raveled
+
+
 @dataclass(frozen=True)
 class PackedPolynomials:
     """Every muscle's polynomial in flat arrays (built once; read by both evaluators).
@@ -88,9 +96,19 @@ class PackedPolynomials:
     def n_muscles(self) -> int:
         return self.slot_coordinate.shape[0]
 
-    @property
+    @cached_property
     def max_degree(self) -> int:
         return int(self.term_exponent.max(initial=0))
+
+    @cached_property
+    def lookup(self) -> _Lookup:
+        """Flat indices that evaluate_packed gathers and scatters with (computed once)."""
+        n, width = self.slot_coordinate.shape
+        slots = self.term_muscle[None, :] * width + np.arange(width)[:, None]        # (K, T)
+        return _Lookup(term_power=slots * (self.max_degree + 1) + self.term_exponent.T,
+                       term_slot=slots,
+                       slot_cell=(np.arange(n)[:, None] * (self.n_coordinates + 1)
+                                  + self.slot_coordinate).ravel())
 
     @classmethod
     def pack(cls, n_coordinates: int, muscles) -> PackedPolynomials:
@@ -127,30 +145,32 @@ def evaluate_packed(packed: PackedPolynomials, q: np.ndarray) -> tuple[np.ndarra
     evaluator (vm_ros.geometry.kernel) computes the same sums in a loop.
     """
     n, width = packed.slot_coordinate.shape
+    degree = packed.max_degree
+    index = packed.lookup
     q_padded = np.append(np.asarray(q, dtype=float), 0.0)
     x = (q_padded[packed.slot_coordinate] - packed.slot_offset) / packed.slot_scale   # (n, K)
-    degree = packed.max_degree
     powers = np.ones((n, width, degree + 1))                                          # x ** p
     for p in range(1, degree + 1):
         powers[:, :, p] = powers[:, :, p - 1] * x
-    # d(x ** p)/dx = p * x ** (p - 1)
-    slopes = np.zeros_like(powers)
+    slopes = np.zeros_like(powers)                                # d(x ** p)/dx = p x ** (p-1)
     slopes[:, :, 1:] = np.arange(1, degree + 1) * powers[:, :, :-1]
-    m, e = packed.term_muscle, packed.term_exponent
-    slot = np.arange(width)
-    factors = powers[m[:, None], slot[None, :], e]                                    # (T, K)
-    term_value = packed.term_coefficient * factors.prod(axis=1)
-    length = np.bincount(m, weights=term_value, minlength=n)
-    dl_dx = np.zeros((n, width))
-    for j in range(width):
-        others = np.delete(factors, j, axis=1).prod(axis=1) if width > 1 else 1.0
-        dl_dx[:, j] = np.bincount(m, weights=packed.term_coefficient
-                                  * slopes[m, j, e[:, j]] * others, minlength=n)
-    gradient = np.zeros((n, packed.n_coordinates + 1))
-    rows = np.repeat(np.arange(n), width)
-    np.add.at(gradient, (rows, packed.slot_coordinate.ravel()),
-              (dl_dx / packed.slot_scale).ravel())
-    return length, gradient[:, :packed.n_coordinates]
+    factors = powers.ravel()[index.term_power]                                    # (K, T)
+    # products of the other slots' factors: prefix times suffix products (no division)
+    others = np.ones_like(factors)
+    for j in range(1, width):
+        others[j] = others[j - 1] * factors[j - 1]
+    suffix = np.ones(factors.shape[1])
+    for j in range(width - 2, -1, -1):
+        suffix = suffix * factors[j + 1]
+        others[j] *= suffix
+    weighted = packed.term_coefficient * others                                       # (K, T)
+    length = np.bincount(packed.term_muscle, weights=weighted[0] * factors[0], minlength=n)
+    dl_dx = np.bincount(index.term_slot.ravel(),
+                        weights=(weighted * slopes.ravel()[index.term_power]).ravel(),
+                        minlength=n * width).reshape(n, width)
+    gradient = np.bincount(index.slot_cell, weights=(dl_dx / packed.slot_scale).ravel(),
+                           minlength=n * (packed.n_coordinates + 1))
+    return length, gradient.reshape(n, packed.n_coordinates + 1)[:, :packed.n_coordinates]
 
 
 __all__ = ["PackedPolynomials", "evaluate_packed", "monomial_gradients", "monomials",
