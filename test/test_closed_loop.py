@@ -1,0 +1,120 @@
+"""The one-process loop: MuJoCo (actuation off) driven by MuscleBank forces on myoelbow.
+
+Checks: time-step convergence (1 ms vs 0.5 ms), the energy balance with MuJoCo's own kinetic and
+potential energy, muscle work against the recorded path lengths, MuJoCo's actuators silent, and
+the CLI (files written, a bad model name is one line and exit 2).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("mujoco", reason="the mujoco extra is not installed")
+
+from vm_ros.cli import main  # noqa: E402
+from vm_ros.closed_loop import (  # noqa: E402
+    ClosedLoop,
+    constant_excitation,
+    csv_excitation,
+    pulse_excitation,
+)
+from vm_ros.errors import ConfigError  # noqa: E402
+from vm_ros.geometry.mujoco_backend import MujocoGeometry  # noqa: E402
+from vm_ros.importers import common, mjcf  # noqa: E402
+from vm_ros.model import MuscleBank  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def elbow():
+    return MujocoGeometry("myoelbow")
+
+
+@pytest.fixture(scope="module")
+def library(elbow, tmp_path_factory):
+    choices = common.ImportChoices(common.specific_tension_option("rajagopal"))
+    derived = mjcf.derive_library(elbow, choices, *mjcf.path_extremes(elbow, 200))
+    assert derived.excluded == () and derived.flagged == ()
+    return common.write_library(tmp_path_factory.mktemp("lib") / "muscles.yaml",
+                                derived.entries, "test")
+
+
+def run_loop(elbow, library, dt, duration=2.0):
+    bank = MuscleBank.from_config(list(elbow.muscle_names), library=library)
+    q0 = np.array([1.0])
+    r = elbow.evaluate(q0).moment_arm[:, 0]
+    excitation = pulse_excitation(r, "r_elbow_flex")
+    loop = ClosedLoop(elbow, bank, dt)
+    loop.reset(q0, excitation(0.0))
+    loop.data.ctrl[:] = 1.0  # MuJoCo's own muscles would pull hard: actuation must be off
+    return loop, loop.run(duration, excitation)
+
+
+@pytest.fixture(scope="module")
+def runs(elbow, library):
+    return {dt: run_loop(elbow, library, dt) for dt in (0.001, 0.0005)}
+
+
+def test_time_steps_agree(runs):
+    (_, coarse), (_, fine) = runs[0.001], runs[0.0005]
+    assert coarse.q.shape == (2001, 1) and fine.q.shape == (4001, 1)
+    moved = np.ptp(coarse.q[:, 0])
+    assert moved > np.radians(40), "the default pulses move the elbow visibly"
+    gap = np.abs(coarse.q[:, 0] - fine.q[::2, 0]).max()
+    assert np.degrees(gap) < 0.5
+
+
+def test_energy_balance(runs):
+    loop, result = runs[0.001]
+    e = result.ledger
+    assert result.limit_steps == 0 and e.constraint_work_j == 0.0  # joint limits never reached
+    assert e.muscle_work_j > 0.5 and e.damping_loss_j > 0.5
+    # MuJoCo's own energies, read independently at the end of the run
+    assert e.kinetic_j == pytest.approx(loop.data.energy[1], abs=1e-12)
+    assert e.potential_j == pytest.approx(loop.data.energy[0], abs=1e-12)
+    assert abs(e.relative_residual) < 0.01
+    # muscle work against the recorded path lengths: -sum F (L(t + dt) - L(t))
+    length = result.path_length
+    from_paths = -np.sum(result.force[:-1] * np.diff(length, axis=0))
+    assert from_paths == pytest.approx(e.muscle_work_j, rel=0.01)
+    # the loop's torques are r^T F with MuJoCo's moment arms
+    assert np.all(loop.data.actuator_force == 0)
+    r = loop.moment_arms()
+    np.testing.assert_allclose(r, -loop._jacobian.jacobian(loop.data), atol=1e-15)
+
+
+def test_finer_step_smaller_residual(runs):
+    coarse, fine = runs[0.001][1].ledger, runs[0.0005][1].ledger
+    assert abs(fine.residual_j) < abs(coarse.residual_j)
+
+
+def test_excitation_sources(elbow, tmp_path):
+    names = elbow.muscle_names
+    path = tmp_path / "u.csv"
+    path.write_text("time_s,BRA,TRIlong.excitation\n0,0,0.2\n1,0.6,0.4\n")
+    u = csv_excitation(path, names)
+    np.testing.assert_allclose(u(0.5), [0.3, 0, 0, 0, 0, 0.3])
+    np.testing.assert_allclose(u(5.0), [0.4, 0, 0, 0, 0, 0.6])
+    np.testing.assert_allclose(constant_excitation(6, 0.1)(3.0), np.full(6, 0.1))
+    path.write_text("time_s,deltoid\n0,0\n")
+    with pytest.raises(ConfigError, match="deltoid"):
+        csv_excitation(path, names)
+
+
+def test_cli_writes_files(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["closed-loop", "--duration", "0.2", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "energy residual" in text and "per simulated s" in text
+    for name in ("closed_loop.csv", "closed_loop.png", "muscles.yaml"):
+        assert (out / name).stat().st_size > 0
+    header = (out / "closed_loop.csv").read_text().splitlines()[0].split(",")
+    assert header[:2] == ["time_s", "q.r_elbow_flex"] and "force.BRA" in header
+
+
+def test_cli_bad_model_is_one_line(tmp_path, capsys):
+    code = main(["closed-loop", "--model", "no_such_model", "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert len(err.strip().splitlines()) == 1 and "no_such_model" in err
+    assert "Traceback" not in err
