@@ -12,6 +12,9 @@ with:
   vm_ros.node_inputs.NodeInputs with the logged node parameters (vm_ros.recording.node_replay),
   and the initial state published at the start time as the node does.
 
+A recorded input that does not decode (muscle_node records inputs as received) is copied to the
+new log but not applied, as the node dropped it; a line on stderr counts them per topic.
+
 Without changes either is reproduced to floating-point precision, except where a node's model time
 left its step grid (skipped or paused time, a backward clock jump): the summary then says the
 result is approximate and why.
@@ -105,6 +108,8 @@ def run(args) -> int:
     if not recorded.complete:
         print(f"vm-ros recompute: {log_path} is cut short ({recorded.stop_reason}); using "
               "what it holds", file=sys.stderr)
+    if recorded.skipped:  # copied, not applied: the node dropped them too
+        print(f"vm-ros recompute: {recorded.skipped_note()}", file=sys.stderr)
     timing = RunTiming(
         dt_s=args.dt or info.timing.dt_s,
         publish_rate_hz=args.publish_rate or info.timing.publish_rate_hz,

@@ -5,7 +5,11 @@ The recorded CDR bytes are published as they are, each topic with its recorded t
 reliability/durability (default reliable, volatile). The pace follows the log times (model time
 for `vm-ros simulate` logs); --rate 2 plays twice as fast. Channels typed with vm_ros's own
 offline definitions (muscle_telemetry) cannot be published without a colcon build and are
-skipped. Names may be given with or without the leading slash.
+skipped, and so are channels that are not ROS 2 messages (schema name not pkg/msg/Type, or an
+encoding other than CDR). A recorded message that does not decode as its type (muscle_node
+records inputs as received, malformed or not) is not published, since subscribers would fail on
+it; a line on stderr counts those per topic. Names may be given with or without the leading
+slash.
 """
 
 from __future__ import annotations
@@ -19,9 +23,11 @@ from pathlib import Path
 import yaml
 
 from vm_ros.errors import VmRosError
-from vm_ros.recording.reader import log_channels
+from vm_ros.recording.reader import ChannelInfo, log_channels
 from vm_ros.recording.replay import is_offline_type, replay
 from vm_ros.recording.run_log import resolve_topic
+from vm_ros.recording.schema import MESSAGE_ENCODING, full_type_name
+from vm_ros.recording.series import SkippedMessages, skipped_line
 
 HELP = "republish a log's topics over ROS 2 at the recorded pace"
 NODE_NAME = "vm_ros_replay"
@@ -87,8 +93,22 @@ def wait_for_subscribers(publishers, timeout_s: float, settle_s: float = 0.2) ->
     return False
 
 
+def not_replayable(channel: ChannelInfo) -> str | None:
+    """Why a channel cannot be republished (None when it can)."""
+    if channel.encoding != MESSAGE_ENCODING:
+        return f"message encoding {channel.encoding!r}, not {MESSAGE_ENCODING}"
+    try:
+        type_name = full_type_name(channel.type_name)
+    except ValueError:
+        return f"schema name {channel.type_name!r} is not pkg/msg/Type"
+    if is_offline_type(type_name):
+        return f"offline-only type {type_name}"
+    return None
+
+
 def select_topics(log: Path, requested: str | None) -> dict:
-    """``{topic: (type_name, channel metadata)}`` of the channels to publish."""
+    """``{topic: ChannelInfo}`` of the channels to publish. Raises VmRosError (one line) when
+    a requested topic is missing or cannot be published, or nothing can be."""
     channels = log_channels(log)
     if requested:
         names = [resolve_topic(t.strip()) for t in requested.split(",") if t.strip()]
@@ -96,10 +116,27 @@ def select_topics(log: Path, requested: str | None) -> dict:
         if unknown:
             raise VmRosError(f"{log}: no topic {unknown[0]} (have: {', '.join(sorted(channels))})")
         channels = {t: channels[t] for t in names}
-    skipped = [t for t, (type_name, _) in channels.items() if is_offline_type(type_name)]
+    reasons = {t: not_replayable(c) for t, c in channels.items()}
+    skipped = ", ".join(f"{t} ({why})" for t, why in reasons.items() if why)
+    if requested and skipped:
+        raise VmRosError(f"{log}: cannot replay {skipped}")
+    selected = {t: c for t, c in channels.items() if not reasons[t]}
+    if not selected:
+        raise VmRosError(f"{log}: nothing to replay" + (f": {skipped}" if skipped else ""))
     if skipped:
-        print(f"vm-ros replay: skipping offline-only {', '.join(skipped)}", file=sys.stderr)
-    return {t: v for t, v in channels.items() if t not in skipped}
+        print(f"vm-ros replay: skipping {skipped}", file=sys.stderr)
+    return selected
+
+
+def _decodes(data: bytes, message_type) -> bool:
+    """True when ``data`` deserialises as ``message_type`` (as a subscriber would)."""
+    from rclpy.serialization import deserialize_message
+
+    try:
+        deserialize_message(data, message_type)
+    except Exception:  # malformed bytes: rclpy raises whatever its typesupport meets
+        return False
+    return True
 
 
 def run(args) -> int:
@@ -112,15 +149,22 @@ def run(args) -> int:
     rclpy.init(args=None)
     node = rclpy.create_node(NODE_NAME)
     count = 0
+    skipped: dict[str, SkippedMessages] = {}
     try:
-        publishers = {topic: node.create_publisher(message_class(type_name), topic, _qos(meta))
-                      for topic, (type_name, meta) in channels.items()}
+        types = {topic: message_class(full_type_name(c.type_name))
+                 for topic, c in channels.items()}
+        publishers = {topic: node.create_publisher(types[topic], topic, _qos(c.metadata))
+                      for topic, c in channels.items()}
         node.get_logger().info(f"replaying {args.log} ({', '.join(publishers)}) at "
                                f"x{args.rate:g}{', looping' if args.loop else ''}")
         if args.wait > 0 and not wait_for_subscribers(publishers.values(), args.wait):
             node.get_logger().warning(f"not every topic has a subscriber after {args.wait:g} s")
         for message in replay(args.log, topics=set(publishers), rate=args.rate, loop=args.loop):
-            publishers[message.topic].publish(bytes(message.data))
+            data = bytes(message.data)
+            if not _decodes(data, types[message.topic]):
+                skipped.setdefault(message.topic, SkippedMessages()).count += 1
+                continue
+            publishers[message.topic].publish(data)
             count += 1
     except KeyboardInterrupt:
         pass
@@ -128,4 +172,7 @@ def run(args) -> int:
         node.destroy_node()
         rclpy.try_shutdown()
     print(f"replayed {count} messages")
+    note = skipped_line(skipped)
+    if note:
+        print(f"vm-ros replay: {note}", file=sys.stderr)
     return 0

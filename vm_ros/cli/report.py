@@ -25,7 +25,7 @@ from vm_ros import telemetry as tm
 from vm_ros.cli.progress import Progress
 from vm_ros.errors import VmRosError
 from vm_ros.recording.messages import TOPIC_TELEMETRY
-from vm_ros.recording.run_log import RunLog, read_run
+from vm_ros.recording.run_log import METADATA_NAME, RunLog, read_run
 from vm_ros.recording.summary import summary_records, summary_table
 from vm_ros.recording.tables import (
     FIBRE_TYPES,
@@ -175,8 +175,8 @@ def run(args) -> int:
                                          tm.TOPIC_EXCITATION, TOPIC_TELEMETRY),
                        progress=lambda done, size: p.update(done / max(size, 1)))
     if not muscle_names(log):
-        raise VmRosError(f"{log_path}: no muscle_force channel and no vm_ros.run metadata: "
-                         "not a vm_ros run log")
+        raise VmRosError(f"{log_path}: not a vm_ros run log (no '{METADATA_NAME}' metadata "
+                         f"record and no decodable {tm.TOPIC_FORCE} messages)")
     out = args.out or log_path.with_name(f"{log_path.stem}-report")
     out.mkdir(parents=True, exist_ok=True)
     builders = (force_table, energy_rate_table, totals_table, telemetry_table)
@@ -194,6 +194,8 @@ def run(args) -> int:
     if not log.complete:
         print(f"note: {log_path} is cut short ({log.stop_reason}); the report covers what it "
               "holds")
+    if log.skipped:
+        print(f"note: {log.skipped_note()}")
     written = plot_run(plt, log, tables, out, args.bin) if plt is not None else []
     files = len(tables) + bool(records) + len(written)
     print(f"report: {out} ({files} files)")

@@ -11,6 +11,7 @@ CDR padding bytes are not specified: compare decoded values, never bytes.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import cache
 from typing import Any
 
@@ -35,6 +36,13 @@ def serialize(type_name: str, fields: dict) -> bytes:
     return _encoder(full_type_name(type_name))(fields)
 
 
+def decoder(type_name: str) -> Callable[[bytes], Any]:
+    """The decoding function of ``type_name`` (built once). Raises UnknownMessageTypeError for
+    a type that is not bundled, ValueError for a name that is not ``pkg/msg/Type``."""
+    return _decoder(full_type_name(type_name))
+
+
 def deserialize(type_name: str, data: bytes) -> Any:
-    """Decode CDR bytes of ``type_name`` into an attribute object."""
-    return _decoder(full_type_name(type_name))(data)
+    """Decode CDR bytes of ``type_name`` into an attribute object. Bytes that are not a valid
+    message raise whatever the decoder meets (struct.error, UnicodeDecodeError...)."""
+    return decoder(type_name)(data)

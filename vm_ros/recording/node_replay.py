@@ -24,20 +24,33 @@ import json
 import numpy as np
 
 from vm_ros import telemetry as tm
+from vm_ros.errors import ConfigError
 from vm_ros.node_inputs import InputLimits, NodeInputs
 from vm_ros.node_params import NodeConfig
 from vm_ros.recording.cdr import deserialize
-from vm_ros.recording.run_log import RunLog
+from vm_ros.recording.run_log import INPUT_TOPICS, METADATA_NAME, RunLog, RunLogError
 
 NODE_PARAMETERS_KEY = "node_parameters"
-_TOPIC_ORDER = (tm.TOPIC_EXCITATION, tm.TOPIC_EXCITATION_ARRAY, tm.TOPIC_KINEMATICS)
 
 
 def node_config(run: RunLog) -> NodeConfig | None:
-    """The muscle_node parameters logged with ``run`` (None when it holds none)."""
+    """The muscle_node parameters logged with ``run`` (None when it holds none). Raises
+    ConfigError naming the log and the parameter when they cannot be used."""
     if run.info is None or NODE_PARAMETERS_KEY not in run.info.extra:
         return None
-    return NodeConfig.from_values(json.loads(run.info.extra[NODE_PARAMETERS_KEY]))
+    text = run.info.extra[NODE_PARAMETERS_KEY]
+    source = f"{run.path}: '{METADATA_NAME}' metadata"
+    try:
+        values = json.loads(text)
+    except ValueError as exc:
+        raise ConfigError(source, NODE_PARAMETERS_KEY, text, f"not JSON: {exc}") from None
+    if not isinstance(values, dict):
+        raise ConfigError(source, NODE_PARAMETERS_KEY, text, "expected a JSON object")
+    try:
+        return NodeConfig.from_values(values)
+    except ConfigError as exc:
+        raise ConfigError(source, f"{NODE_PARAMETERS_KEY}.{exc.field}", exc.value,
+                          exc.reason) from None
 
 
 def is_node_log(run: RunLog) -> bool:
@@ -49,34 +62,28 @@ def is_node_log(run: RunLog) -> bool:
 class NodeReplayInputs:
     """The input messages of a muscle_node log through NodeInputs, copied verbatim (same bytes
     and log times) to ``sink`` (a LogSink, or None). ``run`` must be read with the input topics
-    raw (read_run(..., raw=INPUT_TOPICS)); messages are decoded from those bytes, as the node did.
+    raw (read_run(..., raw=INPUT_TOPICS)); messages are decoded from those bytes, as the node did,
+    and those that do not decode are dropped, as the node dropped them (and still copied).
     """
 
     def __init__(self, run: RunLog, bank, sink=None, config: NodeConfig | None = None):
         config = config or node_config(run)
         if config is None:
-            raise ValueError(f"{run.path}: no {NODE_PARAMETERS_KEY!r} in the run metadata "
-                             "(not a muscle_node log)")
+            raise RunLogError(run.path, f"no {NODE_PARAMETERS_KEY!r} in the run metadata "
+                                        "(not a muscle_node log)")
         self.config = config
         self._sink = sink
+        self._path = run.path
         initial = np.array(config.initial_path_length_m) if config.initial_path_length_m else None
         self.inputs = NodeInputs(bank.names, InputLimits.for_bank(bank, config), initial)
-        events = []
-        for order, topic in enumerate(_TOPIC_ORDER):
-            series = run.get(topic)
-            if series is None:
-                continue
-            if series.raw is None:
-                raise ValueError(f"{run.path}: {topic} read without its raw bytes")
-            events.extend((int(t), order, i, topic, series)
-                          for i, t in enumerate(series.time_ns))
-        events.sort(key=lambda e: (e[0], e[1], e[2]))
-        self._events = events
+        self._events = run.events(INPUT_TOPICS)
+        if any(event.data is None for event in self._events):
+            raise ValueError(f"{run.path}: inputs read without their raw bytes")
         self._next = 0
 
     @property
     def last_time_ns(self) -> int:
-        return self._events[-1][0] if self._events else 0
+        return self._events[-1].time_ns if self._events else 0
 
     def _apply(self, topic: str, data: bytes, time_ns: int) -> None:
         try:
@@ -93,15 +100,15 @@ class NodeReplayInputs:
     def advance_to(self, time_ns: int):
         """Apply the messages logged at or before ``time_ns``; (U, path length, path velocity)
         for the step starting there (NodeInputs.sample)."""
-        while self._next < len(self._events) and self._events[self._next][0] <= time_ns:
-            t, _, i, topic, series = self._events[self._next]
-            self._apply(topic, series.raw[i], t)
+        while self._next < len(self._events) and self._events[self._next].time_ns <= time_ns:
+            event = self._events[self._next]
+            self._apply(event.topic, event.data, event.time_ns)
             if self._sink is not None:
-                self._sink.write_bytes(topic, series.raw[i], t)
+                self._sink.write_bytes(event.topic, event.data, event.time_ns)
             self._next += 1
         if not self.inputs.ready:
-            raise ValueError(f"no valid {tm.TOPIC_KINEMATICS} for every muscle by model time "
-                             f"{time_ns * 1e-9:.6f} s")
+            raise RunLogError(self._path, f"no valid {tm.TOPIC_KINEMATICS} for every muscle by "
+                                          f"model time {time_ns * 1e-9:.6f} s")
         return self.inputs.sample(time_ns)
 
 

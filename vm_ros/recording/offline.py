@@ -26,7 +26,13 @@ from vm_ros import telemetry as tm
 from vm_ros.model import MuscleBank, StepOutput
 from vm_ros.recording import messages as msgs
 from vm_ros.recording.cdr import serialize
-from vm_ros.recording.run_log import RunLog, RunTiming, resolve_topic
+from vm_ros.recording.run_log import (
+    INPUT_TOPICS,
+    RunLog,
+    RunLogError,
+    RunTiming,
+    resolve_topic,
+)
 from vm_ros.recording.writer import McapRecorder
 
 _RETRY_S = 0.001
@@ -89,7 +95,8 @@ class SampledInputs:
 
 class RecordedInputs:
     """The input messages of a run log, applied in log-time order under the zero-order hold and
-    copied verbatim (same bytes and times) to ``sink``.
+    copied verbatim (same bytes and times) to ``sink``; messages that did not decode are copied
+    but not applied.
 
     Per muscle, by name (or by position for excitation_array and name-less messages): a finite
     drive replaces the held drive; a finite positive path length replaces the held length and
@@ -103,24 +110,16 @@ class RecordedInputs:
         self.u = np.zeros(n_muscles)
         self.lp = np.full(n_muscles, np.nan)
         self.vp = np.zeros(n_muscles)
-        events = []
-        for order, topic in enumerate((tm.TOPIC_EXCITATION, tm.TOPIC_EXCITATION_ARRAY,
-                                       tm.TOPIC_KINEMATICS)):
-            series = run.get(topic)
-            if series is not None:
-                events.extend((int(t), order, i, topic, series)
-                              for i, t in enumerate(series.time_ns))
-        events.sort(key=lambda e: (e[0], e[1], e[2]))
-        self._events = events
+        self._events = run.events(INPUT_TOPICS)
         self._next = 0
         kinematics = run.get(tm.TOPIC_KINEMATICS)
         if kinematics is None or len(kinematics) == 0:
-            raise ValueError(f"{run.path}: no {tm.TOPIC_KINEMATICS} messages to run from")
+            raise RunLogError(run.path, f"no {tm.TOPIC_KINEMATICS} messages to run from")
         self._first_kinematics = kinematics
 
     @property
     def last_time_ns(self) -> int:
-        return self._events[-1][0] if self._events else 0
+        return self._events[-1].time_ns if self._events else 0
 
     def _apply(self, topic: str, series, i: int) -> None:
         if topic == tm.TOPIC_KINEMATICS:
@@ -136,11 +135,12 @@ class RecordedInputs:
             self.u[ok] = u[ok]
 
     def advance_to(self, time_ns: int):
-        while self._next < len(self._events) and self._events[self._next][0] <= time_ns:
-            t, _, i, topic, series = self._events[self._next]
-            self._apply(topic, series, i)
-            if series.raw is not None:
-                self._sink.write_bytes(topic, series.raw[i], t)
+        while self._next < len(self._events) and self._events[self._next].time_ns <= time_ns:
+            event = self._events[self._next]
+            if event.series is not None:  # a message that did not decode changes nothing
+                self._apply(event.topic, event.series, event.index)
+            if event.data is not None:
+                self._sink.write_bytes(event.topic, event.data, event.time_ns)
             self._next += 1
         if np.any(np.isnan(self.lp)):
             first = self._first_kinematics.fields["position"][0]

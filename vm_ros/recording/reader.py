@@ -7,7 +7,9 @@
 
 The file is read front to back with mcap's StreamReader (no summary or index needed), with chunk
 CRCs checked: a chunk cut short by a crash fails its check, so everything up to the last complete
-chunk is returned and ``complete`` is False with the reason in ``stop_reason``.
+chunk is returned and ``complete`` is False with the reason in ``stop_reason``. A message whose
+channel was never declared cannot be attributed to a topic: it is skipped and counted in
+``unknown_channels``.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from mcap.records import Attachment, Channel, Footer, Header, Message, Metadata,
 from mcap.stream_reader import StreamReader
 
 from vm_ros.errors import VmRosError
+from vm_ros.recording.schema import MESSAGE_ENCODING
 
 
 class LogReadError(VmRosError):
@@ -38,6 +41,13 @@ class RecordedMessage(NamedTuple):
     data: bytes  # CDR, as recorded
     log_time_ns: int
     publish_time_ns: int
+    encoding: str = MESSAGE_ENCODING  # the channel's message encoding
+
+
+class ChannelInfo(NamedTuple):
+    type_name: str  # schema name, pkg/msg/Type for ROS 2 messages ("" without a schema)
+    metadata: dict
+    encoding: str  # message encoding, "cdr" for ROS 2 messages
 
 
 class LogReader:
@@ -55,6 +65,7 @@ class LogReader:
         self.channels: dict[int, Channel] = {}
         self.metadata: dict[str, dict[str, str]] = {}
         self.attachments: dict[str, bytes] = {}
+        self.unknown_channels: dict[int, int] = {}  # channel id -> messages skipped
         self.complete = False
         self.stop_reason: str | None = None
 
@@ -84,10 +95,14 @@ class LogReader:
                     return
                 count += 1
                 if isinstance(record, Message):
-                    channel = self.channels[record.channel_id]
-                    if topics is None or channel.topic in topics:
+                    channel = self.channels.get(record.channel_id)
+                    if channel is None:
+                        self.unknown_channels[record.channel_id] = \
+                            self.unknown_channels.get(record.channel_id, 0) + 1
+                    elif topics is None or channel.topic in topics:
                         yield RecordedMessage(channel.topic, self._type_name(channel),
-                                              record.data, record.log_time, record.publish_time)
+                                              record.data, record.log_time, record.publish_time,
+                                              channel.message_encoding)
                     if self._progress is not None and count % 2000 == 0:
                         self._progress(stream.tell(), self.size)
                 else:
@@ -108,19 +123,21 @@ class LogReader:
             self.complete = True
 
 
-def log_channels(path) -> dict[str, tuple[str, dict]]:
-    """``{topic: (pkg/msg/Type, channel metadata)}``: from the summary section when the file has
-    one, else (a file cut short) from a pass over the whole file."""
+def log_channels(path) -> dict[str, ChannelInfo]:
+    """``{topic: ChannelInfo}``: from the summary section when the file has one, else (a file
+    cut short) from a pass over the whole file. Raises LogReadError when it is not MCAP."""
     try:
         with open(path, "rb") as stream:
             summary = make_reader(stream).get_summary()
     except Exception:  # no footer or summary: read everything instead
         summary = None
     if summary is not None and summary.channels:
-        return {c.topic: (summary.schemas[c.schema_id].name if c.schema_id in summary.schemas
-                          else "", dict(c.metadata)) for c in summary.channels.values()}
+        return {c.topic: ChannelInfo(summary.schemas[c.schema_id].name
+                                     if c.schema_id in summary.schemas else "",
+                                     dict(c.metadata), c.message_encoding)
+                for c in summary.channels.values()}
     reader = LogReader(path)
     for _ in reader.messages(topics=()):
         pass
-    types = reader.topic_types()
-    return {c.topic: (types[c.topic], dict(c.metadata)) for c in reader.channels.values()}
+    return {c.topic: ChannelInfo(reader._type_name(c), dict(c.metadata), c.message_encoding)
+            for c in reader.channels.values()}

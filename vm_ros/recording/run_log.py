@@ -18,26 +18,34 @@ inputs, enough to recompute the run (vm_ros.recording.offline).
 Times: log_time is the model time in integer ns (offline runs start at 0; muscle_node uses the
 ROS clock). Inputs follow a zero-order hold: the model step [t, t + dt) uses the latest input
 with log_time <= t.
+
+Reading back (read_run) never fails on a message: one that does not decode (muscle_node records
+inputs as received, and any DDS peer can send malformed bytes) is left out of its series and
+counted in ``RunLog.skipped``. A ``vm_ros.run`` record that cannot be parsed is an error
+(ConfigError naming the file and the key): without it the log cannot be interpreted.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import yaml
 
 from vm_ros import telemetry as tm
+from vm_ros.errors import ConfigError, VmRosError
 from vm_ros.model import MuscleBank
 from vm_ros.model.params import RECOVERY_MODES
 from vm_ros.recording.messages import TOPIC_TELEMETRY, TYPE_MUSCLE_TELEMETRY
 from vm_ros.recording.reader import LogReader
 from vm_ros.recording.run_config import RunConfig
-from vm_ros.recording.series import SeriesBuilder, TopicSeries
+from vm_ros.recording.series import SeriesBuilder, SkippedMessages, TopicSeries, skipped_line
 from vm_ros.recording.versions import library_versions
 from vm_ros.recording.writer import McapRecorder
 
@@ -56,6 +64,16 @@ LOG_TOPIC_TYPES = {
     TOPIC_TELEMETRY: TYPE_MUSCLE_TELEMETRY,
     tm.TOPIC_DIAGNOSTICS: tm.TYPE_DIAGNOSTIC_ARRAY,
 }
+
+
+class RunLogError(VmRosError, ValueError):
+    """A run log lacks what is asked of it (a metadata record, an attachment, inputs to run
+    from). Attributes: ``path``, ``reason``."""
+
+    def __init__(self, path, reason: str):
+        self.path = str(path)
+        self.reason = reason
+        super().__init__(f"{self.path}: {reason}")
 
 
 def resolve_topic(name: str, namespace: str = "/") -> str:
@@ -141,33 +159,107 @@ class RunInfo:
         return record
 
     @classmethod
-    def from_metadata(cls, record: Mapping[str, str]) -> RunInfo:
-        """Parse a record; tolerant of older writers (muscles as "a,b", missing rates)."""
+    def from_metadata(cls, record: Mapping[str, str],
+                      source: str = f"'{METADATA_NAME}' metadata") -> RunInfo:
+        """Parse a record; tolerant of older writers (muscles as "a,b", missing rates).
+
+        Raises ConfigError naming ``source`` and the key when a value is missing (muscles, dt_s)
+        or cannot be used (not a number, dt_s <= 0, a rate < 0, overrides not a JSON object...).
+        """
         known = {"format", "source", "muscles", "recruitment", "recovery_mode", "units_per_type",
                  "overrides", "model_params_file", "muscle_library_file", "dt_s",
                  "model_rate_hz", "publish_rate_hz", "telemetry_rate_hz", "start_time_ns",
                  "initial_state", "input_hold", "namespace", "time_base", "topics"}
-        muscles = record["muscles"]
+
+        def value(key, parse, default=_REQUIRED):
+            return _metadata_value(record, source, key, parse, default)
+
         config = RunConfig(
-            muscles=tuple(json.loads(muscles) if muscles.startswith("[") else
-                          (m.strip() for m in muscles.split(",") if m.strip())),
+            muscles=value("muscles", _muscle_names),
             recruitment=record.get("recruitment", "lumped"),
             recovery_mode=record.get("recovery_mode") if record.get("recovery_mode") in
             RECOVERY_MODES else None,
-            overrides=json.loads(record.get("overrides") or "{}"),
-            units_per_type=int(record["units_per_type"]) if record.get("units_per_type")
-            else None,
+            overrides=value("overrides", _json_object_of(dict), {}),
+            units_per_type=value("units_per_type", _positive_int, None),
         )
         timing = RunTiming(
-            dt_s=float(record["dt_s"]),
-            publish_rate_hz=float(record.get("publish_rate_hz", 100.0)),
-            telemetry_rate_hz=float(record.get("telemetry_rate_hz", 0.0)),
-            start_time_ns=int(record["start_time_ns"]) if record.get("start_time_ns") else None,
+            dt_s=value("dt_s", _positive_float),
+            publish_rate_hz=value("publish_rate_hz", _rate, 100.0),
+            telemetry_rate_hz=value("telemetry_rate_hz", _rate, 0.0),
+            start_time_ns=value("start_time_ns", int, None),
         )
         return cls(config, timing, record.get("source", ""), record.get("namespace", "/"),
                    record.get("time_base", ""),
                    {k: v for k, v in record.items() if k not in known},
-                   json.loads(record.get("topics") or "{}"))
+                   value("topics", _json_object_of(str), {}))
+
+
+# --- parsing the metadata record: each parser raises ValueError with the reason --------------
+
+_REQUIRED = object()
+
+
+def _metadata_value(record: Mapping[str, str], source: str, key: str, parse, default):
+    """``parse(record[key])``; ``default`` when the key is missing or empty. Raises ConfigError
+    naming ``source`` and ``key``."""
+    text = record.get(key)
+    if text is None or text == "":
+        if default is _REQUIRED:
+            raise ConfigError(source, key, text, "missing")
+        return default
+    try:
+        return parse(text)
+    except (ValueError, TypeError) as exc:
+        raise ConfigError(source, key, text, str(exc) or type(exc).__name__) from None
+
+
+def _float(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise ValueError("not a number") from None
+
+
+def _positive_float(text: str) -> float:
+    number = _float(text)
+    if not (math.isfinite(number) and number > 0):
+        raise ValueError("must be a finite number > 0")
+    return number
+
+
+def _rate(text: str) -> float:
+    number = _float(text)
+    if not (math.isfinite(number) and number >= 0):
+        raise ValueError("must be a finite number >= 0")
+    return number
+
+
+def _positive_int(text: str) -> int:
+    number = int(text)
+    if number <= 0:
+        raise ValueError("must be > 0")
+    return number
+
+
+def _muscle_names(text: str) -> tuple:
+    """A JSON list of names, or (older writers) names separated by commas."""
+    names = (json.loads(text) if text.lstrip().startswith("[") else
+             [m.strip() for m in text.split(",") if m.strip()])
+    if not (isinstance(names, list) and names and all(isinstance(n, str) and n for n in names)):
+        raise ValueError("expected a non-empty list of muscle names")
+    return tuple(names)
+
+
+def _json_object_of(kind: type):
+    """A parser of a JSON object whose values are all of ``kind``."""
+
+    def parse(text: str) -> dict:
+        parsed = json.loads(text)
+        if not (isinstance(parsed, dict) and all(isinstance(v, kind) for v in parsed.values())):
+            raise ValueError(f"expected a JSON object of {kind.__name__} values")
+        return parsed
+
+    return parse
 
 
 def _plain(value):
@@ -215,12 +307,24 @@ def open_run_log(path, info: RunInfo, bank: MuscleBank | None = None,
 # --- reading back ----------------------------------------------------------------------------
 
 
+class RecordedEvent(NamedTuple):
+    """One recorded message of RunLog.events: ``series.fields[...][index]`` when it decoded
+    (``series`` None when it did not), ``data`` its recorded bytes (None when not kept)."""
+
+    time_ns: int
+    topic: str  # the name asked for (a base name such as "excitation")
+    series: TopicSeries | None
+    index: int
+    data: bytes | None
+
+
 @dataclass
 class RunLog:
     """A run log read back (read_run). ``series`` is keyed by recorded topic name; ``get(name)``
     finds a base name such as ``muscle_force`` as the run recorded it (RunInfo.log_topic).
     ``complete`` is False for a file cut short (the series then end at the last complete chunk;
-    ``stop_reason`` says why)."""
+    ``stop_reason`` says why). ``skipped``: per recorded topic, the messages that did not decode
+    (left out of ``series``; ``skipped_note()`` says so in one line)."""
 
     path: Path
     info: RunInfo | None
@@ -230,22 +334,50 @@ class RunLog:
     topic_types: dict
     complete: bool
     stop_reason: str | None
+    skipped: dict = field(default_factory=dict)
+
+    def log_topic(self, name: str) -> str:
+        """The recorded name of a base or full topic name."""
+        return resolve_topic(name) if self.info is None else self.info.log_topic(name)
 
     def get(self, name: str) -> TopicSeries | None:
-        if self.info is None:
-            return self.series.get(resolve_topic(name))
-        return self.series.get(self.info.log_topic(name))
+        return self.series.get(self.log_topic(name))
+
+    def skipped_note(self) -> str | None:
+        """``skipped 1 undecodable message on /excitation (UnicodeDecodeError)``, or None."""
+        return skipped_line(self.skipped)
+
+    def events(self, names: Iterable[str]) -> list[RecordedEvent]:
+        """The messages of the topics ``names`` in the order a replay of the run applies them:
+        by log time, then the order of ``names``, then file order. For a topic read raw the
+        messages that did not decode are included (``series`` None), so that they can be copied
+        verbatim; a consumer skips them, as muscle_node dropped them."""
+        keyed = []
+        for order, name in enumerate(names):
+            series = self.get(name)
+            if series is not None:
+                raw = series.raw
+                keyed.extend(((int(t), order, i, 1), RecordedEvent(
+                    int(t), name, series, i, None if raw is None else raw[i]))
+                    for i, t in enumerate(series.time_ns))
+            skipped = self.skipped.get(self.log_topic(name))
+            for position, t, data in (skipped.raw or ()) if skipped is not None else ():
+                keyed.append(((int(t), order, position, 0),
+                              RecordedEvent(int(t), name, None, -1, data)))
+        keyed.sort(key=lambda item: item[0])
+        return [event for _, event in keyed]
 
     def config(self, directory) -> RunConfig:
         """The run's RunConfig with its attached model and library YAML written to
-        ``directory`` (which must outlive any use of the returned paths)."""
+        ``directory`` (which must outlive any use of the returned paths). Raises RunLogError
+        when the log lacks them."""
         if self.info is None:
-            raise ValueError(f"{self.path} has no '{METADATA_NAME}' metadata record")
+            raise RunLogError(self.path, f"no '{METADATA_NAME}' metadata record")
         directory = Path(directory)
         paths = {}
         for name in (ATTACHMENT_MODEL, ATTACHMENT_LIBRARY):
             if name not in self.attachments:
-                raise ValueError(f"{self.path} lacks the '{name}' attachment")
+                raise RunLogError(self.path, f"no '{name}' attachment")
             paths[name] = directory / name
             paths[name].write_bytes(self.attachments[name])
         return self.info.config.replace(params=paths[ATTACHMENT_MODEL],
@@ -257,16 +389,18 @@ def read_run(path, topics: Iterable[str] | None = None, raw: Iterable[str] = (),
     """Read a run log (any ROS 2 MCAP works; vm_ros logs get muscle-aligned arrays).
 
     topics: base or full names to decode (default all); raw: base names whose CDR bytes to keep
-    (recompute copies inputs verbatim); progress(bytes_read, size) for long files.
-    Raises LogReadError when the file is missing or not MCAP.
+    (recompute copies inputs verbatim); progress(bytes_read, size) for long files. Messages that
+    do not decode are skipped and counted (RunLog.skipped).
+    Raises LogReadError when the file is missing or not MCAP, ConfigError when its
+    ``vm_ros.run`` record cannot be parsed.
     """
     reader = LogReader(path, progress=progress)
     builders: dict[str, SeriesBuilder] = {}
     info: RunInfo | None = None
     wanted = keep_raw = None
     for message in reader.messages():
-        if info is None and METADATA_NAME in reader.metadata:
-            info = RunInfo.from_metadata(reader.metadata[METADATA_NAME])
+        if info is None:
+            info = _run_info(reader, path)
         if wanted is None:
             log_topic = info.log_topic if info is not None else resolve_topic
             wanted = None if topics is None else {log_topic(t) for t in topics}
@@ -277,10 +411,22 @@ def read_run(path, topics: Iterable[str] | None = None, raw: Iterable[str] = (),
         if builder is None:
             columns = info.config.muscles if info is not None else None
             builder = builders[message.topic] = SeriesBuilder(
-                message.topic, message.type_name, columns, message.topic in keep_raw)
+                message.topic, message.type_name, columns, message.topic in keep_raw,
+                message.encoding)
         builder.add(message.data, message.log_time_ns)
-    if info is None and METADATA_NAME in reader.metadata:
-        info = RunInfo.from_metadata(reader.metadata[METADATA_NAME])
+    if info is None:
+        info = _run_info(reader, path)
+    skipped = {topic: b.skipped for topic, b in builders.items() if b.skipped.count}
+    for channel_id, count in reader.unknown_channels.items():
+        skipped[f"<channel {channel_id}>"] = SkippedMessages(count, "no channel record")
     return RunLog(Path(path), info, reader.metadata, reader.attachments,
-                  {topic: b.build() for topic, b in builders.items()}, reader.topic_types(),
-                  reader.complete, reader.stop_reason)
+                  {topic: b.build() for topic, b in builders.items() if len(b)},
+                  reader.topic_types(), reader.complete, reader.stop_reason, skipped)
+
+
+def _run_info(reader: LogReader, path) -> RunInfo | None:
+    """The parsed ``vm_ros.run`` record once the reader has met it, else None."""
+    record = reader.metadata.get(METADATA_NAME)
+    if record is None:
+        return None
+    return RunInfo.from_metadata(record, source=f"{path}: '{METADATA_NAME}' metadata")

@@ -3,17 +3,24 @@
 JointState arrays are mapped by muscle name onto the run's muscle columns (NaN where a message
 has no value for a muscle), Float64MultiArray and Float64 become (k, m) and (k,) arrays,
 vm_ros/msg/MuscleTelemetry one array per field; other types keep their decoded messages.
+
+A message that does not decode (malformed bytes, which any DDS peer can send and muscle_node
+records as received; a type vm_ros has no definition of; an encoding other than CDR) is left out
+of the series and counted in SkippedMessages; ``skipped_line`` says so in one line.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from vm_ros import telemetry as tm
-from vm_ros.recording.cdr import deserialize
+from vm_ros.recording.cdr import decoder
+from vm_ros.recording.message_types import UnknownMessageTypeError
 from vm_ros.recording.messages import TYPE_MUSCLE_TELEMETRY
+from vm_ros.recording.schema import MESSAGE_ENCODING
 
 
 @dataclass
@@ -48,10 +55,62 @@ class TopicSeries:
         return self.time_ns * 1e-9
 
 
-class SeriesBuilder:
-    """Accumulates one channel's messages (CDR) and builds its TopicSeries."""
+@dataclass
+class SkippedMessages:
+    """The messages of one topic that did not decode, left out of its series.
 
-    def __init__(self, topic: str, type_name: str, columns: tuple | None, keep_raw: bool):
+    | field | meaning |
+    | count | how many |
+    | reason | why the first one did not decode |
+    | raw | ``(position, log_time_ns, bytes)`` of each when the topic's bytes were kept, else
+      None; position: how many messages of the topic before it did decode (their index in the
+      series), so that it can be put back in file order |
+    """
+
+    count: int = 0
+    reason: str = ""
+    raw: list | None = None
+
+
+def skipped_line(skipped: Mapping[str, SkippedMessages | int]) -> str | None:
+    """One line saying what was skipped, per topic (None when nothing was), e.g.
+    ``skipped 1 undecodable message on /excitation (UnicodeDecodeError)``. ``skipped``: topic ->
+    SkippedMessages, or a count."""
+    parts = []
+    for topic, entry in sorted(skipped.items()):
+        count, reason = (entry, "") if isinstance(entry, int) else (entry.count, entry.reason)
+        if count:
+            parts.append((count, f"on {topic}" + (f" ({reason})" if reason else "")))
+    if not parts:
+        return None
+    total = sum(count for count, _ in parts)
+    noun = "message" if total == 1 else "messages"
+    if len(parts) == 1:
+        return f"skipped {total} undecodable {noun} {parts[0][1]}"
+    return f"skipped {total} undecodable {noun}: " + ", ".join(f"{c} {where}"
+                                                               for c, where in parts)
+
+
+def _type_problem(type_name: str, encoding: str):
+    """(decoding function, None), or (None, why no message of this channel can be decoded)."""
+    if encoding != MESSAGE_ENCODING:
+        return None, f"message encoding {encoding!r}, not {MESSAGE_ENCODING}"
+    if not type_name:
+        return None, "the channel has no schema"
+    try:
+        return decoder(type_name), None
+    except UnknownMessageTypeError:
+        return None, f"no bundled definition of {type_name}"
+    except ValueError:
+        return None, f"schema name {type_name!r} is not pkg/msg/Type"
+
+
+class SeriesBuilder:
+    """Accumulates one channel's messages (CDR) and builds its TopicSeries; the messages that
+    do not decode go to ``skipped`` instead."""
+
+    def __init__(self, topic: str, type_name: str, columns: tuple | None, keep_raw: bool,
+                 encoding: str = MESSAGE_ENCODING):
         self.topic, self.type_name = topic, type_name
         self.columns = columns
         self.index = {name: i for i, name in enumerate(columns or ())}
@@ -61,9 +120,29 @@ class SeriesBuilder:
         self.messages: list | None = None
         self.layout = None
         self.names = None
+        self.skipped = SkippedMessages(raw=[] if keep_raw else None)
+        self._decode, self._problem = _type_problem(type_name, encoding)
 
-    def add(self, data: bytes, log_time_ns: int) -> None:
-        msg = deserialize(self.type_name, data)
+    def __len__(self) -> int:
+        """Messages decoded so far."""
+        return len(self.times)
+
+    def add(self, data: bytes, log_time_ns: int) -> bool:
+        """Decode one message into the series; False (and counted in ``skipped``) when its
+        bytes do not decode."""
+        problem = self._problem
+        if problem is None:
+            try:
+                msg = self._decode(data)
+            except Exception as exc:  # malformed bytes: struct.error, UnicodeDecodeError...
+                problem = type(exc).__name__
+        if problem is not None:
+            skipped = self.skipped
+            skipped.count += 1
+            skipped.reason = skipped.reason or problem
+            if skipped.raw is not None:
+                skipped.raw.append((len(self.times), log_time_ns, data))
+            return False
         row = self._row(msg)
         if row is None:
             if self.messages is None:
@@ -77,6 +156,7 @@ class SeriesBuilder:
         self.times.append(log_time_ns)
         if self.raw is not None:
             self.raw.append(data)
+        return True
 
     def _by_name(self, names, values) -> np.ndarray:
         """Values of a JointState array on the run's muscle columns (NaN where missing)."""
