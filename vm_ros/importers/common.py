@@ -233,8 +233,9 @@ def library_entries(muscles, *, specific_tension_pa, density_kg_per_m3, fibre_ta
 
 
 def _round(value: float) -> float:
-    """Library numbers to 6 significant digits (far below the sources' own precision)."""
-    return float(f"{float(value):.6g}")
+    """Library numbers to 9 significant digits: far below the sources' own precision, and
+    close enough that the clipped Lmax stays inside VM's band to 1e-8."""
+    return float(f"{float(value):.9g}")
 
 
 def write_library(path, entries: dict, header: str) -> Path:
@@ -348,6 +349,41 @@ class ImportChoices:
     ur: float = 0.8
 
 
+def add_fit_arguments(parser) -> None:
+    """--degree, --samples, --held-out, --tolerance-mm (both import verbs)."""
+    parser.add_argument("--degree", type=int, default=6,
+                        help="highest total polynomial degree tried (default 6)")
+    parser.add_argument("--samples", type=int, default=1000,
+                        help="fitted poses (default 1000; held-out: a quarter, at least 50)")
+    parser.add_argument("--held-out", type=int, default=None, help="held-out poses")
+    parser.add_argument("--tolerance-mm", type=float, default=0.02,
+                        help="held-out length RMS at which a lower degree is accepted "
+                             "(default 0.02 mm)")
+
+
+def add_parameter_arguments(parser) -> None:
+    """--specific-tension, --fibre-default, --ur (both import verbs); see ``choices_from_args``."""
+    parser.add_argument("--specific-tension", default="rajagopal", metavar="N_PER_CM2",
+                        help="mass = F0 * density * l0 / this: N/cm^2, 'rajagopal' (60, the "
+                             "default: masses as measured volumes) or 'vm' (VM's 31.8: VM's F0 "
+                             "equals the model's)")
+    parser.add_argument("--fibre-default", type=float, default=None, metavar="FRACTION",
+                        help="fpcsa_slow for muscles without fibre-type data (default 0.5, "
+                             "config/fibre_types.yaml)")
+    parser.add_argument("--ur", type=float, default=0.8,
+                        help="drive at which all units are recruited (default 0.8)")
+
+
+def choices_from_args(args) -> ImportChoices:
+    """ImportChoices from the ``add_parameter_arguments`` options; VmRosError on a bad value."""
+    if args.fibre_default is not None and not 0 <= args.fibre_default <= 1:
+        raise VmRosError(f"--fibre-default {args.fibre_default}: give a fraction in [0, 1]")
+    if not 0 < args.ur <= 1:
+        raise VmRosError(f"--ur {args.ur}: give a value in (0, 1]")
+    return ImportChoices(specific_tension_option(args.specific_tension), args.fibre_default,
+                         args.ur)
+
+
 def write_import(out_dir, geometry, muscles, choices: ImportChoices, *, title: str,
                  origin: str, params=None, fibre_table=None, file=None) -> dict:
     """Write DIR/geometry.yaml, DIR/muscles.yaml and DIR/summary.txt, and print the summary.
@@ -388,6 +424,7 @@ def write_import(out_dir, geometry, muscles, choices: ImportChoices, *, title: s
     return paths
 
 
-__all__ = ["ImportChoices", "ImportedMuscle", "LMAX_BAND", "SpecificTension", "choices_text",
+__all__ = ["ImportChoices", "ImportedMuscle", "LMAX_BAND", "SpecificTension",
+           "add_fit_arguments", "add_parameter_arguments", "choices_from_args", "choices_text",
            "fibre_fraction", "library_entries", "load_fibre_table", "name_stem", "print_fit_table",
            "print_summary", "specific_tension_option", "write_import", "write_library"]

@@ -1,0 +1,94 @@
+"""OpenSim motion files (.mot, .sto) without OpenSim: a time column and coordinate columns.
+
+Format: header lines up to ``endheader`` (among them ``inDegrees=yes|no``, required here because
+it decides the units), then a tab- or space-separated line of column labels starting with
+``time``, then one row of numbers per frame. Labels are coordinate names (IK output) or state
+paths (``/jointset/knee_r/knee_angle_r/value``; ``.../speed`` and non-coordinate columns of a
+states file are skipped). Values stay as written; ``Motion.to_si`` converts the rotational columns
+from degrees when the header says so.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from vm_ros.errors import VmRosError
+
+
+@dataclass(frozen=True)
+class Motion:
+    """One motion file: ``names`` (coordinate per column), ``time`` (n_frames,) s, ``values``
+    (n_frames, n_columns) as written, ``in_degrees`` from the header."""
+
+    path: str
+    names: tuple[str, ...]
+    time: np.ndarray
+    values: np.ndarray
+    in_degrees: bool
+
+    def to_si(self, rotational) -> np.ndarray:
+        """Values in rad (rotational columns, converted when the file is in degrees) and m."""
+        if not self.in_degrees:
+            return self.values.copy()
+        factor = np.array([np.pi / 180.0 if n in rotational else 1.0 for n in self.names])
+        return self.values * factor
+
+
+def _label(label: str) -> str | None:
+    """Coordinate name of a column label, or None for a column that is not a coordinate value."""
+    if "/" not in label:
+        return label
+    parts = [p for p in label.split("/") if p]
+    if len(parts) >= 3 and parts[0] == "jointset" and parts[-1] == "value":
+        return parts[-2]
+    return None
+
+
+def read_motion(path) -> Motion:
+    """Read a .mot/.sto file; VmRosError naming the file and the problem."""
+    path = Path(path)
+    try:
+        lines = path.read_text(encoding="utf-8", errors="replace").splitlines()
+    except OSError as exc:
+        raise VmRosError(f"motion {path}: cannot read ({exc.strerror or exc})") from exc
+    try:
+        end = next(i for i, line in enumerate(lines) if line.strip().lower() == "endheader")
+    except StopIteration:
+        raise VmRosError(f"motion {path}: no 'endheader' line: not an OpenSim .mot/.sto "
+                         "file") from None
+    in_degrees = None
+    for line in lines[:end]:
+        key, _, value = line.partition("=")
+        if key.strip().lower() == "indegrees":
+            in_degrees = value.strip().lower() in ("yes", "true", "1")
+    if in_degrees is None:
+        raise VmRosError(f"motion {path}: the header has no 'inDegrees=yes|no' line, so the "
+                         "units are unknown; add it")
+    body = [line for line in lines[end + 1:] if line.strip()]
+    if not body:
+        raise VmRosError(f"motion {path}: no column labels after 'endheader'")
+    labels = body[0].split("\t") if "\t" in body[0] else body[0].split()
+    labels = [label.strip() for label in labels]
+    if not labels or labels[0].lower() != "time":
+        raise VmRosError(f"motion {path}: the first column must be 'time', got "
+                         f"{labels[0] if labels else None!r}")
+    try:
+        data = np.array([[float(v) for v in row.split()] for row in body[1:]], dtype=float)
+    except ValueError as exc:
+        raise VmRosError(f"motion {path}: a data row is not numbers ({exc})") from None
+    if data.ndim != 2 or data.shape[0] == 0 or data.shape[1] != len(labels):
+        raise VmRosError(f"motion {path}: need rows of {len(labels)} numbers (one per label), "
+                         f"got {data.shape}")
+    if not np.all(np.isfinite(data)):
+        raise VmRosError(f"motion {path}: non-finite values")
+    keep = [(i, name) for i, name in enumerate(map(_label, labels)) if i > 0 and name]
+    if not keep:
+        raise VmRosError(f"motion {path}: no coordinate columns")
+    return Motion(str(path), tuple(n for _, n in keep), data[:, 0],
+                  data[:, [i for i, _ in keep]], bool(in_degrees))
+
+
+__all__ = ["Motion", "read_motion"]
