@@ -28,7 +28,9 @@ STEP = 1e-5
 
 @pytest.fixture(scope="module")
 def osim():
-    return pytest.importorskip("opensim", reason=SKIP_REASON)
+    opensim = pytest.importorskip("opensim", reason=SKIP_REASON)
+    opensim.Logger.setLevelString("error")
+    return opensim
 
 
 @pytest.fixture(scope="module")
