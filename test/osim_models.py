@@ -1,5 +1,6 @@
 """Small OpenSim models for the importer tests, built with the OpenSim Python API (planar, 2-4
-muscles, quick to sample). Import this module only after ``pytest.importorskip("opensim")``.
+muscles, quick to sample). Importing this module skips the importing test when opensim is not
+installed, so import it inside fixtures (``osim_models.osim`` is the opensim module).
 
 - ``build_knee(path)``: one knee (pin joint, ``knee_angle`` -2.0..0.1 rad, flexion negative) with
   a patella body on its own pin (``patella_angle``) driven from the knee angle by a
@@ -17,7 +18,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import opensim as osim
+import pytest
+
+osim = pytest.importorskip(
+    "opensim", reason='the OpenSim tests need the opensim extra (pip install ".[opensim]")')
+osim.Logger.setLevelString("error")
 
 # patella_angle = a2 q^2 + a1 q + a0 (q = knee_angle), PolynomialFunction order: highest first
 PATELLA_COUPLING = (0.02, 0.55, 0.0)

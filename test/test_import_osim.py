@@ -19,7 +19,6 @@ import pytest
 
 from vm_ros.importers.motion import read_motion
 
-SKIP_REASON = 'the OpenSim importer needs the opensim extra (pip install ".[opensim]")'
 VM_ROS = str(Path(sys.executable).with_name("vm-ros"))
 SMOOTH_KNEE = ("vas_pat", "ext_wrap", "flex")
 HIP_KNEE = ("rf", "vas", "ham", "ilio")
@@ -28,9 +27,9 @@ STEP = 1e-5
 
 @pytest.fixture(scope="module")
 def osim():
-    opensim = pytest.importorskip("opensim", reason=SKIP_REASON)
-    opensim.Logger.setLevelString("error")
-    return opensim
+    import osim_models
+
+    return osim_models.osim
 
 
 @pytest.fixture(scope="module")

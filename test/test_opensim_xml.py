@@ -22,8 +22,6 @@ from vm_ros.geometry.opensim_xml import (
     read_function_based_paths,
 )
 
-SKIP_REASON = 'comparing with OpenSim needs the opensim extra (pip install ".[opensim]")'
-
 
 def path_xml(coefficients, dimension=2, order=2, coords="/jointset/a/qa /jointset/b/qb",
              function="MultivariatePolynomialFunction", extra=""):
@@ -80,9 +78,9 @@ def test_reader_checks_coordinates_and_notes_moment_arm_functions():
 
 @pytest.fixture(scope="module")
 def osim():
-    opensim = pytest.importorskip("opensim", reason=SKIP_REASON)
-    opensim.Logger.setLevelString("error")
-    return opensim
+    import osim_models
+
+    return osim_models.osim
 
 
 @pytest.fixture(scope="module")
