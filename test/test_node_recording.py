@@ -1,12 +1,14 @@
 """muscle_node's run log (vm_ros.node_recording): opened at the model start, earlier messages
-buffered, readable by read_run (no ROS needed: messages are CDR-encoded from bundled
-definitions)."""
+buffered, readable by read_run, a full disk reported in the status, never raised (no ROS needed:
+messages are CDR-encoded from bundled definitions)."""
 
 from __future__ import annotations
 
 import json
+import time
 
 import pytest
+from test_recording_writer import FullDisk
 
 from vm_ros import telemetry as tm
 from vm_ros.node_recording import NodeRunLog, node_run_extra
@@ -87,3 +89,50 @@ def test_unwritable_path_fails_at_once(tmp_path):
     with pytest.raises(RecorderError) as info:
         NodeRunLog(blocker / "run.mcap", run_info)
     assert str(blocker) in str(info.value)
+
+
+# --- a full disk: the status says so, nothing is raised ------------------------------------------
+
+
+def test_disk_full_when_the_log_opens_is_a_failed_state(tmp_path):
+    """The header and attachments do not fit: start() and close() do not raise; the status is
+    failed with the error, every message counted as dropped, on_error called once."""
+    errors = []
+    log = NodeRunLog(tmp_path / "run.mcap", run_info, on_error=errors.append,
+                     opener=lambda path: FullDisk(path, room=4096))
+    data = serialize(tm.TYPE_FLOAT64, float64_fields(0.0))
+    assert log.write(tm.TOPIC_ENERGY_TOTAL, data, T0)  # buffered before the start
+    log.start(T0)
+    for k in range(5):
+        assert not log.write(tm.TOPIC_ENERGY_TOTAL, data, T0 + k)
+    log.close()
+    log.close()
+    status = log.status
+    assert not status.ok and "No space left on device" in status.error
+    assert (status.written, status.dropped, status.bytes_written) == (0, 6, 4096)
+    assert len(errors) == 1 and "No space left on device" in errors[0]
+
+
+def test_disk_full_later_counts_the_messages_in_the_file(tmp_path):
+    path = tmp_path / "run.mcap"
+    errors = []
+    room = 60_000  # the attachments (~40 kB), then a few chunks
+    log = NodeRunLog(path, run_info, on_error=errors.append, chunk_size=2048,
+                     opener=lambda p: FullDisk(p, room=room))
+    log.start(T0)
+    count = 0
+    while log.status.ok or count < 3000:
+        log.write(tm.TOPIC_ENERGY_TOTAL, serialize(tm.TYPE_FLOAT64, float64_fields(count)),
+                  T0 + count)
+        count += 1
+        if count % 100 == 0:
+            time.sleep(0.001)  # let the writer thread keep up
+        assert count < 100_000, "the disk never filled"
+    log.close()
+    status = log.status
+    assert not status.ok and "No space left on device" in status.error
+    in_file = read_run(path).get(tm.TOPIC_ENERGY_TOTAL)
+    assert status.written == len(in_file) > 0
+    assert in_file.fields["data"].tolist() == list(range(len(in_file)))
+    assert status.written + status.dropped == count and status.bytes_written == room
+    assert len(errors) == 1 and str(path) in errors[0]

@@ -188,6 +188,66 @@ def test_write_error_mid_run_is_reported_not_raised(tmp_path):
     assert final.dropped >= 1 and 0 < final.bytes_written <= 4096
 
 
+class FullDisk(io.RawIOBase):
+    """A real file on a disk with room for ``room`` bytes: a write that does not fit writes what
+    fits (as the OS does), the next one fails with ENOSPC. ``writes`` logs (offset, size) of
+    every write the disk took whole."""
+
+    def __init__(self, path, room):
+        self._file = open(path, "wb", buffering=0)  # noqa: SIM115 (closed by close())
+        self.room, self.size, self.writes = room, 0, []
+
+    def writable(self):
+        return True
+
+    def write(self, data):
+        if self.size >= self.room:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        data = bytes(data)[: self.room - self.size]
+        count = self._file.write(data)
+        if count == len(data):
+            self.writes.append((self.size, count))
+        self.size += count
+        return count
+
+    def close(self):
+        self._file.close()
+        super().close()
+
+
+def _write_floats(path, room, count, **options):
+    """``count`` Float64 messages through a recorder on a FullDisk of ``room`` bytes."""
+    disks = []
+
+    def opener(p):
+        disks.append(FullDisk(p, room))
+        return disks[0]
+
+    rec = McapRecorder(path, chunk_size=512, opener=opener, **options)
+    rec.add_channel("/t", FLOAT64)
+    for k in range(count):
+        rec.write("/t", _float64(k), k)
+    rec.close()
+    return rec.status, disks[0]
+
+
+def test_status_counts_the_messages_in_the_file_wherever_the_disk_fills(tmp_path):
+    """written = what a reader gets back and written + dropped = every message, whether the
+    disk fills inside a chunk, just after one (in its message index) or in the summary."""
+    path = tmp_path / "full.mcap"
+    count = 400
+    status, disk = _write_floats(path, 1 << 30, count)  # room enough: where the chunks fall
+    assert status.ok and status.written == count
+    ends = [offset + size for offset, size in disk.writes]
+    rooms = {end + extra for end in ends[3:-1:7] for extra in (-5, 0, 3)} | {ends[-2] + 3}
+    for room in sorted(rooms):
+        status, _ = _write_floats(path, room, count)
+        assert not status.ok and "No space left on device" in status.error, room
+        in_file = sum(1 for _ in LogReader(path).messages())
+        assert (status.written, status.written + status.dropped) == (in_file, count), room
+    assert in_file > 0  # failed in the summary: every message is in the file
+
+
 def test_unwritable_path_is_named_at_start(tmp_path):
     blocker = tmp_path / "not_a_dir"
     blocker.write_text("")

@@ -6,6 +6,11 @@ file created) when the node starts, the log itself is opened when the model star
 written before that is held in a bounded buffer and written first. A node stopped before the model
 started still leaves a complete file (metadata key ``started`` = false).
 
+Recording never stops the model: when the disk is full (or any other write error) at the
+start of the log or later, the status turns failed (``ok`` False, the error, the messages that
+reached the file counted as written), later messages are dropped and counted, ``on_error`` is
+called once with the error, and closing is quiet.
+
 Times, chosen so that `vm-ros recompute` applies every input at the step where the node did:
 inputs are logged at the model time of the first step that uses them (the current model time when
 they arrive; ROS time before the start) with the ROS receipt time as publish time; outputs at their
@@ -14,12 +19,14 @@ stamp (model time); /diagnostics at the ROS time.
 
 from __future__ import annotations
 
+import contextlib
 import json
 from collections import deque
 from collections.abc import Callable
 from pathlib import Path
 
 from vm_ros import telemetry as tm
+from vm_ros.errors import VmRosError
 from vm_ros.recording.run_log import (
     INPUT_TOPICS,
     OUTPUT_TOPICS,
@@ -46,19 +53,27 @@ class NodeRunLog:
     """A run log opened at the model start; writes before it are buffered (at most
     ``buffer_size`` messages, the oldest dropped first).
 
-    run_info(start_time_ns or None) -> RunInfo; qos: ``{base topic: offered_qos_profiles YAML}``.
-    Raises RecorderError naming the path when the file cannot be created.
+    run_info(start_time_ns or None) -> RunInfo; qos: ``{base topic: offered_qos_profiles YAML}``;
+    on_error(text): called once when recording fails (also settable as an attribute);
+    recorder_options: passed to McapRecorder (chunk_size, opener...).
+    Raises RecorderError naming the path when the file cannot be created; never after that.
     """
 
     def __init__(self, path, run_info: Callable[[int | None], RunInfo], namespace: str = "/",
-                 qos: dict | None = None, buffer_size: int = 10000):
+                 qos: dict | None = None, buffer_size: int = 10000,
+                 on_error: Callable[[str], object] | None = None, **recorder_options):
         self.path = Path(path)
         self._run_info = run_info
         self._namespace = namespace
         self._qos = dict(qos or {})
+        self._recorder_options = recorder_options
         self._buffer: deque = deque(maxlen=buffer_size)
-        self._buffer_dropped = 0
+        self._dropped = 0  # by this object: buffer overflow, or after the log failed to open
         self.recorder: McapRecorder | None = None
+        self.on_error = on_error
+        self._open_error: str | None = None
+        self._bytes_before_error = 0
+        self._failure_reported = False
         self._closed = False
         try:  # fail at start-up, not at the model start
             self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -77,23 +92,39 @@ class NodeRunLog:
 
     def write(self, topic: str, data: bytes, log_time_ns: int,
               publish_time_ns: int | None = None) -> bool:
-        """Log one serialised message on a base topic name (never blocks)."""
+        """Log one serialised message on a base topic name (never blocks). False when it is
+        dropped (counted in the status)."""
         full = resolve_topic(topic, self._namespace)
         if self.recorder is not None:
-            return self.recorder.write(full, data, log_time_ns, publish_time_ns)
-        if self._closed:
+            if self.recorder.write(full, data, log_time_ns, publish_time_ns):
+                return True
+            self._report_failure()  # dropped: queue full, or the recorder failed
+            return False
+        if self._open_error is not None or self._closed:
+            self._dropped += 1
             return False
         if len(self._buffer) == self._buffer.maxlen:
-            self._buffer_dropped += 1
+            self._dropped += 1
         self._buffer.append((full, data, log_time_ns, publish_time_ns))
         return True
 
     def start(self, start_time_ns: int | None) -> None:
-        """Open the run log with the model's start time and write the buffered messages."""
-        if self.recorder is not None:
+        """Open the run log with the model's start time and write the buffered messages. When
+        the log cannot be opened (disk full...), the status turns failed instead."""
+        if self.recorder is not None or self._open_error is not None:
             return
-        self.recorder = open_run_log(self.path, self._run_info(start_time_ns),
-                                     topics=LOG_TOPICS, qos=self._qos)
+        try:
+            self.recorder = open_run_log(self.path, self._run_info(start_time_ns),
+                                         topics=LOG_TOPICS, qos=self._qos,
+                                         **self._recorder_options)
+        except (VmRosError, OSError) as exc:
+            self._open_error = str(exc)
+            self._dropped += len(self._buffer)
+            self._buffer.clear()
+            with contextlib.suppress(OSError):  # what reached the file before the error
+                self._bytes_before_error = self.path.stat().st_size
+            self._report_failure()
+            return
         while self._buffer:
             self.recorder.write(*self._buffer.popleft())
 
@@ -104,15 +135,28 @@ class NodeRunLog:
         if self.recorder is None:
             self.start(None)
         self._closed = True
-        self.recorder.close()
+        if self.recorder is not None:
+            self.recorder.close()
+
+    def _report_failure(self) -> None:
+        """Call on_error, once, when recording has failed."""
+        if self._failure_reported:
+            return
+        status = self.status
+        if not status.ok:
+            self._failure_reported = True
+            if self.on_error is not None:
+                self.on_error(f"MCAP recording failed, the model keeps running without it: "
+                              f"{status.error}")
 
     @property
     def status(self) -> RecorderStatus:
         if self.recorder is None:
-            return RecorderStatus(ok=True, error=None, written=0, dropped=self._buffer_dropped,
-                                  bytes_written=0, path=str(self.path))
+            return RecorderStatus(ok=self._open_error is None, error=self._open_error,
+                                  written=0, dropped=self._dropped,
+                                  bytes_written=self._bytes_before_error, path=str(self.path))
         st = self.recorder.status
-        return RecorderStatus(st.ok, st.error, st.written, st.dropped + self._buffer_dropped,
+        return RecorderStatus(st.ok, st.error, st.written, st.dropped + self._dropped,
                               st.bytes_written, st.path)
 
 

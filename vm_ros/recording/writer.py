@@ -14,7 +14,10 @@ Threading: ``write`` puts (topic, bytes, times) on a bounded queue and returns; 
 owns the ``mcap.writer.Writer`` and yields the GIL every few messages. When the queue is full,
 or after the writer failed, ``write`` returns False and counts the message as dropped. A write
 error (disk full...) is caught by the writer thread: ``status.ok`` turns False with the error
-text and later messages are dropped; the caller never sees an exception.
+text and later messages are dropped; the caller never sees an exception. ``status.written`` then
+counts the messages that reached the file (a reader gets them back): those of the chunk being
+written are lost with it, unless the chunk itself was written whole and the error came after it
+(in its message index, say).
 
 Crash safety: messages are written in zstd chunks of ``chunk_size`` bytes (uncompressed); each
 closed chunk goes straight to the OS (the sink is unbuffered), so a process killed with SIGKILL
@@ -33,6 +36,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
 
+from mcap.opcode import Opcode
 from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
 
 from vm_ros.errors import VmRosError
@@ -70,7 +74,7 @@ class RecorderStatus:
     | ok | False once a write failed (the file is then incomplete) |
     | error | the failure, as text, or None |
     | written | messages handed to the MCAP writer (if a chunk cannot be written, its messages
-      move to dropped) |
+      move to dropped: after a failure, the messages in the file) |
     | dropped | messages not recorded (queue full, lost with a failed chunk, after a failure or
       after close) |
     | bytes_written | bytes that reached the file |
@@ -93,20 +97,28 @@ class _ChannelSpec:
 
 
 class _FileSink:
-    """Unbuffered output for mcap's Writer: each record it emits is handed to the OS at once."""
+    """Unbuffered output for mcap's Writer: each record it emits is handed to the OS at once.
+
+    ``chunks`` counts the Chunk records that reached the file whole: mcap's Writer hands each
+    chunk over in one write of its own, before the chunk's message indexes, so after a failure
+    the recorder can tell whether the chunk it was closing made it."""
 
     def __init__(self, raw: BinaryIO):
         self._raw = raw
         self.position = 0
+        self.chunks = 0
 
     def write(self, data) -> int:
-        view = memoryview(data)
+        view = memoryview(data).cast("B")
+        is_chunk = view.nbytes > 0 and view[0] == Opcode.CHUNK
         while view.nbytes:
             count = self._raw.write(view)
             if not count:
                 raise OSError("short write: the file accepted no bytes")
             self.position += count
             view = view[count:]
+        if is_chunk:
+            self.chunks += 1
         return len(data)
 
     def tell(self) -> int:
@@ -187,9 +199,11 @@ class McapRecorder:
         self._schema_ids: dict[str, int] = {}
         self._channel_ids: dict[str, int] = {}
         self._sequence: dict[str, int] = {}
-        # writer thread only: messages in the chunk being built, wall time of its first one
+        # writer thread only: messages in the chunk being built, wall time of its first one,
+        # chunks known to be in the file
         self._open_chunk_count = 0
         self._chunk_opened_at: float | None = None
+        self._chunks_seen = self._sink.chunks
         self._thread = threading.Thread(target=self._run, name=f"mcap-recorder {self._path.name}",
                                         daemon=True)
         self._thread.start()
@@ -318,31 +332,33 @@ class McapRecorder:
 
     def _add_message(self, topic: str, data: bytes, log_time: int, publish_time: int) -> None:
         if topic not in self._channel_ids:
-            self._register_pending()
+            try:
+                self._register_pending()  # may close the open chunk
+            except Exception:
+                self._count_dropped(1)  # never reached the writer
+                raise
+            self._note_written_chunks()
         sequence = self._sequence[topic] = self._sequence[topic] + 1
-        position = self._sink.position
-        try:
-            self._writer.add_message(self._channel_ids[topic], log_time, data, publish_time,
-                                     sequence)
-        except Exception:
-            self._count_dropped(1)
-            raise
+        # in the open chunk from here on, even if adding it closes the chunk and that fails
         self._written += 1
-        if self._sink.position != position:  # this message closed the chunk, which is written
-            self._chunk_written()
-        else:
-            self._open_chunk_count += 1
-            if self._chunk_opened_at is None:
-                self._chunk_opened_at = time.monotonic()
+        self._open_chunk_count += 1
+        if self._chunk_opened_at is None:
+            self._chunk_opened_at = time.monotonic()
+        self._writer.add_message(self._channel_ids[topic], log_time, data, publish_time,
+                                 sequence)
+        self._note_written_chunks()
 
-    def _chunk_written(self) -> None:
-        self._chunk_opened_at, self._open_chunk_count = None, 0
+    def _note_written_chunks(self) -> None:
+        """A new chunk in the file holds every message of the open chunk: start a new one."""
+        if self._sink.chunks != self._chunks_seen:
+            self._chunks_seen = self._sink.chunks
+            self._chunk_opened_at, self._open_chunk_count = None, 0
 
     def _flush_if_old(self) -> None:
         if self._chunk_opened_at is not None and (
                 time.monotonic() - self._chunk_opened_at >= self._flush_interval_s):
             self._writer.flush()
-            self._chunk_written()
+            self._note_written_chunks()
 
     def _register_pending(self) -> None:
         with self._channel_lock:
@@ -371,7 +387,9 @@ class McapRecorder:
                 self._fail(exc)
 
     def _fail(self, exc: Exception) -> None:
-        """Record the first failure; the open chunk's messages are lost with it."""
+        """Record the first failure; the open chunk's messages are lost with it unless the
+        chunk reached the file before the error."""
+        self._note_written_chunks()
         lost, self._open_chunk_count = self._open_chunk_count, 0
         self._written -= lost
         self._count_dropped(lost)
