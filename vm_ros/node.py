@@ -6,16 +6,22 @@ layouts). Parameters: vm_ros.node_params; bad-input behaviours and diagnostics c
 vm_ros.node_health. Topics (relative names, so namespaces and remapping apply):
 
 - in ``excitation`` (JointState), ``excitation_array`` (Float64MultiArray), ``muscle_kinematics``
-  (JointState): reliable, keep last qos_depth, volatile. A drive sent once must arrive (best
-  effort lost messages on a loaded machine); a best-effort (sensor-data) publisher needs
+  (JointState), and with a ``geometry`` ``joint_states`` (JointState): reliable, keep last
+  qos_depth, volatile. A drive sent once must arrive (best effort lost messages on a loaded
+  machine); a best-effort (sensor-data) publisher needs
   ``qos_overrides./<topic>.subscription.reliability: best_effort``.
 - out ``muscle_force`` (JointState), ``energy_rate`` (Float64MultiArray), ``energy_rate_total``
-  and ``energy_total`` (Float64): reliable, keep last qos_depth, volatile.
+  and ``energy_total`` (Float64), and with a ``geometry`` ``joint_efforts`` (JointState) and
+  ``joint_effort_commands`` (Float64MultiArray): reliable, keep last qos_depth, volatile.
 - out ``/diagnostics`` (DiagnosticArray): reliable, keep last qos_depth, volatile; on a
   steady-clock timer, so it keeps coming while a simulated clock is paused.
 
 Every publisher and subscription accepts the standard ``qos_overrides`` parameters (history,
 depth, reliability).
+
+Joint space (vm_ros.joint_space): node muscles that the geometry covers are driven from
+joint_states; each published step's tendon forces go back through the moment arms of the joint
+sample that step used, as generalized forces in the robot's convention.
 
 Outgoing messages are serialised once; the same bytes are published and logged. Inputs are
 subscribed raw, logged as received, then deserialised.
@@ -62,11 +68,19 @@ from std_msgs.msg import Float64, Float64MultiArray
 
 from vm_ros import telemetry as tm
 from vm_ros.errors import ConfigError, VmRosError
-from vm_ros.node_health import ISSUE_KINDS, DurationWindow, Issue, IssueLog, format_value
+from vm_ros.joint_space import JointInputs, JointSpace
+from vm_ros.node_health import (
+    ISSUE_KINDS,
+    QUIET_KINDS,
+    DurationWindow,
+    Issue,
+    IssueLog,
+    format_value,
+)
 from vm_ros.node_inputs import InputLimits, NodeInputs
 from vm_ros.node_params import PARAMS, PARAMS_SOURCE, NodeConfig, ParamSpec
 from vm_ros.node_params import runtime_parameter_names as _runtime_names
-from vm_ros.node_recording import NodeRunLog, node_run_extra
+from vm_ros.node_recording import LOG_TOPICS, NodeRunLog, node_run_extra
 from vm_ros.node_timing import StepScheduler
 from vm_ros.recording.qos import offered_qos_profiles_yaml
 from vm_ros.recording.run_config import RunConfig
@@ -80,6 +94,8 @@ _ROS_TYPES = {"bool": ParameterType.PARAMETER_BOOL, "integer": ParameterType.PAR
               "double": ParameterType.PARAMETER_DOUBLE, "string": ParameterType.PARAMETER_STRING,
               "string_array": ParameterType.PARAMETER_STRING_ARRAY,
               "double_array": ParameterType.PARAMETER_DOUBLE_ARRAY}
+_EMPTY_ARRAY_TYPES = {"string_array": Parameter.Type.STRING_ARRAY,
+                      "double_array": Parameter.Type.DOUBLE_ARRAY}
 
 
 def parameter_descriptor(spec: ParamSpec) -> ParameterDescriptor:
@@ -156,15 +172,21 @@ class MuscleNode(Node):
             params=Path(c.model) if c.model else None,
             units_per_type=c.units_per_type or None)
         self.bank = self.run_config.make_bank()
+        self.joint_space = (JointSpace.load(c.geometry, c.joint_map, self.bank.names, c.joints,
+                                            PARAMS_SOURCE) if c.geometry else None)
+        driven = self.joint_space.driven if self.joint_space is not None else ()
         limits = InputLimits.for_bank(self.bank, c)
         initial = np.array(c.initial_path_length_m) if c.initial_path_length_m else None
-        if initial is not None and np.any(
-                (initial < limits.path_length_min_m) | (initial > limits.path_length_max_m)):
+        used = ~np.isin(self.bank.names, driven)  # joint-driven muscles wait for joint_states
+        if initial is not None and np.any(used & (
+                (initial < limits.path_length_min_m) | (initial > limits.path_length_max_m))):
             raise ConfigError(PARAMS_SOURCE, "initial_path_length_m", list(initial),
                               "outside the physical range "
                               f"{np.round(limits.path_length_min_m, 4).tolist()} .. "
                               f"{np.round(limits.path_length_max_m, 4).tolist()} m")
-        self.inputs = NodeInputs(self.bank.names, limits, initial)
+        self.inputs = NodeInputs(self.bank.names, limits, initial, joint_driven=driven)
+        self.joint_inputs = (JointInputs(self.joint_space, self.inputs)
+                             if self.joint_space is not None else None)
         self.scheduler = StepScheduler(c.step_ns, c.max_catch_up_steps)
         self.issues = IssueLog(LOG_THROTTLE_S)
         self._reported_counts = dict(self.issues.counts)
@@ -184,33 +206,51 @@ class MuscleNode(Node):
             c.diagnostics_period_s, self._publish_diagnostics,
             clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.add_on_set_parameters_callback(self._on_set_parameters)
+        self._log_joint_space(initial is not None)
         self.get_logger().info(
             f"{self.bank.n} muscles ({', '.join(self.bank.names)}), {c.recruitment} recruitment, "
             f"{c.recovery_mode} recovery, model {c.model_rate_hz:g} Hz, publish every "
             f"{c.publish_every_steps} steps; "
-            + ("waiting for muscle_kinematics" if not self.inputs.ready else "starting"))
+            + (self._state_text() if not self.inputs.ready else "starting"))
+
+    def _log_joint_space(self, initial_given: bool) -> None:
+        space = self.joint_space
+        if space is None:
+            return
+        log = self.get_logger()
+        log.info(f"{space.summary()} (geometry {self.config.geometry})")
+        if space.ignored:
+            log.info(f"geometry muscles not in the muscles parameter, ignored: "
+                     f"{', '.join(space.ignored)}")
+        if initial_given:
+            log.info(f"initial_path_length_m not used for the joint-driven muscles "
+                     f"({', '.join(space.driven)}): they wait for joint_states")
 
     def _create_endpoints(self, depth: int) -> None:
         """Publishers and raw subscriptions, each with its own QoS profile that the standard
         ``qos_overrides.<topic>.<publisher|subscription>.<history|depth|reliability>``
         parameters may change."""
         overridable = QoSOverridingOptions.with_default_policies()
+        outputs = [(tm.TOPIC_FORCE, JointState), (tm.TOPIC_ENERGY_RATE, Float64MultiArray),
+                   (tm.TOPIC_ENERGY_RATE_TOTAL, Float64), (tm.TOPIC_ENERGY_TOTAL, Float64),
+                   (tm.TOPIC_DIAGNOSTICS, DiagnosticArray)]
+        inputs = [(tm.TOPIC_EXCITATION, JointState),
+                  (tm.TOPIC_EXCITATION_ARRAY, Float64MultiArray),
+                  (tm.TOPIC_KINEMATICS, JointState)]
+        if self.joint_space is not None:
+            outputs += [(tm.TOPIC_JOINT_EFFORTS, JointState),
+                        (tm.TOPIC_JOINT_EFFORT_COMMANDS, Float64MultiArray)]
+            inputs += [(tm.TOPIC_JOINT_STATES, JointState)]
         try:
             self._publishers_by_topic = {
                 topic: self.create_publisher(msg_type, topic, stream_qos(depth),
                                              qos_overriding_options=overridable)
-                for topic, msg_type in ((tm.TOPIC_FORCE, JointState),
-                                        (tm.TOPIC_ENERGY_RATE, Float64MultiArray),
-                                        (tm.TOPIC_ENERGY_RATE_TOTAL, Float64),
-                                        (tm.TOPIC_ENERGY_TOTAL, Float64),
-                                        (tm.TOPIC_DIAGNOSTICS, DiagnosticArray))}
+                for topic, msg_type in outputs}
             self._subscriptions_by_topic = {
                 topic: self.create_subscription(
                     msg_type, topic, self._receiver(topic, msg_type), stream_qos(depth),
                     qos_overriding_options=overridable, raw=True)
-                for topic, msg_type in ((tm.TOPIC_EXCITATION, JointState),
-                                        (tm.TOPIC_EXCITATION_ARRAY, Float64MultiArray),
-                                        (tm.TOPIC_KINEMATICS, JointState))}
+                for topic, msg_type in inputs}
         except (RuntimeError, InvalidQosOverridesError, InvalidParameterTypeException) as exc:
             raise ConfigError(PARAMS_SOURCE, "qos_overrides", None, str(exc)) from exc
 
@@ -218,9 +258,9 @@ class MuscleNode(Node):
         values = {}
         for spec in PARAMS:
             try:
-                if spec.kind == "double_array" and not spec.default:
+                if spec.kind in _EMPTY_ARRAY_TYPES and not spec.default:
                     # an empty list has no type for rclpy: declare typed, unset
-                    self.declare_parameter(spec.name, Parameter.Type.DOUBLE_ARRAY,
+                    self.declare_parameter(spec.name, _EMPTY_ARRAY_TYPES[spec.kind],
                                            parameter_descriptor(spec))
                     try:
                         values[spec.name] = list(self.get_parameter(spec.name).value)
@@ -286,12 +326,13 @@ class MuscleNode(Node):
     def _receiver(self, topic: str, msg_type):
         handle = {tm.TOPIC_EXCITATION: self._on_excitation,
                   tm.TOPIC_EXCITATION_ARRAY: self._on_excitation_array,
-                  tm.TOPIC_KINEMATICS: self._on_kinematics}[topic]
+                  tm.TOPIC_KINEMATICS: self._on_kinematics,
+                  tm.TOPIC_JOINT_STATES: self._on_joint_states}[topic]
         def receive(data: bytes) -> None:
             now_ns = self.get_clock().now().nanoseconds
             # the model time of the first step that will use this message (vm_ros.node_recording)
             effective_ns = self.scheduler.model_time_ns if self.scheduler.started else now_ns
-            if self.run_log is not None:
+            if self.run_log is not None and topic in LOG_TOPICS:  # joint topics: not yet
                 self.run_log.write(topic, data, effective_ns, now_ns)
             try:
                 msg = deserialize_message(data, msg_type)
@@ -311,10 +352,18 @@ class MuscleNode(Node):
     def _on_kinematics(self, msg: JointState, now_ns: int):
         return self.inputs.on_kinematics(msg.name, msg.position, msg.velocity, now_ns)
 
+    def _on_joint_states(self, msg: JointState, now_ns: int):
+        return self.joint_inputs.on_joint_states(msg.name, msg.position, msg.velocity, now_ns)
+
     def _report(self, issues) -> None:
         for issue in issues:
             line = self.issues.record(issue, time.monotonic())
-            if line is not None:
+            if line is None:
+                continue
+            # rclpy ties a severity to the calling line: one call site per severity
+            if issue.kind in QUIET_KINDS:
+                self.get_logger().info(line)
+            else:
                 self.get_logger().warning(line)
 
     # --- the model loop ---------------------------------------------------------------------
@@ -328,6 +377,8 @@ class MuscleNode(Node):
         self._window_ticks += 1
         if self.scheduler.went_backwards(now_ns):
             self.inputs.rebase(now_ns)
+            if self.joint_inputs is not None:
+                self.joint_inputs.rebase(now_ns)
             self._report([Issue("time_backwards", f"ROS time went back to {now_ns * 1e-9:.6f} s")])
         self._report(self.inputs.update_staleness(now_ns))
         if not self.scheduler.started:
@@ -350,7 +401,7 @@ class MuscleNode(Node):
         out = self.bank.reset(path_length=lp)
         self.get_logger().info(f"model started at {now_ns * 1e-9:.6f} s, path lengths "
                                f"{np.round(lp, 5).tolist()} m")
-        self._publish(out)
+        self._publish(out, self._joint_sample())
 
     def _run_steps(self, now_ns: int) -> None:
         stalls = self.scheduler.stalls
@@ -362,6 +413,7 @@ class MuscleNode(Node):
         every = self.config.publish_every_steps
         for _ in range(due):
             u, lp, vp = self.inputs.sample(self.scheduler.model_time_ns)
+            joints = self._joint_sample()  # the moment arms this step's forces act through
             step_start_ns = time.perf_counter_ns()
             out = self.bank.step(self._dt_s, u, lp, vp)
             self._step_times.add(time.perf_counter_ns() - step_start_ns)
@@ -369,8 +421,11 @@ class MuscleNode(Node):
             if not _finite(out):
                 out = self._reset_model(lp)
             if self.scheduler.total_steps % every == 0:  # also inside a catch-up: a steady grid
-                self._publish(out)
+                self._publish(out, joints)
         self._window_steps += due
+
+    def _joint_sample(self):
+        return self.joint_inputs.sample if self.joint_inputs is not None else None
 
     def _reset_model(self, lp):
         """Recover from a non-finite model output: equilibrium at the current path lengths."""
@@ -391,20 +446,28 @@ class MuscleNode(Node):
             if self.context.ok():
                 raise
             return  # the context was shut down during this callback (a signal)
-        if self.run_log is not None:
+        if self.run_log is not None and topic in LOG_TOPICS:  # joint topics: not yet
             self.run_log.write(topic, data, log_time_ns, publish_time_ns)
 
-    def _publish(self, out) -> None:
-        """The outputs, stamped and logged at the model time."""
+    def _publish(self, out, joint_sample=None) -> None:
+        """The outputs, stamped and logged at the model time; with a geometry also the joint
+        efforts of ``out``'s forces through ``joint_sample``'s moment arms."""
         self._last_output = out
         now_ns = self.get_clock().now().nanoseconds
         stamp_ns = self.scheduler.model_time_ns
-        messages = (
+        messages = [
             (tm.TOPIC_FORCE,
              fill_message(JointState(), tm.force_fields(out, self.bank.names, stamp_ns))),
             (tm.TOPIC_ENERGY_RATE, fill_message(Float64MultiArray(), tm.energy_rate_fields(out))),
             (tm.TOPIC_ENERGY_RATE_TOTAL, Float64(data=out.total_energy_rate)),
-            (tm.TOPIC_ENERGY_TOTAL, Float64(data=self._energy_offset_j + out.total_energy)))
+            (tm.TOPIC_ENERGY_TOTAL, Float64(data=self._energy_offset_j + out.total_energy))]
+        if joint_sample is not None:
+            efforts = self.joint_inputs.efforts(joint_sample, out.force)
+            messages += [
+                (tm.TOPIC_JOINT_EFFORTS,
+                 fill_message(JointState(), tm.joint_efforts_fields(efforts, stamp_ns))),
+                (tm.TOPIC_JOINT_EFFORT_COMMANDS,
+                 fill_message(Float64MultiArray(), tm.joint_effort_commands_fields(efforts)))]
         for topic, msg in messages:
             self._send(topic, msg, stamp_ns, now_ns)
 
@@ -438,6 +501,8 @@ class MuscleNode(Node):
             ("stale excitation", ", ".join(stale["excitation"]) or "-"),
             ("stale kinematics", ", ".join(stale["kinematics"]) or "-"),
         ]
+        if self.joint_inputs is not None:
+            values += [("joint_states age (s)", self.joint_inputs.age_s(now_ns))]
         values += [(ISSUE_KINDS[kind][0], count) for kind, count in self.issues.counts.items()]
         values += self._recorder_values()
         level, message = self._level(stale)
@@ -445,9 +510,14 @@ class MuscleNode(Node):
 
     def _state_text(self) -> str:
         if not self.scheduler.started:
-            have = np.isfinite(self.inputs.length_m)
+            have = np.isfinite(self.inputs.length_m) | self.inputs.joint_driven
             missing = [n for n, ok in zip(self.bank.names, have, strict=True) if not ok]
-            return f"waiting for muscle_kinematics ({', '.join(missing)})"
+            waiting = [f"muscle_kinematics ({', '.join(missing)})"] if missing else []
+            if self.joint_inputs is not None and not self.joint_inputs.ready:
+                joints = self.joint_inputs.missing()
+                waiting.append(f"joint_states ({', '.join(joints)})" if joints else
+                               "joint_states (a message giving physical path lengths)")
+            return f"waiting for {' and '.join(waiting)}" if waiting else "starting"
         if self.config.stale_input_policy == "pause" and self.inputs.any_stale:
             return "paused (stale inputs)"
         return "running"
@@ -464,7 +534,8 @@ class MuscleNode(Node):
     def _level(self, stale) -> tuple[int, str]:
         """ERROR: recording failed, or a model reset since the last report; WARN: not started,
         stale inputs, or issues since the last report; else OK."""
-        new = {k: v - self._reported_counts[k] for k, v in self.issues.counts.items()}
+        new = {k: v - self._reported_counts[k] for k, v in self.issues.counts.items()
+               if k not in QUIET_KINDS}
         if self.run_log is not None and not self.run_log.status.ok:
             return DiagnosticStatus.ERROR, "MCAP recording failed"
         if new["model_reset"]:

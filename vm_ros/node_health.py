@@ -36,6 +36,25 @@ ISSUE_KINDS = {
                      "of the message is used (counted per name)"),
     "drive_clipped": ("clipped: drive outside [0, 1] (messages)",
                       "drive values clipped to [0, 1], the message is used"),
+    "joint_wrong_size": ("rejected: joint_states wrong size (messages)",
+                         "message dropped: name/position/velocity sizes differ, or an unnamed "
+                         "message is not one position per joint of the joints parameter"),
+    "joint_non_finite": ("rejected: joint_states NaN or inf (messages)",
+                         "message dropped: a position or velocity of a known joint is NaN or inf"),
+    "joint_duplicate_name": ("rejected: joint_states duplicate joint (messages)",
+                             "message dropped: a joint is named twice"),
+    "joint_unknown_name": ("ignored: joint_states unknown joints (entries)",
+                           "entries whose joint is not a geometry coordinate (by joint_map or "
+                           "its own name) are ignored, the rest of the message is used; logged "
+                           "once per set of names, no WARN (joint_states often carries more "
+                           "joints than the geometry)"),
+    "joint_clamped": ("clamped: joint outside the geometry box (coordinates)",
+                      "the coordinate is clamped to the geometry's valid box with velocity 0 "
+                      "(paths are not extrapolated), the message is used"),
+    "joint_driven_kinematics": ("ignored: muscle_kinematics for joint-driven muscles (entries)",
+                                "entries for muscles whose path comes from joint_states through "
+                                "the geometry are ignored (lengths stay consistent with the "
+                                "moment arms), the rest of the message is used"),
     "stale_excitation": ("stale: excitation (events)",
                          "excitation older than input_timeout_s: stale_input_policy applies"),
     "stale_kinematics": ("stale: kinematics (events)",
@@ -51,6 +70,12 @@ ISSUE_KINDS = {
                     "a model output was not finite: model reset to equilibrium at the current "
                     "path lengths, cumulative energy carried over"),
 }
+
+
+# Kinds that are expected in normal operation: counted, logged once per distinct text (at info
+# level), and they do not make /diagnostics WARN.
+QUIET_KINDS = frozenset({"joint_unknown_name"})
+_QUIET_TEXTS_KEPT = 256
 
 
 @dataclass(frozen=True)
@@ -74,13 +99,20 @@ class IssueLog:
         self.counts = dict.fromkeys(ISSUE_KINDS, 0)
         self._last_logged_s: dict[str, float] = {}
         self._suppressed = dict.fromkeys(ISSUE_KINDS, 0)
+        self._quiet_texts: set[str] = set()
 
     def record(self, issue: Issue, now_s: float) -> str | None:
-        """Count ``issue``; return the line to log now (None while throttled).
+        """Count ``issue``; return the line to log now (None while throttled; for QUIET_KINDS,
+        None once the same text was logged).
 
         ``now_s``: a steady clock (s), so that sim-time pauses do not silence the log.
         """
         self.counts[issue.kind] += issue.count
+        if issue.kind in QUIET_KINDS:
+            if issue.text in self._quiet_texts or len(self._quiet_texts) >= _QUIET_TEXTS_KEPT:
+                return None
+            self._quiet_texts.add(issue.text)
+            return f"{issue.text}; {ISSUE_KINDS[issue.kind][1]}"
         last = self._last_logged_s.get(issue.kind)
         if last is not None and now_s - last < self.throttle_s:
             self._suppressed[issue.kind] += 1
@@ -130,4 +162,5 @@ def format_value(value) -> str:
     return str(value)
 
 
-__all__ = ["ISSUE_KINDS", "DurationWindow", "Issue", "IssueLog", "format_value"]
+__all__ = ["ISSUE_KINDS", "QUIET_KINDS", "DurationWindow", "Issue", "IssueLog",
+           "format_value"]

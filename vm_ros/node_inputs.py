@@ -65,19 +65,29 @@ def physical_path_length_range(bank, margin_l0: float) -> tuple[np.ndarray, np.n
 
 
 class NodeInputs:
-    """Latest valid drive and kinematics per muscle, and what a model step at time t uses."""
+    """Latest valid drive and kinematics per muscle, and what a model step at time t uses.
 
-    def __init__(self, names: Sequence[str], limits: InputLimits, initial_path_length=None):
+    ``joint_driven``: names of muscles whose path kinematics come from joint_states through a
+    geometry (vm_ros.joint_space, via :meth:`set_path_kinematics`): muscle_kinematics entries for
+    them are ignored and counted, and their ``initial_path_length`` entries are not used.
+    """
+
+    def __init__(self, names: Sequence[str], limits: InputLimits, initial_path_length=None,
+                 joint_driven: Sequence[str] = ()):
         self.names = tuple(names)
         self.n = len(self.names)
         self._index = {name: i for i, name in enumerate(self.names)}
+        unknown = [m for m in joint_driven if m not in self._index]
+        if unknown:
+            raise ValueError(f"joint-driven muscles {unknown} are not among {self.names}")
+        self.joint_driven = np.isin(self.names, list(joint_driven))
         self.limits = limits
         self.drive = np.zeros(self.n)
         self.drive_seen = np.zeros(self.n, dtype=bool)
         self.drive_time_ns = np.zeros(self.n, dtype=np.int64)
         self.length_m = np.full(self.n, np.nan)
         if initial_path_length is not None and len(initial_path_length):
-            self.length_m[:] = initial_path_length
+            self.length_m[:] = np.where(self.joint_driven, np.nan, initial_path_length)
         self.velocity_m_per_s = np.zeros(self.n)
         self.length_seen = np.zeros(self.n, dtype=bool)
         self.length_time_ns = np.zeros(self.n, dtype=np.int64)
@@ -149,9 +159,13 @@ class NodeInputs:
                           f"{self.n} (one per muscle)")]
         return self._set_drive("excitation_array", np.arange(self.n), drive, now_ns)
 
+    @property
+    def joint_driven_names(self) -> tuple[str, ...]:
+        return tuple(n for n, d in zip(self.names, self.joint_driven, strict=True) if d)
+
     def on_kinematics(self, names: Sequence[str], length, velocity, now_ns: int) -> list[Issue]:
         """JointState on muscle_kinematics: position[] path length (m), velocity[] (m/s, or
-        empty for 0)."""
+        empty for 0). Entries for joint-driven muscles are ignored and counted."""
         topic = "muscle_kinematics"
         length = np.asarray(length, dtype=float).ravel()
         velocity = np.asarray(velocity, dtype=float).ravel()
@@ -161,29 +175,47 @@ class NodeInputs:
         issues, muscles, entries = self._select(topic, names, length.size)
         if muscles is None or muscles.size == 0:
             return issues
+        driven = self.joint_driven[muscles]
+        if np.any(driven):
+            shown = ", ".join(self.names[i] for i in muscles[driven][:3])
+            issues.append(Issue("joint_driven_kinematics", f"{topic}: {shown} driven from "
+                                "joint_states", count=int(np.sum(driven))))
+            muscles, entries = muscles[~driven], [e for e, d in zip(entries, driven,
+                                                                    strict=True) if not d]
+            if muscles.size == 0:
+                return issues
         lp = length[entries]
         vp = velocity[entries] if velocity.size else np.zeros(lp.size)
+        more, accepted = self.set_path_kinematics(topic, muscles, lp, vp, now_ns)
+        if accepted:
+            self.last_kinematics_ns = now_ns
+        return issues + more
+
+    def set_path_kinematics(self, topic: str, muscles: np.ndarray, lp: np.ndarray,
+                            vp: np.ndarray, now_ns: int) -> tuple[list[Issue], bool]:
+        """Store path lengths ``lp`` (m) and velocities ``vp`` (m/s) of ``muscles`` (indices)
+        received at ``now_ns``, if all are finite and physical; (issues, stored). Used by
+        on_kinematics and by vm_ros.joint_space for the joint-driven muscles."""
         if not (np.all(np.isfinite(lp)) and np.all(np.isfinite(vp))):
-            return issues + [Issue("non_finite", f"{topic}: length or velocity is not finite")]
+            return [Issue("non_finite", f"{topic}: length or velocity is not finite")], False
         lo, hi = self.limits.path_length_min_m[muscles], self.limits.path_length_max_m[muscles]
         bad = (lp < lo) | (lp > hi)
         if np.any(bad):
             i = int(np.argmax(bad))
-            return issues + [Issue("non_physical_length", f"{topic}: {self.names[muscles[i]]} "
-                                   f"path length {lp[i]:.6g} m outside [{lo[i]:.4g}, "
-                                   f"{hi[i]:.4g}] m")]
+            return [Issue("non_physical_length", f"{topic}: {self.names[muscles[i]]} "
+                          f"path length {lp[i]:.6g} m outside [{lo[i]:.4g}, "
+                          f"{hi[i]:.4g}] m")], False
         fast = np.abs(vp) > self.limits.path_speed_max_m_per_s
         if np.any(fast):
             i = int(np.argmax(fast))
-            return issues + [Issue("non_physical_velocity", f"{topic}: {self.names[muscles[i]]} "
-                                   f"path velocity {vp[i]:.6g} m/s beyond "
-                                   f"{self.limits.path_speed_max_m_per_s:g} m/s")]
+            return [Issue("non_physical_velocity", f"{topic}: {self.names[muscles[i]]} "
+                          f"path velocity {vp[i]:.6g} m/s beyond "
+                          f"{self.limits.path_speed_max_m_per_s:g} m/s")], False
         self.length_m[muscles] = lp
         self.velocity_m_per_s[muscles] = vp
         self.length_seen[muscles] = True
         self.length_time_ns[muscles] = now_ns
-        self.last_kinematics_ns = now_ns
-        return issues
+        return [], True
 
     # --- time -------------------------------------------------------------------------------
 

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import yaml
 
 from vm_ros.errors import ConfigError
+from vm_ros.joint_space import parse_joint_map
 from vm_ros.model.params import RECOVERY_MODES
 from vm_ros.model.recruitment import SCHEMES
 
@@ -123,6 +124,17 @@ PARAMS = (
     ParamSpec("path_speed_max_m_per_s", 10.0, "double", "m/s",
               "Path velocities of larger magnitude are rejected as non-physical",
               low=1e-3, high=1e3, runtime=True),
+    ParamSpec("geometry", "", "string", "path",
+              "Geometry file (vm_ros.geometry YAML): node muscles it covers are driven from "
+              "joint_states, and joint_efforts/joint_effort_commands are published ('' = none: "
+              "muscle space only)"),
+    ParamSpec("joint_map", "", "string", "YAML",
+              "Robot joints -> geometry coordinates, e.g. '{knee: knee_angle_r, hip: "
+              "{coordinate: hip_flexion_r, sign: -1, offset: 0.1}}': model q = sign * robot q + "
+              "offset (rad or m); coordinates not mapped keep their own name ('' = none)"),
+    ParamSpec("joints", [], "string_array", "-",
+              "Robot joint names in the order of joint_efforts and joint_effort_commands ([] = "
+              "every geometry coordinate in the file's order, under its robot name)"),
     ParamSpec("qos_depth", 10, "integer", "messages",
               "History depth of every subscription and publisher", low=1, high=10000),
     ParamSpec("diagnostics_period_s", 1.0, "double", "s",
@@ -161,6 +173,9 @@ class NodeConfig:
     extrapolation_max_s: float
     path_length_margin_l0: float
     path_speed_max_m_per_s: float
+    geometry: str
+    joint_map: str
+    joints: tuple
     qos_depth: int
     diagnostics_period_s: float
     executor: str
@@ -204,6 +219,12 @@ class NodeConfig:
             raise ConfigError(PARAMS_SOURCE, "initial_path_length_m", list(lengths),
                               "lengths must be > 0 m")
         self.overrides_mapping()  # raises on a bad YAML mapping
+        parse_joint_map(self.joint_map, PARAMS_SOURCE)  # syntax; coordinates: JointSpace
+        for name in ("joint_map", "joints"):
+            value = getattr(self, name)
+            if value and not self.geometry:
+                raise ConfigError(PARAMS_SOURCE, name, _plain(value),
+                                  "needs a geometry file (the geometry parameter)")
 
     def overrides_mapping(self) -> dict:
         """The ``overrides`` parameter parsed: ``{muscle: {field: value}}``."""

@@ -17,6 +17,16 @@ Topics (relative names, so namespaces and remapping apply):
 | energy_total | std_msgs/msg/Float64 | out: whole-body energy since start (J) |
 | /diagnostics | diagnostic_msgs/msg/DiagnosticArray | out: node health at about 1 Hz |
 
+With a geometry (vm_ros.joint_space):
+
+| joint_states | sensor_msgs/msg/JointState | in: name[] robot joints, position[] (rad or m),
+  velocity[] (rad/s or m/s, optional) |
+| joint_efforts | sensor_msgs/msg/JointState | out: name[] the joints parameter, position[] and
+  velocity[] the coordinates used (robot convention, after clamping), effort[] generalized force
+  tau = r^T F (N m or N, robot convention), stamped with model time |
+| joint_effort_commands | std_msgs/msg/Float64MultiArray | out: tau ordered by the joints
+  parameter (ros2_control forward_command_controller effort convention); layout.dim[0] "joint" |
+
 energy_rate layout: ``data[i*12 + j*4 + k]`` = muscle i (order of the ``muscles`` parameter),
 fibre j in FIBRE_LABELS = (slow, fast, all), component k in COMPONENT_LABELS = (activation,
 cross_bridge, recovery, total). layout.dim[0..2] carry the labels "muscle", "fibre", "component"
@@ -37,6 +47,9 @@ TOPIC_ENERGY_RATE = "energy_rate"
 TOPIC_ENERGY_RATE_TOTAL = "energy_rate_total"
 TOPIC_ENERGY_TOTAL = "energy_total"
 TOPIC_DIAGNOSTICS = "/diagnostics"
+TOPIC_JOINT_STATES = "joint_states"
+TOPIC_JOINT_EFFORTS = "joint_efforts"
+TOPIC_JOINT_EFFORT_COMMANDS = "joint_effort_commands"
 
 TYPE_JOINT_STATE = "sensor_msgs/msg/JointState"
 TYPE_FLOAT64_MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
@@ -52,6 +65,9 @@ TOPIC_TYPES = {
     TOPIC_ENERGY_RATE_TOTAL: TYPE_FLOAT64,
     TOPIC_ENERGY_TOTAL: TYPE_FLOAT64,
     TOPIC_DIAGNOSTICS: TYPE_DIAGNOSTIC_ARRAY,
+    TOPIC_JOINT_STATES: TYPE_JOINT_STATE,
+    TOPIC_JOINT_EFFORTS: TYPE_JOINT_STATE,
+    TOPIC_JOINT_EFFORT_COMMANDS: TYPE_FLOAT64_MULTI_ARRAY,
 }
 
 FIBRE_LABELS = ("slow", "fast", "all")
@@ -100,3 +116,21 @@ def energy_rate_fields(out: StepOutput) -> dict:
     array = energy_rate_array(out)
     return {"layout": {"dim": energy_rate_layout(array.shape[0]), "data_offset": 0},
             "data": array.ravel().tolist()}
+
+
+def joint_efforts_fields(efforts, time_ns: int, frame_id: str = "") -> dict:
+    """sensor_msgs/JointState fields of joint_efforts from a vm_ros.joint_space.JointEfforts."""
+    return {
+        "header": {"stamp": stamp_fields(time_ns), "frame_id": frame_id},
+        "name": list(efforts.names),
+        "position": efforts.position.tolist(),
+        "velocity": efforts.velocity.tolist(),
+        "effort": efforts.effort.tolist(),
+    }
+
+
+def joint_effort_commands_fields(efforts) -> dict:
+    """std_msgs/Float64MultiArray fields of joint_effort_commands: tau in ``joints`` order."""
+    n = len(efforts.names)
+    return {"layout": {"dim": [{"label": "joint", "size": n, "stride": n}], "data_offset": 0},
+            "data": efforts.effort.tolist()}
