@@ -47,6 +47,8 @@ def _pin(name, parent, parent_offset, child, coordinate, value_range, default=0.
 
 
 def _muscle(model, name, f0, l0, slack, pennation, points):
+    """A Millard muscle; l0 and slack chosen so that the longest path puts the fibre near 1.3 l0
+    (tendon at slack), as in real models."""
     muscle = osim.Millard2012EquilibriumMuscle(name, f0, l0, slack, pennation)
     for i, (body, xyz) in enumerate(points):
         muscle.addNewPathPoint(f"{name}_p{i}", body, osim.Vec3(*xyz))
@@ -100,14 +102,14 @@ def build_knee(path) -> Path:
     cylinder.set_quadrant("+x")
     femur.addWrapObject(cylinder)
 
-    _muscle(model, "vas_pat", 3000.0, 0.09, 0.14, 0.08,
+    _muscle(model, "vas_pat", 3000.0, 0.12, 0.23, 0.08,
             [(femur, (0.03, 0.22, 0)), (patella, (0.05, 0.0, 0)), (tibia, (0.04, -0.08, 0))])
-    wrap = _muscle(model, "ext_wrap", 800.0, 0.08, 0.16, 0.0,
+    wrap = _muscle(model, "ext_wrap", 800.0, 0.08, 0.245, 0.0,
                    [(femur, (0.02, 0.2, 0)), (tibia, (0.03, -0.1, 0))])
     wrap.updGeometryPath().addPathWrap(cylinder)
-    _muscle(model, "flex", 1200.0, 0.1, 0.12, 0.15,
+    _muscle(model, "flex", 1200.0, 0.14, 0.08, 0.15,
             [(femur, (-0.02, 0.2, 0)), (tibia, (-0.02, -0.06, 0))])
-    cond = _muscle(model, "cond", 500.0, 0.08, 0.15, 0.0,
+    cond = _muscle(model, "cond", 500.0, 0.2, 0.047, 0.0,
                    [(femur, (-0.03, 0.2, 0)), (tibia, (-0.03, -0.1, 0))])
     point = osim.ConditionalPathPoint()
     point.setName("cond_via")
@@ -127,13 +129,13 @@ def build_hip_knee(path) -> Path:
     model.addJoint(_pin("hip", pelvis, (0, 0, 0), femur, "hip_flexion", HIP_RANGE))
     model.addJoint(_pin("knee", femur, (0, -0.4, 0), tibia, "knee_angle", KNEE_RANGE))
 
-    _muscle(model, "rf", 1200.0, 0.08, 0.35, 0.09,
+    _muscle(model, "rf", 1200.0, 0.1, 0.36, 0.09,
             [(pelvis, (0.03, -0.05, 0)), (femur, (0.035, -0.38, 0)), (tibia, (0.04, -0.08, 0))])
-    _muscle(model, "vas", 5000.0, 0.09, 0.15, 0.05,
+    _muscle(model, "vas", 5000.0, 0.09, 0.193, 0.05,
             [(femur, (0.03, -0.2, 0)), (femur, (0.035, -0.38, 0)), (tibia, (0.04, -0.08, 0))])
-    _muscle(model, "ham", 2500.0, 0.1, 0.32, 0.2,
+    _muscle(model, "ham", 2500.0, 0.2, 0.25, 0.2,
             [(pelvis, (-0.05, -0.05, 0)), (tibia, (-0.03, -0.06, 0))])
-    _muscle(model, "ilio", 1500.0, 0.1, 0.1, 0.14,
+    _muscle(model, "ilio", 1500.0, 0.08, 0.035, 0.14,
             [(pelvis, (0.03, 0.05, 0)), (femur, (0.01, -0.08, 0))])
     return _write(model, path)
 
