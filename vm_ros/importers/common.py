@@ -208,7 +208,7 @@ def library_entries(muscles, *, specific_tension_pa, density_kg_per_m3, fibre_ta
                          f"L = {MIN_FASCICLE_L0}: {MIN_TENDON_L0T}*l0t_m + "
                          f"{MIN_FASCICLE_L0}*l0_m (config/muscles.yaml rule 5)")
         if path_min > path_max:
-            min_note += (f"; above path_length_max_m after the Lmax clip: the model's tendon "
+            min_note += ("; above path_length_max_m after the Lmax clip: the model's tendon "
                          "slack and fibre lengths do not span this path's excursion")
         entries[m.name] = {
             "mass_kg": _round(mass), "l0_m": _round(l0), "l0t_m": _round(l0t),
