@@ -102,7 +102,8 @@ class RecordedInputs:
     drive replaces the held drive; a finite positive path length replaces the held length and
     its velocity (0 when the message has none). Other values leave the held input as it was.
     Before the first excitation the drive is 0. The run needs a kinematics message; if none is
-    at or before the start time, the first one is used from the start.
+    at or before the start time, the first one is used from the start. joint_states need the
+    node's conditioning (node_replay.NodeReplayInputs): a log with them is a RunLogError here.
     """
 
     def __init__(self, run: RunLog, n_muscles: int, sink: LogSink):
@@ -110,6 +111,10 @@ class RecordedInputs:
         self.u = np.zeros(n_muscles)
         self.lp = np.full(n_muscles, np.nan)
         self.vp = np.zeros(n_muscles)
+        joint_states = run.get(tm.TOPIC_JOINT_STATES)
+        if joint_states is not None and len(joint_states):
+            raise RunLogError(run.path, f"{tm.TOPIC_JOINT_STATES} without node_parameters: the "
+                                        "joint conditioning of this log is not known")
         self._events = run.events(INPUT_TOPICS)
         self._next = 0
         kinematics = run.get(tm.TOPIC_KINEMATICS)

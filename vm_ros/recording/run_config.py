@@ -6,6 +6,8 @@
 
 ``params`` and ``library`` are YAML files (None: the shipped ``config/model.yaml`` and
 ``config/muscles.yaml``); a run log attaches their exact bytes (vm_ros.recording.run_log).
+A joint-space run also names its ``geometry`` file (attached the same way), the ``joint_map``
+YAML and the ``joints`` order of its joint outputs (vm_ros.joint_space).
 """
 
 from __future__ import annotations
@@ -32,6 +34,9 @@ class RunConfig:
     | library | muscle-library YAML path, or None for the shipped one |
     | params | model-parameter YAML path, or None for the shipped one |
     | units_per_type | natural units per fibre type, or None (model file) |
+    | geometry | geometry YAML path (vm_ros.geometry), or None: muscle space only |
+    | joint_map | robot joints -> coordinates, the ``joint_map`` YAML text ("" = own names) |
+    | joints | robot joints ordering joint_efforts (() = every coordinate) |
     """
 
     muscles: tuple
@@ -41,6 +46,9 @@ class RunConfig:
     library: Path | None = None
     params: Path | None = None
     units_per_type: int | None = None
+    geometry: Path | None = None
+    joint_map: str = ""
+    joints: tuple = ()
 
     @property
     def library_path(self) -> Path:

@@ -8,12 +8,17 @@ Channels (topic names as the node resolves them, ``/`` + name in the root namesp
   as published (same bytes) |
 | muscle_telemetry | vm_ros/msg/MuscleTelemetry | per-step record, offline only |
 | /diagnostics | diagnostic_msgs/msg/DiagnosticArray | node health (muscle_node only) |
+| joint_states | as in vm_ros.telemetry | input as received (runs with a geometry) |
+| joint_efforts, joint_effort_commands | as in vm_ros.telemetry | outputs as published (runs
+  with a geometry) |
 
 Metadata record ``vm_ros.run`` (RunInfo.to_metadata): muscles, recruitment, recovery mode,
 overrides, dt, model/publish/telemetry rates, start time, time base, input hold rule, source
-(simulate, muscle_node, recompute), scenario, versions. Attachments: ``model.yaml`` and
-``muscles.yaml`` (exact bytes of the files used) and ``overrides.yaml``: with the recorded
-inputs, enough to recompute the run (vm_ros.recording.offline).
+(simulate, muscle_node, recompute), scenario, versions; with a geometry also ``geometry_file``,
+``joint_map`` and ``joints`` (RunConfig). Attachments: ``model.yaml`` and ``muscles.yaml`` (exact
+bytes of the files used), ``overrides.yaml`` and, with a geometry, ``geometry.yaml`` (exact
+bytes): with the recorded inputs, enough to recompute the run (vm_ros.recording.offline). A log
+without a geometry has none of the joint channels, keys or attachment.
 
 Times: log_time is the model time in integer ns (offline runs start at 0; muscle_node uses the
 ROS clock). Inputs follow a zero-order hold: the model step [t, t + dt) uses the latest input
@@ -54,11 +59,15 @@ FORMAT = "vm_ros.run/1"
 ATTACHMENT_MODEL = "model.yaml"
 ATTACHMENT_LIBRARY = "muscles.yaml"
 ATTACHMENT_OVERRIDES = "overrides.yaml"
+ATTACHMENT_GEOMETRY = "geometry.yaml"
 INPUT_HOLD = "zero-order hold: the step [t, t + dt) uses the latest input with log_time <= t"
 
-INPUT_TOPICS = (tm.TOPIC_EXCITATION, tm.TOPIC_EXCITATION_ARRAY, tm.TOPIC_KINEMATICS)
+INPUT_TOPICS = (tm.TOPIC_EXCITATION, tm.TOPIC_EXCITATION_ARRAY, tm.TOPIC_KINEMATICS,
+                tm.TOPIC_JOINT_STATES)
 OUTPUT_TOPICS = (tm.TOPIC_FORCE, tm.TOPIC_ENERGY_RATE, tm.TOPIC_ENERGY_RATE_TOTAL,
-                 tm.TOPIC_ENERGY_TOTAL)
+                 tm.TOPIC_ENERGY_TOTAL, tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_JOINT_EFFORT_COMMANDS)
+# channels of a run with a geometry only (vm_ros.joint_space)
+JOINT_TOPICS = (tm.TOPIC_JOINT_STATES, tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_JOINT_EFFORT_COMMANDS)
 LOG_TOPIC_TYPES = {
     **{topic: tm.TOPIC_TYPES[topic] for topic in INPUT_TOPICS + OUTPUT_TOPICS},
     TOPIC_TELEMETRY: TYPE_MUSCLE_TELEMETRY,
@@ -155,6 +164,9 @@ class RunInfo:
             "time_base": self.time_base,
             "versions": json.dumps(library_versions(), sort_keys=True),
         }
+        if c.geometry is not None:
+            record.update({"geometry_file": str(c.geometry), "joint_map": c.joint_map,
+                           "joints": json.dumps(list(c.joints))})
         record.update({str(k): str(v) for k, v in self.extra.items()})
         return record
 
@@ -169,7 +181,8 @@ class RunInfo:
         known = {"format", "source", "muscles", "recruitment", "recovery_mode", "units_per_type",
                  "overrides", "model_params_file", "muscle_library_file", "dt_s",
                  "model_rate_hz", "publish_rate_hz", "telemetry_rate_hz", "start_time_ns",
-                 "initial_state", "input_hold", "namespace", "time_base", "topics"}
+                 "initial_state", "input_hold", "namespace", "time_base", "topics",
+                 "geometry_file", "joint_map", "joints"}
 
         def value(key, parse, default=_REQUIRED):
             return _metadata_value(record, source, key, parse, default)
@@ -181,6 +194,9 @@ class RunInfo:
             RECOVERY_MODES else None,
             overrides=value("overrides", _json_object_of(dict), {}),
             units_per_type=value("units_per_type", _positive_int, None),
+            geometry=value("geometry_file", Path, None),
+            joint_map=record.get("joint_map", ""),
+            joints=value("joints", _names, ()),
         )
         timing = RunTiming(
             dt_s=value("dt_s", _positive_float),
@@ -250,6 +266,14 @@ def _muscle_names(text: str) -> tuple:
     return tuple(names)
 
 
+def _names(text: str) -> tuple:
+    """A JSON list of strings (possibly empty)."""
+    names = json.loads(text)
+    if not (isinstance(names, list) and all(isinstance(n, str) for n in names)):
+        raise ValueError("expected a JSON list of names")
+    return tuple(names)
+
+
 def _json_object_of(kind: type):
     """A parser of a JSON object whose values are all of ``kind``."""
 
@@ -272,12 +296,16 @@ def _plain(value):
 
 
 def run_attachments(config: RunConfig) -> dict[str, bytes]:
-    """The model YAML and muscle library used (exact bytes) and the overrides as YAML."""
-    return {
+    """The model YAML and muscle library used (exact bytes), the overrides as YAML and, for a
+    joint-space run, the geometry file (exact bytes)."""
+    attachments = {
         ATTACHMENT_MODEL: config.params_path.read_bytes(),
         ATTACHMENT_LIBRARY: config.library_path.read_bytes(),
         ATTACHMENT_OVERRIDES: yaml.safe_dump(_plain(config.overrides), sort_keys=True).encode(),
     }
+    if config.geometry is not None:
+        attachments[ATTACHMENT_GEOMETRY] = Path(config.geometry).read_bytes()
+    return attachments
 
 
 def open_run_log(path, info: RunInfo, bank: MuscleBank | None = None,
@@ -286,8 +314,9 @@ def open_run_log(path, info: RunInfo, bank: MuscleBank | None = None,
     """A McapRecorder with the run's metadata and attachments, its channels declared.
 
     info: the run (RunInfo; ``info.config.recovery_mode`` None is filled from ``bank``);
-    topics: base names to declare (default: all of LOG_TOPIC_TYPES but telemetry when
-    telemetry_rate_hz is 0); qos: ``{base name: offered_qos_profiles YAML}``.
+    topics: base names to declare (default: all of LOG_TOPIC_TYPES but /diagnostics, telemetry
+    when telemetry_rate_hz is 0 and the JOINT_TOPICS without a geometry); qos: ``{base name:
+    offered_qos_profiles YAML}``.
     Raises RecorderError naming the path when the file cannot be created.
     """
     if bank is not None and info.config.recovery_mode is None:
@@ -295,7 +324,8 @@ def open_run_log(path, info: RunInfo, bank: MuscleBank | None = None,
             recovery_mode=bank.recovery_mode))
     if topics is None:
         topics = [t for t in LOG_TOPIC_TYPES if t != tm.TOPIC_DIAGNOSTICS
-                  and (t != TOPIC_TELEMETRY or info.timing.telemetry_rate_hz > 0)]
+                  and (t != TOPIC_TELEMETRY or info.timing.telemetry_rate_hz > 0)
+                  and (t not in JOINT_TOPICS or info.config.geometry is not None)]
     recorder = McapRecorder(path, metadata={METADATA_NAME: info.to_metadata()},
                             attachments=run_attachments(info.config), **recorder_options)
     for topic in topics:
@@ -368,20 +398,25 @@ class RunLog:
         return [event for _, event in keyed]
 
     def config(self, directory) -> RunConfig:
-        """The run's RunConfig with its attached model and library YAML written to
-        ``directory`` (which must outlive any use of the returned paths). Raises RunLogError
-        when the log lacks them."""
+        """The run's RunConfig with its attached model and library YAML (and geometry, when it
+        has one) written to ``directory`` (which must outlive any use of the returned paths).
+        Raises RunLogError when the log lacks them (a geometry named in the metadata without
+        its attachment, too)."""
         if self.info is None:
             raise RunLogError(self.path, f"no '{METADATA_NAME}' metadata record")
         directory = Path(directory)
+        names = [ATTACHMENT_MODEL, ATTACHMENT_LIBRARY]
+        if self.info.config.geometry is not None or ATTACHMENT_GEOMETRY in self.attachments:
+            names.append(ATTACHMENT_GEOMETRY)
         paths = {}
-        for name in (ATTACHMENT_MODEL, ATTACHMENT_LIBRARY):
+        for name in names:
             if name not in self.attachments:
                 raise RunLogError(self.path, f"no '{name}' attachment")
             paths[name] = directory / name
             paths[name].write_bytes(self.attachments[name])
         return self.info.config.replace(params=paths[ATTACHMENT_MODEL],
-                                        library=paths[ATTACHMENT_LIBRARY])
+                                        library=paths[ATTACHMENT_LIBRARY],
+                                        geometry=paths.get(ATTACHMENT_GEOMETRY))
 
 
 def read_run(path, topics: Iterable[str] | None = None, raw: Iterable[str] = (),
@@ -397,7 +432,7 @@ def read_run(path, topics: Iterable[str] | None = None, raw: Iterable[str] = (),
     reader = LogReader(path, progress=progress)
     builders: dict[str, SeriesBuilder] = {}
     info: RunInfo | None = None
-    wanted = keep_raw = None
+    wanted = keep_raw = joint_topics = None
     for message in reader.messages():
         if info is None:
             info = _run_info(reader, path)
@@ -405,14 +440,16 @@ def read_run(path, topics: Iterable[str] | None = None, raw: Iterable[str] = (),
             log_topic = info.log_topic if info is not None else resolve_topic
             wanted = None if topics is None else {log_topic(t) for t in topics}
             keep_raw = {log_topic(t) for t in raw}
+            joint_topics = {log_topic(t) for t in JOINT_TOPICS}
         if wanted is not None and message.topic not in wanted:
             continue
         builder = builders.get(message.topic)
         if builder is None:
-            columns = info.config.muscles if info is not None else None
+            joint = message.topic in joint_topics
+            columns = info.config.muscles if info is not None and not joint else None
             builder = builders[message.topic] = SeriesBuilder(
                 message.topic, message.type_name, columns, message.topic in keep_raw,
-                message.encoding)
+                message.encoding, grow_columns=joint)
         builder.add(message.data, message.log_time_ns)
     if info is None:
         info = _run_info(reader, path)

@@ -1,7 +1,9 @@
 """One channel of a log decoded into arrays (TopicSeries), as read_run returns them.
 
 JointState arrays are mapped by muscle name onto the run's muscle columns (NaN where a message
-has no value for a muscle), Float64MultiArray and Float64 become (k, m) and (k,) arrays,
+has no value for a muscle), or, for joint topics (joint_states, joint_efforts), by joint name onto
+the joints in the order they first appear (``grow_columns``: a message may name some joints
+only), Float64MultiArray and Float64 become (k, m) and (k,) arrays,
 vm_ros/msg/MuscleTelemetry one array per field; other types keep their decoded messages.
 
 A message that does not decode (malformed bytes, which any DDS peer can send and muscle_node
@@ -31,8 +33,9 @@ class TopicSeries:
     | topic, type_name | channel |
     | time_ns | (k,) log times, ns |
     | fields | name -> array (k,) or (k, m); JointState arrays are mapped by name onto the run's
-      muscles (NaN where a message had no value); ``stamp_ns`` from the header when there is one |
-    | names | column labels of per-muscle fields (the run's muscles), or None |
+      muscles, or the joints for joint topics (NaN where a message had no value); ``stamp_ns``
+      from the header when there is one |
+    | names | column labels of per-muscle (per-joint) fields, or None |
     | layout | Float64MultiArray dims of the first message ([{label, size, stride}]) |
     | raw | recorded CDR bytes per message (only when asked for) |
     | messages | decoded messages (only for types without an array form, e.g. diagnostics) |
@@ -107,12 +110,14 @@ def _type_problem(type_name: str, encoding: str):
 
 class SeriesBuilder:
     """Accumulates one channel's messages (CDR) and builds its TopicSeries; the messages that
-    do not decode go to ``skipped`` instead."""
+    do not decode go to ``skipped`` instead. JointState values go onto ``columns`` by name; with
+    ``grow_columns`` (and no columns) each new name adds a column (earlier rows NaN there)."""
 
     def __init__(self, topic: str, type_name: str, columns: tuple | None, keep_raw: bool,
-                 encoding: str = MESSAGE_ENCODING):
+                 encoding: str = MESSAGE_ENCODING, grow_columns: bool = False):
         self.topic, self.type_name = topic, type_name
-        self.columns = columns
+        self.grow = grow_columns and not columns
+        self.columns = [] if self.grow else columns
         self.index = {name: i for i, name in enumerate(columns or ())}
         self.times: list[int] = []
         self.rows: dict[str, list] = {}
@@ -159,8 +164,14 @@ class SeriesBuilder:
         return True
 
     def _by_name(self, names, values) -> np.ndarray:
-        """Values of a JointState array on the run's muscle columns (NaN where missing)."""
+        """Values of a JointState array on the columns (NaN where missing); name-less values
+        as they are unless there is one per column."""
         values = np.asarray(values, dtype=float)
+        if self.grow and names:
+            for name in names:
+                if name not in self.index:
+                    self.index[name] = len(self.columns)
+                    self.columns.append(name)
         if not self.columns:
             return values
         row = np.full(len(self.columns), np.nan)
@@ -174,10 +185,11 @@ class SeriesBuilder:
 
     def _row(self, msg) -> dict | None:
         if self.type_name == tm.TYPE_JOINT_STATE:
-            self.names = self.columns or tuple(msg.name)
-            return {"stamp_ns": _stamp_ns(msg.header),
-                    **{key: self._by_name(msg.name, getattr(msg, key))
-                       for key in ("position", "velocity", "effort")}}
+            row = {"stamp_ns": _stamp_ns(msg.header),
+                   **{key: self._by_name(msg.name, getattr(msg, key))
+                      for key in ("position", "velocity", "effort")}}
+            self.names = tuple(self.columns or msg.name)
+            return row
         if self.type_name == tm.TYPE_FLOAT64_MULTI_ARRAY:
             if self.layout is None:
                 self.layout = [{"label": d.label, "size": d.size, "stride": d.stride}
