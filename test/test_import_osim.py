@@ -237,6 +237,14 @@ def test_cli_unknown_motion_coordinate_is_one_line(osim, models, tmp_path, capsy
     assert "unknown coordinate 'not_a_coordinate'" in err
 
 
+def test_cli_out_under_a_file_is_one_line(osim, models, tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    code, _, err = run_cli(["import-osim", str(models["knee"]), "--out", str(blocker / "o"),
+                            "--samples", "20"], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "cannot make the folder" in err
+
+
 def test_cli_without_opensim_says_how_to_install(tmp_path, capsys, monkeypatch):
     from vm_ros.importers import osim as importer
 

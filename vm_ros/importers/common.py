@@ -395,7 +395,10 @@ def write_import(out_dir, geometry, muscles, choices: ImportChoices, *, title: s
     names the model in each source note. Returns the paths written.
     """
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise VmRosError(f"--out {out}: cannot make the folder ({exc.strerror or exc})") from None
     params = params or load_model_params()
     table = fibre_table or load_fibre_table()
     density = params.generic.muscle_density
@@ -409,10 +412,14 @@ def write_import(out_dir, geometry, muscles, choices: ImportChoices, *, title: s
                         *text.splitlines(), "",
                         "Geometry (path lengths, moment arms) is in geometry.yaml beside this "
                         "file."])
-    paths = {"geometry": write_geometry(geometry, out / "geometry.yaml"),
-             "library": write_library(out / "muscles.yaml", entries, header)}
     summary = out / "summary.txt"
-    with open(summary, "w", encoding="utf-8") as handle:
+    try:
+        paths = {"geometry": write_geometry(geometry, out / "geometry.yaml"),
+                 "library": write_library(out / "muscles.yaml", entries, header)}
+        handle = open(summary, "w", encoding="utf-8")  # noqa: SIM115 - closed by the with below
+    except OSError as exc:
+        raise VmRosError(f"--out {out}: cannot write ({exc.strerror or exc})") from None
+    with handle:
         for stream in (handle, file or sys.stdout):
             print(title, file=stream)
             print(file=stream)

@@ -271,6 +271,10 @@ def _motion_box(paths: OsimPaths, columns, motions, options: OsimOptions) -> _Bo
     names = [paths.independent[j].getName() for j in columns]
     units = [paths.units[j] for j in columns]
     lower, upper = paths.ranges[columns, 0].copy(), paths.ranges[columns, 1].copy()
+    for name, lo, hi in zip(names, lower, upper, strict=True):
+        if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+            raise VmRosError(f"coordinate {name}: its range in the model [{lo:g}, {hi:g}] is not "
+                             "an interval to sample")
     margin = np.array([math.radians(options.margin_deg) if u == "rad" else options.margin_m
                        for u in units])
     if not motions:
