@@ -81,6 +81,7 @@ def compare(muscle: str = "vastus_lateralis", seconds: float = 2.0, repeats: int
     from vm_ros.model import MuscleBank
 
     osim.Logger.setLevelString("error")  # its per-call integration summary would be timed too
+    osim.Logger.removeFileSink()  # else OpenSim writes opensim.log into the working directory
     bank = MuscleBank.from_config([muscle])
     spec = bank.specs[0]
     rest = float(bank.l0_m[0] + bank.l0t_m[0])

@@ -67,6 +67,7 @@ def load_opensim():
     except ImportError as exc:
         raise VmRosError(NEEDS_OPENSIM) from exc
     opensim.Logger.setLevelString("error")
+    opensim.Logger.removeFileSink()  # else OpenSim writes opensim.log into the working directory
     return opensim
 
 
