@@ -18,6 +18,8 @@ from vm_ros.geometry.mujoco_backend import ModelLoadError, MujocoGeometry  # noq
 
 # Two hinges and a slide: `follow` (slide) is coupled to `flex` by a joint equality and both have
 # a reference position (qpos0 != 0); `wrist` has no range. Tendon t_a wraps over a cylinder.
+# Muscle parameters (test_import_mjcf): m_a usable, m_b a negative tendon, m_c MuJoCo's default
+# range.
 COUPLED_MJCF = """
 <mujoco model="coupled">
   <compiler angle="radian"><lengthrange mode="none"/></compiler>
@@ -27,7 +29,7 @@ COUPLED_MJCF = """
       <site name="s0" pos="0.04 0 -0.05"/>
       <site name="s0b" pos="-0.03 0 -0.08"/>
       <body name="lower" pos="0 0 -0.3">
-        <joint name="flex" type="hinge" axis="0 1 0" range="-1 2" ref="0.2"/>
+        <joint name="flex" type="hinge" axis="0 1 0" range="-1 1.8" ref="0.2"/>
         <geom type="capsule" size="0.02" fromto="0 0 0 0 0 -0.25" mass="0.5"/>
         <geom name="wrap" type="cylinder" size="0.02 0.01" quat="0.7071068 0.7071068 0 0"
               contype="0" conaffinity="0"/>
@@ -56,9 +58,9 @@ COUPLED_MJCF = """
     <spatial name="t_c"><site site="s0"/><site site="s2"/><site site="s3"/></spatial>
   </tendon>
   <actuator>
-    <muscle name="m_a" tendon="t_a" lengthrange="0.2 0.3"/>
-    <muscle name="m_b" tendon="t_b" lengthrange="0.15 0.3"/>
-    <muscle name="m_c" tendon="t_c" lengthrange="0.2 0.45"/>
+    <muscle name="m_a" tendon="t_a" lengthrange="0.2 0.3" range="0.6 1.4"/>
+    <muscle name="m_b" tendon="t_b" lengthrange="0.15 0.3" range="0.9 1.5"/>
+    <muscle name="m_c" tendon="t_c" lengthrange="0.35 0.45"/>
   </actuator>
 </mujoco>
 """

@@ -37,6 +37,8 @@ HELP = "drive a MuJoCo model with vm_ros muscle forces (one process); energy bal
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from vm_ros.importers.common import add_parameter_arguments
+
     parser.add_argument("--model", default="myoelbow", metavar="NAME|FILE.xml",
                         help="myo-sim model name or MJCF file (default myoelbow)")
     parser.add_argument("--duration", type=float, default=2.0, metavar="S",
@@ -51,8 +53,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="initial coordinates, rad or m (default: the middle of each box)")
     parser.add_argument("--library", metavar="FILE.yaml",
                         help="muscle library whose entries replace the derived ones by name")
-    parser.add_argument("--specific-tension", default="rajagopal", metavar="N_PER_CM2",
-                        help="for the derived masses: N/cm^2, 'rajagopal' (60, default) or 'vm'")
+    add_parameter_arguments(parser)
     parser.add_argument("--out", metavar="DIR",
                         help="output folder (default out/closed-loop-<model>-<date>-<time>)")
     parser.add_argument("--no-plot", action="store_true", help="no PNG")
@@ -112,7 +113,7 @@ def run(args) -> int:
     geometry = MujocoGeometry(args.model)
     out = Path(args.out or Path("out") / f"closed-loop-{Path(str(args.model)).stem}-"
                f"{time.strftime('%Y%m%d-%H%M%S')}")
-    choices = common.ImportChoices(common.specific_tension_option(args.specific_tension))
+    choices = common.choices_from_args(args)
     user = mjcf.load_user_library(args.library) if args.library else None
     path_min, path_max = mjcf.path_extremes(geometry)
     library = mjcf.derive_library(geometry, choices, path_min, path_max, user)

@@ -28,15 +28,30 @@ elsewhere (``--library FILE``, a VM muscle library) replace the derived entries 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+import sys
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
-from vm_ros.importers.common import ImportedMuscle
+from vm_ros.errors import VmRosError
+from vm_ros.geometry.fit import fit_path
+from vm_ros.geometry.paths import PolynomialGeometry
+from vm_ros.importers.common import (
+    LENGTH_WARNING_M,
+    ImportChoices,
+    ImportedMuscle,
+    write_import,
+    write_library,
+)
 
 MUJOCO_DEFAULT_RANGE = (0.75, 1.05)   # MuJoCo's default muscle operating range (L0)
 MIN_TENDON_M = 0.005                  # a derived tendon this short (or shorter) is unusable
 CROSSING_MOMENT_ARM_M = 1e-3          # a muscle crosses a coordinate where |r| exceeds this
+DISCONTINUITY_M = 1e-3                # m/rad (m/m): secant vs exact slope along a sweep
+SWEEP_LINES = 3                       # sweeps per coordinate, through sampled poses
+SWEEP_POINTS = 100                    # points per sweep
 
 
 @dataclass(frozen=True)
@@ -160,9 +175,11 @@ class DerivedLibrary:
     flagged: tuple
 
 
-def imported_muscles(geometry, path_min, path_max) -> tuple[list[MujocoMuscle], list]:
-    """(MuJoCo-way parameters of every muscle, ImportedMuscle of those with positive numbers)."""
-    derived = mujoco_muscles(geometry.model, geometry.muscle_names)
+def imported_muscles(model, muscle_names, path_min, path_max
+                     ) -> tuple[list[MujocoMuscle], list]:
+    """(MuJoCo-way parameters of the named muscles, ImportedMuscle of those with positive
+    numbers); path_min/path_max: each muscle's sampled path length extremes (m)."""
+    derived = mujoco_muscles(model, muscle_names)
     imported = [d.imported(float(lo), float(hi))
                 for d, lo, hi in zip(derived, path_min, path_max, strict=True) if d.positive]
     return derived, imported
@@ -177,15 +194,16 @@ def load_user_library(path) -> dict:
 
 
 def derive_library(geometry, choices, path_min, path_max, user_entries=None,
-                   params=None, fibre_table=None) -> DerivedLibrary:
-    """Library entries for every muscle of ``geometry`` (a MujocoGeometry): the MuJoCo-way
-    parameters through vm_ros.importers.common's rules, entries of ``user_entries`` replacing
-    them by name."""
+                   params=None, fibre_table=None, muscle_names=None) -> DerivedLibrary:
+    """Library entries for the muscles of ``geometry`` (a MujocoGeometry; ``muscle_names``: a
+    subset, default all, with path_min/path_max in that order): the MuJoCo-way parameters through
+    vm_ros.importers.common's rules, entries of ``user_entries`` replacing them by name."""
     from vm_ros.importers import common
     from vm_ros.model.params import load_model_params
 
+    names = tuple(muscle_names or geometry.muscle_names)
     params = params or load_model_params()
-    derived, imported = imported_muscles(geometry, path_min, path_max)
+    derived, imported = imported_muscles(geometry.model, names, path_min, path_max)
     entries, rows = {}, []
     if imported:
         entries, rows = common.library_entries(
@@ -193,16 +211,21 @@ def derive_library(geometry, choices, path_min, path_max, user_entries=None,
             density_kg_per_m3=params.generic.muscle_density,
             fibre_table=fibre_table or common.load_fibre_table(),
             default_fpcsa_slow=choices.default_fpcsa_slow, ur=choices.ur, params=params,
-            origin=f"MuJoCo model {geometry.source.get('model')}")
+            origin=origin_of(geometry))
     user_entries = user_entries or {}
-    overridden = tuple(n for n in geometry.muscle_names if n in user_entries)
+    overridden = tuple(n for n in names if n in user_entries)
     for name in overridden:
         entries[name] = user_entries[name]
-    entries = {n: entries[n] for n in geometry.muscle_names if n in entries}
-    excluded = tuple(n for n in geometry.muscle_names if n not in entries)
+    entries = {n: entries[n] for n in names if n in entries}
+    excluded = tuple(n for n in names if n not in entries)
     flagged = tuple(d.name for d in derived if d.flags and d.name in entries
                     and d.name not in overridden)
     return DerivedLibrary(entries, rows, tuple(derived), excluded, overridden, flagged)
+
+
+def origin_of(geometry) -> str:
+    """How library source notes name the model."""
+    return f"MuJoCo model {geometry.source.get('model')}"
 
 
 def print_parameter_flags(library: DerivedLibrary, file=None) -> None:
@@ -227,3 +250,192 @@ def print_parameter_flags(library: DerivedLibrary, file=None) -> None:
             what = "written as derived: REPLACE IT (--library)"
         print(f"  !! {d.name}: L0 {d.l0_m * 1e3:.1f} mm, tendon {d.tendon_m * 1e3:.1f} mm, "
               f"F0 {d.f0_n:.1f} N: {'; '.join(d.flags)} -> {what}", file=file)
+
+
+# ---------------------------------------------------------------------------- the import
+
+
+@dataclass(frozen=True)
+class MjcfOptions:
+    """How ``vm-ros import-mjcf`` samples and fits (its command-line options)."""
+
+    degree: int = 6
+    samples: int = 1000
+    held_out: int | None = None           # default max(50, samples // 4)
+    length_tolerance_m: float = 2e-5
+    seed: int = 0
+    muscles: tuple = ()
+    max_terms: int = 500                  # largest polynomial tried per muscle (terms)
+
+    def __post_init__(self):
+        if not 1 <= self.degree <= 10:
+            raise VmRosError(f"--degree {self.degree}: give 1-10")
+        if self.samples < 10:
+            raise VmRosError(f"--samples {self.samples}: give at least 10")
+        if self.held_out is not None and self.held_out < 5:
+            raise VmRosError(f"--held-out {self.held_out}: give at least 5")
+        if not self.length_tolerance_m > 0:
+            raise VmRosError("--tolerance-mm must be > 0")
+        if self.max_terms < 1:
+            raise VmRosError(f"--max-terms {self.max_terms}: give at least 1")
+
+    @property
+    def n_held_out(self) -> int:
+        return self.held_out if self.held_out is not None else max(50, self.samples // 4)
+
+    def degrees(self, n_coordinates: int) -> tuple[int, ...]:
+        """Total degrees tried for a muscle crossing n coordinates: 2 (or --degree) up to
+        --degree, as long as the polynomial has at most max_terms terms (C(d + n, n)); at least
+        the lowest. The cost of a least-squares fit grows with the square of the terms: a tendon
+        crossing 8 finger joints at degree 6 has 3003 of them (30 s per fit)."""
+        low = min(2, self.degree)
+        kept = [d for d in range(low, self.degree + 1)
+                if math.comb(d + n_coordinates, n_coordinates) <= self.max_terms]
+        return tuple(kept) or (low,)
+
+
+@dataclass
+class MjcfImport:
+    """Result of an import: geometry written, parameters derived, library, files."""
+
+    geometry: PolynomialGeometry
+    library: DerivedLibrary
+    written: dict
+    skipped: dict
+    seconds: float
+    notes: list = field(default_factory=list)
+
+
+def latin_hypercube(geometry, n: int, rng) -> np.ndarray:
+    """n poses in the coordinate boxes, one per stratum of every coordinate."""
+    from scipy.stats import qmc
+
+    unit = qmc.LatinHypercube(d=len(geometry.coordinates), seed=rng).random(int(n))
+    return qmc.scale(unit, geometry.lower, geometry.upper)
+
+
+def discontinuities(geometry, bases) -> np.ndarray:
+    """Largest |secant slope - mean exact slope| (m/rad or m/m) per (muscle, coordinate) along
+    sweeps of each coordinate through the ``bases`` poses: MuJoCo's exact dL/dq against the
+    finite differences of its lengths between neighbouring points (two step sizes: 0 and the
+    point spacing). A path that jumps between wrapping solutions shows as a large value."""
+    n_q = len(geometry.coordinates)
+    worst = np.zeros((len(geometry.muscle_names), n_q))
+    for j in range(n_q):
+        grid = np.linspace(geometry.lower[j], geometry.upper[j], SWEEP_POINTS)
+        for base in bases:
+            poses = np.repeat(base[None, :], SWEEP_POINTS, axis=0)
+            poses[:, j] = grid
+            lengths, gradients = sample_paths(geometry, poses)
+            secant = np.diff(lengths, axis=0) / (grid[1] - grid[0])
+            tangent = (gradients[1:, :, j] + gradients[:-1, :, j]) / 2.0
+            worst[:, j] = np.fmax(worst[:, j], np.abs(secant - tangent).max(axis=0))
+    return worst
+
+
+def import_mjcf(model, out_dir, options: MjcfOptions | None = None,
+                choices: ImportChoices | None = None, user_library=None, file=None
+                ) -> MjcfImport:
+    """Import a MuJoCo model's muscle paths and parameters into ``out_dir``: DIR/geometry.yaml,
+    DIR/muscles.yaml, DIR/summary.txt (module docstring). ``user_library``: a muscle-library
+    YAML whose entries replace the derived ones by name."""
+    from vm_ros.geometry.mujoco_backend import MujocoGeometry
+    from vm_ros.importers.common import specific_tension_option
+
+    options = options or MjcfOptions()
+    choices = choices or ImportChoices(specific_tension_option("rajagopal"))
+    user = load_user_library(user_library) if user_library is not None else None
+    file = file or sys.stdout
+    started = time.monotonic()
+    exact = MujocoGeometry(model, muscles=options.muscles or None)
+    rng = np.random.default_rng(options.seed)
+    q_fit = latin_hypercube(exact, options.samples, rng)
+    q_test = latin_hypercube(exact, options.n_held_out, rng)
+    l_fit, g_fit = sample_paths(exact, q_fit)
+    l_test, g_test = sample_paths(exact, q_test)
+    worst = discontinuities(exact, q_fit[:SWEEP_LINES])
+    crossing = np.abs(np.concatenate([g_fit, g_test])).max(axis=0) > CROSSING_MOMENT_ARM_M
+    names = exact.coordinate_names
+    paths, skipped = [], {}
+    for i, name in enumerate(exact.muscle_names):
+        cols = np.flatnonzero(crossing[i])
+        if not len(cols):
+            skipped[name] = "crosses no coordinate (|r| <= 1 mm everywhere)"
+            continue
+        flags = ["discontinuous"] if np.any(worst[i, cols] > DISCONTINUITY_M) else []
+        path = fit_path(name, [names[k] for k in cols], exact.lower[cols], exact.upper[cols],
+                        q_fit[:, cols], l_fit[:, i], g_fit[:, i][:, cols], q_test[:, cols],
+                        l_test[:, i], g_test[:, i][:, cols],
+                        degrees=options.degrees(len(cols)),
+                        length_tolerance_m=options.length_tolerance_m, flags=flags)
+        if path.fit.length_rms_m > LENGTH_WARNING_M:
+            path = replace(path, fit=replace(path.fit, flags=path.fit.flags + ("poor_fit",)))
+        paths.append(path)
+    if not paths:
+        raise VmRosError(f"model {exact.source['model']!r}: no muscle crosses a coordinate")
+    used = {c for p in paths for c in p.coordinates}
+    coordinates = [c for c in exact.coordinates if c.name in used]
+    coupled = [c for c in exact.coupled if set(c.follows) <= used]
+    source = {**exact.source, "importer": "vm-ros import-mjcf"}
+    if skipped:
+        source["muscles_skipped"] = skipped
+    if exact.notes:
+        source["notes"] = list(exact.notes)
+    geometry = PolynomialGeometry(coordinates, paths, coupled, source=source,
+                                  options=_options_record(options))
+    lengths = np.concatenate([l_fit, l_test])
+    kept = [exact.muscle_names.index(p.name) for p in paths]
+    path_min, path_max = lengths[:, kept].min(axis=0), lengths[:, kept].max(axis=0)
+    fitted_names = [p.name for p in paths]
+    library = derive_library(exact, choices, path_min, path_max, user,
+                             muscle_names=fitted_names)
+    seconds = time.monotonic() - started
+    title = (f"vm-ros import-mjcf {exact.source['model']} (MuJoCo {exact.source['mujoco']}"
+             + (f", myo-sim {exact.source['myo_sim']}" if "myo_sim" in exact.source else "")
+             + f"): {len(paths)} muscles over {len(coordinates)} coordinates, "
+             f"{len(q_fit) + len(q_test)} poses in {seconds:.1f} s")
+    _, imported = imported_muscles(exact.model, fitted_names, path_min, path_max)
+    written = write_import(out_dir, geometry, imported, choices, title=title,
+                           origin=origin_of(exact), file=file)
+    if library.overridden:
+        _replace_library(written["library"], library)
+    with open(written["summary"], "a", encoding="utf-8") as summary:
+        for stream in (summary, file):
+            print(file=stream)
+            print_parameter_flags(library, stream)
+            if library.overridden:
+                print(f"replaced from {user_library}: {', '.join(library.overridden)}",
+                      file=stream)
+            if skipped:
+                print(f"skipped {len(skipped)} muscle(s) that cross no coordinate: "
+                      f"{', '.join(skipped)}", file=stream)
+    return MjcfImport(geometry, library, written, skipped, seconds, list(exact.notes))
+
+
+def _replace_library(path, library: DerivedLibrary) -> None:
+    """Rewrite the library write_import wrote with the user's entries in place of the derived
+    ones (same derivation, so the other entries are unchanged); the header says which."""
+    path = Path(path)
+    header = "\n".join(line[2:] if line.startswith("# ") else line.lstrip("#")
+                       for line in path.read_text(encoding="utf-8").splitlines()
+                       if line.startswith("#"))
+    header += ("\n\nEntries replaced from the user library (--library): "
+               f"{', '.join(library.overridden)}")
+    write_library(path, library.entries, header)
+
+
+def _options_record(options: MjcfOptions) -> dict:
+    return {
+        "degree_max": options.degree, "max_terms": options.max_terms,
+        "length_tolerance_m": options.length_tolerance_m, "samples_fit": options.samples,
+        "samples_held_out": options.n_held_out, "seed": options.seed,
+        "box": "joint ranges (jnt_range); unlimited hinges [-pi, pi]",
+        "sampling": "Latin hypercube in the box; joint-equality dependents from their "
+                    "polynomials",
+        "gradient": "exact: MuJoCo ten_J (mj_kinematics, mj_comPos, mj_tendon) through the "
+                    "joint equalities",
+        "crossing_threshold": f"|dL/dq| > {CROSSING_MOMENT_ARM_M:g} m/rad (m/m) at a sampled pose",
+        "discontinuity_check": f"{SWEEP_LINES} sweeps of {SWEEP_POINTS} points per coordinate: "
+                               f"secant vs exact slope > {DISCONTINUITY_M:g} m/rad",
+        "poor_fit_flag": f"held-out length RMS > {LENGTH_WARNING_M:g} m",
+    }
