@@ -118,3 +118,83 @@ def test_cli_bad_model_is_one_line(tmp_path, capsys):
     assert code == 2
     assert len(err.strip().splitlines()) == 1 and "no_such_model" in err
     assert "Traceback" not in err
+
+
+# ---------------------------------------------------------------------------- over ROS
+
+
+def sim_node(ros, **params):
+    from rclpy.parameter import Parameter
+
+    from vm_ros.sim.mujoco_node import MujocoSimNode
+
+    node = MujocoSimNode(context=ros.context,
+                         parameter_overrides=[Parameter(k, value=v) for k, v in params.items()])
+    ros.executor.add_node(node)
+    ros.nodes.append(node)
+    return node
+
+
+@pytest.mark.ros
+def test_sim_node_round_trip(ros):
+    """A probe publishes joint_effort_commands and receives joint_states: positive elbow torque
+    flexes the arm, negative extends it; a command of the wrong length is dropped."""
+    from rclpy.node import Node
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64MultiArray
+
+    from vm_ros.sim.mujoco_node import stream_qos
+
+    sim = sim_node(ros, model="myoelbow", real_time_factor=0.0, max_steps_per_tick=20,
+                   tick_s=0.001, initial_positions=[1.0])
+    probe = Node("effort_probe", context=ros.context)
+    ros.executor.add_node(probe)
+    ros.nodes.append(probe)
+    states = []
+    probe.create_subscription(JointState, "joint_states", states.append, stream_qos())
+    commands = probe.create_publisher(Float64MultiArray, "joint_effort_commands", stream_qos())
+    assert ros.spin_until(lambda: len(states) > 5)
+    assert list(states[-1].name) == ["r_elbow_flex"]
+
+    def drive(torque, sim_seconds=0.3):
+        commands.publish(Float64MultiArray(data=[torque]))
+        assert ros.spin_until(lambda: sim.sim.effort[0] == torque)
+        start = sim.sim.time_s
+        assert ros.spin_until(lambda: sim.sim.time_s > start + sim_seconds, timeout_s=10)
+        assert ros.spin_until(lambda: states[-1].effort[0] == torque)
+        return states[-1]
+
+    before = states[-1].position[0]
+    flexed = drive(8.0)
+    assert flexed.position[0] > before + 0.1 and flexed.velocity[0] > 0
+    extended = drive(-8.0)
+    assert extended.position[0] < flexed.position[0] - 0.1
+    commands.publish(Float64MultiArray(data=[1.0, 2.0]))
+    assert ros.spin_until(lambda: sim.dropped_commands == 1)
+    assert sim.sim.effort[0] == -8.0 and sim.commands == 2
+    stamps = [s.header.stamp.sec * 10**9 + s.header.stamp.nanosec for s in states]
+    assert all(b >= a for a, b in zip(stamps, stamps[1:], strict=False))
+
+
+@pytest.mark.ros
+@pytest.mark.slow
+def test_muscle_node_drives_the_sim_node(ros, tmp_path, capsys):
+    """The loop over ROS: import-mjcf myoelbow -> muscle_node (geometry, joint_states in,
+    joint_effort_commands out) <-> mujoco_sim_node, in real time; flexor drive flexes the
+    elbow, extensor drive lets it extend."""
+    assert main(["import-mjcf", "myoelbow", "--out", str(tmp_path), "--samples", "200"]) == 0
+    capsys.readouterr()
+    names = ["TRIlong", "TRIlat", "TRImed", "BIClong", "BICshort", "BRA"]
+    sim = sim_node(ros, model="myoelbow", initial_positions=[1.0], tick_s=0.001)
+    ros.muscle_node(muscles=names, library=str(tmp_path / "muscles.yaml"),
+                    geometry=str(tmp_path / "geometry.yaml"), publish_rate_hz=1000.0,
+                    executor="single_threaded")
+    probe = ros.probe()
+    start = sim.sim.positions()[0]
+    probe.send_excitation(names, [0.05, 0.05, 0.05, 0.6, 0.6, 0.6])
+    assert ros.spin_until(lambda: sim.sim.positions()[0] > start + 0.3, timeout_s=10)
+    assert sim.commands > 50 and sim.sim.effort[0] > 0
+    top = sim.sim.positions()[0]
+    probe.send_excitation(names, [0.6, 0.6, 0.6, 0.02, 0.02, 0.02])
+    assert ros.spin_until(lambda: sim.sim.positions()[0] < top - 0.3, timeout_s=10)
+    assert sim.sim.effort[0] < 0 and sim.dropped_commands == 0
