@@ -278,12 +278,54 @@ def test_the_model_waits_for_joint_states_and_says_so(ros, geometry_file):
     assert list(probe.efforts[-1].name) == ["hip_flexion"]
 
 
-def test_without_geometry_there_are_no_joint_topics(ros):
+def test_without_geometry_there_are_no_joint_topics(ros, tmp_path):
+    from vm_ros.recording import read_run
+
     lo, hi = physical_path_length_range(MuscleBank.from_config(MUSCLES[:2]), 0.0)
-    node = ros.muscle_node(muscles=MUSCLES[:2], initial_path_length_m=list(0.5 * (lo + hi)))
+    path = tmp_path / "run.mcap"
+    node = ros.muscle_node(muscles=MUSCLES[:2], initial_path_length_m=list(0.5 * (lo + hi)),
+                           mcap__enabled=True, mcap__path=str(path))
     assert tm.TOPIC_JOINT_STATES not in node._subscriptions_by_topic
     assert tm.TOPIC_JOINT_EFFORTS not in node._publishers_by_topic
     assert node.joint_inputs is None
+    assert ros.spin_until(lambda: node.scheduler.started)
+    node.close_run_log()
+    run = read_run(path)
+    assert not any("joint" in topic for topic in run.topic_types)
+    assert "geometry.yaml" not in run.attachments and run.info.config.geometry is None
+
+
+def test_the_run_log_holds_the_joint_topics_and_the_geometry(ros, geometry_file):
+    """joint_states logged as received, joint_efforts/joint_effort_commands as published, the
+    geometry file attached (exact bytes) with joint_map and joints in the run record."""
+    from vm_ros.recording import read_run
+
+    path = Path(geometry_file).with_name("run.mcap")
+    node, probe = joint_node(ros, geometry_file, joint_map=KNEE_MAP, joints=JOINTS,
+                             input_timeout_s=1000.0, mcap__enabled=True, mcap__path=str(path))
+    probe.base.send_kinematics(["soleus"], [SOLEUS_LENGTH])
+    probe.base.send_excitation_array([0.6, 0.3, 0.1])
+    probe.send_joints(["hip_flexion", "knee", "wheel"], [0.3, -0.6, 1.0], [0.1, -0.2, 0.0])
+    assert ros.spin_until(lambda: len(probe.efforts) >= 5 and len(probe.commands) >= 5)
+    node.close_run_log()
+    ros.spin_for(0.05)
+    run = read_run(path)
+    assert run.complete and run.info.source == "muscle_node"
+    assert run.attachments["geometry.yaml"] == Path(geometry_file).read_bytes()
+    config = run.info.config
+    assert config.geometry == Path(geometry_file) and config.joint_map == KNEE_MAP
+    assert config.joints == tuple(JOINTS)
+    states = run.get(tm.TOPIC_JOINT_STATES)
+    assert len(states) == 1 and states.names == ("hip_flexion", "knee", "wheel")
+    np.testing.assert_array_equal(states.fields["position"][0], [0.3, -0.6, 1.0])
+    efforts, commands = run.get(tm.TOPIC_JOINT_EFFORTS), run.get(tm.TOPIC_JOINT_EFFORT_COMMANDS)
+    assert efforts.names == tuple(JOINTS) and len(efforts) == len(commands) >= 5
+    logged = dict(zip(efforts.fields["stamp_ns"].tolist(), efforts.fields["effort"],
+                      strict=True))
+    for msg in probe.efforts:
+        if stamp_ns(msg) in logged:
+            np.testing.assert_array_equal(logged[stamp_ns(msg)], msg.effort)
+    np.testing.assert_array_equal(commands.fields["data"], efforts.fields["effort"])
 
 
 # --- parameters ----------------------------------------------------------------------------------

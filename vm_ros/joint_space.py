@@ -123,6 +123,9 @@ class JointMap:
     sign: np.ndarray
     offset: np.ndarray
 
+    def __post_init__(self):
+        object.__setattr__(self, "_index", {name: j for j, name in enumerate(self.robot_names)})
+
     @classmethod
     def build(cls, text: str, geometry: JointGeometry, source: str) -> JointMap:
         """The joint map of ``geometry`` from the ``joint_map`` YAML; ConfigError naming
@@ -166,10 +169,7 @@ class JointMap:
 
     def index_of(self, robot_joint: str) -> int | None:
         """Coordinate index of a robot joint name (None when not mapped)."""
-        try:
-            return self.robot_names.index(robot_joint)
-        except ValueError:
-            return None
+        return self._index.get(robot_joint)
 
     def select(self, joints: Sequence[str], source: str) -> np.ndarray:
         """Coordinate indices of the ``joints`` parameter ([] = every coordinate, in order);

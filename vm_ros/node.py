@@ -80,7 +80,7 @@ from vm_ros.node_health import (
 from vm_ros.node_inputs import InputLimits, NodeInputs
 from vm_ros.node_params import PARAMS, PARAMS_SOURCE, NodeConfig, ParamSpec
 from vm_ros.node_params import runtime_parameter_names as _runtime_names
-from vm_ros.node_recording import LOG_TOPICS, NodeRunLog, node_run_extra
+from vm_ros.node_recording import NodeRunLog, node_run_extra
 from vm_ros.node_timing import StepScheduler
 from vm_ros.recording.qos import offered_qos_profiles_yaml
 from vm_ros.recording.run_config import RunConfig
@@ -170,7 +170,9 @@ class MuscleNode(Node):
             tuple(c.muscles), recruitment=c.recruitment, recovery_mode=c.recovery_mode,
             overrides=c.overrides_mapping(), library=Path(c.library) if c.library else None,
             params=Path(c.model) if c.model else None,
-            units_per_type=c.units_per_type or None)
+            units_per_type=c.units_per_type or None,
+            geometry=Path(c.geometry) if c.geometry else None, joint_map=c.joint_map,
+            joints=tuple(c.joints))
         self.bank = self.run_config.make_bank()
         self.joint_space = (JointSpace.load(c.geometry, c.joint_map, self.bank.names, c.joints,
                                             PARAMS_SOURCE) if c.geometry else None)
@@ -332,7 +334,7 @@ class MuscleNode(Node):
             now_ns = self.get_clock().now().nanoseconds
             # the model time of the first step that will use this message (vm_ros.node_recording)
             effective_ns = self.scheduler.model_time_ns if self.scheduler.started else now_ns
-            if self.run_log is not None and topic in LOG_TOPICS:  # joint topics: not yet
+            if self.run_log is not None:
                 self.run_log.write(topic, data, effective_ns, now_ns)
             try:
                 msg = deserialize_message(data, msg_type)
@@ -446,7 +448,7 @@ class MuscleNode(Node):
             if self.context.ok():
                 raise
             return  # the context was shut down during this callback (a signal)
-        if self.run_log is not None and topic in LOG_TOPICS:  # joint topics: not yet
+        if self.run_log is not None:
             self.run_log.write(topic, data, log_time_ns, publish_time_ns)
 
     def _publish(self, out, joint_sample=None) -> None:

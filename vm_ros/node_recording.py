@@ -29,6 +29,7 @@ from vm_ros import telemetry as tm
 from vm_ros.errors import VmRosError
 from vm_ros.recording.run_log import (
     INPUT_TOPICS,
+    JOINT_TOPICS,
     OUTPUT_TOPICS,
     RunInfo,
     open_run_log,
@@ -36,10 +37,11 @@ from vm_ros.recording.run_log import (
 )
 from vm_ros.recording.writer import McapRecorder, RecorderError, RecorderStatus
 
-LOG_TOPICS = (*INPUT_TOPICS, *OUTPUT_TOPICS, tm.TOPIC_DIAGNOSTICS)
+LOG_TOPICS = (*INPUT_TOPICS, *OUTPUT_TOPICS, tm.TOPIC_DIAGNOSTICS)  # JOINT_TOPICS: geometry only
 INPUT_RULE = ("muscle_node: inputs conditioned by vm_ros.node_inputs.NodeInputs with the "
               "node_parameters (bad messages dropped, drive clipped, kinematics extrapolated for "
-              "at most extrapolation_max_s, stale_input_policy); each input is logged at the "
+              "at most extrapolation_max_s, stale_input_policy), joint_states by "
+              "vm_ros.joint_space.JointInputs with the geometry; each input is logged at the "
               "model time of the first step that uses it")
 
 
@@ -114,8 +116,10 @@ class NodeRunLog:
         if self.recorder is not None or self._open_error is not None:
             return
         try:
-            self.recorder = open_run_log(self.path, self._run_info(start_time_ns),
-                                         topics=LOG_TOPICS, qos=self._qos,
+            info = self._run_info(start_time_ns)
+            topics = [t for t in LOG_TOPICS
+                      if t not in JOINT_TOPICS or info.config.geometry is not None]
+            self.recorder = open_run_log(self.path, info, topics=topics, qos=self._qos,
                                          **self._recorder_options)
         except (VmRosError, OSError) as exc:
             self._open_error = str(exc)
