@@ -168,6 +168,14 @@ class EnergyLedger:
         """residual / |W| (muscle work)."""
         return self.residual_j / max(abs(self.muscle_work_j), 1e-12)
 
+    @property
+    def largest_term_j(self) -> float:
+        """The largest |term| of the balance (W, C, P, kinetic and potential change, D): the
+        scale of the residual when the muscles' net work is small beside gravity's."""
+        return max(abs(self.muscle_work_j), abs(self.constraint_work_j),
+                   abs(self.other_passive_work_j), abs(self.kinetic_j - self.kinetic_start_j),
+                   abs(self.potential_j - self.potential_start_j), abs(self.damping_loss_j))
+
 
 @dataclass
 class ClosedLoopResult:

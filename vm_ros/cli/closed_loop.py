@@ -164,7 +164,8 @@ def print_report(model, description, result, file=None) -> None:
           f"{change_p:+.5f} + damping loss {e.damping_loss_j:.5f} - constraint work "
           f"{e.constraint_work_j:.5f} - other passive work {e.other_passive_work_j:.5f}",
           file=file)
-    print(f"energy residual {e.residual_j:.2e} J ({e.relative_residual:.3%} of W)", file=file)
+    print(f"energy residual {e.residual_j:.2e} J ({e.relative_residual:.3%} of W, "
+          f"{e.residual_j / max(e.largest_term_j, 1e-12):.3%} of the largest term)", file=file)
     if result.limit_steps:
         print(f"joint limits active in {result.limit_steps} steps (their work is in the "
               "constraint work)", file=file)
