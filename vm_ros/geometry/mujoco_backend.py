@@ -132,7 +132,10 @@ def load_model(source) -> ModelSource:
             digest = hashlib.sha256(Path(file).read_bytes()).hexdigest()
         except ValueError:  # composed from fragments: hash the composed model's XML
             file = None
-            digest = hashlib.sha256(spec.to_xml().encode()).hexdigest()
+            try:
+                digest = hashlib.sha256(spec.to_xml().encode()).hexdigest()
+            except (ValueError, RuntimeError):  # a spec MuJoCo cannot write back: no hash
+                digest = None
     return ModelSource(model, text, file, digest, _versions())
 
 
