@@ -307,7 +307,8 @@ class MuscleNode(Node):
             "muscle_node-%Y%m%d-%H%M%S.mcap")
         offered = {topic: offered_qos_profiles_yaml(publisher.qos_profile)
                    for topic, publisher in self._publishers_by_topic.items()}
-        run_log = NodeRunLog(path, self._run_info, namespace=self.get_namespace(), qos=offered)
+        run_log = NodeRunLog(path, self._run_info, namespace=self.get_namespace(), qos=offered,
+                            on_error=self.get_logger().error)
         self.get_logger().info(f"recording to {run_log.path.resolve()}")
         return run_log
 
