@@ -6,10 +6,16 @@ it, and its parameters as JSON in the ``vm_ros.run`` metadata key ``node_paramet
 :class:`~vm_ros.node_inputs.NodeInputs` built from those parameters, and taking
 ``NodeInputs.sample(t)`` for the step at model time t, gives the inputs the node used step by step
 (clipping, rejected messages, stale_input_policy, path-length extrapolation bounded by
-extrapolation_max_s). `vm-ros recompute` and the node tests use this one implementation.
+extrapolation_max_s). With a ``geometry`` parameter, joint_states go through
+:class:`~vm_ros.joint_space.JointInputs` with the logged ``joint_map`` and ``joints`` and the
+attached ``geometry.yaml``, and each step's joint efforts use the moment arms of the joint sample
+that step used, as in the node. `vm-ros recompute`, `vm-ros simulate --motion` (which conditions
+its inputs as the node would and logs the parameters used in ``node_parameters``) and the node
+tests use this one implementation (:class:`NodeConditioning`).
 
     inputs = NodeReplayInputs(run, bank, sink)   # run read with raw=INPUT_TOPICS
     u, lp, vp = inputs.advance_to(t_ns)          # same interface as offline.RecordedInputs
+    inputs.joint_efforts(force)                  # JointEfforts of that step's forces, or None
 
 Exact only while the node's model time ran on one grid: time it skipped (max_catch_up_steps),
 paused (stale_input_policy "pause"), a backward clock jump or a model reset after a non-finite
@@ -20,15 +26,26 @@ Parameters changed at run time are not logged either (the log holds those at the
 from __future__ import annotations
 
 import json
+from collections import Counter
+from pathlib import Path
 
 import numpy as np
 
 from vm_ros import telemetry as tm
 from vm_ros.errors import ConfigError
+from vm_ros.geometry import load_geometry
+from vm_ros.geometry.file import loads as load_geometry_text
+from vm_ros.joint_space import JointEfforts, JointInputs, JointMap, JointSpace
 from vm_ros.node_inputs import InputLimits, NodeInputs
 from vm_ros.node_params import NodeConfig
 from vm_ros.recording.cdr import deserialize
-from vm_ros.recording.run_log import INPUT_TOPICS, METADATA_NAME, RunLog, RunLogError
+from vm_ros.recording.run_log import (
+    ATTACHMENT_GEOMETRY,
+    INPUT_TOPICS,
+    METADATA_NAME,
+    RunLog,
+    RunLogError,
+)
 
 NODE_PARAMETERS_KEY = "node_parameters"
 
@@ -54,28 +71,135 @@ def node_config(run: RunLog) -> NodeConfig | None:
 
 
 def is_node_log(run: RunLog) -> bool:
-    """True for a log whose inputs were conditioned by muscle_node (its own log, or a recompute
-    of one: the parameters and the input times are carried over)."""
+    """True for a log whose inputs were conditioned by muscle_node (its own log, a recompute of
+    one: the parameters and the input times are carried over, or a `vm-ros simulate --motion`
+    log, conditioned offline as the node would)."""
     return node_config(run) is not None
 
 
-class NodeReplayInputs:
-    """The input messages of a muscle_node log through NodeInputs, copied verbatim (same bytes
-    and log times) to ``sink`` (a LogSink, or None). ``run`` must be read with the input topics
-    raw (read_run(..., raw=INPUT_TOPICS)); messages are decoded from those bytes, as the node did,
-    and those that do not decode are dropped, as the node dropped them (and still copied).
+def node_joint_space(run: RunLog, muscles, config: NodeConfig) -> tuple[JointSpace | None,
+                                                                         str | None]:
+    """(The JointSpace the node built from its logged geometry, joint_map and joints parameters,
+    or None without a geometry; a note when the geometry is not attached to the log and is read
+    from the recorded path instead). The attached ``geometry.yaml`` is used when there is one.
+    Raises RunLogError when neither exists, ConfigError when they do not fit together."""
+    if not config.geometry:
+        return None, None
+    source = f"{run.path}: '{METADATA_NAME}' metadata {NODE_PARAMETERS_KEY}"
+    note = None
+    attached = run.attachments.get(ATTACHMENT_GEOMETRY)
+    if attached is not None:
+        geometry = load_geometry_text(attached.decode("utf-8", errors="replace"),
+                                      f"{run.path}: {ATTACHMENT_GEOMETRY}")
+    elif Path(config.geometry).is_file():
+        geometry = load_geometry(config.geometry)
+        note = (f"no {ATTACHMENT_GEOMETRY} attached: geometry read from {config.geometry} as "
+                "recorded (exact only if that file is unchanged)")
+    else:
+        raise RunLogError(run.path, f"no {ATTACHMENT_GEOMETRY} attached and the recorded "
+                                    f"geometry {config.geometry} is not a file")
+    space = JointSpace(geometry, JointMap.build(config.joint_map, geometry, source), muscles,
+                       config.joints, source)
+    return space, note
+
+
+class NodeConditioning:
+    """muscle_node's input conditioning without rclpy: NodeInputs and, with a JointSpace,
+    JointInputs, fed with decoded messages as the node's subscriptions feed them.
+
+    Counts what the node would report: ``issues`` (Counter of vm_ros.node_health issue kinds,
+    weighted by each issue's count; ``issue_text()`` quotes the first of each kind) and
+    ``clamped`` (per coordinate of ``space``, the accepted joint_states messages in which that
+    coordinate, named in the message, was outside the geometry's box and clamped).
     """
 
-    def __init__(self, run: RunLog, bank, sink=None, config: NodeConfig | None = None):
+    def __init__(self, bank, config: NodeConfig, space: JointSpace | None = None):
+        self.config = config
+        self.space = space
+        initial = np.array(config.initial_path_length_m) if config.initial_path_length_m else None
+        self.inputs = NodeInputs(bank.names, InputLimits.for_bank(bank, config), initial,
+                                 joint_driven=space.driven if space is not None else ())
+        self.joints = JointInputs(space, self.inputs) if space is not None else None
+        self.issues: Counter = Counter()
+        self._texts: dict[str, str] = {}
+        self.clamped = np.zeros(space.n_coordinates if space is not None else 0, dtype=int)
+
+    def _count(self, issues) -> None:
+        for issue in issues:
+            self.issues[issue.kind] += issue.count
+            self._texts.setdefault(issue.kind, issue.text)
+
+    def issue_text(self) -> str:
+        """The first issue of each kind met so far, in one line ('' when none)."""
+        return "; ".join(self._texts.values())
+
+    def on_message(self, topic: str, msg, time_ns: int) -> None:
+        """A decoded message on one of the input topics, received at ``time_ns``."""
+        if topic == tm.TOPIC_EXCITATION_ARRAY:
+            self._count(self.inputs.on_excitation_array(msg.data, time_ns))
+        elif topic == tm.TOPIC_EXCITATION:
+            self.on_excitation(msg.name, msg.position, time_ns)
+        elif topic == tm.TOPIC_KINEMATICS:
+            self._count(self.inputs.on_kinematics(msg.name, msg.position, msg.velocity,
+                                                  time_ns))
+        elif topic == tm.TOPIC_JOINT_STATES and self.joints is not None:  # else not subscribed
+            self.on_joint_states(msg.name, msg.position, msg.velocity, time_ns)
+
+    def on_excitation(self, names, drive, time_ns: int) -> None:
+        self._count(self.inputs.on_excitation(names, drive, time_ns))
+
+    def on_joint_states(self, names, position, velocity, time_ns: int) -> None:
+        before = self.joints.sample
+        self._count(self.joints.on_joint_states(names, position, velocity, time_ns))
+        sample = self.joints.sample
+        if sample is not before:  # accepted: count the named coordinates that were clamped
+            named = self._named(names)
+            self.clamped[named[self.joints.q[named] != sample.q[named]]] += 1
+
+    def _named(self, names) -> np.ndarray:
+        """Coordinate indices of the joints a joint_states message names (positional: joints)."""
+        if len(names) == 0:
+            return self.space.output
+        index = (self.space.map.index_of(name) for name in names)
+        return np.array([j for j in index if j is not None], dtype=int)
+
+    @property
+    def ready(self) -> bool:
+        return self.inputs.ready
+
+    def sample(self, time_ns: int):
+        """(U, path length, path velocity) for the step starting at ``time_ns``."""
+        return self.inputs.sample(time_ns)
+
+    def joint_efforts(self, force) -> JointEfforts | None:
+        """The joint efforts of a step's tendon forces through the latest joint sample (the one
+        the step used), or None without a geometry."""
+        if self.joints is None or self.joints.sample is None:
+            return None
+        return self.joints.efforts(self.joints.sample, force)
+
+
+class NodeReplayInputs:
+    """The input messages of a muscle_node log through NodeConditioning, copied verbatim (same
+    bytes and log times) to ``sink`` (a LogSink, or None). ``run`` must be read with the input
+    topics raw (read_run(..., raw=INPUT_TOPICS)); messages are decoded from those bytes, as the
+    node did, and those that do not decode are dropped, as the node dropped them (and still
+    copied). ``space``: the joint space (default: node_joint_space of the log).
+    """
+
+    def __init__(self, run: RunLog, bank, sink=None, config: NodeConfig | None = None,
+                 space: JointSpace | None = None):
         config = config or node_config(run)
         if config is None:
             raise RunLogError(run.path, f"no {NODE_PARAMETERS_KEY!r} in the run metadata "
                                         "(not a muscle_node log)")
+        if space is None:
+            space, _ = node_joint_space(run, bank.names, config)
         self.config = config
         self._sink = sink
         self._path = run.path
-        initial = np.array(config.initial_path_length_m) if config.initial_path_length_m else None
-        self.inputs = NodeInputs(bank.names, InputLimits.for_bank(bank, config), initial)
+        self.conditioning = NodeConditioning(bank, config, space)
+        self.inputs = self.conditioning.inputs
         self._events = run.events(INPUT_TOPICS)
         if any(event.data is None for event in self._events):
             raise ValueError(f"{run.path}: inputs read without their raw bytes")
@@ -90,12 +214,7 @@ class NodeReplayInputs:
             msg = deserialize(tm.TOPIC_TYPES[topic], data)
         except Exception:  # the node drops undecodable bytes too
             return
-        if topic == tm.TOPIC_EXCITATION_ARRAY:
-            self.inputs.on_excitation_array(msg.data, time_ns)
-        elif topic == tm.TOPIC_EXCITATION:
-            self.inputs.on_excitation(msg.name, msg.position, time_ns)
-        else:
-            self.inputs.on_kinematics(msg.name, msg.position, msg.velocity, time_ns)
+        self.conditioning.on_message(topic, msg, time_ns)
 
     def advance_to(self, time_ns: int):
         """Apply the messages logged at or before ``time_ns``; (U, path length, path velocity)
@@ -106,10 +225,21 @@ class NodeReplayInputs:
             if self._sink is not None:
                 self._sink.write_bytes(event.topic, event.data, event.time_ns)
             self._next += 1
-        if not self.inputs.ready:
-            raise RunLogError(self._path, f"no valid {tm.TOPIC_KINEMATICS} for every muscle by "
-                                          f"model time {time_ns * 1e-9:.6f} s")
-        return self.inputs.sample(time_ns)
+        if not self.conditioning.ready:
+            raise RunLogError(self._path, f"no valid {_path_source(self.conditioning)} for every "
+                                          f"muscle by model time {time_ns * 1e-9:.6f} s")
+        return self.conditioning.sample(time_ns)
+
+    def joint_efforts(self, force) -> JointEfforts | None:
+        return self.conditioning.joint_efforts(force)
+
+
+def _path_source(conditioning: NodeConditioning) -> str:
+    if conditioning.space is None:
+        return tm.TOPIC_KINEMATICS
+    if np.all(conditioning.inputs.joint_driven):
+        return tm.TOPIC_JOINT_STATES
+    return f"{tm.TOPIC_KINEMATICS} or {tm.TOPIC_JOINT_STATES}"
 
 
 def model_time_irregularities(run: RunLog, dt_ns: int, every_steps: int) -> list[str]:
@@ -134,4 +264,5 @@ def model_time_irregularities(run: RunLog, dt_ns: int, every_steps: int) -> list
     return notes
 
 
-__all__ = ["NodeReplayInputs", "is_node_log", "model_time_irregularities", "node_config"]
+__all__ = ["NodeConditioning", "NodeReplayInputs", "is_node_log", "model_time_irregularities",
+           "node_config", "node_joint_space"]

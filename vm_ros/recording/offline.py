@@ -2,8 +2,9 @@
 `vm-ros recompute` share this loop.
 
     run = OfflineRun(bank, timing, recorder)
-    result = run.run(inputs, n_steps)        # inputs: SampledInputs, RecordedInputs or
-                                             # node_replay.NodeReplayInputs
+    result = run.run(inputs, n_steps)        # inputs: SampledInputs, RecordedInputs,
+                                             # node_replay.NodeReplayInputs or
+                                             # motion_inputs.MotionInputs
 
 Step k covers model time [t_k, t_k + dt) with t_k = start + k dt (integer ns). Inputs follow the
 run log's zero-order hold: the step uses the latest input with log_time <= t_k. Outputs
@@ -12,13 +13,18 @@ run log's zero-order hold: the step uses the latest input with log_time <= t_k. 
 ``timing.steps_per(telemetry_rate_hz)`` steps, stamped and logged at the end of the step. The
 bank starts at rest, at static equilibrium for the path length held at the start time; with
 ``publish_start`` (as muscle_node does) that initial state is published too, at the start time.
+
+Inputs with a ``joint_efforts(force)`` method (joint space: NodeReplayInputs, MotionInputs) also
+give joint_efforts and joint_effort_commands with every output, the step's tendon forces through
+the moment arms of the joint sample the step used; the joint work is summed step by step
+(tau . qdot dt, robot convention, with the joint velocities of that sample).
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -162,6 +168,10 @@ class OfflineResult:
     | sample_times_ns | (k,) model times of the publish ticks |
     | force_samples | (k, n) tendon force (N) at the publish ticks |
     | interrupted | True when should_stop ended the run early |
+    | joints | robot joint names of joint_efforts (() without a geometry) |
+    | joint_samples | (k, 3, n_joints) position, velocity and effort of joint_efforts at the
+      publish ticks (rad or m, rad/s or m/s, N m or N) |
+    | joint_work | (n_joints,) J, sum over the steps of tau qdot dt |
     """
 
     steps: int
@@ -170,6 +180,9 @@ class OfflineResult:
     sample_times_ns: np.ndarray
     force_samples: np.ndarray
     interrupted: bool
+    joints: tuple = ()
+    joint_samples: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 0)))
+    joint_work: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 class OfflineRun:
@@ -182,7 +195,7 @@ class OfflineRun:
         self.timing = timing
         self.sink = LogSink(recorder, log_topic)
 
-    def _publish(self, out: StepOutput, time_ns: int) -> None:
+    def _publish(self, out: StepOutput, time_ns: int, efforts=None) -> None:
         names, write = self.bank.names, self.sink.write_fields
         write(tm.TOPIC_FORCE, tm.TYPE_JOINT_STATE, tm.force_fields(out, names, time_ns), time_ns)
         write(tm.TOPIC_ENERGY_RATE, tm.TYPE_FLOAT64_MULTI_ARRAY, tm.energy_rate_fields(out),
@@ -191,6 +204,11 @@ class OfflineRun:
               msgs.float64_fields(out.total_energy_rate), time_ns)
         write(tm.TOPIC_ENERGY_TOTAL, tm.TYPE_FLOAT64, msgs.float64_fields(out.total_energy),
               time_ns)
+        if efforts is not None:
+            write(tm.TOPIC_JOINT_EFFORTS, tm.TYPE_JOINT_STATE,
+                  tm.joint_efforts_fields(efforts, time_ns), time_ns)
+            write(tm.TOPIC_JOINT_EFFORT_COMMANDS, tm.TYPE_FLOAT64_MULTI_ARRAY,
+                  tm.joint_effort_commands_fields(efforts), time_ns)
 
     def run(self, inputs, n_steps: int, should_stop: Callable[[], bool] = lambda: False,
             progress: Callable[[int, int], None] | None = None,
@@ -201,9 +219,13 @@ class OfflineRun:
             t.telemetry_rate_hz)
         _, lp, _ = inputs.advance_to(start)
         initial = self.bank.reset(path_length=lp, time_s=start * 1e-9)
+        joint_efforts = getattr(inputs, "joint_efforts", None)
+        joints = _JointRecord(t.dt_s)
         forces, times, out, k = [], [], None, 0
         if publish_start and per_publish:
-            self._publish(initial, start)
+            efforts = joint_efforts(initial.force) if joint_efforts is not None else None
+            self._publish(initial, start, efforts)
+            joints.sample(efforts)
             forces.append(initial.force.copy())
             times.append(start)
         interrupted = False
@@ -214,8 +236,11 @@ class OfflineRun:
             u, lp, vp = inputs.advance_to(start + k * dt_ns)
             out = self.bank.step(t.dt_s, u, lp, vp)
             end_ns = start + (k + 1) * dt_ns
+            efforts = joint_efforts(out.force) if joint_efforts is not None else None
+            joints.step(efforts)
             if per_publish and (k + 1) % per_publish == 0:
-                self._publish(out, end_ns)
+                self._publish(out, end_ns, efforts)
+                joints.sample(efforts)
                 forces.append(out.force.copy())
                 times.append(end_ns)
             if per_telemetry and (k + 1) % per_telemetry == 0:
@@ -229,4 +254,32 @@ class OfflineRun:
         steps = k
         force_samples = np.array(forces) if forces else np.zeros((0, self.bank.n))
         return OfflineResult(steps, start + steps * dt_ns, out, np.array(times, dtype=np.int64),
-                             force_samples, interrupted)
+                             force_samples, interrupted, *joints.result())
+
+
+class _JointRecord:
+    """Joint efforts of a run: the published samples and the work summed over the steps."""
+
+    def __init__(self, dt_s: float):
+        self.dt_s = dt_s
+        self.names: tuple = ()
+        self.samples: list = []
+        self.work: np.ndarray | None = None
+
+    def step(self, efforts) -> None:
+        if efforts is None:
+            return
+        self.names = tuple(efforts.names)
+        power = efforts.effort * efforts.velocity
+        self.work = power * self.dt_s if self.work is None else self.work + power * self.dt_s
+
+    def sample(self, efforts) -> None:
+        if efforts is not None:
+            self.names = tuple(efforts.names)
+            self.samples.append(np.stack([efforts.position, efforts.velocity, efforts.effort]))
+
+    def result(self) -> tuple:
+        n = len(self.names)
+        samples = np.array(self.samples) if self.samples else np.zeros((0, 3, n))
+        work = self.work if self.work is not None else np.zeros(n)
+        return self.names, samples, work
