@@ -1,11 +1,13 @@
-"""Run the model offline (no ROS needed) on a built-in scenario or on input time series, write an
-MCAP log with the channels muscle_node writes, and print a per-muscle summary.
+"""Run the model offline (no ROS needed) on a built-in scenario, on input time series or on an
+OpenSim motion through a joint-space geometry, write an MCAP log with the channels muscle_node
+writes, and print a per-muscle (and per-joint) summary.
 
-The log holds the inputs (excitation, muscle_kinematics, sampled every --input-rate), the outputs
-(muscle_force, energy_rate, energy_rate_total, energy_total at --publish-rate), the
-muscle_telemetry record (--telemetry-rate), the run's metadata and the model and muscle files
-used; `vm-ros recompute` reruns it, `vm-ros report` plots it, `vm-ros replay` republishes it.
-Offline, every log time and header stamp is the model time in ns, starting at 0.
+The log holds the inputs (excitation, muscle_kinematics or joint_states, sampled every
+--input-rate), the outputs (muscle_force, energy_rate, energy_rate_total, energy_total, and
+joint_efforts, joint_effort_commands with --motion, at --publish-rate), the muscle_telemetry record
+(--telemetry-rate), the run's metadata and the model, muscle and geometry files used; `vm-ros
+recompute` reruns it, `vm-ros report` plots it, `vm-ros replay` republishes it. Offline, every
+log time and header stamp is the model time in ns, starting at 0.
 
 Input CSV (--inputs): a header row, then one row per sample:
   time_s                  time (s), strictly increasing
@@ -16,6 +18,27 @@ Input CSV (--inputs): a header row, then one row per sample:
 Values are interpolated linearly between rows; the muscles are those with columns (or
 --muscles), taken from the muscle library.
 
+Joint space (--motion FILE.mot|.sto --geometry GEOMETRY.yaml):
+  coordinates   the geometry's coordinates from the motion's columns by name (coordinate names
+                or /jointset/<joint>/<coordinate>/value; degrees when its header says
+                inDegrees=yes); a coordinate crossed by a muscle of the run that the motion lacks
+                is an error unless --hold COORDINATE=VALUE (rad or m) gives it a constant value
+  muscles       the geometry's muscles that are in the muscle library (--library, e.g. the
+                muscles.yaml of `vm-ros import-osim`), or --muscles (each needs a path)
+  drive         --excitations FILE (.sto/.mot: columns NAME, /forceset/NAME, NAME|excitation,
+                .../NAME/excitation, other columns ignored; .csv: time_s and one column per
+                muscle), on the motion's time axis; or a constant --excitation U; default 0:
+                passive (the torques come from the muscles' passive elasticity only)
+  joints        joint_states and joint_efforts name the coordinates through --joint-map (YAML
+                text or file, as muscle_node's joint_map: robot q = sign (q - offset)); the
+                joint outputs are the coordinates crossed by the run's muscles
+Inputs are conditioned as muscle_node conditions them (vm_ros.joint_space.JointInputs and
+vm_ros.node_inputs.NodeInputs with the node's default input parameters, recorded in the log's
+node_parameters): coordinates outside the geometry's box are clamped (counted per coordinate in
+the summary), joint_states giving non-physical path lengths are dropped (counted); the initial
+state is published at t = 0 as the node does. The summary adds per joint the peak and mean
+generalized force (N m or N), the joint work (sum of tau qdot dt over the steps) and the clamping.
+
 SIGINT or SIGTERM stops the run between two steps; the log is finished cleanly and the summary
 covers the time simulated.
 """
@@ -23,9 +46,11 @@ covers the time simulated.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from pathlib import Path
 
 from vm_ros.cli.progress import Progress
 from vm_ros.cli.runs import (
@@ -36,55 +61,203 @@ from vm_ros.cli.runs import (
     default_log_path,
 )
 from vm_ros.errors import VmRosError
+from vm_ros.geometry import load_geometry
+from vm_ros.importers.motion import read_motion
+from vm_ros.joint_space import JointMap, JointSpace
+from vm_ros.model.params import load_muscle_library
+from vm_ros.node_params import NodeConfig
+from vm_ros.node_recording import INPUT_RULE as NODE_INPUT_RULE
+from vm_ros.recording.excitations import constant_excitation, load_excitations
 from vm_ros.recording.input_series import load_input_series
-from vm_ros.recording.offline import OfflineRun, SampledInputs
+from vm_ros.recording.motion_inputs import JointMotion, MotionInputs, parse_hold
+from vm_ros.recording.node_replay import NODE_PARAMETERS_KEY, NodeConditioning
+from vm_ros.recording.offline import OfflineResult, OfflineRun, SampledInputs
 from vm_ros.recording.run_config import RunConfig
 from vm_ros.recording.run_log import RunInfo, RunTiming, open_run_log
-from vm_ros.recording.summary import summarize, summary_table
+from vm_ros.recording.summary import (
+    joint_summary_table,
+    summarize,
+    summarize_joints,
+    summary_table,
+)
 from vm_ros.scenarios import load_scenario, scenario_names
 from vm_ros.telemetry import energy_partition
 
-HELP = "run the model offline on a scenario or CSV inputs; write MCAP and print a summary"
+HELP = ("run the model offline on a scenario, CSV inputs or an OpenSim motion (joint space); "
+        "write MCAP and print a summary")
+JOINT_OPTIONS = ("geometry", "excitations", "excitation", "joint_map", "hold")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     source = parser.add_mutually_exclusive_group(required=True)
     source.add_argument("--scenario", choices=scenario_names(), help="built-in scenario")
     source.add_argument("--inputs", metavar="FILE.csv", help="input time series (see above)")
+    source.add_argument("--motion", type=Path, metavar="FILE.mot|.sto",
+                        help="OpenSim motion or states file, with --geometry (see above)")
     parser.add_argument("--duration", type=float, metavar="S",
-                        help="simulated time (default: the scenario's or the CSV's)")
+                        help="simulated time (default: the scenario's, the CSV's or the "
+                             "motion's)")
     parser.add_argument("--muscles", metavar="A,B", help="comma-separated muscles instead of "
-                        "the scenario's (or the CSV's)")
+                        "the scenario's (the CSV's, the geometry's)")
     parser.add_argument("--dt", type=float, default=0.001, metavar="S",
                         help="model step (default 0.001 s)")
     parser.add_argument("--input-rate", type=float, metavar="HZ",
                         help="input sampling rate (default: the model rate, 1/dt)")
+    joint = parser.add_argument_group("joint space (with --motion)")
+    joint.add_argument("--geometry", type=Path, metavar="GEOMETRY.yaml",
+                       help="vm_ros.geometry file (e.g. from vm-ros import-osim); required")
+    joint.add_argument("--excitations", type=Path, metavar="FILE.sto|.csv",
+                       help="drive per muscle over time (see above)")
+    joint.add_argument("--excitation", type=float, metavar="U",
+                       help="constant drive of every muscle (default 0: passive)")
+    joint.add_argument("--joint-map", metavar="YAML",
+                       help="robot joints -> coordinates, YAML text or file (muscle_node's "
+                            "joint_map; default: coordinates under their own names)")
+    joint.add_argument("--hold", action="append", default=[], metavar="COORDINATE=VALUE",
+                       help="hold a coordinate at VALUE (rad or m) instead of the motion "
+                            "(repeatable)")
     add_model_options(parser, "the scenario's settings, lumped recruitment")
-    add_output_options(parser, "default out/<scenario>-<date>-<time>.mcap")
+    add_output_options(parser, "default out/<scenario or file>-<date>-<time>.mcap")
 
 
-@dataclass(frozen=True)
+@dataclass
 class _Source:
-    """Where the inputs come from: a scenario or a CSV file."""
+    """Where the inputs come from: a scenario, a CSV file or a motion; ``config`` before the
+    command line's model options."""
 
     name: str
-    muscles: tuple
-    make_inputs: Callable  # bank -> object with excitation/path_length/path_velocity(t)
+    config: RunConfig
     duration_s: float
-    recovery_mode: str | None
     extra: dict
+    # (bank, offline run, input period ns) -> inputs for OfflineRun.run
+    make_inputs: Callable
+    publish_start: bool = False
+    # (inputs, result) -> summary lines after the muscles'
+    report: Callable = field(default=lambda inputs, result: [])
+
+
+def _muscle_list(args) -> tuple:
+    return tuple(m.strip() for m in (args.muscles or "").split(",") if m.strip())
+
+
+def _sampled(functions):
+    """make_inputs of functions of time: excitation, path_length, path_velocity."""
+
+    def make(bank, offline, period_ns):
+        inputs = functions(bank)
+        return SampledInputs(bank.names, inputs.excitation, inputs.path_length,
+                             inputs.path_velocity, period_ns, 0, offline.sink)
+
+    return make
 
 
 def _source(args) -> _Source:
-    muscles = tuple(m.strip() for m in (args.muscles or "").split(",") if m.strip())
+    muscles = _muscle_list(args)
     if args.scenario:
         scenario = load_scenario(args.scenario)
-        return _Source(scenario.name, muscles or scenario.muscles, scenario.inputs,
-                       scenario.duration_s, scenario.recovery_mode, {"scenario": scenario.name})
+        config = RunConfig(muscles or scenario.muscles, recovery_mode=scenario.recovery_mode)
+        return _Source(scenario.name, config, scenario.duration_s, {"scenario": scenario.name},
+                       _sampled(scenario.inputs))
     series = load_input_series(args.inputs)
     series = series.select(muscles or series.muscles)
-    return _Source(series.path.stem, series.muscles, lambda bank: series, series.duration_s,
-                   None, {"inputs_file": str(series.path)})
+    return _Source(series.path.stem, RunConfig(series.muscles), series.duration_s,
+                   {"inputs_file": str(series.path)}, _sampled(lambda bank: series))
+
+
+def _check_options(args) -> None:
+    """Joint-space options only with --motion, --motion only with a geometry."""
+    if not args.motion:
+        given = [name for name in JOINT_OPTIONS if getattr(args, name)]
+        if given:
+            raise VmRosError(f"--{given[0].replace('_', '-')} is for joint-space runs: use it "
+                             "with --motion")
+        return
+    if args.geometry is None:
+        raise VmRosError("--motion needs --geometry GEOMETRY.yaml (a vm_ros.geometry file, "
+                         "e.g. from vm-ros import-osim)")
+    if args.excitations is not None and args.excitation is not None:
+        raise VmRosError("give --excitations FILE or --excitation U, not both")
+
+
+def _joint_map_text(value: str | None) -> str:
+    """--joint-map: YAML text, or the text of the YAML file it names."""
+    if not value:
+        return ""
+    path = Path(value)
+    try:
+        return path.read_text() if path.is_file() else value
+    except OSError as exc:
+        raise VmRosError(f"--joint-map {value}: cannot read ({exc.strerror or exc})") from exc
+
+
+def _motion_muscles(args, geometry) -> tuple:
+    """--muscles (each with a path in the geometry), else the geometry's muscles in the
+    library."""
+    chosen = _muscle_list(args)
+    if chosen:
+        unknown = [m for m in chosen if m not in geometry.muscle_names]
+        if unknown:
+            raise VmRosError(f"--muscles: {unknown[0]!r} has no path in the geometry "
+                             f"{args.geometry} (it has: {', '.join(geometry.muscle_names)})")
+        return chosen
+    library = load_muscle_library(args.library)
+    muscles = tuple(m for m in geometry.muscle_names if m in library)
+    if not muscles:
+        raise VmRosError(f"none of the geometry's muscles ({', '.join(geometry.muscle_names)}) "
+                         f"is in the muscle library {args.library or 'shipped with vm_ros'}: "
+                         "give --library (e.g. the muscles.yaml of vm-ros import-osim)")
+    return muscles
+
+
+def _motion_source(args) -> _Source:
+    geometry = load_geometry(args.geometry)
+    motion = read_motion(args.motion)
+    hold = parse_hold(args.hold)
+    text = _joint_map_text(args.joint_map)
+    joint_map = JointMap.build(text, geometry, "--joint-map")
+    muscles = _motion_muscles(args, geometry)
+    crossed = {c for m in geometry.muscles if m.name in muscles for c in m.coordinates}
+    joints = tuple(robot for robot, name in zip(joint_map.robot_names, joint_map.coordinates,
+                                                strict=True) if name in crossed)
+    node_values = {"muscles": list(muscles), "geometry": str(args.geometry), "joint_map": text,
+                   "joints": list(joints)}
+    node = NodeConfig.from_values(node_values)
+    needed = [name for name in geometry.coordinate_names if name in crossed]
+    joint_motion = JointMotion.from_motion(motion, geometry, needed, hold)
+    excitations = (load_excitations(args.excitations, muscles) if args.excitations else
+                   constant_excitation(muscles, 0.0 if args.excitation is None
+                                       else args.excitation))
+
+    def make_inputs(bank, offline, period_ns):
+        space = JointSpace(geometry, joint_map, bank.names, joints, "--geometry")
+        return MotionInputs(bank.names, excitations, joint_motion, joint_map,
+                            NodeConditioning(bank, node, space), period_ns, offline.sink)
+
+    def report(inputs: MotionInputs, result: OfflineResult) -> list[str]:
+        conditioning = inputs.conditioning
+        output = conditioning.space.output
+        units = [geometry.coordinates[j].unit for j in output]
+        rows = summarize_joints(result.joints, units, result.joint_samples[:, 2, :],
+                                result.joint_work, conditioning.clamped[output])
+        lines = [joint_summary_table(rows)] if len(result.joints) else []
+        if conditioning.issues:
+            counts = ", ".join(f"{kind} {n}" for kind, n in sorted(conditioning.issues.items()))
+            lines.append(f"inputs conditioned as muscle_node: {counts} "
+                         f"({conditioning.issue_text()})")
+        if excitations.ignored:
+            shown = ", ".join(excitations.ignored[:5])
+            more = f" (+{len(excitations.ignored) - 5} more)" if len(excitations.ignored) > 5 \
+                else ""
+            lines.append(f"excitations {excitations.source}: columns not used: {shown}{more}")
+        return lines
+
+    config = RunConfig(muscles, geometry=args.geometry, joint_map=text, joints=joints)
+    extra = {"motion_file": str(args.motion), "excitations": excitations.source,
+             "hold": json.dumps(hold, sort_keys=True),
+             NODE_PARAMETERS_KEY: json.dumps(node_values, sort_keys=True),
+             "input_hold": NODE_INPUT_RULE}
+    return _Source(args.motion.stem, config, joint_motion.duration_s, extra, make_inputs,
+                   publish_start=True, report=report)
 
 
 def _positive(name: str, value: float) -> float:
@@ -94,7 +267,8 @@ def _positive(name: str, value: float) -> float:
 
 
 def run(args) -> int:
-    source = _source(args)
+    _check_options(args)
+    source = _motion_source(args) if args.motion else _source(args)
     duration = _positive("--duration", source.duration_s if args.duration is None
                          else args.duration)
     timing = RunTiming(
@@ -102,10 +276,8 @@ def run(args) -> int:
         publish_rate_hz=_positive("--publish-rate", args.publish_rate or 100.0),
         telemetry_rate_hz=100.0 if args.telemetry_rate is None else max(args.telemetry_rate, 0),
     )
-    config = apply_model_options(RunConfig(source.muscles, recovery_mode=source.recovery_mode),
-                                 args)
+    config = apply_model_options(source.config, args)
     bank = config.make_bank()
-    inputs = source.make_inputs(bank)
     input_period_ns = timing.dt_ns * timing.steps_per(args.input_rate or timing.model_rate_hz)
     out_path = args.out or default_log_path(source.name)
     info = RunInfo(config, timing, "simulate", time_base="model time from 0 (offline)",
@@ -117,9 +289,9 @@ def run(args) -> int:
             f"simulate {source.name}", n_steps, enabled=True if args.progress else None) \
             as progress:
         offline = OfflineRun(bank, timing, recorder)
-        sampled = SampledInputs(bank.names, inputs.excitation, inputs.path_length,
-                                inputs.path_velocity, input_period_ns, 0, offline.sink)
-        result = offline.run(sampled, n_steps, should_stop=stop, progress=progress.update)
+        inputs = source.make_inputs(bank, offline, input_period_ns)
+        result = offline.run(inputs, n_steps, should_stop=stop, progress=progress.update,
+                             publish_start=source.publish_start)
     status = recorder.status
     print(f"simulated {result.steps * timing.dt_s:.3f} s of {', '.join(bank.names)} "
           f"({config.recruitment} recruitment, {bank.recovery_mode} recovery, dt "
@@ -130,6 +302,8 @@ def run(args) -> int:
                          energy_partition(last.energy_by_fiber, last.energy),
                          last.mechanical_work)
         print(summary_table(rows))
+    for line in source.report(inputs, result):
+        print(line)
     print(f"log: {status.path} ({status.written} messages, {status.bytes_written / 1e6:.2f} MB"
           f"{f', {status.dropped} dropped' if status.dropped else ''})")
     if stop.signum:

@@ -1,4 +1,5 @@
-"""Per-muscle summary of a run: force, partitioned energy, mechanical work and efficiency.
+"""Per-muscle summary of a run: force, partitioned energy, mechanical work and efficiency; per
+joint (joint-space runs): peak and mean generalized force, joint work and clamping.
 
     rows = summarize(names, force_samples, energy, work)
     print(summary_table(rows))
@@ -94,4 +95,65 @@ def summary_table(rows: list[MuscleSummary]) -> str:
         efficiency = 100 * work / total[-1, -1] if total[-1, -1] > 0 else float("nan")
         lines.append(f"{'all muscles':<22}{'all':<6}{'':>20}{energies}{work:>10.2f}"
                      f"{efficiency:>7.1f}")
+    return "\n".join(lines)
+
+
+# --- joint space ---------------------------------------------------------------------------
+
+EFFORT_UNITS = {"rad": "N m", "m": "N"}  # generalized force per coordinate unit
+
+
+@dataclass(frozen=True)
+class JointSummary:
+    """| field | unit |
+    | name | robot joint |
+    | unit | the coordinate's: "rad" (effort N m) or "m" (effort N) |
+    | peak_effort | N m or N, the sample of largest magnitude (signed) |
+    | mean_effort | N m or N (over the published samples) |
+    | work | J, joint work sum(tau qdot dt) (positive: the muscles drive the joint) |
+    | clamped | joint_states samples in which the coordinate was outside the geometry's box
+      (None when not known) |
+    """
+
+    name: str
+    unit: str
+    peak_effort: float
+    mean_effort: float
+    work: float
+    clamped: int | None = None
+
+
+def summarize_joints(names, units, effort_samples, work, clamped=None) -> list[JointSummary]:
+    """effort_samples (k, n_joints) N m or N; work (n_joints,) J; clamped (n_joints,) or None."""
+    effort = np.asarray(effort_samples, dtype=float).reshape(-1, len(names))
+    rows = []
+    for i, name in enumerate(names):
+        column = effort[:, i]
+        finite = column[np.isfinite(column)]
+        peak = float(finite[np.argmax(np.abs(finite))]) if finite.size else float("nan")
+        mean = float(finite.mean()) if finite.size else float("nan")
+        rows.append(JointSummary(name, units[i], peak, mean, float(work[i]),
+                                 None if clamped is None else int(clamped[i])))
+    return rows
+
+
+def joint_summary_records(rows: list[JointSummary]) -> list[dict]:
+    """One flat dict per joint (for CSV)."""
+    return [{"joint": row.name, "unit": row.unit,
+             "effort_unit": EFFORT_UNITS.get(row.unit, ""),
+             "peak_effort": row.peak_effort, "mean_effort": row.mean_effort,
+             "work_J": row.work, "clamped_samples": "" if row.clamped is None else row.clamped}
+            for row in rows]
+
+
+def joint_summary_table(rows: list[JointSummary]) -> str:
+    """Fixed-width text: per joint peak and mean generalized force, joint work, clamping."""
+    header = (f"{'joint':<22}{'peak tau':>12}{'mean tau':>12}{'unit':>6}{'W joint':>11}"
+              f"{'clamped':>11}")
+    units = f"{'':<22}{'':>12}{'':>12}{'':>6}{'(J)':>11}{'(samples)':>11}"
+    lines = [header, units, "-" * len(header)]
+    for row in rows:
+        clamped = "-" if row.clamped is None else str(row.clamped)
+        lines.append(f"{row.name:<22}{row.peak_effort:>12.3f}{row.mean_effort:>12.3f}"
+                     f"{EFFORT_UNITS.get(row.unit, '?'):>6}{row.work:>11.3f}{clamped:>11}")
     return "\n".join(lines)

@@ -1,0 +1,232 @@
+"""`vm-ros simulate --motion`: an OpenSim motion through a joint-space geometry into a run log with
+joint_states, joint_efforts and joint_effort_commands; torques against tau = r^T F computed here;
+motion units from the header; excitations from an OpenSim storage file; bad inputs are one line.
+
+The geometry and the motion are built here (no third-party model files): hip and knee (rad),
+vasti and rectus femoris from the shipped library with polynomial paths inside their valid path
+ranges over the box.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from vm_ros.cli import main
+from vm_ros.geometry import (
+    Coordinate,
+    MusclePath,
+    PolynomialGeometry,
+    generalized_forces,
+    load_geometry,
+    write_geometry,
+)
+from vm_ros.recording.run_log import read_run
+
+VM_ROS = str(Path(sys.executable).with_name("vm-ros"))
+MS = 1_000_000
+BOX = {"hip_flexion": (-0.5, 1.5), "knee_angle": (0.0, 2.0)}
+
+
+def make_geometry() -> PolynomialGeometry:
+    """vasti        L = 0.29 + 0.022 knee + 0.001 knee^2            (0.290-0.338 m over the box)
+    rectus_femoris  L = 0.52 - 0.01 hip + 0.01 knee + 0.002 hip knee (0.505-0.543 m)
+    Library valid ranges: vasti 0.286-0.338 m, rectus femoris 0.497-0.544 m."""
+    coordinates = [Coordinate(name, "rad", *box) for name, box in BOX.items()]
+    muscles = [
+        MusclePath("vasti", ("knee_angle",), (0.0,), (1.0,), [[0], [1], [2]],
+                   [0.29, 0.022, 0.001]),
+        MusclePath("rectus_femoris", ("hip_flexion", "knee_angle"), (0.0, 0.0), (1.0, 1.0),
+                   [[0, 0], [1, 0], [0, 1], [1, 1]], [0.52, -0.01, 0.01, 0.002]),
+    ]
+    return PolynomialGeometry(coordinates, muscles, backend="numpy")
+
+
+def write_geometry_file(directory: Path) -> Path:
+    return write_geometry(make_geometry(), directory / "leg.yaml")
+
+
+def write_motion(path: Path, time, columns: dict, in_degrees: bool = True) -> Path:
+    """An OpenSim .mot: header, labels, one row per frame (tab-separated)."""
+    names = list(columns)
+    lines = ["leg motion", "version=1", f"nRows={len(time)}", f"nColumns={len(names) + 1}",
+             f"inDegrees={'yes' if in_degrees else 'no'}", "endheader",
+             "\t".join(["time", *names])]
+    lines += ["\t".join(repr(float(v)) for v in (t, *(columns[n][i] for n in names)))
+              for i, t in enumerate(time)]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def leg_motion(path: Path) -> Path:
+    """0.2 s: hip 0 -> 30 -> 0 deg, knee -5 -> 55 deg (below the box for the first 25 ms),
+    plus a column the geometry does not have."""
+    t = np.linspace(0.0, 0.2, 9)
+    return write_motion(path, t, {"hip_flexion": 30.0 * np.sin(np.pi * t / 0.2),
+                                  "knee_angle": -5.0 + 300.0 * t, "pelvis_tx": 0.1 + 0 * t})
+
+
+def simulate_leg(directory: Path, *options) -> tuple[Path, str]:
+    """`vm-ros simulate --motion` of leg_motion through the leg geometry in ``directory``:
+    (log, printed summary)."""
+    out = directory / "leg.mcap"
+    printed = _run(["simulate", "--motion", str(leg_motion(directory / "leg.mot")),
+                    "--geometry", str(write_geometry_file(directory)), *options, "--out",
+                    str(out)])
+    return out, printed
+
+
+@pytest.fixture(scope="module")
+def leg_run(tmp_path_factory):
+    """(geometry file, motion file, log, printed summary) of a 0.2 s run at drive 0.2."""
+    directory = tmp_path_factory.mktemp("leg")
+    out, printed = simulate_leg(directory, "--excitation", "0.2", "--telemetry-rate", "50")
+    return directory / "leg.yaml", directory / "leg.mot", out, printed
+
+
+def _run(args) -> str:
+    """Run a vm-ros verb in this process; its stdout."""
+    buffer = io.StringIO()
+    with contextlib.redirect_stdout(buffer):
+        assert main(args) == 0
+    return buffer.getvalue()
+
+
+def test_motion_run_logs_the_joint_channels_and_the_geometry(leg_run):
+    geometry, motion, out, printed = leg_run
+    run = read_run(out)
+    assert run.complete
+    for topic in ("/joint_states", "/joint_efforts", "/joint_effort_commands", "/excitation",
+                  "/muscle_force"):
+        assert topic in run.topic_types
+    assert "/muscle_kinematics" not in run.series  # every muscle is joint-driven
+    assert run.attachments["geometry.yaml"] == geometry.read_bytes()
+    config = run.info.config
+    assert config.muscles == ("vasti", "rectus_femoris")  # the geometry's, in the library
+    assert config.joints == ("hip_flexion", "knee_angle") and config.geometry == geometry
+    assert run.info.extra["motion_file"] == str(motion)
+    states = run.get("joint_states")
+    assert states.names == ("hip_flexion", "knee_angle")  # pelvis_tx: not a coordinate
+    np.testing.assert_array_equal(states.time_ns, np.arange(200) * MS)  # input rate 1 kHz
+    t = states.time_ns * 1e-9
+    knee = np.interp(t, np.linspace(0, 0.2, 9), -5.0 + 300.0 * np.linspace(0, 0.2, 9))
+    np.testing.assert_allclose(states.fields["position"][:, 1], np.radians(knee), atol=1e-12)
+    np.testing.assert_allclose(states.fields["velocity"][:, 1], np.radians(300.0), rtol=1e-9)
+    efforts, commands = run.get("joint_efforts"), run.get("joint_effort_commands")
+    np.testing.assert_array_equal(efforts.time_ns, np.arange(21) * 10 * MS)  # start + 100 Hz
+    np.testing.assert_array_equal(commands.fields["data"], efforts.fields["effort"])
+    np.testing.assert_array_equal(run.get("excitation").fields["position"], 0.2)
+
+
+def test_torques_equal_r_transpose_f_at_the_logged_positions(leg_run):
+    """tau = r^T F with r = -dL/dq evaluated here at the logged joint positions and F the logged
+    tendon forces at the same stamp; the positions are the joint_states of the step that ends at
+    the stamp, clamped into the box."""
+    geometry_file, _, out, _ = leg_run
+    geometry = load_geometry(geometry_file, backend="numpy")
+    run = read_run(out)
+    efforts, force, states = run.get("joint_efforts"), run.get("muscle_force"), \
+        run.get("joint_states")
+    np.testing.assert_array_equal(efforts.fields["stamp_ns"], force.fields["stamp_ns"])
+    rows = [geometry.muscle_names.index(m) for m in force.names]
+    for k, stamp in enumerate(efforts.fields["stamp_ns"]):
+        q = efforts.fields["position"][k]
+        used_at = max(int(stamp) - MS, 0)  # the step [stamp - dt, stamp); the start: t = 0
+        received = states.fields["position"][np.searchsorted(states.time_ns, used_at)]
+        np.testing.assert_array_equal(q, np.clip(received, geometry.lower, geometry.upper))
+        _, gradient = geometry.lengths_and_gradients(q)
+        tau = generalized_forces(-gradient[rows], force.fields["effort"][k])
+        np.testing.assert_allclose(efforts.fields["effort"][k], tau, rtol=1e-9, atol=1e-12)
+    assert np.max(np.abs(efforts.fields["effort"][:, 1])) > 1.0  # the knee carries torque
+
+
+def test_summary_has_torque_work_and_clamping_per_coordinate(leg_run):
+    _, _, out, printed = leg_run
+    run = read_run(out)
+    effort = run.get("joint_efforts").fields["effort"]
+    knee_line = next(line for line in printed.splitlines() if line.startswith("knee_angle"))
+    peak = effort[np.argmax(np.abs(effort[:, 1])), 1]
+    assert f"{peak:.3f}" in knee_line and f"{effort[:, 1].mean():.3f}" in knee_line
+    below = int(np.sum(run.get("joint_states").fields["position"][:, 1] < 0.0))
+    assert below == 17  # knee < 0 until 16.7 ms
+    assert knee_line.split()[-1] == str(below)
+    hip_line = next(line for line in printed.splitlines() if line.startswith("hip_flexion"))
+    assert hip_line.split()[-1] == "0"
+    assert "joint_clamped 17" in printed
+
+
+def test_degrees_and_radians_headers_give_the_same_radians(tmp_path):
+    geometry = write_geometry_file(tmp_path)
+    t = np.array([0.0, 0.1])
+    positions = {}
+    for in_degrees, value in ((True, 30.0), (False, np.pi / 6)):
+        motion = write_motion(tmp_path / f"{in_degrees}.mot", t, {
+            "hip_flexion": [value, value], "knee_angle": [value, value]}, in_degrees)
+        out = tmp_path / f"{in_degrees}.mcap"
+        _run(["simulate", "--motion", str(motion), "--geometry", str(geometry), "--duration",
+              "0.01", "--telemetry-rate", "0", "--out", str(out)])
+        positions[in_degrees] = read_run(out).get("joint_states").fields["position"]
+    for values in positions.values():
+        np.testing.assert_allclose(values, 0.5235987755982988, rtol=1e-15)
+    assert round(float(positions[True][0, 0]), 4) == 0.5236
+
+
+def test_excitations_from_an_opensim_storage_file(tmp_path):
+    """Columns as OpenSim writes controls: /forceset/NAME (Moco), NAME|excitation (reporter
+    outputs); a reserve actuator's column is ignored and named."""
+    geometry = write_geometry_file(tmp_path)
+    motion = write_motion(tmp_path / "still.mot", [0.0, 0.1], {"hip_flexion": [10.0, 10.0],
+                                                                "knee_angle": [20.0, 20.0]})
+    controls = tmp_path / "controls.sto"
+    controls.write_text("controls\nversion=1\nnRows=2\nnColumns=4\ninDegrees=no\nendheader\n"
+                        "time\t/forceset/vasti\trectus_femoris|excitation\tknee_reserve\n"
+                        "0.0\t0.0\t0.5\t1.0\n0.1\t1.0\t0.5\t1.0\n")
+    out = tmp_path / "controls.mcap"
+    printed = _run(["simulate", "--motion", str(motion), "--geometry", str(geometry),
+                    "--excitations", str(controls), "--duration", "0.1", "--telemetry-rate",
+                    "0", "--out", str(out)])
+    excitation = read_run(out).get("excitation")
+    t = excitation.time_ns * 1e-9
+    np.testing.assert_allclose(excitation.fields["position"][:, 0], t / 0.1, atol=1e-12)
+    np.testing.assert_array_equal(excitation.fields["position"][:, 1], 0.5)
+    assert "columns not used: knee_reserve" in printed
+
+
+def _error_of(args) -> str:
+    proc = subprocess.run([VM_ROS, "simulate", *args], capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    return lines[0]
+
+
+def test_bad_inputs_are_one_line_and_exit_2(tmp_path):
+    geometry = write_geometry_file(tmp_path)
+    motion = leg_motion(tmp_path / "leg.mot")
+    no_knee = write_motion(tmp_path / "hip.mot", [0.0, 0.1], {"hip_flexion": [0.0, 10.0]})
+    excitations = tmp_path / "u.csv"
+    excitations.write_text("time_s,vasti,rectus_femoris,vastus_intermedius\n0,0.1,0.1,0.1\n")
+    out = str(tmp_path / "x.mcap")
+    cases = [
+        (["--motion", str(no_knee), "--geometry", str(geometry)],
+         "no column for coordinate(s) knee_angle"),
+        (["--motion", str(motion), "--geometry", str(geometry), "--hold", "ankle_angle=0"],
+         "ankle_angle: not a coordinate of the geometry"),
+        (["--motion", str(motion), "--geometry", str(geometry), "--joint-map",
+          "{knee: ankle_angle}"], "unknown coordinate 'ankle_angle'"),
+        (["--motion", str(motion)], "--motion needs --geometry"),
+        (["--motion", str(motion), "--geometry", str(geometry), "--excitations",
+          str(excitations)], "'vastus_intermedius' is not a muscle of the run"),
+    ]
+    for args, expected in cases:
+        line = _error_of([*args, "--out", out])
+        assert line.startswith("vm-ros simulate: error:") and expected in line, line
+    assert not Path(out).exists()

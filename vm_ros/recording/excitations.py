@@ -1,0 +1,152 @@
+"""Drive time series for `vm-ros simulate --motion`: an OpenSim storage file, a CSV, or a constant.
+
+Files (the format by suffix):
+
+- ``.sto`` / ``.mot``: OpenSim storage, header lines up to ``endheader``, a line of column labels
+  starting with ``time``, then rows of numbers (tab- or space-separated). Columns per muscle, as
+  OpenSim writes controls: ``NAME`` (CMC ``*_controls.sto``, Static Optimization, Storage
+  controls), ``/forceset/NAME`` (Moco trajectories), ``/forceset/NAME|excitation`` or
+  ``NAME|excitation`` (TableReporter outputs), ``.../NAME/excitation`` and ``NAME.excitation``.
+  Other paths (``/forceset/NAME/activation``, ``/jointset/...`` state columns) are not
+  excitations and are skipped; columns for actuators that are not muscles of the run (reserve or
+  residual actuators, other muscles) are ignored and listed in ``ignored``.
+- ``.csv``: a header row ``time_s`` and one column per muscle (``NAME`` or ``NAME.excitation``),
+  one row per sample. Here every column must be a muscle of the run (a misspelt name is an error).
+
+Every muscle of the run needs a column. Values are drives U (1; muscle_node clips them to [0, 1]
+and counts it), interpolated linearly in time and held constant outside the table.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from vm_ros.errors import VmRosError
+
+STORAGE_SUFFIXES = (".sto", ".mot")
+_SUFFIXES = ("|excitation", "/excitation", ".excitation")
+
+
+@dataclass(frozen=True)
+class ExcitationSeries:
+    """Drive per muscle over time: ``time_s`` (k,) s on the file's own time axis, ``values``
+    (k, n) in ``muscles`` order; ``ignored``: file columns that were not used."""
+
+    source: str
+    muscles: tuple
+    time_s: np.ndarray
+    values: np.ndarray
+    ignored: tuple = ()
+
+    def at(self, t_s: float) -> np.ndarray:
+        """(n,) drives at time ``t_s`` (linear between rows, held outside)."""
+        time, table = self.time_s, self.values
+        if t_s <= time[0]:
+            return table[0].copy()
+        if t_s >= time[-1]:
+            return table[-1].copy()
+        i = int(np.searchsorted(time, t_s, side="right")) - 1
+        w = (t_s - time[i]) / (time[i + 1] - time[i])
+        return table[i] + w * (table[i + 1] - table[i])
+
+
+def constant_excitation(muscles, drive: float) -> ExcitationSeries:
+    """The same drive for every muscle at every time."""
+    if not np.isfinite(drive):
+        raise VmRosError(f"--excitation must be a finite number (got {drive})")
+    return ExcitationSeries(f"constant {drive:g}", tuple(muscles), np.zeros(1),
+                            np.full((1, len(muscles)), float(drive)))
+
+
+def excitation_muscle(label: str) -> str | None:
+    """The muscle a column label gives the excitation of, or None (module docstring)."""
+    text = label.strip()
+    for suffix in _SUFFIXES:
+        if text.endswith(suffix):
+            text = text[: -len(suffix)]
+            break
+    if "/" not in text:
+        return text or None
+    parts = [p for p in text.split("/") if p]
+    if len(parts) == 2 and parts[0] == "forceset":
+        return parts[1]
+    if parts and label.strip().endswith("/excitation"):
+        return parts[-1]
+    return None
+
+
+def load_excitations(path, muscles) -> ExcitationSeries:
+    """The drives of ``muscles`` from a .sto/.mot or .csv file; VmRosError naming the file and
+    the problem (unreadable, no time column, times not increasing, a non-number, a muscle without
+    a column, a CSV column that is not a muscle of the run)."""
+    path = Path(path)
+    storage = path.suffix.lower() in STORAGE_SUFFIXES
+    if not storage and path.suffix.lower() != ".csv":
+        raise VmRosError(f"excitations {path}: expected a .sto, .mot or .csv file")
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError as exc:
+        raise VmRosError(f"excitations {path}: cannot read ({exc.strerror or exc})") from exc
+    labels, rows = _storage_table(path, text) if storage else _csv_table(path, text)
+    try:
+        table = np.array([[float(v) for v in row] for row in rows], dtype=float)
+    except ValueError as exc:
+        raise VmRosError(f"excitations {path}: a data row is not numbers ({exc})") from None
+    if table.ndim != 2 or table.shape[0] == 0 or table.shape[1] != len(labels):
+        raise VmRosError(f"excitations {path}: need rows of {len(labels)} numbers (one per "
+                         f"column), got {table.shape}")
+    if not np.all(np.isfinite(table)):
+        raise VmRosError(f"excitations {path}: non-finite values")
+    time = table[:, 0]
+    if np.any(np.diff(time) <= 0):
+        raise VmRosError(f"excitations {path}: times must increase strictly")
+    columns: dict[str, int] = {}
+    ignored = []
+    for i, label in enumerate(labels[1:], start=1):
+        name = excitation_muscle(label)
+        if name is not None and name in muscles:
+            if name in columns:
+                raise VmRosError(f"excitations {path}: two columns for muscle {name!r} "
+                                 f"({labels[columns[name]]!r}, {label!r})")
+            columns[name] = i
+        elif storage:
+            ignored.append(label)
+        else:
+            raise VmRosError(f"excitations {path}: column {label!r} is not a muscle of the run "
+                             f"({', '.join(muscles)})")
+    missing = [m for m in muscles if m not in columns]
+    if missing:
+        raise VmRosError(f"excitations {path}: no column for muscle(s) {', '.join(missing)}")
+    return ExcitationSeries(str(path), tuple(muscles), time,
+                            table[:, [columns[m] for m in muscles]], tuple(ignored))
+
+
+def _storage_table(path: Path, text: str) -> tuple[list[str], list[list[str]]]:
+    lines = text.splitlines()
+    end = next((i for i, line in enumerate(lines) if line.strip().lower() == "endheader"), None)
+    if end is None:
+        raise VmRosError(f"excitations {path}: no 'endheader' line: not an OpenSim storage "
+                         "file")
+    body = [line for line in lines[end + 1:] if line.strip()]
+    if not body:
+        raise VmRosError(f"excitations {path}: no column labels after 'endheader'")
+    labels = [label.strip() for label in (body[0].split("\t") if "\t" in body[0]
+                                          else body[0].split())]
+    if labels[0].lower() != "time":
+        raise VmRosError(f"excitations {path}: the first column must be 'time', got "
+                         f"{labels[0]!r}")
+    return labels, [row.split() for row in body[1:]]
+
+
+def _csv_table(path: Path, text: str) -> tuple[list[str], list[list[str]]]:
+    rows = [row for row in csv.reader(text.splitlines()) if row]
+    if not rows or rows[0][0].strip() != "time_s":
+        raise VmRosError(f"excitations {path}: the first column must be 'time_s'")
+    return [label.strip() for label in rows[0]], rows[1:]
+
+
+__all__ = ["ExcitationSeries", "constant_excitation", "excitation_muscle", "load_excitations"]

@@ -1,0 +1,167 @@
+"""Joint-space inputs of `vm-ros simulate --motion`: joint_states sampled from an OpenSim motion,
+drives from an ExcitationSeries, conditioned as muscle_node conditions them.
+
+    motion = JointMotion.from_motion(read_motion(path), geometry, needed, hold)
+    inputs = MotionInputs(bank.names, excitations, motion, joint_map, conditioning,
+                          period_ns, sink)
+    u, lp, vp = inputs.advance_to(t_ns)      # offline.OfflineRun's input interface
+    inputs.joint_efforts(force)              # joint_efforts of the step's forces
+
+Coordinates come from the motion's columns by name (vm_ros.importers.motion: degrees converted
+when its header says ``inDegrees=yes``, rotational columns being the geometry's ``rad``
+coordinates); ``hold`` gives a constant value (rad or m) to a coordinate instead (for one the
+motion lacks, or to freeze one). A coordinate the run needs (crossed by a muscle of the run) that
+is neither is an error. Between frames positions are interpolated linearly and velocities are the
+frame-wise derivative (numpy.gradient) interpolated linearly, as for `simulate --inputs`; both are
+held outside the motion. Run time 0 is the motion's first frame; the excitation files share the
+motion's time axis.
+
+Every ``period_ns`` from 0 an excitation message (the drives) and a joint_states message (every
+geometry coordinate the motion or ``hold`` gives, under its robot name, robot convention through
+the joint map) are logged and handed to a node_replay.NodeConditioning at that time, in the order
+a recompute replays them (excitation first), so that `vm-ros recompute` reproduces the run.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from vm_ros import telemetry as tm
+from vm_ros.errors import VmRosError
+from vm_ros.importers.motion import Motion
+from vm_ros.joint_space import JointMap
+from vm_ros.recording import messages as msgs
+from vm_ros.recording.excitations import ExcitationSeries
+from vm_ros.recording.node_replay import NodeConditioning
+
+
+@dataclass(frozen=True)
+class JointMotion:
+    """Model coordinates over time: ``coordinates`` (geometry names), ``time_s`` (k,) from the
+    motion's first frame, ``q`` and ``qdot`` (k, m) in rad or m (per s), model convention;
+    ``start_s``: the motion's first time (s, on its own axis)."""
+
+    source: str
+    coordinates: tuple
+    time_s: np.ndarray
+    q: np.ndarray
+    qdot: np.ndarray
+    start_s: float = 0.0
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.time_s[-1] - self.time_s[0])
+
+    @classmethod
+    def from_motion(cls, motion: Motion, geometry, needed, hold: Mapping[str, float]
+                    ) -> JointMotion:
+        """The geometry's coordinates found in ``motion`` or ``hold``; VmRosError for a
+        ``hold`` name that is not a coordinate of the geometry or a ``needed`` coordinate that is
+        in neither."""
+        names = geometry.coordinate_names
+        unknown = [name for name in hold if name not in names]
+        if unknown:
+            raise VmRosError(f"--hold {unknown[0]}: not a coordinate of the geometry (it has: "
+                             f"{', '.join(names)})")
+        missing = [name for name in needed if name not in motion.names and name not in hold]
+        if missing:
+            raise VmRosError(f"motion {motion.path}: no column for coordinate(s) "
+                             f"{', '.join(missing)} (columns: {', '.join(motion.names)}); give "
+                             "them with --hold NAME=VALUE")
+        rotational = {c.name for c in geometry.coordinates if c.unit == "rad"}
+        values = motion.to_si(rotational)
+        time = motion.time - motion.time[0]
+        used = [name for name in names if name in motion.names or name in hold]
+        q = np.empty((len(time), len(used)))
+        qdot = np.zeros_like(q)
+        for j, name in enumerate(used):
+            if name in hold:
+                q[:, j] = float(hold[name])
+                continue
+            q[:, j] = values[:, motion.names.index(name)]
+            if len(time) > 1:
+                qdot[:, j] = np.gradient(q[:, j], time)
+        return cls(motion.path, tuple(used), time, q, qdot, float(motion.time[0]))
+
+    def at(self, t_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """(q, qdot) at ``t_s`` from the first frame (linear between frames, held outside)."""
+        time = self.time_s
+        if t_s <= time[0] or len(time) == 1:
+            return self.q[0].copy(), self.qdot[0].copy()
+        if t_s >= time[-1]:
+            return self.q[-1].copy(), self.qdot[-1].copy()
+        i = int(np.searchsorted(time, t_s, side="right")) - 1
+        w = (t_s - time[i]) / (time[i + 1] - time[i])
+        return (self.q[i] + w * (self.q[i + 1] - self.q[i]),
+                self.qdot[i] + w * (self.qdot[i + 1] - self.qdot[i]))
+
+
+def parse_hold(texts) -> dict[str, float]:
+    """``["knee_angle_r=0.2", ...]`` -> ``{"knee_angle_r": 0.2}`` (rad or m)."""
+    hold = {}
+    for text in texts or ():
+        name, sep, value = text.partition("=")
+        try:
+            number = float(value)
+        except ValueError:
+            number = float("nan")
+        if not sep or not name.strip() or not np.isfinite(number):
+            raise VmRosError(f"--hold {text!r}: expected COORDINATE=VALUE (rad or m), e.g. "
+                             "ankle_angle_r=0")
+        hold[name.strip()] = number
+    return hold
+
+
+class MotionInputs:
+    """Samples, logs and conditions the inputs of a joint-space run (module docstring)."""
+
+    def __init__(self, muscles, excitations: ExcitationSeries, motion: JointMotion,
+                 joint_map: JointMap, conditioning: NodeConditioning, period_ns: int, sink):
+        self.muscles = tuple(muscles)
+        self.excitations = excitations
+        self.motion = motion
+        self.conditioning = conditioning
+        self.period_ns = int(period_ns)
+        self._sink = sink
+        index = [joint_map.coordinates.index(name) for name in motion.coordinates]
+        self._index = np.array(index, dtype=int)
+        self._map = joint_map
+        self._robot_names = [joint_map.robot_names[j] for j in index]
+        self._next_ns = 0
+
+    def _log_and_apply(self, time_ns: int) -> None:
+        t_s = time_ns * 1e-9
+        drive = self.excitations.at(self.motion.start_s + t_s)
+        excitation = msgs.excitation_fields(self.muscles, drive, time_ns)
+        q, qdot = self.motion.at(t_s)
+        robot_q, robot_qdot, _ = self._map.to_robot(self._index, q, qdot, 0.0)
+        joints = msgs.kinematics_fields(self._robot_names, robot_q, robot_qdot, time_ns)
+        write = self._sink.write_fields
+        write(tm.TOPIC_EXCITATION, tm.TYPE_JOINT_STATE, excitation, time_ns)
+        write(tm.TOPIC_JOINT_STATES, tm.TYPE_JOINT_STATE, joints, time_ns)
+        # the values as a recompute decodes them from the logged messages
+        conditioning = self.conditioning
+        conditioning.on_excitation(excitation["name"], excitation["position"], time_ns)
+        conditioning.on_joint_states(joints["name"], joints["position"], joints["velocity"],
+                                     time_ns)
+
+    def advance_to(self, time_ns: int):
+        """Log and apply the samples due at or before ``time_ns``; (U, path length, path
+        velocity) for the step starting there."""
+        while self._next_ns <= time_ns:
+            self._log_and_apply(self._next_ns)
+            self._next_ns += self.period_ns
+        if not self.conditioning.ready:
+            raise VmRosError(f"motion {self.motion.source}: the joint_states at "
+                             f"{time_ns * 1e-9:.6f} s give no usable path lengths "
+                             f"({self.conditioning.issue_text() or 'no joint sample'})")
+        return self.conditioning.sample(time_ns)
+
+    def joint_efforts(self, force):
+        return self.conditioning.joint_efforts(force)
+
+
+__all__ = ["JointMotion", "MotionInputs", "parse_hold"]
