@@ -7,10 +7,14 @@ with:
 
 - `vm-ros simulate` logs: zero-order hold, the model step [t, t + dt) uses the latest input with
   log time <= t;
-- muscle_node logs (``node_parameters`` in the metadata): node conditioning, the recorded messages
-  at their log times (the model time of the first step that used them) through
-  vm_ros.node_inputs.NodeInputs with the logged node parameters (vm_ros.recording.node_replay),
-  and the initial state published at the start time as the node does.
+- muscle_node logs and `vm-ros simulate --motion` logs (``node_parameters`` in the metadata):
+  node conditioning, the recorded messages at their log times (the model time of the first step
+  that used them) through vm_ros.node_inputs.NodeInputs with the logged node parameters
+  (vm_ros.recording.node_replay), and the initial state published at the start time as the node
+  does. With a geometry, joint_states go through vm_ros.joint_space.JointInputs with the logged
+  joint_map and joints and the attached geometry.yaml, and joint_efforts and
+  joint_effort_commands are recomputed (each step's forces through the moment arms of the joint
+  sample it used).
 
 A recorded input that does not decode (muscle_node records inputs as received) is copied to the
 new log but not applied, as the node dropped it; a line on stderr counts them per topic.
@@ -19,8 +23,8 @@ Without changes either is reproduced to floating-point precision, except where a
 left its step grid (skipped or paused time, a backward clock jump): the summary then says the
 result is approximate and why.
 
-At the end the recomputed tendon forces are compared with the recorded ones at equal model time
-(header stamps).
+At the end the recomputed tendon forces (and joint efforts) are compared with the recorded ones
+at equal model time (header stamps); "exact" when they are equal at every common stamp.
 """
 
 from __future__ import annotations
@@ -43,9 +47,15 @@ from vm_ros.cli.runs import (
 )
 from vm_ros.errors import VmRosError
 from vm_ros.node_recording import INPUT_RULE as NODE_INPUT_RULE
-from vm_ros.recording.node_replay import NodeReplayInputs, model_time_irregularities, node_config
+from vm_ros.recording.node_replay import (
+    NodeReplayInputs,
+    model_time_irregularities,
+    node_config,
+    node_joint_space,
+)
 from vm_ros.recording.offline import OfflineRun, RecordedInputs
 from vm_ros.recording.run_log import (
+    ATTACHMENT_GEOMETRY,
     INPUT_TOPICS,
     RunInfo,
     RunLog,
@@ -53,7 +63,12 @@ from vm_ros.recording.run_log import (
     open_run_log,
     read_run,
 )
-from vm_ros.recording.summary import summarize, summary_table
+from vm_ros.recording.summary import (
+    joint_summary_table,
+    summarize,
+    summarize_joints,
+    summary_table,
+)
 from vm_ros.telemetry import energy_partition
 
 HELP = "re-run the model from a log's recorded inputs (other parameters optional) into a new MCAP"
@@ -83,24 +98,86 @@ def _start_and_end_ns(run: RunLog, timing: RunTiming) -> tuple[int, int]:
     return int(start), end
 
 
-def compare_forces(run: RunLog, sample_times_ns, forces) -> str | None:
-    """'max |difference|' line for the recomputed vs recorded tendon forces at equal stamps."""
-    recorded = run.get(tm.TOPIC_FORCE)
+def _difference(run: RunLog, topic: str, sample_times_ns, values, names=None):
+    """(max |recomputed - recorded| effort at equal stamps, common samples), or None when either
+    side is empty; NaN where the two share no stamp (or no column)."""
+    recorded = run.get(topic)
     if recorded is None or not len(recorded) or not len(sample_times_ns):
         return None
     common, mine, theirs = np.intersect1d(sample_times_ns, recorded.fields["stamp_ns"],
                                           return_indices=True)
     if not len(common):
+        return float("nan"), 0
+    theirs_values = recorded.fields["effort"][theirs]
+    if names is not None:  # joint columns by name
+        if not all(n in (recorded.names or ()) for n in names):
+            return float("nan"), len(common)
+        theirs_values = theirs_values[:, [recorded.names.index(n) for n in names]]
+    if theirs_values.shape != values[mine].shape:
+        return float("nan"), len(common)
+    return float(np.max(np.abs(values[mine] - theirs_values))), len(common)
+
+
+def compare_forces(run: RunLog, sample_times_ns, forces) -> str | None:
+    """'max |difference|' line for the recomputed vs recorded tendon forces at equal stamps."""
+    found = _difference(run, tm.TOPIC_FORCE, sample_times_ns, forces)
+    if found is None:
+        return None
+    if not found[1]:
         return "recorded and recomputed forces share no model time"
-    diff = np.abs(forces[mine] - recorded.fields["effort"][theirs])
-    return (f"tendon force vs recorded: max |difference| {np.nanmax(diff):.3g} N over "
-            f"{len(common)} samples")
+    return f"tendon force vs recorded: max |difference| {found[0]:.3g} N over {found[1]} samples"
+
+
+def compare_joint_efforts(run: RunLog, result) -> str | None:
+    """The same line for the generalized forces of joint_efforts (None without them)."""
+    if not len(result.joints):
+        return None
+    found = _difference(run, tm.TOPIC_JOINT_EFFORTS, result.sample_times_ns,
+                        result.joint_samples[:, 2, :], result.joints)
+    if found is None:
+        return None
+    if not found[1]:
+        return "recorded and recomputed joint efforts share no model time"
+    return (f"joint effort vs recorded: max |difference| {found[0]:.3g} (N m or N) over "
+            f"{found[1]} samples")
+
+
+def _verdict(run: RunLog, result, irregular: list) -> str | None:
+    """'exact' when every recomputed output compared equals the recorded one."""
+    found = [_difference(run, tm.TOPIC_FORCE, result.sample_times_ns, result.force_samples)]
+    if len(result.joints):
+        found.append(_difference(run, tm.TOPIC_JOINT_EFFORTS, result.sample_times_ns,
+                                 result.joint_samples[:, 2, :], result.joints))
+    found = [f for f in found if f is not None]
+    if not found:
+        return None
+    if not irregular and all(count and diff == 0.0 for diff, count in found):
+        return "exact: the recomputed outputs equal the recorded ones at every common stamp"
+    return "not exact: the recomputed outputs differ from the recorded ones"
+
+
+def _joint_geometry(recorded: RunLog, config, node, bank, tmp: Path):
+    """(config, joint space or None) of a node-conditioned log with a geometry; the geometry is
+    attached to the new log (written to ``tmp`` when the original log named it only in its node
+    parameters). Prints a note on stderr when the geometry is read from the recorded path."""
+    if node is None:
+        return config, None
+    space, note = node_joint_space(recorded, bank.names, node)
+    if note:
+        print(f"vm-ros recompute: {note}", file=sys.stderr)
+    if space is not None and config.geometry is None:
+        path = tmp / ATTACHMENT_GEOMETRY
+        data = recorded.attachments.get(ATTACHMENT_GEOMETRY)
+        path.write_bytes(data if data is not None else Path(node.geometry).read_bytes())
+        config = config.replace(geometry=path, joint_map=node.joint_map, joints=node.joints)
+    return config, space
 
 
 def run(args) -> int:
     log_path = args.log
     with Progress(f"read {log_path.name}", 1.0, enabled=True if args.progress else None) as p:
-        recorded = read_run(log_path, topics=(*INPUT_TOPICS, tm.TOPIC_FORCE), raw=INPUT_TOPICS,
+        recorded = read_run(log_path, topics=(*INPUT_TOPICS, tm.TOPIC_FORCE,
+                                              tm.TOPIC_JOINT_EFFORTS), raw=INPUT_TOPICS,
                             progress=lambda done, size: p.update(done / max(size, 1)))
     if recorded.info is None:
         raise VmRosError(f"{log_path}: not a vm_ros run log (no 'vm_ros.run' metadata record)")
@@ -121,6 +198,7 @@ def run(args) -> int:
     n_steps = max(0, (end_ns - start_ns) // timing.dt_ns)
     node = node_config(recorded)
     extra = {**info.extra, "recomputed_from": str(log_path)}
+    irregular: list = []
     if node is not None:
         extra["input_hold"] = NODE_INPUT_RULE
         irregular = model_time_irregularities(recorded, info.timing.dt_ns,
@@ -129,6 +207,7 @@ def run(args) -> int:
     with tempfile.TemporaryDirectory(prefix="vm_ros-recompute-") as tmp:
         config = apply_model_options(recorded.config(tmp), args)
         bank = config.make_bank()
+        config, space = _joint_geometry(recorded, config, node, bank, Path(tmp))
         new_info = RunInfo(config, timing, "recompute", info.namespace, info.time_base, extra,
                            info.topics)
         # open while the attached files exist: the new log attaches them again
@@ -138,7 +217,7 @@ def run(args) -> int:
             as progress:
         offline = OfflineRun(bank, timing, recorder, new_info.log_topic)
         if node is not None:
-            inputs = NodeReplayInputs(recorded, bank, offline.sink, node)
+            inputs = NodeReplayInputs(recorded, bank, offline.sink, node, space)
         else:
             inputs = RecordedInputs(recorded, bank.n, offline.sink)
         result = offline.run(inputs, n_steps, should_stop=stop, progress=progress.update,
@@ -161,9 +240,17 @@ def run(args) -> int:
         print(summary_table(summarize(bank.names, result.force_samples,
                                       energy_partition(last.energy_by_fiber, last.energy),
                                       last.mechanical_work)))
-    comparison = compare_forces(recorded, result.sample_times_ns, result.force_samples)
-    if comparison:
-        print(comparison)
+    if len(result.joints):
+        conditioning = inputs.conditioning
+        units = [space.geometry.coordinates[j].unit for j in space.output]
+        print(joint_summary_table(summarize_joints(
+            result.joints, units, result.joint_samples[:, 2, :], result.joint_work,
+            conditioning.clamped[space.output])))
+    for comparison in (compare_forces(recorded, result.sample_times_ns, result.force_samples),
+                       compare_joint_efforts(recorded, result),
+                       _verdict(recorded, result, irregular)):
+        if comparison:
+            print(comparison)
     print(f"log: {status.path} ({status.written} messages, {status.bytes_written / 1e6:.2f} MB)")
     if stop.signum:
         print(f"vm-ros recompute: stopped by signal {stop.signum}", file=sys.stderr)
