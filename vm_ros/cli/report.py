@@ -1,5 +1,5 @@
 """Tables (CSV) and plots (PNG) of a run log: forces, drive, fascicle kinematics, partitioned
-energy per muscle and fibre type, and whole-body totals.
+energy per muscle and fibre type, whole-body totals and, for joint-space runs, joint torques.
 
 Files written to --out (default: <log name>-report/ beside the log):
   summary.csv        per muscle and fibre type: peak and mean force (N), energy per component (J),
@@ -8,7 +8,15 @@ Files written to --out (default: <log name>-report/ beside the log):
   energy_rate.csv    time_s, <muscle>.<slow|fast|all>.<component>_W
   totals.csv         time_s, energy_rate_total_W, energy_total_J
   telemetry.csv      every muscle_telemetry field (when the log has them)
-  force.png, drive.png, kinematics.png, energy_<muscle>.png, energy_partition.png, totals.png
+  joint_efforts.csv  time_s, <joint>.position_rad, .velocity_rad_per_s, .effort_N_m (_m, _m_per_s,
+                     _N for translational coordinates): joint_efforts, robot convention (joint-space
+                     runs)
+  joint_states.csv   time_s, <joint>.position_rad: the joint angles received (before clamping)
+  joint_summary.csv  per joint: peak and mean generalized force, joint work (J, trapezoidal
+                     integral of tau qdot over the published samples), joint_states samples
+                     outside the geometry's box; also printed
+  force.png, drive.png, kinematics.png, energy_<muscle>.png, energy_partition.png, totals.png,
+  joint_torque.png (one panel per joint: generalized force, and the joint angle on a twin axis)
 Times are seconds of model time from the first output. Plots need matplotlib (the [plot]
 extra); --no-plots writes the CSV files only.
 """
@@ -26,14 +34,25 @@ from vm_ros.cli.progress import Progress
 from vm_ros.errors import VmRosError
 from vm_ros.recording.messages import TOPIC_TELEMETRY
 from vm_ros.recording.run_log import METADATA_NAME, RunLog, read_run
-from vm_ros.recording.summary import summary_records, summary_table
+from vm_ros.recording.summary import (
+    EFFORT_UNITS,
+    joint_summary_records,
+    joint_summary_table,
+    summary_records,
+    summary_table,
+)
 from vm_ros.recording.tables import (
     FIBRE_TYPES,
+    JOINT_UNITS,
     Table,
     bin_means,
     energy_rate_table,
     force_table,
+    joint_efforts_table,
+    joint_states_table,
+    joint_units,
     muscle_names,
+    run_joint_summary,
     run_summary,
     telemetry_table,
     time_origin_ns,
@@ -128,7 +147,8 @@ def plot_run(plt, run: RunLog, tables: dict, out: Path, bin_s: float) -> list:
                 t = (excitation.time_ns - time_origin_ns(run)) * 1e-9
                 axes[0].plot(t, excitation.fields["position"][:, names.index(m)], label=f"{m} U")
         for ax in axes:
-            ax.legend(fontsize=7)
+            if ax.get_lines():
+                ax.legend(fontsize=7)
         _save(plt, fig, out / "drive.png", written)
     rates = tables.get("energy_rate")
     if rates is not None:
@@ -163,7 +183,34 @@ def plot_run(plt, run: RunLog, tables: dict, out: Path, bin_s: float) -> list:
         axes[0].plot(t, rate)
         axes[1].plot(totals.column("time_s"), totals.column("energy_total_J"))
         _save(plt, fig, out / "totals.png", written)
+    efforts = tables.get("joint_efforts")
+    if efforts is not None:
+        _plot_joints(plt, run, efforts, tables.get("joint_states"), out / "joint_torque.png",
+                     written)
     return written
+
+
+def _plot_joints(plt, run: RunLog, efforts: Table, states: Table | None, path: Path,
+                 written: list) -> None:
+    """One panel per joint: generalized force (N m or N), and on a twin axis the joint angle
+    received (joint_states; deg for rotational joints) or, without them, the one used."""
+    joints = [c.split(".effort_")[0] for c in efforts.columns if ".effort_" in c]
+    units = joint_units(run, joints)
+    labels = [f"{j} ({EFFORT_UNITS[u]})" for j, u in zip(joints, units, strict=True)]
+    fig, axes = _per_muscle_figure(plt, len(joints), labels,
+                                   "joint torques (robot convention) and joint angles")
+    for ax, joint, unit in zip(axes, joints, units, strict=True):
+        position, _, effort = (f"{joint}.{q}_{s}" for q, s in zip(
+            ("position", "velocity", "effort"), JOINT_UNITS[unit], strict=True))
+        ax.plot(efforts.column("time_s"), efforts.column(effort), color="C0", label="torque")
+        source = states if states is not None and position in states.columns else efforts
+        scale, angle_unit = (180.0 / np.pi, "deg") if unit == "rad" else (1.0, "m")
+        twin = ax.twinx()
+        twin.plot(source.column("time_s"), scale * source.column(position), color="C1",
+                  alpha=0.8, label="angle")
+        twin.set_ylabel(f"angle ({angle_unit})" if unit == "rad" else "position (m)",
+                        color="C1")
+    _save(plt, fig, path, written)
 
 
 def run(args) -> int:
@@ -172,14 +219,16 @@ def run(args) -> int:
     with Progress(f"read {log_path.name}", 1.0, enabled=True if args.progress else None) as p:
         log = read_run(log_path, topics=(tm.TOPIC_FORCE, tm.TOPIC_ENERGY_RATE,
                                          tm.TOPIC_ENERGY_RATE_TOTAL, tm.TOPIC_ENERGY_TOTAL,
-                                         tm.TOPIC_EXCITATION, TOPIC_TELEMETRY),
+                                         tm.TOPIC_EXCITATION, TOPIC_TELEMETRY,
+                                         tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_JOINT_STATES),
                        progress=lambda done, size: p.update(done / max(size, 1)))
     if not muscle_names(log):
         raise VmRosError(f"{log_path}: not a vm_ros run log (no '{METADATA_NAME}' metadata "
                          f"record and no decodable {tm.TOPIC_FORCE} messages)")
     out = args.out or log_path.with_name(f"{log_path.stem}-report")
     out.mkdir(parents=True, exist_ok=True)
-    builders = (force_table, energy_rate_table, totals_table, telemetry_table)
+    builders = (force_table, energy_rate_table, totals_table, telemetry_table,
+                joint_efforts_table, joint_states_table)
     tables: dict[str, Table] = {}
     for build in builders:
         table = build(log)
@@ -191,12 +240,17 @@ def run(args) -> int:
     if records:
         write_csv(out / "summary.csv", list(records[0]), [r.values() for r in records])
     print(summary_table(summary))
+    joint_summary = run_joint_summary(log)
+    joint_rows = joint_summary_records(joint_summary)
+    if joint_rows:
+        write_csv(out / "joint_summary.csv", list(joint_rows[0]), [r.values() for r in joint_rows])
+        print(joint_summary_table(joint_summary))
     if not log.complete:
         print(f"note: {log_path} is cut short ({log.stop_reason}); the report covers what it "
               "holds")
     if log.skipped:
         print(f"note: {log.skipped_note()}")
     written = plot_run(plt, log, tables, out, args.bin) if plt is not None else []
-    files = len(tables) + bool(records) + len(written)
+    files = len(tables) + bool(records) + bool(joint_rows) + len(written)
     print(f"report: {out} ({files} files)")
     return 0

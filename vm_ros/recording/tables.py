@@ -1,6 +1,8 @@
 """Tables (column names and rows) of a run log, for CSV files and plots, and its summary.
 
-Times are seconds from the first output stamp (model time). Column names carry units.
+Times are seconds from the first output stamp (model time). Column names carry units. Joint
+topics are in the robot's convention (the run's joint map); each joint's unit (rad or m) comes
+from the attached geometry (rad when the log has none).
 """
 
 from __future__ import annotations
@@ -8,9 +10,13 @@ from __future__ import annotations
 import numpy as np
 
 from vm_ros import telemetry as tm
+from vm_ros.errors import VmRosError
+from vm_ros.geometry.file import loads as load_geometry_text
+from vm_ros.joint_space import JointMap
 from vm_ros.recording.messages import TOPIC_TELEMETRY
-from vm_ros.recording.run_log import RunLog, TopicSeries
-from vm_ros.recording.summary import MuscleSummary, summarize
+from vm_ros.recording.node_replay import node_config
+from vm_ros.recording.run_log import ATTACHMENT_GEOMETRY, RunLog, TopicSeries
+from vm_ros.recording.summary import JointSummary, MuscleSummary, summarize, summarize_joints
 
 # MuscleTelemetry fields per muscle and per fibre type, with their units (msg_defs/)
 TELEMETRY_PER_MUSCLE = {
@@ -138,3 +144,102 @@ def bin_means(time_s: np.ndarray, values: np.ndarray, bin_s: float):
     bins = np.unique(index)
     means = np.array([values[index == b].mean(axis=0) for b in bins])
     return time_s[0] + (bins + 0.5) * bin_s, means
+
+
+# --- joint space ---------------------------------------------------------------------------
+
+JOINT_UNITS = {"rad": ("rad", "rad_per_s", "N_m"), "m": ("m", "m_per_s", "N")}
+
+
+def joint_geometry(run: RunLog):
+    """(geometry, JointMap) of a joint-space log from its attached geometry and its joint map
+    (the node parameters' for a node-conditioned log, else the run's), or None when the log has
+    no usable geometry."""
+    data = run.attachments.get(ATTACHMENT_GEOMETRY)
+    if data is None:
+        return None
+    try:
+        geometry = load_geometry_text(data.decode("utf-8", errors="replace"),
+                                      f"{run.path}: {ATTACHMENT_GEOMETRY}", backend="numpy")
+        node = node_config(run)
+        text = node.joint_map if node is not None else (
+            run.info.config.joint_map if run.info is not None else "")
+        return geometry, JointMap.build(text, geometry, str(run.path))
+    except VmRosError:
+        return None
+
+
+def joint_units(run: RunLog, names) -> list[str]:
+    """Per robot joint of ``names``: "rad" or "m" (rad when not known)."""
+    found = joint_geometry(run)
+    if found is None:
+        return ["rad"] * len(names)
+    geometry, joint_map = found
+    units = {robot: c.unit for robot, c in zip(joint_map.robot_names, geometry.coordinates,
+                                               strict=True)}
+    return [units.get(name, "rad") for name in names]
+
+
+def joint_efforts_table(run: RunLog) -> Table | None:
+    """time_s, then per joint <joint>.position_<rad|m>, .velocity_<rad|m>_per_s and
+    .effort_<N_m|N> of joint_efforts (robot convention, after clamping)."""
+    series = run.get(tm.TOPIC_JOINT_EFFORTS)
+    if series is None or not len(series) or not series.names:
+        return None
+    names = series.names
+    units = joint_units(run, names)
+    columns, blocks = ["time_s"], [_times(run, series)[:, None]]
+    for k, key in enumerate(("position", "velocity", "effort")):
+        columns += [f"{j}.{key}_{JOINT_UNITS[u][k]}" for j, u in zip(names, units, strict=True)]
+        blocks.append(series.fields[key])
+    return Table("joint_efforts", columns, np.hstack(blocks))
+
+
+def joint_states_table(run: RunLog) -> Table | None:
+    """time_s and <joint>.position_<rad|m> of the joint_states received (robot convention,
+    before clamping): the motion's joint angles."""
+    series = run.get(tm.TOPIC_JOINT_STATES)
+    if series is None or not len(series) or not series.names:
+        return None
+    names = series.names
+    units = joint_units(run, names)
+    columns = ["time_s"] + [f"{j}.position_{JOINT_UNITS[u][0]}" for j, u in zip(
+        names, units, strict=True)]
+    return Table("joint_states", columns, np.hstack([_times(run, series)[:, None],
+                                                     series.fields["position"]]))
+
+
+def run_joint_summary(run: RunLog) -> list[JointSummary]:
+    """Per joint of joint_efforts: peak and mean generalized force, joint work (trapezoidal
+    integral of tau qdot over the published samples) and the joint_states samples outside the
+    geometry's box. Empty for a log without joint_efforts."""
+    series = run.get(tm.TOPIC_JOINT_EFFORTS)
+    if series is None or not len(series) or not series.names:
+        return []
+    names = series.names
+    effort = series.fields["effort"]
+    power = np.nan_to_num(effort * series.fields["velocity"])
+    t = _times(run, series)
+    work = (0.5 * (power[1:] + power[:-1]) * np.diff(t)[:, None]).sum(axis=0)
+    return summarize_joints(names, joint_units(run, names), effort, work,
+                            _clamped_samples(run, names))
+
+
+def _clamped_samples(run: RunLog, names) -> np.ndarray | None:
+    """Per robot joint of ``names``: joint_states samples whose position, in model
+    coordinates, is outside the geometry's box (None without a geometry or joint_states)."""
+    found = joint_geometry(run)
+    states = run.get(tm.TOPIC_JOINT_STATES)
+    if found is None or states is None or not states.names:
+        return None
+    geometry, joint_map = found
+    counts = np.zeros(len(names), dtype=int)
+    for i, name in enumerate(names):
+        j = joint_map.index_of(name)
+        if j is None or name not in states.names:
+            continue
+        robot_q = states.fields["position"][:, states.names.index(name)]
+        q = joint_map.sign[j] * robot_q + joint_map.offset[j]
+        coordinate = geometry.coordinates[j]
+        counts[i] = int(np.sum((q < coordinate.lower) | (q > coordinate.upper)))
+    return counts
