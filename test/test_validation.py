@@ -52,3 +52,70 @@ def test_criteria_fail_outside_their_bounds():
     assert not Criterion("x", 0.5, 1.0, None).passed
     assert not Criterion("x", float("nan"), None, None).passed
     assert Criterion("x", 1.0, 1.0, 1.0).passed
+
+
+# The joint-torque item's criteria that the model fails today (test/validation/REPORT.md, item 10,
+# says why: the knee's from the source model's geometry and operating range, which Rajagopal's own
+# Hill muscles share; the elbow's at 130 deg from VM's force at fascicles below ~0.65 L0). The
+# criteria are not loosened: `vm-ros validate` reports them as FAIL. This test pins the set, so
+# that a change that fixes one (or breaks another) is seen.
+JOINT_TORQUE_KNOWN_FAILURES = {
+    "knee: angle of peak torque (deg)",
+    "knee: torque at 20 deg / peak",
+    "knee: torque at 100 deg / peak",
+    "elbow: torque at 130 deg / peak",
+}
+
+
+def test_joint_torque_against_human_dynamometry():
+    """Item 10 (paper's Appendix B): maximal isometric knee-extension torque (myo-sim myolegs,
+    hip 80 deg) and elbow-flexion torque (myoelbow) against joint angle, from MuJoCo's exact
+    paths and moment arms and the steady isometric state of MuscleBank (agonists U = 1, every
+    other muscle crossing the joint U = 0). Criteria (vm_ros.validation.JOINT_TORQUE_BANDS):
+    knee peak 55-85 deg, torque/peak 0.2-0.6 at 20 deg and 0.6-0.95 at 100 deg; elbow peak
+    50-110 deg, 0.4-0.8 at 20 deg and 0.4-0.9 at 130 deg; agonist paths within 0.1 L0 of the
+    OpenSim models their l0/l0t come from; reset is the steady state (1e-4 F0 over 2 s)."""
+    pytest.importorskip("mujoco", reason="the joint-torque check needs the mujoco extra "
+                        "(pip install 'vm_ros[mujoco]')")
+    pytest.importorskip("myo_sim", reason="the joint-torque check needs myo-sim (the mujoco "
+                        "extra: pip install 'vm_ros[mujoco]')")
+    result = CHECKS["joint_torque"]()
+    lines = [f"{c.description}: {c.value:.4g} in {c.bounds()} -> {'ok' if c.passed else 'FAIL'}"
+             for c in result.criteria]
+    print(f"\n{result.title}\n  " + "\n  ".join(lines))
+    assert len(result.criteria) == 10
+    failing = {c.description for c in result.criteria if not c.passed}
+    assert failing == JOINT_TORQUE_KNOWN_FAILURES, (
+        "the joint-torque failures changed: update JOINT_TORQUE_KNOWN_FAILURES and "
+        "test/validation/REPORT.md item 10\n" + "\n".join(lines))
+
+
+def test_joint_torque_is_skipped_without_mujoco(monkeypatch):
+    """Without the mujoco extra the item is skipped with a reason, not failed."""
+    import importlib.util
+
+    from vm_ros.validation import CheckSkippedError
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == "mujoco" else real(name, *a))
+    with pytest.raises(CheckSkippedError, match="mujoco"):
+        CHECKS["joint_torque"]()
+
+
+def test_validate_cli_reports_a_skipped_check(monkeypatch, tmp_path, capsys):
+    """`vm-ros validate --only joint_torque` without the extra: exit 0, 'skipped' with the reason
+    in the table and in validation.csv."""
+    import argparse
+    import importlib.util
+
+    from vm_ros.cli import validate
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == "mujoco" else real(name, *a))
+    args = argparse.Namespace(out=tmp_path, only=["joint_torque"], params=None, quick=False,
+                              no_plots=True)
+    assert validate.run(args) == 0
+    assert "joint_torque skipped: mujoco not installed" in capsys.readouterr().out
+    assert "skipped" in (tmp_path / "validation.csv").read_text(encoding="utf-8")
