@@ -12,15 +12,15 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from vm_ros.validation import CheckResult  # noqa: E402
+from vm_ros.validation import JOINT_TORQUE_BANDS, CheckResult, published_ratio  # noqa: E402
 
 
-def _finish(fig, result: CheckResult, path: Path) -> None:
+def _finish(fig, result: CheckResult, path: Path, top: float = 0.9) -> None:
     status = "PASS" if result.passed else "FAIL"
     # about 13 characters of 9 pt text per inch of figure width
     claim = textwrap.fill(f"Paper: {result.claim}", int(13 * fig.get_figwidth()))
     fig.suptitle(f"{result.title}  [{status}]\n{claim}", fontsize=9)
-    fig.tight_layout(rect=(0, 0, 1, 0.9))
+    fig.tight_layout(rect=(0, 0, 1, top))
     fig.savefig(path, dpi=100)
     plt.close(fig)
 
@@ -242,6 +242,86 @@ def plot_cost(result: CheckResult, path: Path) -> None:
     _finish(fig, result, path)
 
 
+def _joint_row(axes, key, run) -> None:
+    """One joint: normalised torque against the published data, torque in N m, operating point."""
+    ax_n, ax_a, ax_l = axes
+    s, settings = run["sweep"], run["settings"]
+    angles, net = s.angles_deg, s.total()
+    bands = JOINT_TORQUE_BANDS[key]
+    what = settings["torque_name"]
+    ax_n.axvspan(*bands["peak_deg"], color="tab:green", alpha=0.12,
+                 label=f"criterion: peak in {bands['peak_deg'][0]:g}-{bands['peak_deg'][1]:g} deg")
+    for angle, (low, high) in bands["ratio_at_deg"].items():
+        ax_n.plot([angle, angle], [low, high], color="tab:green", lw=6, alpha=0.35,
+                  solid_capstyle="butt")
+    ax_n.plot([], [], color="tab:green", lw=6, alpha=0.35, label="criterion: ratio windows")
+    markers = iter("osD^vP")
+    for entry in settings["published"]:
+        if entry["kind"] == "anderson_cosine":
+            ax_n.plot(angles, published_ratio(entry, angles), lw=1.5, alpha=0.8,
+                      label=entry["label"])
+        else:
+            ax_n.plot(entry["angles_deg"], published_ratio(entry, None), next(markers), ms=6,
+                      mfc="none", mew=1.5, label=entry["label"])
+    ax_n.plot(angles, net / net.max(), "k", lw=2.5, label="model (net: agonists U=1, others U=0)")
+    ag = s.total("agonist")
+    ax_n.plot(angles, ag / ag.max(), "k--", lw=1, label="model, agonists only")
+    for label, v in run["variants"].items():
+        ax_n.plot(angles, v.total() / v.total().max(), "k:", lw=1.2, label=f"model, {label}")
+    ratios = ", ".join(f"{r:.2f} at {a:g}" for a, r in run["ratios"].items())
+    ax_n.set_title(f"{settings['title']}\nmodel: peak at {run['peak_deg']:.0f} deg; {ratios} deg",
+                   fontsize=9)
+    ax_n.set(xlabel="joint angle (deg flexion, 0 = full extension)",
+             ylabel=f"{what} / its peak", ylim=(-0.05, 1.15))
+    ax_n.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
+
+    colours = plt.cm.tab10(np.arange(len(s.names)) % 10)
+    ax_a.plot(angles, net, "k", lw=2.5, label="model, net")
+    for i, name in enumerate(s.names):
+        if s.roles[i] == "agonist":
+            ax_a.plot(angles, s.torque_n_m[:, i], color=colours[i], lw=1.2,
+                      label=f"{name} (F0 {run['f0_n'][i]:.0f} N)")
+    ax_a.plot(angles, s.total("other"), color="tab:red", lw=1.5, ls="--",
+              label="others, passive (U = 0), sum")
+    ref = settings.get("absolute_reference")
+    if ref and ref.get("kind") == "anderson_cosine":
+        scale = ref["c1"] * ref["mass_kg"] * 9.81 * ref["height_m"]
+        ax_a.plot(angles, scale * published_ratio(ref, angles), color="grey", lw=3,
+                  alpha=0.5, label=ref["label"])
+    elif ref:
+        ax_a.plot(ref["angles_deg"], ref["torque_n_m"], "o", color="grey", ms=8, mfc="none",
+                  mew=2, label=ref["label"])
+    ax_a.axhline(0, color="grey", lw=0.5)
+    ax_a.set(xlabel="joint angle (deg)", ylabel=f"{what} (N m)")
+    ax_a.set_title(f"model peak {run['peak_n_m']:.1f} N m; others' passive torque down to "
+                   f"{s.total('other').min():.1f} N m", fontsize=9)
+    ax_a.set_ylim(min(0.0, 1.1 * s.total("other").min()), None)
+    ax_a.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
+
+    ax_r = ax_l.twinx()
+    for i, name in enumerate(s.names):
+        if s.roles[i] == "agonist":
+            ax_l.plot(angles, s.length_l0[:, i], color=colours[i], lw=1.5, label=f"{name}: L/L0")
+            ax_r.plot(angles, 1e3 * np.abs(s.moment_arm_m[:, i]), color=colours[i], lw=1,
+                      ls="--")
+    ax_l.axhline(1.0, color="grey", lw=0.5)
+    ax_l.set(xlabel="joint angle (deg)", ylabel="steady fascicle length at U = 1 (L0), solid")
+    ax_r.set_ylabel("|moment arm| (mm), dashed (MuJoCo, exact)")
+    worst = max(run["mismatch_l0"].items(), key=lambda kv: kv[1])
+    ax_l.set_title(f"operating point; paths vs OpenSim source model within {worst[1]:.3f} L0 "
+                   f"({worst[0]})", fontsize=9)
+    ax_l.plot([], [], "k--", lw=1, label="|moment arm| (right axis)")
+    ax_l.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
+
+
+def plot_joint_torque(result: CheckResult, path: Path) -> None:
+    keys = list(result.data)
+    fig, axes = plt.subplots(len(keys), 3, figsize=(16, 6.4 * len(keys)), squeeze=False)
+    for row, key in zip(axes, keys, strict=True):
+        _joint_row(row, key, result.data[key])
+    _finish(fig, result, path, top=0.965)
+
+
 PLOTS = {"fig2": plot_fig2, "fig3": plot_fig3, "fig4": plot_fig4, "fig5": plot_fig5,
          "fig6": plot_fig6, "fig7": plot_fig7, "fig9": plot_fig9, "fig10": plot_fig10,
-         "cost": plot_cost}
+         "cost": plot_cost, "joint_torque": plot_joint_torque}
