@@ -33,12 +33,25 @@ DT = 1e-3
 
 @dataclass(frozen=True)
 class Criterion:
-    """One numeric criterion: ``value`` must lie in [low, high] (None: unbounded)."""
+    """One numeric criterion: ``value`` must lie in [low, high] (None: unbounded).
+
+    ``known_gap``: where the model is known to miss this criterion, why (and where the report says
+    more). The bounds stay the published ones; a known gap that fails is reported as GAP, not as
+    an unexplained failure, and one that passes is reported as passing.
+    """
 
     description: str
     value: float
     low: float | None = None
     high: float | None = None
+    known_gap: str = ""
+
+    @property
+    def status(self) -> str:
+        """'pass', 'GAP' (fails, known and explained) or 'FAIL'."""
+        if self.passed:
+            return "pass"
+        return "GAP" if self.known_gap else "FAIL"
 
     @property
     def passed(self) -> bool:
@@ -66,6 +79,14 @@ class CheckResult:
     @property
     def passed(self) -> bool:
         return all(c.passed for c in self.criteria)
+
+    @property
+    def status(self) -> str:
+        """'PASS', 'PASS with known gaps' or 'FAIL' (a failure that is not a known gap)."""
+        statuses = {c.status for c in self.criteria}
+        if "FAIL" in statuses:
+            return "FAIL"
+        return "PASS with known gaps" if "GAP" in statuses else "PASS"
 
 
 def _path_for(bank: MuscleBank, l=1.0, force_f0=0.5):
@@ -742,6 +763,20 @@ def _crossing_muscles(geometry, coordinate, posture_deg, angles_deg) -> list:
             if r > CROSSING_MOMENT_ARM_M]
 
 
+_KNEE_GAP = ("known gap (REPORT.md item 10): the source model's geometry puts the vasti at L0 "
+             "near 41-53 deg and their moment arm falls from 38 to 22 mm by 90 deg; Rajagopal's "
+             "own Hill muscles on these paths peak earlier still")
+_ELBOW_GAP = ("known gap (REPORT.md item 10): the flexor fascicles are at 0.54-0.61 L0 at 130 "
+              "deg, where VM's active force at full drive is about 0.1 F0")
+# The shape criteria the model misses today, with why; vm-ros validate reports them as GAP.
+JOINT_TORQUE_KNOWN_GAPS = {
+    "knee: angle of peak torque (deg)": _KNEE_GAP,
+    "knee: torque at 20 deg / peak": _KNEE_GAP,
+    "knee: torque at 100 deg / peak": _KNEE_GAP,
+    "elbow: torque at 130 deg / peak": _ELBOW_GAP,
+}
+
+
 def check_joint_torque(params=None, config=None) -> CheckResult:
     """Appendix B: maximal isometric torque against joint angle, in shape, for the knee extensors
     of myo-sim myolegs and the elbow flexors of myoelbow (config/joint_validation.yaml: method,
@@ -754,15 +789,19 @@ def check_joint_torque(params=None, config=None) -> CheckResult:
                          "the shape of the maximal isometric torque versus joint angle was "
                          "validated against human data (knee model); here knee extension "
                          "(myolegs) and elbow flexion (myoelbow) against human dynamometry")
+    def criterion(description, value, low, high):
+        return Criterion(description, value, low, high,
+                         JOINT_TORQUE_KNOWN_GAPS.get(description, ""))
+
     for key, bands in JOINT_TORQUE_BANDS.items():
         run = run_joint_torque(key, joints[key], params, path)
         sweep = run["sweep"]
         peak_deg, peak, ratios = torque_shape(sweep.angles_deg, sweep.total(),
                                               bands["ratio_at_deg"])
-        result.criteria.append(Criterion(f"{key}: angle of peak torque (deg)", peak_deg,
+        result.criteria.append(criterion(f"{key}: angle of peak torque (deg)", peak_deg,
                                          *bands["peak_deg"]))
         for angle, (low, high) in bands["ratio_at_deg"].items():
-            result.criteria.append(Criterion(f"{key}: torque at {angle:g} deg / peak",
+            result.criteria.append(criterion(f"{key}: torque at {angle:g} deg / peak",
                                              ratios[angle], low, high))
         result.criteria.append(Criterion(
             f"{key}: agonist paths vs source OpenSim model, max |dL| (L0)",

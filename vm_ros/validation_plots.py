@@ -16,7 +16,7 @@ from vm_ros.validation import JOINT_TORQUE_BANDS, CheckResult, published_ratio  
 
 
 def _finish(fig, result: CheckResult, path: Path, top: float = 0.9) -> None:
-    status = "PASS" if result.passed else "FAIL"
+    status = result.status
     # about 13 characters of 9 pt text per inch of figure width
     claim = textwrap.fill(f"Paper: {result.claim}", int(13 * fig.get_figwidth()))
     fig.suptitle(f"{result.title}  [{status}]\n{claim}", fontsize=9)

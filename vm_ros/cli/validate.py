@@ -17,7 +17,8 @@ from vm_ros.cli.progress import Progress
 from vm_ros.model import load_model_params
 from vm_ros.validation import CHECKS, CheckSkippedError
 
-HELP = "reproduce the paper's checks and figures; non-zero exit on a failure"
+HELP = ("reproduce the paper's checks and figures; non-zero exit on a failure that is not a "
+        "known, explained gap")
 
 
 def add_arguments(parser) -> None:
@@ -67,25 +68,30 @@ def run(args) -> int:
         results.append((name, result))
     with open(args.out / "validation.csv", "w", newline="", encoding="utf-8") as handle:
         writer = csv.writer(handle)
-        writer.writerow(["check", "item", "criterion", "value", "low", "high", "passed"])
+        writer.writerow(["check", "item", "criterion", "value", "low", "high", "passed",
+                         "known_gap"])
         for name, result in results:
             for c in result.criteria:
                 writer.writerow([name, result.item, c.description, f"{c.value:.6g}",
                                  "" if c.low is None else c.low, "" if c.high is None else c.high,
-                                 c.passed])
+                                 c.passed, c.known_gap])
         for name, reason in skipped.items():
-            writer.writerow([name, "", f"skipped: {reason}", "", "", "", "skipped"])
-    failed = 0
+            writer.writerow([name, "", f"skipped: {reason}", "", "", "", "skipped", ""])
+    counts = {"pass": 0, "GAP": 0, "FAIL": 0}
     print(f"\n{'check':12} {'criterion':70} {'value':>12} {'bounds':>18}  result")
     for name, result in results:
         for c in result.criteria:
-            failed += not c.passed
+            counts[c.status] += 1
             print(f"{name:12} {c.description[:70]:70} {c.value:12.4g} {c.bounds():>18}  "
-                  f"{'pass' if c.passed else 'FAIL'}")
+                  f"{c.status}")
     for name, reason in skipped.items():
         print(f"{name:12} skipped: {reason}")
-    total = sum(len(r.criteria) for _, r in results)
-    print(f"\n{total - failed} passed, {failed} failed"
+    gaps = [c for _, r in results for c in r.criteria if c.status == "GAP"]
+    for reason in dict.fromkeys(c.known_gap for c in gaps):
+        print(f"GAP: {reason}")
+    print(f"\n{counts['pass']} passed, {counts['FAIL']} failed"
+          + (f", {counts['GAP']} known gaps (not counted as failures; REPORT.md)"
+             if counts["GAP"] else "")
           + (f", {len(skipped)} check(s) skipped" if skipped else "")
           + f"  (figures and validation.csv in {args.out})")
-    return 1 if failed else 0
+    return 1 if counts["FAIL"] else 0
