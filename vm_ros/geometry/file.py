@@ -110,7 +110,9 @@ def loads(text: str, path="<geometry>", backend: str = "auto") -> PolynomialGeom
 
 def geometry_from_dict(data, path="<geometry>", backend: str = "auto") -> PolynomialGeometry:
     if not isinstance(data, dict):
-        raise ConfigError(path, "-", type(data).__name__, "a geometry file is a YAML mapping")
+        raise ConfigError(path, "-", type(data).__name__, "not a vm_ros geometry file (a YAML "
+                          f"mapping with format: {FORMAT}; make one with vm-ros import-osim or "
+                          "import-mjcf)")
     if data.get("format") != FORMAT:
         raise ConfigError(path, "format", data.get("format"), f"expected {FORMAT!r}")
     if data.get("version") != VERSION:
