@@ -2,6 +2,7 @@
 
     result = run_node_benchmark(100, workdir=Path("bench"))  # inside scripts/netns-run
     python -m vm_ros.bench.node_bench --muscles 100 --duration 60      # prints JSON
+    python -m vm_ros.bench.node_bench --geometry geometry.yaml --library muscles.yaml  # joints
 
 What runs: a library YAML in ``workdir`` with ``n_muscles`` uniquely named copies of the shipped
 muscles (every field and source kept), a params YAML, and ``python -m vm_ros.node`` as a child
@@ -11,6 +12,14 @@ range at 0.25 Hz, with their velocities) and ``excitation`` (JointState, every m
 drive, stepping between 0.2 and 0.7 every 0.5 s) at ``drive_rate_hz``, and subscribes to every
 output. After the model starts and ``warmup_s`` passes, the measurement window of ``duration_s``
 begins.
+
+Joint input (``run_joint_node_benchmark``): the node gets a geometry file and a muscle library
+(for example those of ``vm-ros import-mjcf``); its muscles are the library's muscles that the
+geometry covers, all joint-driven. The driver publishes ``joint_states`` for every coordinate of
+the geometry (each oscillating by ``JOINT_SWING`` of its box about the box's middle at 0.25 Hz,
+with its velocity) at ``joint_rate_hz`` from its own timer, and ``excitation`` at
+``drive_rate_hz``; it also counts joint_efforts and joint_effort_commands. Keys as below, with
+rate_joint_states_sent_hz in place of rate_kinematics_sent_hz.
 
 Definitions (keys of the returned dict; times are the benchmark's steady clock unless stated):
 
@@ -69,6 +78,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -88,6 +98,7 @@ DRIVE_LOW, DRIVE_HIGH = 0.2, 0.7
 DRIVE_STEP_PERIOD_S = 0.5
 LENGTH_SWING = 0.1  # amplitude, as a fraction of the anatomical path-length range
 LENGTH_FREQUENCY_HZ = 0.25
+JOINT_SWING = 0.25  # amplitude, as a fraction of each coordinate's box (joint input)
 STAMP_MATCH_NS = 1000  # an excitation's stamp read back from the log (float64) vs as sent
 
 _SIOCGIFFLAGS = 0x8913  # linux/sockios.h
@@ -144,8 +155,9 @@ def write_library(path: Path, n_muscles: int) -> list[str]:
 
 def write_params(path: Path, names: list[str], library: Path, model_rate_hz: float,
                  publish_rate_hz: float, mcap_path: Path | None,
-                 diagnostics_period_s: float) -> None:
-    """muscle_node's params YAML (the model starts at the first muscle_kinematics)."""
+                 diagnostics_period_s: float, geometry: Path | None = None) -> None:
+    """muscle_node's params YAML (the model starts at the first muscle_kinematics, or with a
+    ``geometry`` file at the first joint_states naming every coordinate)."""
     params = {
         "muscles": list(names), "library": str(library), "model_rate_hz": float(model_rate_hz),
         "publish_rate_hz": float(publish_rate_hz),
@@ -153,6 +165,8 @@ def write_params(path: Path, names: list[str], library: Path, model_rate_hz: flo
         "mcap": {"enabled": mcap_path is not None,
                  "path": str(mcap_path) if mcap_path is not None else ""},
     }
+    if geometry is not None:
+        params["geometry"] = str(geometry)
     path.write_text(yaml.safe_dump({"/**": {"ros__parameters": params}}, sort_keys=False),
                     encoding="utf-8")
 
@@ -196,15 +210,40 @@ def _stamp_ns(stamp) -> int:
     return stamp.sec * 1_000_000_000 + stamp.nanosec
 
 
+@dataclass(frozen=True)
+class Sweep:
+    """The kinematics the driver publishes: on ``topic``, for ``names``, positions
+    mid + swing sin(2 pi f t) (m or rad) and their velocities."""
+
+    topic: str
+    names: tuple
+    mid: np.ndarray
+    swing: np.ndarray
+    frequency_hz: float = LENGTH_FREQUENCY_HZ
+
+    @classmethod
+    def around(cls, topic: str, names, lower, upper, fraction: float) -> Sweep:
+        """Oscillating by ``fraction`` of [lower, upper] about its middle."""
+        lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+        return cls(topic, tuple(names), 0.5 * (lower + upper), fraction * (upper - lower))
+
+    def at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        phase = 2.0 * math.pi * self.frequency_hz * t
+        return (self.mid + self.swing * math.sin(phase),
+                self.swing * 2.0 * math.pi * self.frequency_hz * math.cos(phase))
+
+
 class BenchDriver:
     """The benchmark's ROS node: publishes the drive and kinematics, records what arrives.
 
-    Outputs are subscribed raw; a muscle_force stamp is read from the CDR bytes (encapsulation
-    header, then header.stamp sec int32 and nanosec uint32), so that receiving costs little.
+    ``sweep`` gives the kinematics (muscle_kinematics or joint_states); ``sweep_rate_hz`` None
+    publishes them with each excitation, else from a timer of their own. Outputs are subscribed
+    raw; a muscle_force stamp is read from the CDR bytes (encapsulation header, then
+    header.stamp sec int32 and nanosec uint32), so that receiving costs little.
     """
 
-    def __init__(self, context, names, path_length_min_m, path_length_max_m,
-                 drive_rate_hz: float):
+    def __init__(self, context, names, sweep: Sweep, drive_rate_hz: float,
+                 sweep_rate_hz: float | None = None):
         from diagnostic_msgs.msg import DiagnosticArray
         from rclpy.node import Node
         from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -218,18 +257,22 @@ class BenchDriver:
                          reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.VOLATILE)
         self._excitation = self.node.create_publisher(JointState, tm.TOPIC_EXCITATION, qos)
-        self._kinematics = self.node.create_publisher(JointState, tm.TOPIC_KINEMATICS, qos)
-        mid = 0.5 * (np.asarray(path_length_min_m) + np.asarray(path_length_max_m))
-        self._mid_m = mid
-        self._swing_m = LENGTH_SWING * (np.asarray(path_length_max_m)
-                                        - np.asarray(path_length_min_m))
+        self.sweep = sweep
+        self._kinematics = self.node.create_publisher(JointState, sweep.topic, qos)
+        self._sweep_names = list(sweep.names)
+        joints = sweep.topic == tm.TOPIC_JOINT_STATES
         # received outputs: steady-clock arrival (ns); muscle_force also ROS arrival and stamp
         self.force_mono_ns: list[int] = []
         self.force_ros_ns: list[int] = []
         self.force_stamp_ns: list[int] = []
         self.last_force: bytes | None = None
-        self.received = {t: [] for t in (tm.TOPIC_ENERGY_RATE, tm.TOPIC_ENERGY_RATE_TOTAL,
-                                         tm.TOPIC_ENERGY_TOTAL)}
+        self.last_joint_efforts: bytes | None = None
+        outputs = [(tm.TOPIC_ENERGY_RATE, Float64MultiArray), (tm.TOPIC_ENERGY_RATE_TOTAL, Float64),
+                   (tm.TOPIC_ENERGY_TOTAL, Float64)]
+        if joints:
+            outputs += [(tm.TOPIC_JOINT_EFFORTS, JointState),
+                        (tm.TOPIC_JOINT_EFFORT_COMMANDS, Float64MultiArray)]
+        self.received = {topic: [] for topic, _ in outputs}
         self.diagnostics: list[tuple[int, dict]] = []  # (stamp ns, key -> value)
         # sent inputs: steady clock just before publish(); excitation also its stamp (ROS time)
         self.excitation_mono_ns: list[int] = []
@@ -240,46 +283,62 @@ class BenchDriver:
         self._start_mono_ns: int | None = None
 
         self.node.create_subscription(JointState, tm.TOPIC_FORCE, self._on_force, qos, raw=True)
-        for topic, msg_type in ((tm.TOPIC_ENERGY_RATE, Float64MultiArray),
-                                (tm.TOPIC_ENERGY_RATE_TOTAL, Float64),
-                                (tm.TOPIC_ENERGY_TOTAL, Float64)):
+        for topic, msg_type in outputs:
             arrivals = self.received[topic]
-            self.node.create_subscription(
-                msg_type, topic, lambda _data, a=arrivals: a.append(time.monotonic_ns()), qos,
-                raw=True)
+            callback = (self._on_joint_efforts if topic == tm.TOPIC_JOINT_EFFORTS else
+                        lambda _data, a=arrivals: a.append(time.monotonic_ns()))
+            self.node.create_subscription(msg_type, topic, callback, qos, raw=True)
         self.node.create_subscription(DiagnosticArray, tm.TOPIC_DIAGNOSTICS,
                                       self._on_diagnostics, qos)
-        self._timer = self.node.create_timer(1.0 / drive_rate_hz, self._tick)
+        self._timers = [self.node.create_timer(1.0 / drive_rate_hz, self._tick)]
+        self._sweep_with_drive = sweep_rate_hz is None
+        if not self._sweep_with_drive:
+            self._timers.append(self.node.create_timer(1.0 / sweep_rate_hz, self._sweep_tick))
 
     def stop_driving(self) -> None:
-        if self._timer is not None:
-            self.node.destroy_timer(self._timer)
-            self._timer = None
+        for timer in self._timers:
+            self.node.destroy_timer(timer)
+        self._timers = []
 
-    def _tick(self) -> None:
-        mono_ns = time.monotonic_ns()
+    def _elapsed_s(self, mono_ns: int) -> float:
         if self._start_mono_ns is None:
             self._start_mono_ns = mono_ns
-        t = (mono_ns - self._start_mono_ns) * 1e-9
-        phase = 2.0 * math.pi * LENGTH_FREQUENCY_HZ * t
-        length = self._mid_m + self._swing_m * math.sin(phase)
-        velocity = self._swing_m * 2.0 * math.pi * LENGTH_FREQUENCY_HZ * math.cos(phase)
+        return (mono_ns - self._start_mono_ns) * 1e-9
+
+    def _kinematics_message(self, t: float):
+        position, velocity = self.sweep.at(t)
+        return self._joint_state(name=self._sweep_names, position=position.tolist(),
+                                 velocity=velocity.tolist())
+
+    def _tick(self) -> None:
+        t = self._elapsed_s(time.monotonic_ns())
         drive = DRIVE_HIGH if int(t / DRIVE_STEP_PERIOD_S) % 2 else DRIVE_LOW
         if self._last_drive is not None and drive != self._last_drive:
             self.drive_steps += 1
         self._last_drive = drive
 
-        kinematics = self._joint_state(name=self.names, position=length.tolist(),
-                                       velocity=velocity.tolist())
+        messages = [self._kinematics_message(t)] if self._sweep_with_drive else []
         excitation = self._joint_state(name=self.names, position=[drive] * len(self.names))
         stamp_ns = time.time_ns()
-        for msg in (kinematics, excitation):
+        for msg in (*messages, excitation):
             msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
-        self.kinematics_mono_ns.append(time.monotonic_ns())
-        self._kinematics.publish(kinematics)
+        if messages:
+            self.kinematics_mono_ns.append(time.monotonic_ns())
+            self._kinematics.publish(messages[0])
         self.excitation_stamp_ns.append(stamp_ns)
         self.excitation_mono_ns.append(time.monotonic_ns())
         self._excitation.publish(excitation)
+
+    def _sweep_tick(self) -> None:
+        kinematics = self._kinematics_message(self._elapsed_s(time.monotonic_ns()))
+        kinematics.header.stamp.sec, kinematics.header.stamp.nanosec = divmod(
+            time.time_ns(), 1_000_000_000)
+        self.kinematics_mono_ns.append(time.monotonic_ns())
+        self._kinematics.publish(kinematics)
+
+    def _on_joint_efforts(self, data: bytes) -> None:
+        self.received[tm.TOPIC_JOINT_EFFORTS].append(time.monotonic_ns())
+        self.last_joint_efforts = data
 
     def _on_force(self, data: bytes) -> None:
         self.force_mono_ns.append(time.monotonic_ns())
@@ -296,11 +355,16 @@ class BenchDriver:
 
     def last_force_message(self):
         """The newest muscle_force, deserialised (None before the first)."""
+        return self._deserialize(self.last_force)
+
+    def last_joint_efforts_message(self):
+        """The newest joint_efforts, deserialised (None before the first)."""
+        return self._deserialize(self.last_joint_efforts)
+
+    def _deserialize(self, data: bytes | None):
         from rclpy.serialization import deserialize_message
 
-        if self.last_force is None:
-            return None
-        return deserialize_message(self.last_force, self._joint_state)
+        return None if data is None else deserialize_message(data, self._joint_state)
 
 
 # --- measuring ---------------------------------------------------------------------------------
@@ -454,6 +518,53 @@ def run_node_benchmark(n_muscles: int, model_rate_hz: float = 1000.0,
     removed afterwards. ``progress(done_s, total_s)`` is called about twice a second during the
     warm-up and the window. Returns a flat dict of numbers (units in the key names).
     """
+
+    def setup(workdir: Path):
+        library = workdir / "node_bench_muscles.yaml"
+        names = write_library(library, n_muscles)
+        lo, hi = physical_path_length_range(MuscleBank.from_config(names, library=library), 0.0)
+        return names, library, None, Sweep.around(tm.TOPIC_KINEMATICS, names, lo, hi,
+                                                  LENGTH_SWING)
+
+    result = _run(setup, model_rate_hz, publish_rate_hz, duration_s, mcap, workdir, progress,
+                  warmup_s, drive_rate_hz, None)
+    return {"n_muscles": n_muscles, "model_rate_hz": float(model_rate_hz),
+            "publish_rate_hz": float(publish_rate_hz), "mcap": bool(mcap), **result}
+
+
+def run_joint_node_benchmark(geometry: Path | str, library: Path | str,
+                             model_rate_hz: float = 1000.0, publish_rate_hz: float = 100.0,
+                             duration_s: float = 60.0, mcap: bool = True,
+                             workdir: Path | str | None = None,
+                             progress: Callable[[float, float], None] | None = None, *,
+                             warmup_s: float = 5.0, drive_rate_hz: float = 100.0,
+                             joint_rate_hz: float = 1000.0) -> dict:
+    """Run muscle_node from joint space (module docstring) and measure it as
+    :func:`run_node_benchmark` does: the ``geometry`` file, the ``library`` muscles it covers
+    (all joint-driven), joint_states for every coordinate at ``joint_rate_hz``."""
+    from vm_ros.geometry import load_geometry
+
+    geometry, library = Path(geometry).resolve(), Path(library).resolve()
+    paths = load_geometry(geometry, backend="numpy")  # names and boxes only
+    known = load_muscle_library(library)
+    names = [m for m in paths.muscle_names if m in known]
+    if not names:
+        raise RuntimeError(f"no muscle of {geometry} is in the library {library}")
+    sweep = Sweep.around(tm.TOPIC_JOINT_STATES, paths.coordinate_names, paths.lower,
+                         paths.upper, JOINT_SWING)
+    result = _run(lambda _workdir: (names, library, geometry, sweep), model_rate_hz,
+                  publish_rate_hz, duration_s, mcap, workdir, progress, warmup_s,
+                  drive_rate_hz, joint_rate_hz)
+    return {"n_muscles": len(names), "n_geometry_muscles": len(paths.muscle_names),
+            "n_coordinates": len(paths.coordinates), "input": tm.TOPIC_JOINT_STATES,
+            "joint_rate_hz": float(joint_rate_hz), "model_rate_hz": float(model_rate_hz),
+            "publish_rate_hz": float(publish_rate_hz), "mcap": bool(mcap), **result}
+
+
+def _run(setup, model_rate_hz, publish_rate_hz, duration_s, mcap, workdir, progress, warmup_s,
+         drive_rate_hz, sweep_rate_hz) -> dict:
+    """The benchmark of either input: ``setup(workdir)`` gives (muscle names, library path,
+    geometry path or None, Sweep); ``sweep_rate_hz`` None publishes the sweep with the drive."""
     import rclpy
 
     check_loopback_only()
@@ -464,22 +575,21 @@ def run_node_benchmark(n_muscles: int, model_rate_hz: float = 1000.0,
             workdir = stack.enter_context(tempfile.TemporaryDirectory(prefix="vm_ros-bench-"))
         workdir = Path(workdir).resolve()  # the node runs with workdir as its cwd
         workdir.mkdir(parents=True, exist_ok=True)
-        library = workdir / "node_bench_muscles.yaml"
-        names = write_library(library, n_muscles)
+        names, library, geometry, sweep = setup(workdir)
         mcap_path = workdir / "node_bench.mcap" if mcap else None
         if mcap_path is not None and mcap_path.exists():
             mcap_path.unlink()
         params_path = workdir / "node_bench_params.yaml"
         write_params(params_path, names, library, model_rate_hz, publish_rate_hz, mcap_path,
-                     diagnostics_period_s=1.0 if duration_s >= 10.0 else 0.25)
-        lo, hi = physical_path_length_range(MuscleBank.from_config(names, library=library), 0.0)
+                     diagnostics_period_s=1.0 if duration_s >= 10.0 else 0.25,
+                     geometry=geometry)
         step_ns = int(round(1e9 / model_rate_hz))
         log_path = workdir / "muscle_node.log"
 
         context = rclpy.Context()
         rclpy.init(context=context)
         stack.callback(rclpy.try_shutdown, context=context)
-        driver = BenchDriver(context, names, lo, hi, drive_rate_hz)
+        driver = BenchDriver(context, names, sweep, drive_rate_hz, sweep_rate_hz)
         stack.callback(driver.node.destroy_node)
         executor = _make_executor(context)
         stack.callback(executor.shutdown)  # unwound first: executor, node, context
@@ -506,12 +616,19 @@ def run_node_benchmark(n_muscles: int, model_rate_hz: float = 1000.0,
             excitation_not_in_node_log=lost if effective is not None else math.nan,
             latency_from_node_log=effective is not None,
             node_exit_code=exit_code, node_stop_s=stop_s,
-            forces_finite=bool(last is not None and len(last.effort) == n_muscles
-                               and np.all(np.isfinite(last.effort))),
+            forces_finite=_finite(last, len(names)),
             mcap_file_mib=mcap_path.stat().st_size / MIB
             if mcap_path is not None and mcap_path.exists() else math.nan)
-        return {"n_muscles": n_muscles, "model_rate_hz": float(model_rate_hz),
-                "publish_rate_hz": float(publish_rate_hz), "mcap": bool(mcap), **result}
+        if geometry is not None:
+            result["efforts_finite"] = _finite(driver.last_joint_efforts_message(),
+                                               len(sweep.names))
+        return result
+
+
+def _finite(message, size: int) -> bool:
+    """A JointState whose effort[] has ``size`` finite values."""
+    return bool(message is not None and len(message.effort) == size
+                and np.all(np.isfinite(message.effort)))
 
 
 def _measure(process, driver: BenchDriver, executor, duration_s: float, warmup_s: float,
@@ -564,6 +681,9 @@ def _measure(process, driver: BenchDriver, executor, duration_s: float, warmup_s
     def rate(times) -> float:
         return _count_between(times, mono0, mono1) / wall_s
 
+    sent_key = ("rate_kinematics_sent_hz" if driver.sweep.topic == tm.TOPIC_KINEMATICS
+                else f"rate_{driver.sweep.topic}_sent_hz")
+
     result = {
         "duration_s": wall_s, "warmup_s": float(warmup_s),
         "cpu_percent_one_core": 100.0 * (cpu1 - cpu0) / wall_s,
@@ -574,11 +694,9 @@ def _measure(process, driver: BenchDriver, executor, duration_s: float, warmup_s
         **_drift(driver.diagnostics, ros0, ros1),
         "model_lag_p50_ms": lag_p50, "model_lag_p99_ms": lag_p99, "model_lag_max_ms": lag_max,
         "rate_muscle_force_hz": len(in_window) / wall_s,
-        "rate_energy_rate_hz": rate(driver.received[tm.TOPIC_ENERGY_RATE]),
-        "rate_energy_rate_total_hz": rate(driver.received[tm.TOPIC_ENERGY_RATE_TOTAL]),
-        "rate_energy_total_hz": rate(driver.received[tm.TOPIC_ENERGY_TOTAL]),
+        **{f"rate_{topic}_hz": rate(times) for topic, times in driver.received.items()},
         "rate_excitation_sent_hz": rate(driver.excitation_mono_ns),
-        "rate_kinematics_sent_hz": rate(driver.kinematics_mono_ns),
+        sent_key: rate(driver.kinematics_mono_ns),
         "drive_steps": driver.drive_steps,
         "mcap_messages_written": _number(last_diagnostics.get("mcap messages written")),
         "mcap_messages_dropped": _number(last_diagnostics.get("mcap messages dropped")),
@@ -601,22 +719,36 @@ def main(argv=None) -> int:
     parser.add_argument("--duration", type=float, default=60.0, help="window (s)")
     parser.add_argument("--warmup", type=float, default=5.0, help="warm-up (s)")
     parser.add_argument("--drive-rate", type=float, default=100.0,
-                        help="excitation and kinematics rate (Hz)")
+                        help="excitation (and muscle_kinematics) rate (Hz)")
+    parser.add_argument("--geometry", type=Path, default=None,
+                        help="joint input: this geometry file, with --library; --muscles is "
+                             "ignored (the library's muscles that the geometry covers)")
+    parser.add_argument("--library", type=Path, default=None,
+                        help="muscle library for --geometry (e.g. vm-ros import-mjcf's)")
+    parser.add_argument("--joint-rate", type=float, default=1000.0,
+                        help="joint_states rate with --geometry (Hz)")
     parser.add_argument("--no-mcap", action="store_true", help="run the node without MCAP")
     parser.add_argument("--workdir", type=Path, default=None,
                         help="keep library, params, node log and MCAP here (default: temporary)")
     args = parser.parse_args(argv)
+    if (args.geometry is None) != (args.library is None):
+        parser.error("--geometry and --library go together")
 
     def progress(done: float, total: float) -> None:
         if sys.stderr.isatty():
             sys.stderr.write(f"\rnode bench {100.0 * done / total:5.1f}% ")
             sys.stderr.flush()
 
+    common = dict(mcap=not args.no_mcap, workdir=args.workdir, progress=progress,
+                  warmup_s=args.warmup, drive_rate_hz=args.drive_rate)
     try:
-        result = run_node_benchmark(
-            args.muscles, args.model_rate, args.publish_rate, args.duration,
-            mcap=not args.no_mcap, workdir=args.workdir, progress=progress,
-            warmup_s=args.warmup, drive_rate_hz=args.drive_rate)
+        if args.geometry is not None:
+            result = run_joint_node_benchmark(
+                args.geometry, args.library, args.model_rate, args.publish_rate, args.duration,
+                joint_rate_hz=args.joint_rate, **common)
+        else:
+            result = run_node_benchmark(args.muscles, args.model_rate, args.publish_rate,
+                                        args.duration, **common)
     except RuntimeError as exc:
         print(f"node_bench: error: {exc}", file=sys.stderr)
         return 1
