@@ -11,6 +11,15 @@ Sections (all by default; --only picks some):
             MCAP, and 10 muscles publishing at 1 kHz; CPU, memory, model-time drift, latency.
             rclpy runs in a loopback-only network namespace: inside scripts/netns-run it runs
             directly, otherwise this command starts one (unshare -n; needs root).
+  joint     joint space (extra mujoco, with myo-sim; skipped with the reason without it), on
+            the 80-muscle myo-sim leg imported once with vm-ros import-mjcf into
+            OUT/joint-cache/ (reused while model, options and versions are unchanged):
+            geometry evaluate(q, qdot) per call, compiled, NumPy and MuJoCo's exact tendons,
+            and generalized_forces; muscle_node from joint_states at 1 kHz (the imported
+            library's muscles, model 1 kHz, publish 100 Hz, MCAP) measured as the node
+            section; the closed loop in one process (myoelbow; myolegs with its root fixed
+            and free), wall time per simulated second at 1 ms steps (vm_ros.bench.joint_bench).
+            --quick imports at degree 3 over 100 poses (smaller polynomials: not comparable).
 
 --compare opensim adds OpenSim's Millard 2012 muscle with the Umberger 2010 metabolics probe
 beside one vm_ros muscle, same drive and path, 1 ms steps from Python (vm_ros.bench.
@@ -36,7 +45,7 @@ from pathlib import Path
 from vm_ros.errors import VmRosError
 
 HELP = "benchmark the model, offline runs and muscle_node; write JSON/CSV and print a table"
-SECTIONS = ("model", "natural", "offline", "node")
+SECTIONS = ("model", "natural", "offline", "node", "joint")
 
 
 def add_arguments(parser) -> None:
@@ -93,24 +102,63 @@ def _node_rows(duration_s: float, workdir: Path) -> list[dict]:
     for config in configs:
         _say(f"node {config['muscles']} muscles, publish {config['publish_rate_hz']:g} Hz, "
              f"MCAP {'on' if config['mcap'] else 'off'}, {duration_s:g} s ...")
-        command = [sys.executable, "-m", "vm_ros.bench.node_bench",
-                   "--muscles", str(config["muscles"]),
-                   "--model-rate", str(config["model_rate_hz"]),
-                   "--publish-rate", str(config["publish_rate_hz"]),
-                   "--duration", str(duration_s),
-                   "--workdir", str(workdir / f"node-{config['muscles']}"),
-                   *([] if config["mcap"] else ["--no-mcap"])]
-        if os.environ.get("VM_ROS_NETNS") != "1":
-            command = _loopback_only(command)
-        result = subprocess.run(command, capture_output=True, text=True,
-                                timeout=duration_s * 3 + 180)
-        if result.returncode != 0:
-            tail = (result.stderr or result.stdout).strip().splitlines()[-5:]
-            rows.append({**config, "error": " | ".join(tail)})
-            _say(f"node run failed: {rows[-1]['error']}")
-            continue
-        rows.append({**config, **json.loads(result.stdout[result.stdout.index("{"):])})
+        rows.append(_node_process(
+            config, ["--muscles", str(config["muscles"]),
+                     "--model-rate", str(config["model_rate_hz"]),
+                     "--publish-rate", str(config["publish_rate_hz"]),
+                     "--duration", str(duration_s),
+                     "--workdir", str(workdir / f"node-{config['muscles']}"),
+                     *([] if config["mcap"] else ["--no-mcap"])], duration_s))
     return rows
+
+
+def _node_process(config: dict, arguments: list, duration_s: float) -> dict:
+    """``python -m vm_ros.bench.node_bench ARGUMENTS`` (in a loopback-only namespace): its JSON
+    after ``config``, or ``config`` with the error's last lines."""
+    command = [sys.executable, "-m", "vm_ros.bench.node_bench", *arguments]
+    if os.environ.get("VM_ROS_NETNS") != "1":
+        command = _loopback_only(command)
+    result = subprocess.run(command, capture_output=True, text=True,
+                            timeout=duration_s * 3 + 180)
+    if result.returncode != 0:
+        tail = (result.stderr or result.stdout).strip().splitlines()[-5:]
+        _say(f"node run failed: {' | '.join(tail)}")
+        return {**config, "error": " | ".join(tail)}
+    return {**config, **json.loads(result.stdout[result.stdout.index("{"):])}
+
+
+def _joint_section(out: Path, quick: bool, repeats: int, min_seconds: float,
+                   node_duration_s: float) -> dict:
+    """The joint section's three items (module docstring); each a dict with ``skipped`` when
+    it cannot run here."""
+    from vm_ros.bench import joint_bench
+
+    reason = joint_bench.missing_extra()
+    if reason is not None:
+        _say(f"joint: skipped, {reason}")
+        return {"geometry": {"skipped": reason}, "node": {"skipped": reason},
+                "closed_loop": [{"skipped": reason}]}
+    cache = out / "joint-cache"
+    imported = joint_bench.import_myolegs(cache / ("myolegs-quick" if quick else "myolegs"),
+                                          quick=quick, progress=_say)
+    _say(f"joint: myolegs import {'reused' if imported['reused'] else 'made'} "
+         f"({Path(imported['geometry']).parent})")
+    _say("joint: geometry evaluation ...")
+    geometry = joint_bench.bench_geometry(imported["geometry"], repeats, min_seconds,
+                                          progress=_say)
+    config = {"model": joint_bench.MODEL, "joint_rate_hz": 1000.0, "model_rate_hz": 1000.0,
+              "publish_rate_hz": 100.0, "mcap": True}
+    _say(f"joint: muscle_node from joint_states at 1 kHz, {node_duration_s:g} s ...")
+    node = _node_process(config, [
+        "--geometry", imported["geometry"], "--library", imported["library"],
+        "--joint-rate", "1000", "--model-rate", "1000", "--publish-rate", "100",
+        "--duration", str(node_duration_s), "--warmup", "2" if quick else "5",
+        "--workdir", str(out / "node-joint")], node_duration_s)
+    _say("joint: closed loop ...")
+    loops = joint_bench.bench_closed_loop(
+        joint_bench.closed_loop_cases(imported["library"], cache),
+        duration_s=0.2 if quick else 2.0, repeats=repeats, progress=_say)
+    return {"import": imported, "geometry": geometry, "node": node, "closed_loop": loops}
 
 
 def _loopback_only(command: list) -> list:
@@ -122,11 +170,13 @@ def _loopback_only(command: list) -> list:
 
 
 def _csv_rows(results: dict) -> list[dict]:
-    """Flat (section, case, metric, value, unit, target, met) rows of the main numbers."""
+    """Flat (section, case, metric, value, min, max, unit, target, met) rows of the main numbers
+    (min and max over the repeats where the value is a median of repeats)."""
     rows = []
 
-    def add(section, case, metric, value, unit, target=None, met=None):
+    def add(section, case, metric, value, unit, target=None, met=None, low=None, high=None):
         rows.append({"section": section, "case": case, "metric": metric, "value": value,
+                     "min": "" if low is None else low, "max": "" if high is None else high,
                      "unit": unit, "target": target or "", "met": "" if met is None else met})
 
     for r in results.get("model", []):
@@ -135,7 +185,8 @@ def _csv_rows(results: dict) -> list[dict]:
         target = {1: 30.0, 1000: 1000.0}.get(r["muscles"]) if r["backend"] == "numba" else None
         add("model", f"{r['backend']} {r['muscles']} muscles", "step median", r["step_us"], "us",
             f"<= {target:g} us" if target else None,
-            None if target is None else r["step_us"] <= target)
+            None if target is None else r["step_us"] <= target, r["step_us_min"],
+            r["step_us_max"])
     for r in results.get("natural", []):
         add("natural", f"{r['backend']} {r['muscles']} muscles, {r['units_per_type']} units/type",
             "natural / lumped step cost", r["natural_over_lumped"], "ratio")
@@ -167,17 +218,57 @@ def _csv_rows(results: dict) -> list[dict]:
             if main and key == "model_wall_drift_percent":
                 target, met = "within 1 %", abs(value) <= 1.0
             add("node", case, key, value, "", target, met)
+    if "joint" in results:
+        _joint_csv_rows(results["joint"], add)
     return rows
 
 
+def _joint_csv_rows(joint: dict, add) -> None:
+    geometry = joint["geometry"]
+    if "skipped" in geometry:
+        add("joint", "geometry", "skipped", geometry["skipped"], "")
+    for r in geometry.get("rows", []):
+        size = (f" x {geometry['coordinates']} q" if r["call"] != "evaluate" else ", exact"
+                if r["backend"] == "mujoco" else f", {geometry['polynomial_terms']} terms")
+        case = f"{geometry['model']} {r['call']} {r['backend']} ({geometry['muscles']} m{size})"
+        if "skipped" in r:
+            add("joint", case, "skipped", r["skipped"], "")
+            continue
+        add("joint", case, "per call median", r["call_us"], "us", low=r["call_us_min"],
+            high=r["call_us_max"])
+    for key in ("length_max_diff_vs_mujoco_mm", "moment_arm_max_diff_vs_mujoco_mm"):
+        if key in geometry:
+            add("joint", f"{geometry['model']} polynomial vs MuJoCo", key, geometry[key], "mm")
+    node = joint["node"]
+    case = (f"node {node.get('model', '')} {node.get('n_muscles', '?')} m, joint_states "
+            f"{node.get('joint_rate_hz', 0):g} Hz, MCAP")
+    if "skipped" in node or "error" in node:
+        add("joint", case, "skipped" if "skipped" in node else "error",
+            node.get("skipped", node.get("error")), "")
+    else:
+        for key, value in node.items():
+            if key not in ("model", "n_muscles", "joint_rate_hz", "model_rate_hz",
+                           "publish_rate_hz", "mcap", "input"):
+                add("joint", case, key, value, "")
+    for r in joint["closed_loop"]:
+        if "skipped" in r:
+            add("joint", "closed loop", "skipped", r["skipped"], "")
+            continue
+        case = f"closed loop {r['model']} {r['muscles']} m, {r['root']}"
+        add("joint", case, "wall per simulated s", r["wall_per_sim_s"], "s/s",
+            low=r["wall_per_sim_s_min"], high=r["wall_per_sim_s_max"])
+
+
 def _table(rows: list[dict]) -> str:
-    lines = [f"{'section':8} {'case':44} {'metric':30} {'value':>12} {'target':>12}  met"]
+    lines = [f"{'section':8} {'case':52} {'metric':30} {'value':>12} {'min..max':>19} "
+             f"{'target':>12}  met"]
     for r in rows:
         value = r["value"]
         text = f"{value:12.4g}" if isinstance(value, float) else f"{str(value)[:12]:>12}"
+        spread = f"{r['min']:.4g}..{r['max']:.4g}" if r["min"] != "" else ""
         met = {True: "yes", False: "NO", "": ""}[r["met"]]
-        lines.append(f"{r['section']:8} {r['case'][:44]:44} {r['metric'][:30]:30} {text} "
-                     f"{r['target']:>12}  {met}")
+        lines.append(f"{r['section']:8} {r['case'][:52]:52} {r['metric'][:30]:30} {text} "
+                     f"{spread:>19} {r['target']:>12}  {met}")
     return "\n".join(lines)
 
 
@@ -208,6 +299,8 @@ def run(args) -> int:
                                                             progress=_say)
     if "node" in sections:
         results["node"] = _node_rows(node_duration, out)
+    if "joint" in sections:
+        results["joint"] = _joint_section(out, args.quick, repeats, min_seconds, node_duration)
     if args.compare == "opensim":
         from vm_ros.bench import opensim_compare
 
