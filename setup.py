@@ -1,11 +1,12 @@
 """Build definition for vm_ros (ament_python: colcon needs a real setup.py).
 
 The data_files lay out an ament prefix, so that `pip install .` and `colcon build` both give
-`ros2 run vm_ros muscle_node` what it looks for:
+`ros2 run vm_ros muscle_node` (and `mujoco_sim_node`) what it looks for:
 
     share/ament_index/resource_index/packages/vm_ros   package marker
     share/vm_ros/package.xml, config/*.yaml, msg/*.msg
     lib/vm_ros/muscle_node                             sh shim that execs <prefix>/bin/muscle_node
+    lib/vm_ros/mujoco_sim_node                         the same for <prefix>/bin/mujoco_sim_node
 """
 
 from glob import glob
@@ -52,6 +53,8 @@ setup(
     entry_points={
         "console_scripts": [
             "muscle_node = vm_ros.node:main",
+            # extras ros and mujoco (without mujoco it says so and exits 2)
+            "mujoco_sim_node = vm_ros.sim.mujoco_node:main",
             "vm-ros = vm_ros.cli:main",
         ],
     },
@@ -61,6 +64,6 @@ setup(
         # sorted globs: new files are picked up, and an empty folder gives an empty (harmless) entry
         (f"share/{PACKAGE}/config", sorted(glob("config/*.yaml"))),
         (f"share/{PACKAGE}/msg", sorted(glob("msg_defs/*.msg"))),
-        (f"lib/{PACKAGE}", ["resource/muscle_node"]),
+        (f"lib/{PACKAGE}", ["resource/muscle_node", "resource/mujoco_sim_node"]),
     ],
 )

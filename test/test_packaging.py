@@ -2,8 +2,9 @@
 
 ros2run looks the package up on AMENT_PREFIX_PATH with ament_index_python, then runs the
 executable file ``<prefix>/lib/vm_ros/muscle_node``, our POSIX-sh shim that execs the console
-script ``<prefix>/bin/muscle_node``. ros2cli is not on PyPI, so the lookup is done here exactly as
-ros2run does it, and the shim is run for real.
+script ``<prefix>/bin/muscle_node`` (``mujoco_sim_node`` has the same kind of shim). ros2cli
+is not on PyPI, so the lookup is done here exactly as ros2run does it, and the shim is run for
+real.
 
 Under ``make test`` (VM_ROS_NETNS=1) or in CI (CI set), whatever would be skipped elsewhere fails.
 """
@@ -31,6 +32,7 @@ STRICT = os.environ.get("VM_ROS_NETNS") == "1" or os.environ.get("CI", "").lower
     "false",
 )
 COLCON_TIMEOUT_S = 90
+EXECUTABLES = ("muscle_node", "mujoco_sim_node")  # each: resource/<name> -> lib/vm_ros/<name>
 
 
 def _skip_or_fail(reason: str) -> None:
@@ -81,10 +83,11 @@ def _assert_ament_prefix(prefix: Path, monkeypatch: pytest.MonkeyPatch) -> None:
         p.name for p in (share / "msg").glob("*.msg")
     )
 
-    shim = prefix / "lib" / PACKAGE / "muscle_node"
-    assert _is_executable_file(shim), f"shim missing or not executable: {shim}"
-    assert shim.read_bytes() == (REPO / "resource/muscle_node").read_bytes()
-    assert _is_executable_file(prefix / "bin" / "muscle_node"), "console script missing"
+    for name in EXECUTABLES:
+        shim = prefix / "lib" / PACKAGE / name
+        assert _is_executable_file(shim), f"shim missing or not executable: {shim}"
+        assert shim.read_bytes() == (REPO / "resource" / name).read_bytes()
+        assert _is_executable_file(prefix / "bin" / name), f"console script {name} missing"
 
     ament_index_python = _ament_index()
     monkeypatch.setenv("AMENT_PREFIX_PATH", str(prefix))
@@ -93,7 +96,7 @@ def _assert_ament_prefix(prefix: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     # ros2pkg.api.get_executable_paths: the executable files under <prefix>/lib/<package>
     lib_dir = Path(ament_index_python.get_package_prefix(PACKAGE)) / "lib" / PACKAGE
     executables = sorted(p.name for p in lib_dir.iterdir() if _is_executable_file(p))
-    assert "muscle_node" in executables
+    assert set(EXECUTABLES) <= set(executables)
 
 
 # --- (1) pip: the venv this suite runs in is an ament prefix --------------------------------------
@@ -157,14 +160,18 @@ def _run(argv: list[str], cwd: Path, **env: str) -> subprocess.CompletedProcess:
     return subprocess.run(argv, cwd=cwd, capture_output=True, timeout=10, env={**os.environ, **env})
 
 
-def test_shim_source():
-    shim = REPO / "resource/muscle_node"
+@pytest.mark.parametrize("name", EXECUTABLES)
+def test_shim_source(name):
+    shim = REPO / "resource" / name
     text = shim.read_text()
     assert text.startswith("#!/bin/sh\n")
     assert 'prefix=$(cd "$(dirname "$0")/../.." && pwd)' in text
-    assert 'exec "$prefix/bin/muscle_node" "$@"' in text
-    assert os.access(shim, os.X_OK), "resource/muscle_node must be executable in the repository"
+    assert f'exec "$prefix/bin/{name}" "$@"' in text
+    assert os.access(shim, os.X_OK), f"resource/{name} must be executable in the repository"
     assert (REPO / "resource" / PACKAGE).read_bytes() == b""
+    # the other shims differ from muscle_node's only in the name
+    muscle_node = (REPO / "resource/muscle_node").read_text()
+    assert text == muscle_node.replace("muscle_node", name)
 
 
 @pytest.mark.parametrize("shim_as_symlink", [False, True], ids=["copy", "symlink"])
