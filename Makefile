@@ -3,6 +3,7 @@
 #   make venv         create/refresh $(VENV) with ".[ros,dev,fast,opensim,mujoco]" pinned by constraints.txt
 #   make test         the whole pytest suite (ruff included) in a loopback-only network namespace
 #   make demo         the demo, in a loopback-only network namespace
+#   make demo-closed-loop  muscle_node driving a MuJoCo elbow over ROS 2 (MCAP, PNG), same namespace
 #   make bench        vm-ros bench (results in bench-results/), in a loopback-only namespace
 #   make lint         ruff only
 #   make constraints  re-resolve constraints.txt in fresh venvs (needs PyPI)
@@ -19,7 +20,7 @@ PKG_STAMP := $(VENV)/.vm_ros-pkg
 PKG_SOURCES := setup.py package.xml \
 	$(shell find vm_ros config msg_defs resource -name __pycache__ -prune -o -print 2>/dev/null)
 
-.PHONY: all venv test demo bench lint clean constraints colcon-venv host-tools
+.PHONY: all venv test demo demo-closed-loop bench lint clean constraints colcon-venv host-tools
 .DEFAULT_GOAL := test
 
 all: test
@@ -68,6 +69,9 @@ test: venv colcon-venv
 
 demo: venv
 	scripts/netns-run $(VENV)/bin/vm-ros demo
+
+demo-closed-loop: venv
+	scripts/netns-run $(VENV)/bin/vm-ros demo --closed-loop
 
 bench: venv
 	scripts/netns-run $(VENV)/bin/vm-ros bench --out bench-results

@@ -1,15 +1,19 @@
-"""The demo's two ROS nodes: a driver that plays a scenario's inputs in real time, and a monitor
-that collects what muscle_node publishes (the demo's summary comes from these messages, never
-from the model's internals).
+"""The demos' ROS nodes: a driver that plays a scenario's inputs in real time, a monitor that
+collects what muscle_node publishes (the demo's summary comes from these messages, never from the
+model's internals), and the closed-loop demo's driver, which only sends drive (the simulator
+sends joint_states).
 
     driver = DemoDriver("knee_extension", context=ctx)   # excitation + muscle_kinematics
     monitor = DemoMonitor(context=ctx)                   # muscle_force, energy_rate, energy_total
     ...spin...
     summary = monitor.summary()
+
+    loop = LoopDriver(names, pulses, context=ctx)        # excitation; counts joint_efforts
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,6 +57,42 @@ class DemoDriver(Node):
                              velocity=np.asarray(velocity, float).tolist())
             msg.header.stamp = now.to_msg()
             publisher.publish(msg)
+
+
+class LoopDriver(Node):
+    """Publishes ``excitation`` (name[] ``names``, position[] ``drive(t)``) at ``rate_hz`` for
+    the closed loop, and counts muscle_node's joint_efforts. The drive's time t is 0 until the
+    first joint_efforts arrives (the loop is closed: muscle_node has joint_states and runs), then
+    runs on the ROS clock from that message's arrival. ``sent_to_subscriber``: drive messages
+    published while some subscriber (muscle_node) was matched."""
+
+    def __init__(self, names: Sequence[str], drive: Callable[[float], np.ndarray],
+                 rate_hz: float = 100.0, **kwargs):
+        super().__init__("vm_ros_demo_loop_driver", **kwargs)
+        self.names = list(names)
+        self.drive = drive
+        self.efforts = 0
+        self.sent_to_subscriber = 0
+        self.start_ns: int | None = None
+        self._excitation = self.create_publisher(JointState, tm.TOPIC_EXCITATION, _QOS)
+        self.create_subscription(JointState, tm.TOPIC_JOINT_EFFORTS, self._on_efforts, _QOS)
+        self.create_timer(1.0 / rate_hz, self._tick)
+        self._tick()  # muscle_node has a drive before it starts
+
+    def _on_efforts(self, msg: JointState) -> None:
+        self.efforts += 1
+        if self.start_ns is None:
+            self.start_ns = self.get_clock().now().nanoseconds
+
+    def _tick(self) -> None:
+        now = self.get_clock().now()
+        t = 0.0 if self.start_ns is None else (now.nanoseconds - self.start_ns) * 1e-9
+        msg = JointState(name=self.names,
+                         position=np.asarray(self.drive(t), dtype=float).tolist())
+        msg.header.stamp = now.to_msg()
+        self._excitation.publish(msg)
+        if self._excitation.get_subscription_count() > 0:
+            self.sent_to_subscriber += 1
 
 
 @dataclass(frozen=True)
@@ -132,4 +172,4 @@ class DemoMonitor(Node):
             diagnostics=dict(self.diagnostics))
 
 
-__all__ = ["DemoDriver", "DemoMonitor", "DemoSummary"]
+__all__ = ["DemoDriver", "DemoMonitor", "DemoSummary", "LoopDriver"]

@@ -1,17 +1,31 @@
-"""Run muscle_node on the knee-extension scenario for a few seconds and summarise what it published.
+"""Run muscle_node on the knee-extension scenario for a few seconds and summarise what it published;
+with --closed-loop, let it drive a MuJoCo arm over ROS 2 and plot the motion.
 
 muscle_node runs as a child process (`python -m vm_ros.node`, the same code as the muscle_node
 executable), so that it has a core and an interpreter lock of its own, as in real use, and so that
 the demo also exercises its clean shutdown: it is stopped with SIGINT, which finishes its MCAP
 file. This process runs the driver (excitation and muscle_kinematics from the scenario, in real
 time) and a monitor that subscribes to muscle_force, energy_rate and energy_total; the table is
-computed from those messages. Run it inside scripts/netns-run (as `make demo` does) to keep DDS
-traffic on loopback.
+computed from those messages.
+
+--closed-loop: the model's geometry is imported (vm-ros import-mjcf MODEL --out DIR; reused when
+DIR already holds one of the same model file and MuJoCo version); muscle_node (that geometry and
+library, joint_map identity, MCAP on) and mujoco_sim_node (`python -m vm_ros.sim.mujoco_node`,
+the model with its actuation off, stepped in real time) run as child processes, and this process
+publishes the drive: alternating pulses about the first coordinate (vm_ros.closed_loop.
+pulse_excitation: muscles with r > 0 at 0.5 for the first half of each second, those with r < 0
+at 0.2 for the second half, 0.05 otherwise). Both children are stopped with SIGINT; then
+DIR/closed_loop.png (joint angle, drive, joint torque, muscle forces, energy rate and cumulative
+energy) is drawn from muscle_node's MCAP (DIR/closed_loop.mcap) and a summary printed.
+
+rclpy runs in a loopback-only network namespace: inside scripts/netns-run (VM_ROS_NETNS=1) the
+demo runs directly, otherwise it starts one for itself (unshare -n; needs root).
 """
 
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -21,8 +35,11 @@ from pathlib import Path
 
 from vm_ros.errors import VmRosError
 
-HELP = "run muscle_node with a knee-extension driver and print forces and energies"
+HELP = ("run muscle_node with a knee-extension driver and print forces and energies; "
+        "--closed-loop: muscle_node driving a MuJoCo arm over ROS 2, plotted")
 SCENARIO = "knee_extension"
+LOOP_MCAP = "closed_loop.mcap"
+LOOP_PNG = "closed_loop.png"
 
 
 def add_arguments(parser) -> None:
@@ -39,6 +56,46 @@ def add_arguments(parser) -> None:
                         default="lumped", help="recruitment scheme (default lumped)")
     parser.add_argument("--startup-timeout", type=float, default=30.0, metavar="S",
                         help="longest wait for muscle_node's first output (default 30)")
+    loop = parser.add_argument_group("closed loop (--closed-loop)")
+    loop.add_argument("--closed-loop", action="store_true",
+                      help="muscle_node drives mujoco_sim_node over ROS 2 (extra mujoco)")
+    loop.add_argument("--model", default="myoelbow", metavar="NAME|FILE.xml",
+                      help="myo-sim model name or MJCF file (default myoelbow)")
+    loop.add_argument("--out", metavar="DIR", default=None,
+                      help="geometry (cached), MCAP and PNG (default "
+                           "out/demo-closed-loop-<model>)")
+
+
+def _command_line(args) -> list[str]:
+    """``args`` as a vm-ros command line (to run the demo again inside a namespace)."""
+    argv = ["demo", "--duration", repr(args.duration), "--executor", args.executor,
+            "--model-rate-hz", repr(args.model_rate_hz), "--recruitment", args.recruitment,
+            "--startup-timeout", repr(args.startup_timeout), "--model", str(args.model)]
+    for flag, value in (("--mcap", args.mcap), ("--out", args.out)):
+        if value is not None:
+            argv += [flag, str(value)]
+    for flag, on in (("--no-mcap", args.no_mcap), ("--closed-loop", args.closed_loop)):
+        if on:
+            argv.append(flag)
+    return argv
+
+
+def _in_loopback_namespace(args) -> int:
+    """Run this demo again in a new loopback-only network namespace; its exit status."""
+    from vm_ros.cli.bench import _loopback_only
+
+    if shutil.which("unshare") is None or shutil.which("ip") is None:
+        raise VmRosError("rclpy must run in a loopback-only network namespace: run the demo "
+                         "inside scripts/netns-run, or install util-linux and iproute2")
+    print("vm-ros demo: starting a loopback-only network namespace (unshare -n)",
+          file=sys.stderr)
+    process = subprocess.Popen(_loopback_only([sys.executable, "-m", "vm_ros.cli",
+                                               *_command_line(args)]))
+    while True:
+        try:
+            return process.wait()
+        except KeyboardInterrupt:  # the demo in the namespace got it too and stops cleanly
+            continue
 
 
 def _node_command(args, scenario, mcap_path: Path | None) -> list:
@@ -108,6 +165,12 @@ def format_summary(summary, mcap_path: Path | None) -> str:
 
 
 def run(args) -> int:
+    if args.duration <= 0:
+        raise VmRosError(f"--duration must be > 0 s (got {args.duration})")
+    if os.environ.get("VM_ROS_NETNS") != "1":
+        return _in_loopback_namespace(args)
+    if args.closed_loop:
+        return run_closed_loop(args)
     try:
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
@@ -118,8 +181,6 @@ def run(args) -> int:
         raise VmRosError(f"vm-ros demo needs ROS 2 (rclpy): pip install '.[ros]' ({exc})") from exc
     from vm_ros.scenarios import load_scenario
 
-    if args.duration <= 0:
-        raise VmRosError(f"--duration must be > 0 s (got {args.duration})")
     if not os.environ.get("HOME") and not os.environ.get("ROS_LOG_DIR"):
         raise VmRosError("rclpy needs HOME or ROS_LOG_DIR set")
     scenario = load_scenario(SCENARIO)
@@ -159,4 +220,175 @@ def run(args) -> int:
     if status != 0:
         raise VmRosError(f"muscle_node ended with status {status}")
     print(format_summary(monitor.summary(), mcap_path))
+    return 0
+
+
+# ---------------------------------------------------------------------------- --closed-loop
+
+_SOURCE_KEYS = ("model", "file", "sha256", "mujoco", "myo_sim")
+
+
+def prepare_geometry(model: str, out: Path) -> tuple[Path, Path]:
+    """DIR/geometry.yaml and DIR/muscles.yaml of ``model``: reused when the geometry's source
+    (model name, XML file and hash, MuJoCo and myo-sim versions) is this model's, else made with
+    ``vm-ros import-mjcf MODEL --out DIR`` (a child process; its exit status checked)."""
+    import yaml
+
+    from vm_ros.geometry.mujoco_backend import load_model
+
+    geometry, library = out / "geometry.yaml", out / "muscles.yaml"
+    source = load_model(model).as_dict()
+    if geometry.is_file() and library.is_file():
+        with open(geometry, encoding="utf-8") as handle:
+            cached = (yaml.load(handle, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+                      or {}).get("source", {})
+        if all(cached.get(k) == source.get(k) for k in _SOURCE_KEYS):
+            print(f"vm-ros demo: reusing {geometry} and {library}", file=sys.stderr)
+            return geometry, library
+    print(f"vm-ros demo: vm-ros import-mjcf {model} --out {out}", file=sys.stderr)
+    status = subprocess.run([sys.executable, "-m", "vm_ros.cli", "import-mjcf", model,
+                             "--out", str(out)]).returncode
+    if status != 0:
+        raise VmRosError(f"vm-ros import-mjcf {model} ended with status {status}")
+    return geometry, library
+
+
+def loop_parameters(args, geometry_path: Path, library_path: Path, mcap_path: Path):
+    """(muscle_node parameters, mujoco_sim_node parameters, drive, muscle names): every
+    geometry muscle the library has, joint_map identity over the geometry's coordinates,
+    pulses about the first coordinate at the middle of its range (where the sim starts)."""
+    import yaml
+
+    from vm_ros.closed_loop import pulse_excitation
+    from vm_ros.geometry import load_geometry
+
+    geometry = load_geometry(geometry_path)
+    with open(library_path, encoding="utf-8") as handle:
+        in_library = set((yaml.safe_load(handle) or {}).get("muscles", {}))
+    rows = [i for i, name in enumerate(geometry.muscle_names) if name in in_library]
+    if not rows:
+        raise VmRosError(f"no muscle of {geometry_path} has parameters in {library_path}")
+    muscles = [geometry.muscle_names[i] for i in rows]
+    joints = list(geometry.coordinate_names)
+    q0 = (geometry.lower + geometry.upper) / 2
+    drive = pulse_excitation(geometry.evaluate(q0).moment_arm[rows, 0], joints[0])
+    joint_map = yaml.safe_dump({j: j for j in joints}, default_flow_style=True).strip()
+    rate = float(args.model_rate_hz)
+    muscle_node = {
+        "muscles": muscles, "library": str(library_path), "geometry": str(geometry_path),
+        "joint_map": joint_map, "joints": joints, "recruitment": args.recruitment,
+        "model_rate_hz": rate, "publish_rate_hz": rate, "executor": args.executor,
+        "mcap": {"enabled": True, "path": str(mcap_path)}}
+    model = args.model
+    if Path(model).suffix.lower() == ".xml" or Path(model).exists():
+        model = str(Path(model).resolve())
+    sim_node = {"model": model, "joints": joints, "initial_positions": q0.tolist(),
+                "dt": 0.001, "tick_s": 0.001, "wait_for_command": True}
+    return muscle_node, sim_node, drive, muscles
+
+
+def _params_file(path: Path, params: dict) -> Path:
+    """A ROS 2 parameters file (``/**: ros__parameters: ...``), so that the run can be repeated
+    by hand with --params-file."""
+    import yaml
+
+    path.write_text(yaml.safe_dump({"/**": {"ros__parameters": params}}, sort_keys=False))
+    return path
+
+
+def _wait(executor, predicate, timeout_s: float, processes: dict, what: str) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not predicate():
+        for name, process in processes.items():
+            if process.poll() is not None:
+                raise VmRosError(f"{name} exited with status {process.returncode} ({what})")
+        if time.monotonic() > deadline:
+            raise VmRosError(f"{what}: not within {timeout_s:g} s")
+        executor.spin_once(timeout_sec=0.05)
+
+
+def run_closed_loop(args) -> int:
+    """The --closed-loop demo (module docstring)."""
+    try:
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.signals import SignalHandlerOptions
+
+        from vm_ros.demo_driver import LoopDriver
+    except ImportError as exc:
+        raise VmRosError(f"vm-ros demo needs ROS 2 (rclpy): pip install '.[ros]' ({exc})") from exc
+    from vm_ros.geometry.mujoco_backend import require_mujoco
+
+    require_mujoco()
+    if args.no_mcap:
+        raise VmRosError("--closed-loop plots from muscle_node's MCAP: drop --no-mcap")
+    if not os.environ.get("HOME") and not os.environ.get("ROS_LOG_DIR"):
+        raise VmRosError("rclpy needs HOME or ROS_LOG_DIR set")
+    out = Path(args.out or Path("out") / f"demo-closed-loop-{Path(str(args.model)).stem}")
+    out = out.resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    mcap_path = Path(args.mcap).resolve() if args.mcap else out / LOOP_MCAP
+    geometry_path, library_path = prepare_geometry(args.model, out)
+    muscle_params, sim_params, drive, muscles = loop_parameters(
+        args, geometry_path, library_path, mcap_path)
+    commands = {
+        "muscle_node": [sys.executable, "-m", "vm_ros.node", "--ros-args", "--params-file",
+                        str(_params_file(out / "muscle_node.yaml", muscle_params))],
+        "mujoco_sim_node": [sys.executable, "-m", "vm_ros.sim.mujoco_node", "--ros-args",
+                            "--params-file",
+                            str(_params_file(out / "mujoco_sim_node.yaml", sim_params))]}
+    print(f"vm-ros demo: {drive.description}", file=sys.stderr)
+    wall_start = time.monotonic()
+    processes = {"muscle_node": subprocess.Popen(commands["muscle_node"])}
+    context = rclpy.Context()
+    # no rclpy signal handlers here: Ctrl-C raises KeyboardInterrupt, and `finally` stops both
+    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+    executor = SingleThreadedExecutor(context=context)
+    driver = LoopDriver(muscles, drive, context=context)
+    executor.add_node(driver)
+    statuses = {}
+    try:
+        # muscle_node starts on the first joint_states: it must have a drive by then, so the
+        # simulator starts only once muscle_node has received some (else the arm would fall)
+        _wait(executor, lambda: driver.sent_to_subscriber >= 2, args.startup_timeout,
+              processes, "waiting for muscle_node to subscribe to excitation")
+        processes["mujoco_sim_node"] = subprocess.Popen(commands["mujoco_sim_node"])
+        _wait(executor, lambda: driver.efforts > 0, args.startup_timeout, processes,
+              "waiting for muscle_node's first joint_efforts")
+        loop_start = time.monotonic()
+        print(f"vm-ros demo: the loop is closed; {args.duration:g} s of {args.model}...",
+              file=sys.stderr)
+        end = loop_start + args.duration
+        try:
+            while time.monotonic() < end and all(p.poll() is None for p in processes.values()):
+                executor.spin_once(timeout_sec=0.05)
+        except KeyboardInterrupt:  # Ctrl-C once the loop runs: stop early, still plot
+            print("vm-ros demo: interrupted, stopping the nodes", file=sys.stderr)
+        loop_wall_s = time.monotonic() - loop_start
+    finally:
+        for name, process in processes.items():  # muscle_node first: it finishes the MCAP
+            statuses[name] = _stop(process)
+        executor.shutdown(timeout_sec=1.0)
+        driver.destroy_node()
+        rclpy.try_shutdown(context=context)
+    failed = [f"{name} ended with status {status}" for name, status in statuses.items()
+              if status != 0]
+    if failed:
+        raise VmRosError("; ".join(failed))
+    from vm_ros.sim.loop_log import format_loop_summary, plot_loop_log, read_loop_log
+
+    log = read_loop_log(mcap_path)
+    print(f"closed loop over ROS 2: {args.model}, {len(muscles)} muscles "
+          f"({', '.join(muscles)}), joints {', '.join(log.joints)}")
+    print(f"drive: {drive.description}")
+    print(format_loop_summary(log))
+    print(f"wall time: {loop_wall_s:.2f} s closed loop, {time.monotonic() - wall_start:.2f} s "
+          "from starting the nodes to stopping them")
+    print(f"MCAP log: {mcap_path}")
+    try:
+        png = plot_loop_log(log, out / LOOP_PNG, f"{args.model}: muscle_node driving "
+                            "mujoco_sim_node over ROS 2")
+        print(f"plot: {png}")
+    except ModuleNotFoundError:
+        print("matplotlib is not installed: no plot (pip install 'vm_ros[plot]')")
     return 0

@@ -2,5 +2,8 @@
 
 - ``mujoco_node``: a MuJoCo model stepped in (scaled) real time, publishing ``joint_states`` and
   applying ``joint_effort_commands`` as generalized forces, MuJoCo's own actuation off (extras
-  ``mujoco`` and ``ros``).
+  ``mujoco`` and ``ros``; console script and ``ros2 run vm_ros mujoco_sim_node``).
+- ``loop_log``: such a loop as muscle_node's MCAP recorded it: motion, joint torques, forces and
+  energy as arrays, a summary and a plot (no rclpy, no MuJoCo; used by ``vm-ros demo
+  --closed-loop``).
 """

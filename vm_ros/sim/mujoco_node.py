@@ -11,7 +11,9 @@ generalized forces it received, and publishes the joint coordinates. Topics (rel
   NaN/inf is dropped and counted.
 - out ``joint_states`` (sensor_msgs/JointState): name[] the ``joints`` parameter, position[]
   (rad or m), velocity[], effort[] the generalized forces applied, stamped with the node's clock
-  (or with simulated time when ``publish_clock`` is true).
+  (or with simulated time when ``publish_clock`` is true). With ``wait_for_command`` the initial
+  pose is published every tick, without stepping, until the first command arrives: a controller
+  that needs joint_states to start (muscle_node with a geometry) then starts the simulation.
 - out ``/clock`` (rosgraph_msgs/Clock) when ``publish_clock``: the simulated time after each
   batch of steps, so that muscle_node with ``use_sim_time`` runs on the simulation's time.
 
@@ -69,6 +71,8 @@ PARAMETERS = (
     ("max_steps_per_tick", 100, "most steps one tick may do (catch-up bound), >= 1"),
     ("publish_clock", False, "publish /clock with the simulated time and stamp joint_states "
      "with it"),
+    ("wait_for_command", False, "hold the initial pose (publishing joint_states, not stepping) "
+     "until the first joint_effort_commands arrives"),
 )
 
 
@@ -153,6 +157,7 @@ class MujocoSimNode(Node):
         self.real_time_factor = float(p["real_time_factor"])
         self.max_steps = int(p["max_steps_per_tick"])
         self.publish_clock = bool(p["publish_clock"])
+        self.wait_for_command = bool(p["wait_for_command"])
         self.dropped_commands = 0
         self.commands = 0
         self.overrun_steps = 0
@@ -163,6 +168,7 @@ class MujocoSimNode(Node):
                           if self.publish_clock else None)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._start_ns = None
+        self._last_tick_ns = None
         self.timer = self.create_timer(float(p["tick_s"]), self._tick, clock=self._steady)
         self.get_logger().info(
             f"{p['model']}: joints {', '.join(self.sim.joint_names)}, dt {p['dt']} s, "
@@ -181,7 +187,10 @@ class MujocoSimNode(Node):
         self.sim.set_effort(data)
 
     def _tick(self) -> None:
-        now = self._steady.now().nanoseconds
+        now = self._last_tick_ns = self._steady.now().nanoseconds
+        if self.wait_for_command and not self.commands:
+            self.publish_state()  # the controller sees the pose; time starts with its command
+            return
         if self._start_ns is None:
             self._start_ns = now
         if self.real_time_factor > 0:
@@ -194,6 +203,16 @@ class MujocoSimNode(Node):
         if n:
             self.sim.step(n)
             self.publish_state()
+
+    def run_summary(self) -> str:
+        """One line: simulated and wall time, steps not simulated (fell behind), commands."""
+        wall_s = ((self._last_tick_ns - self._start_ns) * 1e-9
+                  if self._start_ns is not None else 0.0)
+        dt = self.sim.model.opt.timestep
+        return (f"simulated {self.sim.time_s:.3f} s in {wall_s:.3f} s of wall time "
+                f"({self.sim.steps} steps); {self.overrun_steps * dt:.3f} s not simulated "
+                f"(fell behind); {self.commands} commands applied, {self.dropped_commands} "
+                "dropped")
 
     def publish_state(self) -> None:
         msg = JointState()
@@ -246,6 +265,7 @@ def main(args=None) -> int:
         if executor is not None:
             executor.shutdown()
         if node is not None:
+            node.get_logger().info(node.run_summary())
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
