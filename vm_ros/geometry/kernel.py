@@ -38,6 +38,7 @@ def _compile():
             gradient = np.zeros((n, n_q))
             powers = np.ones((width, max_degree + 1))
             dl_dx = np.zeros(width)
+            others = np.zeros(width)
             current = -1
             for t in range(term_muscle.shape[0]):
                 m = term_muscle[t]
@@ -54,18 +55,18 @@ def _compile():
                         x = 0.0 if c >= n_q else (q[c] - slot_offset[m, j]) / slot_scale[m, j]
                         for p in range(1, max_degree + 1):
                             powers[j, p] = powers[j, p - 1] * x
-                value = term_coefficient[t]
+                # factors of this term; products of the others by prefix and suffix
+                prefix = term_coefficient[t]
                 for j in range(width):
-                    value *= powers[j, term_exponent[t, j]]
-                length[m] += value
-                for j in range(width):
+                    others[j] = prefix
+                    prefix *= powers[j, term_exponent[t, j]]
+                length[m] += prefix
+                suffix = 1.0
+                for j in range(width - 1, -1, -1):
                     e = term_exponent[t, j]
                     if e > 0:
-                        d = term_coefficient[t] * e * powers[j, e - 1]
-                        for i in range(width):
-                            if i != j:
-                                d *= powers[i, term_exponent[t, i]]
-                        dl_dx[j] += d
+                        dl_dx[j] += others[j] * suffix * e * powers[j, e - 1]
+                    suffix *= powers[j, e]
             if current >= 0:
                 for j in range(width):
                     c = slot_coordinate[current, j]

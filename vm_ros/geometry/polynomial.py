@@ -65,7 +65,7 @@ def monomial_gradients(x: np.ndarray, exponents: np.ndarray) -> np.ndarray:
 
 class _Lookup(NamedTuple):
     term_power: np.ndarray      # (K, T) index into powers (n, K, degree + 1), raveled
-    term_slot: np.ndarray       # (K, T) index into (n, K), raveled
+    first_term: np.ndarray      # (n,) index of each muscle's first term
     slot_cell: np.ndarray       # (n * K,) index into the gradient (n, n_q + 1), raveled
 
 
@@ -105,8 +105,11 @@ class PackedPolynomials:
         """Flat indices that evaluate_packed gathers and scatters with (computed once)."""
         n, width = self.slot_coordinate.shape
         slots = self.term_muscle[None, :] * width + np.arange(width)[:, None]        # (K, T)
+        counts = np.bincount(self.term_muscle, minlength=n)
+        if np.any(counts == 0) or np.any(np.diff(self.term_muscle) < 0):
+            raise ValueError("every muscle needs at least one term, terms grouped by muscle")
         return _Lookup(term_power=slots * (self.max_degree + 1) + self.term_exponent.T,
-                       term_slot=slots,
+                       first_term=np.concatenate([[0], np.cumsum(counts)[:-1]]),
                        slot_cell=(np.arange(n)[:, None] * (self.n_coordinates + 1)
                                   + self.slot_coordinate).ravel())
 
@@ -164,10 +167,10 @@ def evaluate_packed(packed: PackedPolynomials, q: np.ndarray) -> tuple[np.ndarra
         suffix = suffix * factors[j + 1]
         others[j] *= suffix
     weighted = packed.term_coefficient * others                                       # (K, T)
-    length = np.bincount(packed.term_muscle, weights=weighted[0] * factors[0], minlength=n)
-    dl_dx = np.bincount(index.term_slot.ravel(),
-                        weights=(weighted * slopes.ravel()[index.term_power]).ravel(),
-                        minlength=n * width).reshape(n, width)
+    # sums over each muscle's terms (contiguous runs: one reduceat per sum)
+    length = np.add.reduceat(weighted[0] * factors[0], index.first_term)
+    dl_dx = np.add.reduceat(weighted * slopes.ravel()[index.term_power], index.first_term,
+                            axis=1).T                                                  # (n, K)
     gradient = np.bincount(index.slot_cell, weights=(dl_dx / packed.slot_scale).ravel(),
                            minlength=n * (packed.n_coordinates + 1))
     return length, gradient.reshape(n, packed.n_coordinates + 1)[:, :packed.n_coordinates]
