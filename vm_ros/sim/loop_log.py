@@ -267,7 +267,8 @@ def plot_loop_log(log: LoopLog, path, title: str = "") -> Path:
     lines = ax_e.get_lines() + ax_total.get_lines()
     ax_e.legend(lines, [line.get_label() for line in lines],
                 **{**side, "bbox_to_anchor": (1.08, 1.0)})
-    ax_e.set_xlabel("model time (s)")
+    ax_e.set_xlabel("time from the model start (s, ROS clock: outputs at model time, inputs "
+                    "when received)")
     for ax in axes:
         ax.grid(alpha=0.3)
     ax_e.set_xlim(0.0, max(log.duration_s, 1e-3))
