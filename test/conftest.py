@@ -23,6 +23,28 @@ import pytest
 STRICT = os.environ.get("VM_ROS_NETNS") == "1" or os.environ.get("CI", "").lower() not in (
     "", "0", "false")
 
+# Variables that a library imported in this process may rewrite (opensim's import sets
+# LD_LIBRARY_PATH and PATH): child processes started by later tests (muscle_node, the ROS wheels'
+# bootstrapper) need them as they were.
+_ENVIRONMENT_GUARDED = ("LD_LIBRARY_PATH", "PATH", "SIMBODY_HOME")
+_ENVIRONMENT_AT_START = {name: os.environ.get(name) for name in _ENVIRONMENT_GUARDED}
+
+
+@pytest.fixture(autouse=True)
+def _environment_as_at_start():
+    """Fail the test that changed a guarded variable, and put it back for the next one."""
+    yield
+    changed = {name for name, value in _ENVIRONMENT_AT_START.items()
+               if os.environ.get(name) != value}
+    for name in changed:
+        if _ENVIRONMENT_AT_START[name] is None:
+            os.environ.pop(name, None)
+        else:
+            os.environ[name] = _ENVIRONMENT_AT_START[name]
+    assert not changed, (f"the test changed {sorted(changed)} of this process (a child process "
+                         "would inherit it): import opensim through "
+                         "vm_ros.importers.osim.load_opensim")
+
 
 def require_ros():
     """rclpy, inside the loopback-only namespace; else skip (or fail under make test / CI)."""

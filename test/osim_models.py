@@ -20,9 +20,14 @@ from pathlib import Path
 
 import pytest
 
-osim = pytest.importorskip(
-    "opensim", reason='the OpenSim tests need the opensim extra (pip install ".[opensim]")')
-osim.Logger.setLevelString("error")
+from vm_ros.errors import VmRosError
+from vm_ros.importers.osim import load_opensim
+
+try:  # load_opensim, not a plain import: it keeps this process's LD_LIBRARY_PATH and PATH intact
+    osim = load_opensim()
+except VmRosError:
+    pytest.skip('the OpenSim tests need the opensim extra (pip install ".[opensim]")',
+                allow_module_level=True)
 
 # patella_angle = a2 q^2 + a1 q + a0 (q = knee_angle), PolynomialFunction order: highest first
 PATELLA_COUPLING = (0.02, 0.55, 0.0)

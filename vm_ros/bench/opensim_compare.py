@@ -20,14 +20,16 @@ import time
 import numpy as np
 
 from vm_ros.bench.model_bench import DT
+from vm_ros.errors import VmRosError
+from vm_ros.importers.osim import load_opensim
 
 TENDON_SLACK_OVER_L0T = 0.964  # config/muscles.yaml conversion rule 3: L0T = Ls / 0.964
 
 
 def available() -> bool:
     try:
-        import opensim  # noqa: F401
-    except ImportError:
+        load_opensim()
+    except VmRosError:
         return False
     return True
 
@@ -37,7 +39,7 @@ def _drive(t):
 
 
 def _opensim_model(f0, l0, l0t, slow_fraction, rest_length):
-    import opensim as osim
+    osim = load_opensim()
 
     model = osim.Model()
     model.setName("vm_ros_bench")
@@ -76,12 +78,10 @@ def _opensim_model(f0, l0, l0t, slow_fraction, rest_length):
 def compare(muscle: str = "vastus_lateralis", seconds: float = 2.0, repeats: int = 5) -> dict:
     """Per-step wall time (median over ``repeats`` runs of ``seconds``) of OpenSim and vm_ros
     for one muscle, and the mean force and energy rate each reports over the last run."""
-    import opensim as osim
-
     from vm_ros.model import MuscleBank
 
-    osim.Logger.setLevelString("error")  # its per-call integration summary would be timed too
-    osim.Logger.removeFileSink()  # else OpenSim writes opensim.log into the working directory
+    # its per-call integration summary would be timed too; no opensim.log in the working directory
+    osim = load_opensim()
     bank = MuscleBank.from_config([muscle])
     spec = bank.specs[0]
     rest = float(bank.l0_m[0] + bank.l0t_m[0])

@@ -29,6 +29,7 @@ OpenSim (the ``opensim`` extra) is imported here only, inside the functions. Ste
 from __future__ import annotations
 
 import math
+import os
 import sys
 import time
 import xml.etree.ElementTree as ElementTree
@@ -60,12 +61,25 @@ SWEEP_POINTS = 100
 SCREEN_HALF_WIDTH = {"rad": math.pi, "m": 1.0}   # screening box around the default, at most
 
 
+_ENVIRONMENT_KEPT = ("LD_LIBRARY_PATH", "PATH", "SIMBODY_HOME")
+
+
 def load_opensim():
     """The opensim module, or VmRosError with the one line saying how to install it."""
+    # Importing opensim rewrites this process's LD_LIBRARY_PATH and PATH (and sets SIMBODY_HOME);
+    # child processes (muscle_node, other ROS programs) would then fail to load their libraries.
+    # Its own libraries are loaded by then: the environment is put back as it was.
+    saved = {name: os.environ.get(name) for name in _ENVIRONMENT_KEPT}
     try:
         import opensim
     except ImportError as exc:
         raise VmRosError(NEEDS_OPENSIM) from exc
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
     opensim.Logger.setLevelString("error")
     opensim.Logger.removeFileSink()  # else OpenSim writes opensim.log into the working directory
     return opensim
