@@ -67,15 +67,20 @@ def test_replay_publishes_recorded_bytes_at_recorded_pace(log, ros):
     received, totals = [], []
     node = ros.rclpy.create_node("replay_probe", context=ros.context)
     ros._add(node)
-    node.create_subscription(Float64MultiArray, "energy_rate",
-                             lambda msg: received.append((time.monotonic(), list(msg.data))),
-                             QoSProfile(depth=1000))
-    node.create_subscription(Float64, "energy_total", totals.append, QoSProfile(depth=1000))
+    subscriptions = [
+        node.create_subscription(Float64MultiArray, "energy_rate",
+                                 lambda msg: received.append((time.monotonic(), list(msg.data))),
+                                 QoSProfile(depth=1000)),
+        node.create_subscription(Float64, "energy_total", totals.append, QoSProfile(depth=1000))]
+    # --wait: the replay publishes once its publishers have matched these subscriptions, and a
+    # settling time later, so that they have matched back (reliable: nothing is then lost)
     proc = subprocess.Popen([sys.executable, "-m", "vm_ros.cli", "replay", str(log),
                              "--topics", "energy_rate,/energy_total", "--wait", "10"],
                             env=os.environ.copy(), stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     try:
+        assert ros.spin_until(lambda: all(s.get_publisher_count() for s in subscriptions)
+                              or proc.poll() is not None, 30)
         assert ros.spin_until(lambda: proc.poll() is not None, 30)
         ros.spin_for(0.2)
         out, err = proc.communicate(timeout=10)

@@ -81,9 +81,11 @@ def _qos(channel_metadata: dict):
     return profile
 
 
-def wait_for_subscribers(publishers, timeout_s: float, settle_s: float = 0.2) -> bool:
+def wait_for_subscribers(publishers, timeout_s: float, settle_s: float = 1.0) -> bool:
     """True once every publisher has matched a subscription (then ``settle_s`` more, for the
-    subscription to match back), False after ``timeout_s``."""
+    subscription to match back: a reliable message published before the subscriber has matched
+    the publisher is lost; 0.2 s lost the first message now and then on a loaded 2-core
+    machine), False after ``timeout_s``."""
     end = time.monotonic() + timeout_s
     while time.monotonic() < end:
         if all(p.get_subscription_count() > 0 for p in publishers):
