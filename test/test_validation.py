@@ -107,5 +107,7 @@ def test_validate_cli_reports_a_skipped_check(monkeypatch, tmp_path, capsys):
     args = argparse.Namespace(out=tmp_path, only=["joint_torque"], params=None, quick=False,
                               no_plots=True)
     assert validate.run(args) == 0
-    assert "joint_torque skipped: mujoco not installed" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "joint_torque skipped: mujoco" in out and "not installed" in out
+    assert "pip install 'vm_ros[mujoco]'" in out
     assert "skipped" in (tmp_path / "validation.csv").read_text(encoding="utf-8")
