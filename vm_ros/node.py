@@ -630,34 +630,44 @@ def _argument_parser() -> argparse.ArgumentParser:
         epilog="parameters:\n" + "\n".join(lines))
 
 
-def main(args=None) -> int:
-    """muscle_node [--help] [--ros-args ...]: init, node, spin, destroy, shutdown."""
+def run_node(name: str, parser: argparse.ArgumentParser, make_node, executor_for,
+             args=None) -> int:
+    """The Jazzy-style main of a vm_ros node program: --help (ROS arguments stripped), init with
+    vm_ros's signal handling, ``make_node()``, spin on ``executor_for(node)`` until SIGINT or
+    SIGTERM, destroy, shutdown. Exit status 2 with one line for a VmRosError (a bad parameter) or
+    an rcl error at init (an unparsable --params-file); 0 otherwise."""
     argv = sys.argv if args is None else list(args)
     try:
-        _argument_parser().parse_args(remove_ros_args(argv)[1:])
+        parser.parse_args(remove_ros_args(argv)[1:])
         stop = ShutdownRequest()
         rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     except RCLError as exc:  # e.g. an unparsable --params-file: rcl's message names it
-        print(f"muscle_node: error: {exc}", file=sys.stderr)
+        print(f"{name}: error: {exc}", file=sys.stderr)
         return 2
     node = executor = None
     try:
-        node = MuscleNode()
-        executor = make_executor(node.config.executor)
+        node = make_node()
+        executor = executor_for(node)
         executor.add_node(node)
         spin(executor, node.context, stop)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except VmRosError as exc:
-        print(f"muscle_node: error: {exc}", file=sys.stderr)
+        print(f"{name}: error: {exc}", file=sys.stderr)
         return 2
     finally:
         if executor is not None:
             executor.shutdown()
         if node is not None:
-            node.destroy_node()  # finishes the MCAP file
+            node.destroy_node()  # muscle_node: finishes the MCAP file
         rclpy.try_shutdown()
     return 0
+
+
+def main(args=None) -> int:
+    """muscle_node [--help] [--ros-args ...]: init, node, spin, destroy, shutdown."""
+    return run_node(NODE_NAME, _argument_parser(), MuscleNode,
+                    lambda node: make_executor(node.config.executor), args)
 
 
 if __name__ == "__main__":

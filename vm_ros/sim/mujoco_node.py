@@ -34,22 +34,18 @@ import argparse
 import sys
 
 import numpy as np
-import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.signals import SignalHandlerOptions
-from rclpy.utilities import remove_ros_args
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from vm_ros.errors import VmRosError
 from vm_ros.geometry.mujoco_backend import MujocoGeometry, require_mujoco
-from vm_ros.node import ShutdownRequest, spin
+from vm_ros.node import run_node
 from vm_ros.telemetry import TOPIC_JOINT_EFFORT_COMMANDS, TOPIC_JOINT_STATES
 
 NODE_NAME = "mujoco_sim_node"
@@ -204,6 +200,10 @@ class MujocoSimNode(Node):
             self.sim.step(n)
             self.publish_state()
 
+    def destroy_node(self):
+        self.get_logger().info(self.run_summary())
+        return super().destroy_node()
+
     def run_summary(self) -> str:
         """One line: simulated and wall time, steps not simulated (fell behind), commands."""
         wall_s = ((self._last_tick_ns - self._start_ns) * 1e-9
@@ -242,33 +242,8 @@ def _argument_parser() -> argparse.ArgumentParser:
 
 def main(args=None) -> int:
     """mujoco_sim_node [--help] [--ros-args ...]: init, node, spin, destroy, shutdown."""
-    argv = sys.argv if args is None else list(args)
-    try:
-        _argument_parser().parse_args(remove_ros_args(argv)[1:])
-        stop = ShutdownRequest()
-        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    except _rclpy.RCLError as exc:
-        print(f"{NODE_NAME}: error: {exc}", file=sys.stderr)
-        return 2
-    node = executor = None
-    try:
-        node = MujocoSimNode()
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        spin(executor, node.context, stop)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except VmRosError as exc:
-        print(f"{NODE_NAME}: error: {exc}", file=sys.stderr)
-        return 2
-    finally:
-        if executor is not None:
-            executor.shutdown()
-        if node is not None:
-            node.get_logger().info(node.run_summary())
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(NODE_NAME, _argument_parser(), MujocoSimNode,
+                    lambda node: SingleThreadedExecutor(), args)
 
 
 if __name__ == "__main__":
