@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from vm_ros.errors import VmRosError
+from vm_ros.storage import numeric_rows, parse_storage
 
 
 @dataclass(frozen=True)
@@ -51,39 +52,17 @@ def read_motion(path) -> Motion:
     """Read a .mot/.sto file; VmRosError naming the file and the problem."""
     path = Path(path)
     try:
-        lines = path.read_text(encoding="utf-8", errors="replace").splitlines()
+        text = path.read_text(encoding="utf-8", errors="replace")
     except OSError as exc:
         raise VmRosError(f"motion {path}: cannot read ({exc.strerror or exc})") from exc
-    try:
-        end = next(i for i, line in enumerate(lines) if line.strip().lower() == "endheader")
-    except StopIteration:
-        raise VmRosError(f"motion {path}: no 'endheader' line: not an OpenSim .mot/.sto "
-                         "file") from None
-    in_degrees = None
-    for line in lines[:end]:
-        key, _, value = line.partition("=")
-        if key.strip().lower() == "indegrees":
-            in_degrees = value.strip().lower() in ("yes", "true", "1")
+    table = parse_storage(path, text, "motion")
+    in_degrees = table.header.get("indegrees")
     if in_degrees is None:
         raise VmRosError(f"motion {path}: the header has no 'inDegrees=yes|no' line, so the "
                          "units are unknown; add it")
-    body = [line for line in lines[end + 1:] if line.strip()]
-    if not body:
-        raise VmRosError(f"motion {path}: no column labels after 'endheader'")
-    labels = body[0].split("\t") if "\t" in body[0] else body[0].split()
-    labels = [label.strip() for label in labels]
-    if not labels or labels[0].lower() != "time":
-        raise VmRosError(f"motion {path}: the first column must be 'time', got "
-                         f"{labels[0] if labels else None!r}")
-    try:
-        data = np.array([[float(v) for v in row.split()] for row in body[1:]], dtype=float)
-    except ValueError as exc:
-        raise VmRosError(f"motion {path}: a data row is not numbers ({exc})") from None
-    if data.ndim != 2 or data.shape[0] == 0 or data.shape[1] != len(labels):
-        raise VmRosError(f"motion {path}: need rows of {len(labels)} numbers (one per label), "
-                         f"got {data.shape}")
-    if not np.all(np.isfinite(data)):
-        raise VmRosError(f"motion {path}: non-finite values")
+    in_degrees = in_degrees.lower() in ("yes", "true", "1")
+    labels = table.labels
+    data = numeric_rows(path, labels, table.rows, "motion")
     keep = [(i, name) for i, name in enumerate(map(_label, labels)) if i > 0 and name]
     if not keep:
         raise VmRosError(f"motion {path}: no coordinate columns")

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from vm_ros.errors import VmRosError
+from vm_ros.storage import numeric_rows, parse_storage
 
 STORAGE_SUFFIXES = (".sto", ".mot")
 _SUFFIXES = ("|excitation", "/excitation", ".excitation")
@@ -92,15 +93,7 @@ def load_excitations(path, muscles) -> ExcitationSeries:
     except OSError as exc:
         raise VmRosError(f"excitations {path}: cannot read ({exc.strerror or exc})") from exc
     labels, rows = _storage_table(path, text) if storage else _csv_table(path, text)
-    try:
-        table = np.array([[float(v) for v in row] for row in rows], dtype=float)
-    except ValueError as exc:
-        raise VmRosError(f"excitations {path}: a data row is not numbers ({exc})") from None
-    if table.ndim != 2 or table.shape[0] == 0 or table.shape[1] != len(labels):
-        raise VmRosError(f"excitations {path}: need rows of {len(labels)} numbers (one per "
-                         f"column), got {table.shape}")
-    if not np.all(np.isfinite(table)):
-        raise VmRosError(f"excitations {path}: non-finite values")
+    table = numeric_rows(path, labels, rows, "excitations")
     time = table[:, 0]
     if np.any(np.diff(time) <= 0):
         raise VmRosError(f"excitations {path}: times must increase strictly")
@@ -126,20 +119,8 @@ def load_excitations(path, muscles) -> ExcitationSeries:
 
 
 def _storage_table(path: Path, text: str) -> tuple[list[str], list[list[str]]]:
-    lines = text.splitlines()
-    end = next((i for i, line in enumerate(lines) if line.strip().lower() == "endheader"), None)
-    if end is None:
-        raise VmRosError(f"excitations {path}: no 'endheader' line: not an OpenSim storage "
-                         "file")
-    body = [line for line in lines[end + 1:] if line.strip()]
-    if not body:
-        raise VmRosError(f"excitations {path}: no column labels after 'endheader'")
-    labels = [label.strip() for label in (body[0].split("\t") if "\t" in body[0]
-                                          else body[0].split())]
-    if labels[0].lower() != "time":
-        raise VmRosError(f"excitations {path}: the first column must be 'time', got "
-                         f"{labels[0]!r}")
-    return labels, [row.split() for row in body[1:]]
+    table = parse_storage(path, text, "excitations")
+    return table.labels, table.rows
 
 
 def _csv_table(path: Path, text: str) -> tuple[list[str], list[list[str]]]:
