@@ -37,7 +37,6 @@ from pathlib import Path
 import numpy as np
 
 from vm_ros import telemetry as tm
-from vm_ros.cli.progress import Progress
 from vm_ros.cli.runs import (
     StopOnSignal,
     add_model_options,
@@ -47,6 +46,7 @@ from vm_ros.cli.runs import (
 )
 from vm_ros.errors import VmRosError
 from vm_ros.node_recording import INPUT_RULE as NODE_INPUT_RULE
+from vm_ros.progress import Progress
 from vm_ros.recording.node_replay import (
     NodeReplayInputs,
     model_time_irregularities,

@@ -30,8 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from vm_ros import telemetry as tm
-from vm_ros.cli.progress import Progress
 from vm_ros.errors import VmRosError
+from vm_ros.progress import Progress
 from vm_ros.recording.messages import TOPIC_TELEMETRY
 from vm_ros.recording.run_log import METADATA_NAME, RunLog, read_run
 from vm_ros.recording.summary import (

@@ -52,7 +52,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from vm_ros.cli.progress import Progress
 from vm_ros.cli.runs import (
     StopOnSignal,
     add_model_options,
@@ -67,6 +66,7 @@ from vm_ros.joint_space import JointMap, JointSpace
 from vm_ros.model.params import load_muscle_library
 from vm_ros.node_params import NodeConfig
 from vm_ros.node_recording import INPUT_RULE as NODE_INPUT_RULE
+from vm_ros.progress import Progress
 from vm_ros.recording.excitations import constant_excitation, load_excitations
 from vm_ros.recording.input_series import load_input_series
 from vm_ros.recording.motion_inputs import JointMotion, MotionInputs, parse_hold

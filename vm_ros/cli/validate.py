@@ -13,8 +13,8 @@ import sys
 import time
 from pathlib import Path
 
-from vm_ros.cli.progress import Progress
 from vm_ros.model import load_model_params
+from vm_ros.progress import Progress
 from vm_ros.validation import CHECKS, CheckSkippedError
 
 HELP = ("reproduce the paper's checks and figures; non-zero exit on a failure that is not a "

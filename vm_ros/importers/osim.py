@@ -50,6 +50,7 @@ from vm_ros.importers.common import (
     write_import,
 )
 from vm_ros.importers.motion import read_motion
+from vm_ros.progress import Progress
 
 NEEDS_OPENSIM = 'needs the opensim extra: pip install ".[opensim]"'
 STEP = 1e-5                     # central-difference step (rad or m); stable from 1e-3 to 1e-7
@@ -244,8 +245,6 @@ class OsimPaths:
 
 
 def _progress(label: str, total: int, enabled: bool | None):
-    from vm_ros.cli.progress import Progress
-
     return Progress(label, total, enabled=enabled)
 
 
