@@ -190,3 +190,20 @@ def test_remapped_topics_are_found_by_base_name(tmp_path):
     assert run.info.topics == {"muscle_force": "/leg/knee_force"}
     assert run.get("muscle_force").fields["effort"].tolist() == [[12.5]]
     assert set(run.topic_types) == {"/leg/knee_force", "/leg/energy_total"}
+
+
+def test_header_stamps_read_back_exactly_at_todays_epoch(tmp_path):
+    """Stamps of a node log (ROS time, ~1.8e18 ns) come back as the integers written: as float64
+    they would be rounded to 256 ns, and recompute would call an exact run approximate."""
+    info = RunInfo(RunConfig(("vasti",)), RunTiming(), "muscle_node")
+    stamps = [1_795_984_190_123_776_595 + k * 1_000_001 for k in range(5)]
+    path = tmp_path / "stamps.mcap"
+    with open_run_log(path, info, topics=("muscle_force",)) as rec:
+        for stamp in stamps:
+            sec, nanosec = divmod(stamp, 1_000_000_000)
+            rec.write("/muscle_force", cdr.serialize(tm.TYPE_JOINT_STATE, {
+                "header": {"stamp": {"sec": sec, "nanosec": nanosec}},
+                "name": ["vasti"], "effort": [1.0]}), stamp)
+    read = read_run(path, topics=("muscle_force",)).get("muscle_force").fields["stamp_ns"]
+    assert read.dtype == np.int64
+    assert read.tolist() == stamps

@@ -222,7 +222,11 @@ def _stamp_ns(header) -> int:
 
 
 def _stack(values: list) -> np.ndarray:
-    """Rows (scalars or 1-D arrays, possibly of different lengths or missing) as one array."""
+    """Rows (scalars or 1-D arrays, possibly of different lengths or missing) as one array.
+    Integers present in every row (header stamps in ns) stay int64: as float64 they would be
+    rounded to about 256 ns at today's epoch."""
+    if values and all(isinstance(v, int) and not isinstance(v, bool) for v in values):
+        return np.array(values, dtype=np.int64)
     if all(np.ndim(v) == 0 for v in values if v is not None):
         return np.array([np.nan if v is None else v for v in values], dtype=float)
     width = max(np.size(v) for v in values if v is not None)
