@@ -392,9 +392,10 @@ def test_help_lists_the_joint_parameters(installed_node):
 
 def test_recompute_reproduces_a_node_joint_space_log_exactly(ros, geometry_file, tmp_path,
                                                              capsys):
-    """A muscle_node run under /clock (joint samples switching mid-run, one outside the box,
-    knee sign -1 and offset) logged to MCAP; `vm-ros recompute` of it gives the same muscle
-    forces and joint efforts at every stamp and says exact."""
+    """A muscle_node run under /clock (joint samples switching mid-run, one between the start
+    and the first step, one outside the box, knee sign -1 and offset) logged to MCAP;
+    `vm-ros recompute` of it gives the same muscle forces and joint efforts at every stamp and
+    says exact."""
     from vm_ros.cli import main
     from vm_ros.recording import read_run
 
@@ -403,8 +404,10 @@ def test_recompute_reproduces_a_node_joint_space_log_exactly(ros, geometry_file,
                              joints=JOINTS, stale_input_policy="hold", input_timeout_s=1000.0,
                              mcap__enabled=True, mcap__path=str(path))
     names = ["hip_flexion", "knee", "ankle_angle"]
-    samples = {0: ([0.4, -0.7, 0.1], [0.3, -0.8, 0.0]), 7: ([1.9, -0.2, 0.0], [2.0, 0.5, 0.0]),
-               15: ([-0.2, -1.5, 0.0], [])}
+    # k = 1 arrives after the tick that starts the model and before the next one: it is logged
+    # at the start time, so the state at the start must take it (as recompute does)
+    samples = {0: ([0.4, -0.7, 0.1], [0.3, -0.8, 0.0]), 1: ([0.5, -0.9, 0.1], [0.1, 0.2, 0.0]),
+               7: ([1.9, -0.2, 0.0], [2.0, 0.5, 0.0]), 15: ([-0.2, -1.5, 0.0], [])}
     set_clock(ros, probe, node, SIM_T0)
     probe.base.send_kinematics(["soleus"], [SOLEUS_LENGTH])
     probe.base.send_excitation_array([0.7, 0.4, 0.2])

@@ -199,6 +199,7 @@ class MuscleNode(Node):
         self._window_start_s = time.monotonic()
         self._energy_offset_j = 0.0
         self._last_output = None
+        self._reset_pending = False  # started, state not yet set (_reset_at_start)
 
         self._create_endpoints(c.qos_depth)
         self._check_no_unknown_parameters()
@@ -397,16 +398,29 @@ class MuscleNode(Node):
             self._overruns += 1
 
     def _start(self, now_ns: int) -> None:
+        """Start the model's clock at ``now_ns``; the state is set at the next tick
+        (_reset_at_start)."""
         self.scheduler.start(now_ns)
         if self.run_log is not None:
             self.run_log.start(now_ns)
-        _, lp, _ = self.inputs.sample(now_ns)
+        self._reset_pending = True
+
+    def _reset_at_start(self) -> None:
+        """The equilibrium at the start time from the inputs held for it, at the first tick after
+        the start: inputs that arrive in between are logged at the start time and used by the
+        first step, so the reset takes them too, as `vm-ros recompute` does (resetting at once
+        made a real-time log's recompute differ from its first output on)."""
+        self._reset_pending = False
+        start_ns = self.scheduler.model_time_ns
+        _, lp, _ = self.inputs.sample(start_ns)
         out = self.bank.reset(path_length=lp)
-        self.get_logger().info(f"model started at {now_ns * 1e-9:.6f} s, path lengths "
+        self.get_logger().info(f"model started at {start_ns * 1e-9:.6f} s, path lengths "
                                f"{np.round(lp, 5).tolist()} m")
         self._publish(out, self._joint_sample())
 
     def _run_steps(self, now_ns: int) -> None:
+        if self._reset_pending:
+            self._reset_at_start()
         stalls = self.scheduler.stalls
         due = self.scheduler.due(now_ns)
         if self.scheduler.stalls != stalls:
