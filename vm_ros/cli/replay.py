@@ -31,6 +31,7 @@ from vm_ros.recording.series import SkippedMessages, skipped_line
 
 HELP = "republish a log's topics over ROS 2 at the recorded pace"
 NODE_NAME = "vm_ros_replay"
+ACK_WAIT_S = 5.0  # longest wait for subscribers to acknowledge the last reliable messages
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -148,10 +149,13 @@ def run(args) -> int:
     if not channels:
         raise VmRosError(f"{args.log}: nothing to replay")
     rclpy = _rclpy()
+    from rclpy.duration import Duration
+
     rclpy.init(args=None)
     node = rclpy.create_node(NODE_NAME)
     count = 0
     skipped: dict[str, SkippedMessages] = {}
+    publishers = {}
     try:
         types = {topic: message_class(full_type_name(c.type_name))
                  for topic, c in channels.items()}
@@ -171,6 +175,11 @@ def run(args) -> int:
     except KeyboardInterrupt:
         pass
     finally:
+        # a reliable message not yet acknowledged when its publisher is destroyed is lost (the
+        # last of a replay, now and then on a loaded machine): wait for them, at most ACK_WAIT_S
+        if rclpy.ok():
+            for publisher in publishers.values():
+                publisher.wait_for_all_acked(Duration(seconds=ACK_WAIT_S))
         node.destroy_node()
         rclpy.try_shutdown()
     print(f"replayed {count} messages")
