@@ -143,7 +143,7 @@ def test_library_loads_and_follows_the_rules(osim, models, imported):
         mass = f0 * g.muscle_density * l0 / 60e4          # default: 60 N/cm^2
         assert bank.geometry.mass[i] == pytest.approx(mass, rel=1e-5)
         assert bank.geometry.f0[i] == pytest.approx(f0 * 31.8 / 60.0, rel=1e-5)
-        assert 1.1 - 1e-6 <= bank.geometry.lmax[i] <= 1.4 + 1e-6
+        assert bank.geometry.lmax[i] >= 1.1 - 1e-6 and bank.geometry.lmax[i] <= 1.4 + 1e-6
     text = Path(result.written["library"]).read_text()
     assert "pennation dropped" in text and "specific tension 60 N/cm^2" in text
 
