@@ -246,13 +246,31 @@ def test_partial_message_updates_only_the_muscles_crossing_its_joints(bank):
     assert joints.on_joint_states(["hip_flexion"], [0.4], [1.0], 10 * MS) == []
     np.testing.assert_array_equal(inputs.length_time_ns[:2], [0, 10 * MS])  # vasti untouched
     assert inputs.length_m[0] == vasti_length
-    np.testing.assert_allclose(inputs.length_m[1], reference_lengths([0.4, 1.0, 0.0])[1])
-    np.testing.assert_allclose(joints.sample.q, [0.4, 1.0, 0.0])
+    # the held knee moved on by its velocity (0.5 rad/s for 10 ms), as vasti's length does
+    np.testing.assert_allclose(inputs.length_m[1], reference_lengths([0.4, 1.005, 0.0])[1])
+    np.testing.assert_allclose(joints.sample.q, [0.4, 1.005, 0.0])
     np.testing.assert_allclose(joints.sample.qdot, [1.0, 0.5, 0.0])  # the knee keeps its own
     before = inputs.length_time_ns.copy()
     assert joints.on_joint_states(["ankle_angle"], [0.3], [], 20 * MS) == []  # no driven path
     np.testing.assert_array_equal(inputs.length_time_ns, before)
-    assert joints.sample.q[2] == 0.3
+    np.testing.assert_allclose(joints.sample.q, [0.41, 1.01, 0.3])
+
+
+def test_muscles_sharing_a_joint_agree_after_a_partial_message(bank):
+    """A message naming the hip only: rectus femoris (hip and knee) is evaluated at the knee
+    where vasti's extrapolated length has it, not at the knee's last received angle; beyond
+    extrapolation_max_s a held coordinate stops (velocity 0), as path lengths do."""
+    joints, inputs = make(bank, extrapolation_max_s=0.05)
+    joints.on_joint_states(["hip_flexion", "knee_angle", "ankle_angle"], [0.2, 1.0, 0.0],
+                           [0.0, 2.0, 0.0], 0)
+    joints.on_joint_states(["hip_flexion"], [0.2], [0.0], 10 * MS)
+    knee = 1.0 + 2.0 * 0.010
+    vasti_now = inputs.sample(10 * MS)[1][0]            # extrapolated by NodeInputs
+    assert vasti_now == pytest.approx(reference_lengths([0.2, knee, 0.0])[0], abs=1e-6)
+    assert inputs.length_m[1] == pytest.approx(reference_lengths([0.2, knee, 0.0])[1], abs=1e-12)
+    joints.on_joint_states(["hip_flexion"], [0.2], [0.0], 80 * MS)   # knee held 80 ms > 50 ms
+    np.testing.assert_allclose(joints.sample.q[1], 1.0 + 2.0 * 0.050)
+    assert joints.sample.qdot[1] == 0.0
 
 
 def test_unnamed_message_is_in_joints_order(bank):

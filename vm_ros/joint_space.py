@@ -29,7 +29,9 @@ message):
   treats missing velocities; otherwise one per position.
 - sizes that do not match, a joint named twice, NaN or inf in a named joint's position or
   velocity: message dropped. Names not in the map: those entries ignored, counted per entry.
-- A message may name some joints only: the others keep their latest position and velocity.
+- A message may name some joints only: the others are taken where their latest position and
+  velocity put them now (moved on for at most extrapolation_max_s, then held with velocity 0),
+  as the path lengths of muscle_kinematics are; so muscles sharing a joint agree.
 - Coordinates outside the geometry's box: clamped to it, velocity taken as 0 (GeometryOutput), the
   message used and the clamping counted.
 - The path lengths from the geometry go through the same range and speed checks as
@@ -315,6 +317,7 @@ class JointInputs:
         n = space.n_coordinates
         self.q = np.full(n, np.nan)  # model convention, as received (before clamping)
         self.qdot = np.zeros(n)
+        self.q_time_ns = np.zeros(n, dtype=np.int64)  # when each coordinate was received
         self.seen = np.zeros(n, dtype=bool)
         self.sample: JointSample | None = None
         self.last_message_ns: int | None = None
@@ -333,6 +336,7 @@ class JointInputs:
 
     def rebase(self, now_ns: int) -> None:
         """After the clock went backwards (NodeInputs.rebase does the kinematics times)."""
+        self.q_time_ns[self.seen] = now_ns
         if self.last_message_ns is not None:
             self.last_message_ns = now_ns
 
@@ -392,17 +396,32 @@ class JointInputs:
             return issues + [Issue("joint_non_finite",
                                    f"{TOPIC}: position or velocity is not finite")]
         q, qdot, seen = self.q.copy(), self.qdot.copy(), self.seen.copy()
+        q_time = self.q_time_ns.copy()
         q[index], qdot[index] = self.space.map.to_model(index, robot_q, robot_qdot)
         seen[index] = True
+        q_time[index] = now_ns
         if np.all(seen[self.space.needed]):
-            sample, more = self._evaluate(q, qdot, seen, index, now_ns)
+            q_now, qdot_now = self._extrapolated(q, qdot, seen, q_time, now_ns)
+            sample, more = self._evaluate(q_now, qdot_now, seen, index, now_ns)
             issues += more
             if sample is None:  # NodeInputs rejected the paths: nothing is stored
                 return issues
             self.sample = sample
-        self.q, self.qdot, self.seen = q, qdot, seen
+        self.q, self.qdot, self.seen, self.q_time_ns = q, qdot, seen, q_time
         self.last_message_ns = now_ns
         return issues
+
+    def _extrapolated(self, q, qdot, seen, q_time, now_ns) -> tuple[np.ndarray, np.ndarray]:
+        """Coordinates at ``now_ns``: each held one moved on by its velocity for at most
+        extrapolation_max_s since it was received (velocity 0 beyond), as NodeInputs moves path
+        lengths on. So a message naming some joints evaluates the muscles that also cross the
+        others where the muscles crossing only those are (a joint group published on its own
+        would otherwise pull their lengths back by r q' dt)."""
+        since_ns = np.maximum(now_ns - q_time, 0)
+        horizon_ns = self.inputs.limits.extrapolation_max_ns
+        moving = seen & (since_ns < horizon_ns)
+        return (q + np.where(seen, qdot * (np.minimum(since_ns, horizon_ns) * 1e-9), 0.0),
+                np.where(moving, qdot, 0.0))
 
     def _evaluate(self, q, qdot, seen, index, now_ns) -> tuple[JointSample | None, list[Issue]]:
         """Evaluate the geometry at q, q'; hand the paths of the joint-driven muscles that cross
