@@ -250,6 +250,14 @@ def test_geometry_file_round_trips_exactly(tmp_path):
     (lambda d: d["muscles"][0].update(coefficients=[1.0]), "muscles[0]"),
     (lambda d: d["muscles"][0].update(coordinates=["nope"]), "muscles"),
     (lambda d: d["muscles"].append(dict(d["muscles"][0])), "muscles"),
+    (lambda d: d["muscles"][0]["exponents"][1].__setitem__(0, 1.7), "muscles[0]"),
+    (lambda d: d["muscles"][0]["exponents"].__setitem__(1, [1] * 9), "muscles[0]"),
+    (lambda d: d["muscles"][0]["exponents"][1].__setitem__(0, 2 ** 63), "muscles[0]"),
+    (lambda d: d["muscles"][0].update(offset=[float("nan")] * len(d["muscles"][0]["offset"])),
+     "muscles[0]"),
+    (lambda d: d.update(source=[1, 2]), "source"),
+    (lambda d: d.update(coupled_coordinates=[{"name": "knee_angle", "follows": []}]), "muscles"),
+    (lambda d: d.update(coupled_coordinates=[{"name": "p", "follows": ["nope"]}]), "muscles"),
 ])
 def test_bad_geometry_files_name_the_field(mutate, field):
     import yaml

@@ -44,6 +44,7 @@ from vm_ros.geometry.paths import (
 
 FORMAT = "vm_ros.geometry"
 VERSION = 1
+MAX_EXPONENT = 20   # per coordinate; fitted paths use at most 6-8 (a larger one is a broken file)
 _FIT_FIELDS = ("length_rms_m", "length_max_m", "moment_arm_rms_m", "moment_arm_max_m",
                "poses_fit", "poses_held_out")
 
@@ -128,10 +129,13 @@ def geometry_from_dict(data, path="<geometry>", backend: str = "auto") -> Polyno
                for i, entry in enumerate(_list(path, data, "muscles"))]
     if not muscles:
         raise ConfigError(path, "muscles", [], "no muscles")
+    for key in ("source", "options"):
+        if not isinstance(data.get(key) or {}, dict):
+            raise ConfigError(path, key, type(data[key]).__name__, "must be a mapping")
     try:
         return PolynomialGeometry(coordinates, muscles, coupled, source=data.get("source"),
                                   options=data.get("options"), backend=backend)
-    except ValueError as exc:
+    except (ValueError, TypeError) as exc:
         raise ConfigError(path, "muscles", None, str(exc)) from exc
 
 
@@ -144,10 +148,17 @@ def _muscle(entry: dict) -> MusclePath:
     if basis != "monomial":
         raise ValueError(f"basis {basis!r}: this vm_ros reads 'monomial'")
     coords = tuple(str(c) for c in entry["coordinates"])
+    rows = entry["exponents"]
+    if not (isinstance(rows, list) and all(
+            isinstance(row, list) and len(row) == len(coords) and all(
+                isinstance(e, int) and not isinstance(e, bool) and 0 <= e <= MAX_EXPONENT
+                for e in row) for row in rows)):
+        raise ValueError(f"exponents must be a list of rows of {len(coords)} integers "
+                         f"0-{MAX_EXPONENT} (one per coordinate of the muscle)")
     return MusclePath(str(entry["name"]), coords,
                       tuple(float(v) for v in entry.get("offset", [0.0] * len(coords))),
                       tuple(float(v) for v in entry.get("scale", [1.0] * len(coords))),
-                      np.array(entry["exponents"], dtype=np.int64).reshape(-1, len(coords)),
+                      np.array(rows, dtype=np.int64).reshape(-1, len(coords)),
                       np.array(entry["coefficients"], dtype=float), report, basis)
 
 
@@ -163,7 +174,7 @@ def _item(path, field: str, make, entry):
         return make(entry)
     except KeyError as exc:
         raise ConfigError(path, field, None, f"missing key {exc.args[0]!r}") from exc
-    except (TypeError, ValueError, AttributeError) as exc:
+    except (TypeError, ValueError, AttributeError, OverflowError) as exc:
         raise ConfigError(path, field, _short(entry), str(exc)) from exc
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from vm_ros.errors import VmRosError
 from vm_ros.geometry.paths import FitReport, MusclePath
 from vm_ros.geometry.polynomial import monomial_gradients, monomials, total_degree_exponents
 
@@ -62,6 +63,10 @@ def fit_path(name: str, coordinates, lower, upper, q_fit, length_fit, gradient_f
     """Fit one muscle: the lowest degree in ``degrees`` whose held-out length RMS is within
     ``length_tolerance_m`` (else the degree with the smallest held-out length RMS). The fit report
     gives the held-out errors of the chosen polynomial."""
+    if len(q_fit) == 0 or len(q_test) == 0:
+        raise VmRosError(f"muscle {name!r}: no valid poses to fit ({len(q_fit)}) or to check "
+                         f"the fit ({len(q_test)}): the source model's path could not be "
+                         "evaluated there")
     offset, scale = scaling(lower, upper)
     k = len(coordinates)
     best = None

@@ -105,8 +105,9 @@ class MusclePath:
             raise ValueError(f"muscle {self.name!r}: need {exponents.shape[0]} finite "
                              "coefficients")
         if len(self.offset) != k or len(self.scale) != k or not all(
-                s > 0 and np.isfinite(s) for s in self.scale):
-            raise ValueError(f"muscle {self.name!r}: offset and scale need {k} values, "
+                s > 0 and np.isfinite(s) for s in self.scale) or not all(
+                np.isfinite(v) for v in self.offset):
+            raise ValueError(f"muscle {self.name!r}: offset and scale need {k} finite values, "
                              "scale > 0")
         object.__setattr__(self, "name", str(self.name))
         object.__setattr__(self, "coordinates", tuple(str(c) for c in self.coordinates))
@@ -220,6 +221,14 @@ class PolynomialGeometry(JointGeometry):
                 if value in seen:
                     raise ValueError(f"{label} {value!r} is listed twice")
                 seen.add(value)
+        for c in self.coupled:
+            if c.name in names:
+                raise ValueError(f"coupled coordinate {c.name!r} is also an independent "
+                                 "coordinate")
+            unknown = [f for f in c.follows if f not in names]
+            if unknown:
+                raise ValueError(f"coupled coordinate {c.name!r} follows unknown coordinates "
+                                 f"{unknown}")
         for muscle in self.muscles:
             unknown = [c for c in muscle.coordinates if c not in names]
             if unknown:
