@@ -329,10 +329,11 @@ def test_coordinates_outside_the_box_are_clamped_and_counted(bank):
 def test_non_physical_geometry_length_drops_the_message(bank):
     joints, inputs = make(bank, path_length_margin_l0=0.0)
     # rectus femoris at hip -0.5, knee 2: 0.52 + 0.02 + 0.005 - 0.002 = 0.543 (< 0.54385, kept);
-    # shrink the accepted range so that the same pose is rejected
+    # shrink the accepted range (the library's and the geometry's own) so that it is rejected
     inputs.limits = InputLimits(inputs.limits.path_length_min_m,
                                 np.array([0.34, 0.54, 0.34]), 10.0, 10 ** 9, 5 * 10 ** 7,
                                 "hold")
+    inputs.allow_path_range(np.array([0, 1]), np.array([0.28, 0.5]), np.array([0.34, 0.54]))
     issues = joints.on_joint_states(["hip_flexion", "knee_angle", "ankle_angle"],
                                     [-0.5, 2.0, 0.0], [], 0)
     assert kinds(issues) == ["non_physical_length"] and "joint_states" in issues[0].text
@@ -412,3 +413,27 @@ def test_torque_signs_and_offsets_in_the_robot_convention(bank):
     np.testing.assert_allclose(b.position, [0.2, -0.5, 0.0], rtol=1e-15)
     np.testing.assert_allclose(b.velocity, [0.0, -0.3, 0.0], rtol=1e-15)
     assert b.names == ("hip_flexion", "knee", "ankle_angle")
+
+
+def test_joint_driven_paths_are_accepted_over_the_geometrys_whole_range(bank):
+    """An importer that clips Lmax into 1.1-1.4 writes a library maximum shorter than the
+    geometry's longest path; poses inside the box must still be accepted (the geometry's own
+    length range widens the library's for joint-driven muscles), with the same range in every
+    process (fixed poses)."""
+    from vm_ros.joint_space import geometry_length_range
+
+    long_vasti = PolynomialGeometry(
+        [Coordinate("knee_angle", "rad", 0.0, 2.0)],
+        [MusclePath("vasti", ("knee_angle",), (0.0,), (1.0,), [[0], [1]], [0.29, 0.2])])
+    space = JointSpace(long_vasti, JointMap.build("", long_vasti, PARAMS_SOURCE), MUSCLES, (),
+                       PARAMS_SOURCE)
+    config = NodeConfig.from_values({"muscles": list(MUSCLES)})
+    inputs = NodeInputs(bank.names, InputLimits.for_bank(bank, config), joint_driven=space.driven)
+    library_max = inputs.limits.path_length_max_m[0]
+    assert library_max < 0.69   # the library (plus its margin) alone would reject knee 2.0
+    joints = JointInputs(space, inputs)
+    assert joints.on_joint_states(["knee_angle"], [2.0], [0.0], 0) == []
+    assert inputs.length_m[0] == pytest.approx(0.29 + 0.2 * 2.0)
+    lo, hi = geometry_length_range(long_vasti, [0])
+    assert lo[0] <= 0.29 and hi[0] >= 0.69
+    np.testing.assert_array_equal(geometry_length_range(long_vasti, [0]), (lo, hi))

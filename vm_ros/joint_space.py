@@ -300,6 +300,29 @@ class JointEfforts:
     effort: np.ndarray
 
 
+RANGE_POSES = 512        # random poses (fixed seed) sampled for geometry_length_range
+RANGE_MARGIN = 0.1       # of the sampled length range, added on each side (poses miss extremes)
+
+
+def geometry_length_range(geometry: JointGeometry, rows) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi) path length (m) of the geometry's muscles ``rows`` over its box: sampled at the
+    box's centre, each coordinate's two ends (others at the centre) and RANGE_POSES random poses
+    (fixed seed, so the node and a recompute agree), widened by RANGE_MARGIN of the range."""
+    lower, upper = geometry.lower, geometry.upper
+    centre = (lower + upper) / 2
+    poses = [centre]
+    for j in range(len(lower)):
+        for end in (lower[j], upper[j]):
+            pose = centre.copy()
+            pose[j] = end
+            poses.append(pose)
+    rng = np.random.default_rng(0)
+    poses += list(lower + (upper - lower) * rng.random((RANGE_POSES, len(lower))))
+    lengths = np.array([geometry.evaluate(pose).length_m[rows] for pose in poses])
+    lo, hi = lengths.min(axis=0), lengths.max(axis=0)
+    return lo - RANGE_MARGIN * (hi - lo), hi + RANGE_MARGIN * (hi - lo)
+
+
 class JointInputs:
     """joint_states -> the joint-driven muscles' path kinematics in ``inputs`` (a NodeInputs
     built with ``joint_driven=space.driven``), and the latest joint sample for the torques.
@@ -323,6 +346,8 @@ class JointInputs:
         self.last_message_ns: int | None = None
         geometry = space.geometry
         self._default_q = np.clip(0.0, geometry.lower, geometry.upper)
+        lo, hi = geometry_length_range(geometry, space.rows)
+        inputs.allow_path_range(space.driven_index, lo, hi)
 
     @property
     def ready(self) -> bool:
@@ -467,4 +492,4 @@ class JointInputs:
 
 
 __all__ = ["JointEfforts", "JointInputs", "JointMap", "JointSample", "JointSpace",
-           "parse_joint_map"]
+           "geometry_length_range", "parse_joint_map"]

@@ -82,6 +82,9 @@ class NodeInputs:
             raise ValueError(f"joint-driven muscles {unknown} are not among {self.names}")
         self.joint_driven = np.isin(self.names, list(joint_driven))
         self.limits = limits
+        # path-length ranges accepted beyond the library's (allow_path_range)
+        self._allowed_lo = np.full(self.n, np.inf)
+        self._allowed_hi = np.full(self.n, -np.inf)
         self.drive = np.zeros(self.n)
         self.drive_seen = np.zeros(self.n, dtype=bool)
         self.drive_time_ns = np.zeros(self.n, dtype=np.int64)
@@ -191,6 +194,19 @@ class NodeInputs:
             self.last_kinematics_ns = now_ns
         return issues + more
 
+    def allow_path_range(self, muscles: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> None:
+        """Also accept path lengths in [lo, hi] (m) for ``muscles`` (indices): the range a
+        joint-driven muscle's geometry gives over its box, which can reach beyond the library's
+        range (an importer clips Lmax into VM's 1.1-1.4 and shortens the library's maximum)."""
+        self._allowed_lo[muscles] = lo
+        self._allowed_hi[muscles] = hi
+
+    def path_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lo, hi) path length (m) accepted per muscle: the limits, widened by
+        allow_path_range."""
+        return (np.minimum(self.limits.path_length_min_m, self._allowed_lo),
+                np.maximum(self.limits.path_length_max_m, self._allowed_hi))
+
     def set_path_kinematics(self, topic: str, muscles: np.ndarray, lp: np.ndarray,
                             vp: np.ndarray, now_ns: int) -> tuple[list[Issue], bool]:
         """Store path lengths ``lp`` (m) and velocities ``vp`` (m/s) of ``muscles`` (indices)
@@ -198,7 +214,7 @@ class NodeInputs:
         on_kinematics and by vm_ros.joint_space for the joint-driven muscles."""
         if not (np.all(np.isfinite(lp)) and np.all(np.isfinite(vp))):
             return [Issue("non_finite", f"{topic}: length or velocity is not finite")], False
-        lo, hi = self.limits.path_length_min_m[muscles], self.limits.path_length_max_m[muscles]
+        lo, hi = (bound[muscles] for bound in self.path_bounds())
         bad = (lp < lo) | (lp > hi)
         if np.any(bad):
             i = int(np.argmax(bad))
@@ -270,7 +286,7 @@ class NodeInputs:
         moving = self.length_seen & (since_ns < horizon_ns)
         lp = self.length_m + self.velocity_m_per_s * (np.minimum(since_ns, horizon_ns) * 1e-9
                                                       * self.length_seen)
-        clamped = np.clip(lp, self.limits.path_length_min_m, self.limits.path_length_max_m)
+        clamped = np.clip(lp, *self.path_bounds())
         vp = np.where(moving & (clamped == lp), self.velocity_m_per_s, 0.0)
         return u.copy(), clamped, vp
 
