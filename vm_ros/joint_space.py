@@ -34,8 +34,10 @@ message):
   as the path lengths of muscle_kinematics are; so muscles sharing a joint agree.
 - Coordinates outside the geometry's box: clamped to it, velocity taken as 0 (GeometryOutput), the
   message used and the clamping counted.
-- The path lengths from the geometry go through the same range and speed checks as
-  muscle_kinematics; a message giving a non-physical length or velocity is dropped whole.
+- The path lengths from the geometry go through the range and speed checks of
+  muscle_kinematics, the range widened to the geometry's own range over its box
+  (geometry_length_range); a message giving a length outside both, or a velocity beyond
+  path_speed_max_m_per_s, is dropped whole.
 - Waiting: no joint sample exists (and the joint-driven muscles have no path length, so the model
   does not start) until every *needed* coordinate has a position: those a joint-driven muscle
   crosses and those listed in ``joints``. Other coordinates, until received, are evaluated at 0

@@ -111,6 +111,8 @@ def run(args) -> int:
         raise VmRosError(f"need --dt > 0 and --duration >= --dt (got {args.dt}, "
                          f"{args.duration})")
     geometry = MujocoGeometry(args.model)
+    q0 = parse_q0(args.q0, geometry)  # options checked before anything is written
+    excitation = make_excitation(args.excitation, geometry, q0, args.coordinate)
     out = Path(args.out or Path("out") / f"closed-loop-{Path(str(args.model)).stem}-"
                f"{time.strftime('%Y%m%d-%H%M%S')}")
     choices = common.choices_from_args(args)
@@ -128,8 +130,6 @@ def run(args) -> int:
         f"Muscle library used by vm-ros closed-loop --model {args.model}\n"
         f"{choices.specific_tension.source}; --library {args.library or '-'}")
     bank = MuscleBank.from_config(list(library.entries), library=library_path)
-    q0 = parse_q0(args.q0, geometry)
-    excitation = make_excitation(args.excitation, geometry, q0, args.coordinate)
     loop = ClosedLoop(geometry, bank, args.dt)
     loop.reset(q0, excitation(0.0)[loop.rows])
     result = loop.run(args.duration, excitation)

@@ -119,23 +119,31 @@ def load_model(source) -> ModelSource:
     except ModuleNotFoundError as exc:
         raise ModelLoadError(text, "not an MJCF file, and myo-sim (model names) is not "
                              "installed") from exc
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # myo-sim's composed models warn about empty prefixes
-        try:
-            spec = myo_sim.load_spec(text)
-        except ValueError as exc:
-            raise ModelLoadError(text, "not an MJCF file or a myo-sim model name "
-                                 f"({str(exc).splitlines()[0]})") from exc
-        model = spec.compile()
-        try:
-            file = str(myo_sim.get_xml_path(text))
-            digest = hashlib.sha256(Path(file).read_bytes()).hexdigest()
-        except ValueError:  # composed from fragments: hash the composed model's XML
-            file = None
+    # myo-sim's composed models warn about empty prefixes, through Python and through MuJoCo's
+    # own warning handler (which, left unset, prints and writes MUJOCO_LOG.TXT into the
+    # working directory): both are silenced while the model is composed
+    saved_handler = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(lambda message: None)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
             try:
-                digest = hashlib.sha256(spec.to_xml().encode()).hexdigest()
-            except (ValueError, RuntimeError):  # a spec MuJoCo cannot write back: no hash
-                digest = None
+                spec = myo_sim.load_spec(text)
+            except ValueError as exc:
+                raise ModelLoadError(text, "not an MJCF file or a myo-sim model name "
+                                     f"({str(exc).splitlines()[0]})") from exc
+            model = spec.compile()
+            try:
+                file = str(myo_sim.get_xml_path(text))
+                digest = hashlib.sha256(Path(file).read_bytes()).hexdigest()
+            except ValueError:  # composed from fragments: hash the composed model's XML
+                file = None
+                try:
+                    digest = hashlib.sha256(spec.to_xml().encode()).hexdigest()
+                except (ValueError, RuntimeError):  # a spec MuJoCo cannot write back: no hash
+                    digest = None
+    finally:
+        mujoco.set_mju_user_warning(saved_handler)
     return ModelSource(model, text, file, digest, _versions())
 
 

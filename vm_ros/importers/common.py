@@ -14,7 +14,9 @@ Rules (each written into the library's ``source`` notes; config/muscles.yaml exp
   F0 = 31.8 N/cm^2 * mass / (density * l0) = 0.53 of the source model's F0 (both stated in the
   summary). ``--specific-tension vm`` uses VM's own 31.8 N/cm^2 instead: VM's F0 equals the
   model's, and masses (hence energy rates) are 1.9x larger.
-- Lmax from the largest sampled path length (config/muscles.yaml rule 4), clipped into VM's
+- Lmax from the largest sampled path length (the formula of config/muscles.yaml rule 4; that
+  rule resets an out-of-band value to 1.3 for the shipped library, while the importer keeps the
+  band's end nearest the geometry), clipped into VM's
   1.1-1.4 (the geometric value quoted in the source note); the library gets the path_length_max_m
   that gives the clipped Lmax.
 - path_length_min_m: the smallest sampled path length, clipped to the path giving L = 0.6 where it

@@ -63,6 +63,9 @@ def read_motion(path) -> Motion:
     in_degrees = in_degrees.lower() in ("yes", "true", "1")
     labels = table.labels
     data = numeric_rows(path, labels, table.rows, "motion")
+    if np.any(np.diff(data[:, 0]) <= 0):
+        raise VmRosError(f"motion {path}: times must increase strictly (row "
+                         f"{int(np.argmax(np.diff(data[:, 0]) <= 0)) + 2} does not)")
     keep = [(i, name) for i, name in enumerate(map(_label, labels)) if i > 0 and name]
     if not keep:
         raise VmRosError(f"motion {path}: no coordinate columns")
