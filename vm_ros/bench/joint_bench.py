@@ -216,8 +216,9 @@ def fixed_root_model(name: str):
     import mujoco
     import myo_sim
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
+    from vm_ros.geometry.mujoco_backend import quiet_mujoco
+
+    with quiet_mujoco():
         spec = myo_sim.load_spec(name)
         free = [j for j in spec.joints if j.type == mujoco.mjtJoint.mjJNT_FREE]
         for joint in free:

@@ -32,6 +32,7 @@ from __future__ import annotations
 import hashlib
 import math
 import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -61,6 +62,21 @@ class ModelLoadError(VmRosError):
         self.value = value
         self.reason = reason
         super().__init__(f"model {value!r}: {reason}")
+
+
+@contextmanager
+def quiet_mujoco():
+    """While composing myo-sim models: their fragments warn about empty prefixes, through
+    Python and through MuJoCo's own warning handler, which, left unset, prints and writes
+    MUJOCO_LOG.TXT into the working directory. Both are silenced inside the block."""
+    saved_handler = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(lambda message: None)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            yield
+    finally:
+        mujoco.set_mju_user_warning(saved_handler)
 
 
 def require_mujoco():
@@ -119,31 +135,22 @@ def load_model(source) -> ModelSource:
     except ModuleNotFoundError as exc:
         raise ModelLoadError(text, "not an MJCF file, and myo-sim (model names) is not "
                              "installed") from exc
-    # myo-sim's composed models warn about empty prefixes, through Python and through MuJoCo's
-    # own warning handler (which, left unset, prints and writes MUJOCO_LOG.TXT into the
-    # working directory): both are silenced while the model is composed
-    saved_handler = mujoco.get_mju_user_warning()
-    mujoco.set_mju_user_warning(lambda message: None)
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
+    with quiet_mujoco():
+        try:
+            spec = myo_sim.load_spec(text)
+        except ValueError as exc:
+            raise ModelLoadError(text, "not an MJCF file or a myo-sim model name "
+                                 f"({str(exc).splitlines()[0]})") from exc
+        model = spec.compile()
+        try:
+            file = str(myo_sim.get_xml_path(text))
+            digest = hashlib.sha256(Path(file).read_bytes()).hexdigest()
+        except ValueError:  # composed from fragments: hash the composed model's XML
+            file = None
             try:
-                spec = myo_sim.load_spec(text)
-            except ValueError as exc:
-                raise ModelLoadError(text, "not an MJCF file or a myo-sim model name "
-                                     f"({str(exc).splitlines()[0]})") from exc
-            model = spec.compile()
-            try:
-                file = str(myo_sim.get_xml_path(text))
-                digest = hashlib.sha256(Path(file).read_bytes()).hexdigest()
-            except ValueError:  # composed from fragments: hash the composed model's XML
-                file = None
-                try:
-                    digest = hashlib.sha256(spec.to_xml().encode()).hexdigest()
-                except (ValueError, RuntimeError):  # a spec MuJoCo cannot write back: no hash
-                    digest = None
-    finally:
-        mujoco.set_mju_user_warning(saved_handler)
+                digest = hashlib.sha256(spec.to_xml().encode()).hexdigest()
+            except (ValueError, RuntimeError):  # a spec MuJoCo cannot write back: no hash
+                digest = None
     return ModelSource(model, text, file, digest, _versions())
 
 
