@@ -354,6 +354,52 @@ class ImportChoices:
     ur: float = 0.8
 
 
+@dataclass(frozen=True)
+class FitOptions:
+    """How an importer samples and fits (both import verbs' options; recorded in the geometry
+    file by ``recorded``). VmRosError naming the option for a bad value."""
+
+    degree: int = 6
+    samples: int = 1000
+    held_out: int | None = None           # default max(50, samples // 4)
+    length_tolerance_m: float = 2e-5
+    seed: int = 0
+    muscles: tuple = ()                   # import only these (default: all)
+    max_terms: int = 500                  # largest polynomial tried per muscle (terms)
+
+    def __post_init__(self):
+        if not 1 <= self.degree <= 10:
+            raise VmRosError(f"--degree {self.degree}: give 1-10")
+        if self.samples < 10:
+            raise VmRosError(f"--samples {self.samples}: give at least 10")
+        if self.held_out is not None and self.held_out < 5:
+            raise VmRosError(f"--held-out {self.held_out}: give at least 5")
+        if not self.length_tolerance_m > 0:
+            raise VmRosError("--tolerance-mm must be > 0")
+        if self.max_terms < 1:
+            raise VmRosError(f"--max-terms {self.max_terms}: give at least 1")
+
+    @property
+    def n_held_out(self) -> int:
+        return self.held_out if self.held_out is not None else max(50, self.samples // 4)
+
+    def degrees(self, n_coordinates: int) -> tuple[int, ...]:
+        """Total degrees tried for a muscle crossing n coordinates: 2 (or --degree) up to
+        --degree, as long as the polynomial has at most max_terms terms (C(d + n, n)); at least
+        the lowest. The cost of a least-squares fit grows with the square of the terms: a tendon
+        crossing 8 finger joints at degree 6 has 3003 of them (30 s per fit)."""
+        low = min(2, self.degree)
+        kept = [d for d in range(low, self.degree + 1)
+                if math.comb(d + n_coordinates, n_coordinates) <= self.max_terms]
+        return tuple(kept) or (low,)
+
+    def recorded(self) -> dict:
+        """The options as the geometry file's ``options`` record them."""
+        return {"degree_max": self.degree, "max_terms": self.max_terms,
+                "length_tolerance_m": self.length_tolerance_m, "samples_fit": self.samples,
+                "samples_held_out": self.n_held_out, "seed": self.seed}
+
+
 def add_fit_arguments(parser) -> None:
     """--degree, --samples, --held-out, --tolerance-mm (both import verbs)."""
     parser.add_argument("--degree", type=int, default=6,

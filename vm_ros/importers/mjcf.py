@@ -40,6 +40,7 @@ from vm_ros.geometry.fit import fit_path
 from vm_ros.geometry.paths import PolynomialGeometry
 from vm_ros.importers.common import (
     LENGTH_WARNING_M,
+    FitOptions,
     ImportChoices,
     ImportedMuscle,
     write_import,
@@ -255,43 +256,8 @@ def print_parameter_flags(library: DerivedLibrary, file=None) -> None:
 # ---------------------------------------------------------------------------- the import
 
 
-@dataclass(frozen=True)
-class MjcfOptions:
+class MjcfOptions(FitOptions):
     """How ``vm-ros import-mjcf`` samples and fits (its command-line options)."""
-
-    degree: int = 6
-    samples: int = 1000
-    held_out: int | None = None           # default max(50, samples // 4)
-    length_tolerance_m: float = 2e-5
-    seed: int = 0
-    muscles: tuple = ()
-    max_terms: int = 500                  # largest polynomial tried per muscle (terms)
-
-    def __post_init__(self):
-        if not 1 <= self.degree <= 10:
-            raise VmRosError(f"--degree {self.degree}: give 1-10")
-        if self.samples < 10:
-            raise VmRosError(f"--samples {self.samples}: give at least 10")
-        if self.held_out is not None and self.held_out < 5:
-            raise VmRosError(f"--held-out {self.held_out}: give at least 5")
-        if not self.length_tolerance_m > 0:
-            raise VmRosError("--tolerance-mm must be > 0")
-        if self.max_terms < 1:
-            raise VmRosError(f"--max-terms {self.max_terms}: give at least 1")
-
-    @property
-    def n_held_out(self) -> int:
-        return self.held_out if self.held_out is not None else max(50, self.samples // 4)
-
-    def degrees(self, n_coordinates: int) -> tuple[int, ...]:
-        """Total degrees tried for a muscle crossing n coordinates: 2 (or --degree) up to
-        --degree, as long as the polynomial has at most max_terms terms (C(d + n, n)); at least
-        the lowest. The cost of a least-squares fit grows with the square of the terms: a tendon
-        crossing 8 finger joints at degree 6 has 3003 of them (30 s per fit)."""
-        low = min(2, self.degree)
-        kept = [d for d in range(low, self.degree + 1)
-                if math.comb(d + n_coordinates, n_coordinates) <= self.max_terms]
-        return tuple(kept) or (low,)
 
 
 @dataclass
@@ -426,9 +392,7 @@ def _replace_library(path, library: DerivedLibrary) -> None:
 
 def _options_record(options: MjcfOptions) -> dict:
     return {
-        "degree_max": options.degree, "max_terms": options.max_terms,
-        "length_tolerance_m": options.length_tolerance_m, "samples_fit": options.samples,
-        "samples_held_out": options.n_held_out, "seed": options.seed,
+        **options.recorded(),
         "box": "joint ranges (jnt_range); unlimited hinges [-pi, pi]",
         "sampling": "Latin hypercube in the box; joint-equality dependents from their "
                     "polynomials",

@@ -44,6 +44,7 @@ from vm_ros.geometry.fit import errors, evaluate_path, fit_path
 from vm_ros.geometry.paths import Coordinate, CoupledCoordinate, FitReport, PolynomialGeometry
 from vm_ros.importers.common import (
     LENGTH_WARNING_M,
+    FitOptions,
     ImportChoices,
     ImportedMuscle,
     specific_tension_option,
@@ -103,30 +104,12 @@ def check_model_file(path) -> Path:
 
 
 @dataclass(frozen=True)
-class OsimOptions:
-    """Importer options (recorded in the geometry file)."""
+class OsimOptions(FitOptions):
+    """``vm-ros import-osim``'s options: the fit's, and the motions the box follows."""
 
-    degree: int = 6
-    samples: int = 1000
-    held_out: int | None = None          # default max(50, samples // 4)
     motions: tuple = ()
     margin_deg: float = 10.0
     margin_m: float = 0.01
-    length_tolerance_m: float = 2e-5
-    seed: int = 0
-    muscles: tuple = ()                  # import only these (default: all)
-
-    def __post_init__(self):
-        if not 0 <= self.degree <= 9:
-            raise VmRosError(f"--degree {self.degree}: give 0-9")
-        if self.samples < 10:
-            raise VmRosError(f"--samples {self.samples}: give at least 10")
-        if self.held_out is not None and self.held_out < 5:
-            raise VmRosError(f"--held-out {self.held_out}: give at least 5")
-
-    @property
-    def n_held_out(self) -> int:
-        return self.held_out if self.held_out is not None else max(50, self.samples // 4)
 
 
 @dataclass
@@ -473,7 +456,7 @@ def import_osim(model_path, out_dir, options: OsimOptions | None = None,
                         q_fit[good_fit][:, cols], l_fit[good_fit, i],
                         g_fit[good_fit, i][:, cols], q_test[good_test][:, cols],
                         l_test[good_test, i], g_test[good_test, i][:, cols],
-                        degrees=tuple(range(min(2, options.degree), options.degree + 1)),
+                        degrees=options.degrees(len(cols)),
                         length_tolerance_m=options.length_tolerance_m, flags=flags)
         if path.fit.length_rms_m > LENGTH_WARNING_M:
             path = _with_flag(path, "poor_fit")
@@ -521,9 +504,7 @@ def _with_flag(path, flag: str):
 
 def _options_record(options: OsimOptions, box: _Box) -> dict:
     return {
-        "degree_max": options.degree, "length_tolerance_m": options.length_tolerance_m,
-        "samples_fit": options.samples, "samples_held_out": options.n_held_out,
-        "seed": options.seed, "box": box.note,
+        **options.recorded(), "box": box.note,
         "sampling": "Latin hypercube in the box" + ("; half of the poses motion frames jittered "
                                                      "within the margin" if box.frames is not None
                                                      else ""),
