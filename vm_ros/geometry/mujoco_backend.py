@@ -461,10 +461,6 @@ class MujocoGeometry(JointGeometry):
         """Index of each coordinate in qvel / qfrc (n_q,)."""
         return self._dofadr.copy()
 
-    def coordinates_of(self, qpos) -> np.ndarray:
-        """The coordinates (n_q,) read from a full qpos vector (for example a simulation's)."""
-        return np.asarray(qpos, dtype=float)[self._qadr]
-
 
 __all__ = ["HINGE_BOX_RAD", "JointCoupling", "ModelLoadError", "ModelSource", "MujocoGeometry",
            "MuscleTendons", "joint_couplings", "load_model", "muscle_actuators",
