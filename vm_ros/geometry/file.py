@@ -28,6 +28,7 @@ numbers bit for bit. Every problem reading a file is a ConfigError naming the fi
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -63,12 +64,12 @@ def geometry_to_dict(geometry: PolynomialGeometry) -> dict:
                  "exponents": m.exponents.tolist(),
                  "coefficients": [float(v) for v in m.coefficients]}
         if m.fit is not None:
-            entry["fit"] = {**{k: _plain(getattr(m.fit, k)) for k in _FIT_FIELDS},
+            entry["fit"] = {**{k: plain_data(getattr(m.fit, k)) for k in _FIT_FIELDS},
                             "flags": list(m.fit.flags)}
         muscles.append(entry)
     return {
         "format": FORMAT, "version": VERSION,
-        "source": _plain(geometry.source), "options": _plain(geometry.options),
+        "source": plain_data(geometry.source), "options": plain_data(geometry.options),
         "coordinates": [{"name": c.name, "unit": c.unit, "lower": float(c.lower),
                          "upper": float(c.upper)} for c in geometry.coordinates],
         "coupled_coordinates": [{"name": c.name, "follows": list(c.follows), "note": c.note}
@@ -184,20 +185,19 @@ def _short(entry):
     return entry
 
 
-def _plain(value):
-    """numpy scalars and tuples -> plain YAML-safe values."""
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
+def plain_data(value):
+    """Mappings, sequences, arrays and numpy scalars as plain JSON/YAML-safe Python values
+    (mapping keys as strings); used for the geometry file and the run logs' records."""
+    if isinstance(value, Mapping):
+        return {str(k): plain_data(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
+        return [plain_data(v) for v in value]
     if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, np.floating):
-        return float(value)
+        return plain_data(value.tolist())
+    if isinstance(value, np.generic):
+        return value.item()
     return value
 
 
-__all__ = ["FORMAT", "VERSION", "content_hash", "dumps", "geometry_from_dict",
+__all__ = ["FORMAT", "VERSION", "content_hash", "dumps", "geometry_from_dict", "plain_data",
            "geometry_to_dict", "load_geometry", "loads", "write_geometry"]

@@ -40,11 +40,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple
 
-import numpy as np
 import yaml
 
 from vm_ros import telemetry as tm
 from vm_ros.errors import ConfigError, VmRosError
+from vm_ros.geometry.file import plain_data
 from vm_ros.model import MuscleBank
 from vm_ros.model.params import RECOVERY_MODES
 from vm_ros.recording.messages import TOPIC_TELEMETRY, TYPE_MUSCLE_TELEMETRY
@@ -149,7 +149,7 @@ class RunInfo:
             "recruitment": c.recruitment,
             "recovery_mode": c.recovery_mode or "",
             "units_per_type": "" if c.units_per_type is None else str(c.units_per_type),
-            "overrides": json.dumps(_plain(c.overrides), sort_keys=True),
+            "overrides": json.dumps(plain_data(c.overrides), sort_keys=True),
             "model_params_file": str(c.params_path),
             "muscle_library_file": str(c.library_path),
             "dt_s": repr(float(t.dt_s)),
@@ -286,22 +286,13 @@ def _json_object_of(kind: type):
     return parse
 
 
-def _plain(value):
-    """Mappings and numpy scalars as plain JSON/YAML-able Python values."""
-    if isinstance(value, Mapping):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
-
-
 def run_attachments(config: RunConfig) -> dict[str, bytes]:
     """The model YAML and muscle library used (exact bytes), the overrides as YAML and, for a
     joint-space run, the geometry file (exact bytes)."""
     attachments = {
         ATTACHMENT_MODEL: config.params_path.read_bytes(),
         ATTACHMENT_LIBRARY: config.library_path.read_bytes(),
-        ATTACHMENT_OVERRIDES: yaml.safe_dump(_plain(config.overrides), sort_keys=True).encode(),
+        ATTACHMENT_OVERRIDES: yaml.safe_dump(plain_data(config.overrides), sort_keys=True).encode(),
     }
     if config.geometry is not None:
         attachments[ATTACHMENT_GEOMETRY] = Path(config.geometry).read_bytes()
