@@ -30,6 +30,15 @@ _ENVIRONMENT_GUARDED = ("LD_LIBRARY_PATH", "PATH", "SIMBODY_HOME")
 _ENVIRONMENT_AT_START = {name: os.environ.get(name) for name in _ENVIRONMENT_GUARDED}
 
 
+@pytest.fixture(scope="module")
+def osim():
+    """The opensim module, imported through test/osim_models (which skips the test without the
+    opensim extra and keeps this process's environment intact)."""
+    import osim_models
+
+    return osim_models.osim
+
+
 @pytest.fixture(autouse=True)
 def _environment_as_at_start():
     """Fail the test that changed a guarded variable, and put it back for the next one."""

@@ -26,13 +26,6 @@ STEP = 1e-5
 
 
 @pytest.fixture(scope="module")
-def osim():
-    import osim_models
-
-    return osim_models.osim
-
-
-@pytest.fixture(scope="module")
 def models(osim, tmp_path_factory):
     import osim_models
 

@@ -77,13 +77,6 @@ def test_reader_checks_coordinates_and_notes_moment_arm_functions():
 
 
 @pytest.fixture(scope="module")
-def osim():
-    import osim_models
-
-    return osim_models.osim
-
-
-@pytest.fixture(scope="module")
 def fitted(osim, tmp_path_factory):
     """(model path, FunctionBasedPath XML) from OpenSim's PolynomialPathFitter."""
     import osim_models
