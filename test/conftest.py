@@ -148,7 +148,7 @@ class RosHarness:
         """A MuscleNode with parameters NAME=VALUE (use mcap__enabled for mcap.enabled)."""
         from rclpy.parameter import Parameter
 
-        from vm_ros.node import MuscleNode
+        from vm_ros.node.shell import MuscleNode
 
         overrides = [Parameter(k.replace("__", "."), value=v) for k, v in params.items()]
         node = MuscleNode(context=self.context, parameter_overrides=overrides)

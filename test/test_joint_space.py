@@ -18,10 +18,11 @@ from vm_ros.geometry import (
     PolynomialGeometry,
     write_geometry,
 )
-from vm_ros.joint_space import JointInputs, JointMap, JointSpace, parse_joint_map
+from vm_ros.joint_space import JointMap, JointSpace, parse_joint_map
 from vm_ros.model import MuscleBank
-from vm_ros.node_inputs import InputLimits, NodeInputs
-from vm_ros.node_params import PARAMS_SOURCE, NodeConfig
+from vm_ros.node.inputs import InputLimits, NodeInputs
+from vm_ros.node.joint_inputs import JointInputs
+from vm_ros.node.params import PARAMS_SOURCE, NodeConfig
 
 MUSCLES = ("vasti", "rectus_femoris", "soleus")  # soleus: not in the geometry
 DRIVEN = ("vasti", "rectus_femoris")
@@ -420,7 +421,7 @@ def test_joint_driven_paths_are_accepted_over_the_geometrys_whole_range(bank):
     geometry's longest path; poses inside the box must still be accepted (the geometry's own
     length range widens the library's for joint-driven muscles), with the same range in every
     process (fixed poses)."""
-    from vm_ros.joint_space import geometry_length_range
+    from vm_ros.node.joint_inputs import geometry_length_range
 
     long_vasti = PolynomialGeometry(
         [Coordinate("knee_angle", "rad", 0.0, 2.0)],

@@ -10,8 +10,8 @@ import pytest
 from vm_ros import telemetry as tm
 from vm_ros.errors import ConfigError, VmRosError
 from vm_ros.model import MuscleBank
-from vm_ros.node_health import ISSUE_KINDS
-from vm_ros.node_inputs import physical_path_length_range
+from vm_ros.node.health import ISSUE_KINDS
+from vm_ros.node.inputs import physical_path_length_range
 
 pytestmark = pytest.mark.ros
 
@@ -108,10 +108,10 @@ def test_outputs_equal_the_bank_run_offline_under_sim_time(ros, lengths, tmp_pat
 
 def assert_log_replays(path, lengths, forces):
     """The log holds what recomputing needs: inputs at the time the node applied them,
-    conditioned as the node did (vm_ros.recording.node_replay), from the recorded start give the
+    conditioned as the node did (vm_ros.node.replay), from the recorded start give the
     same forces."""
+    from vm_ros.node.replay import NodeReplayInputs
     from vm_ros.recording import read_run
-    from vm_ros.recording.node_replay import NodeReplayInputs
 
     run = read_run(path, raw=[tm.TOPIC_EXCITATION, tm.TOPIC_EXCITATION_ARRAY,
                               tm.TOPIC_KINEMATICS])

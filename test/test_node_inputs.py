@@ -1,4 +1,4 @@
-"""muscle_node's input conditioning (vm_ros.node_inputs): every bad input has its behaviour, and
+"""muscle_node's input conditioning (vm_ros.node.inputs): every bad input has its behaviour, and
 no message sequence can hand the model a bad input (no ROS needed)."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from vm_ros.model import MuscleBank
-from vm_ros.node_inputs import InputLimits, NodeInputs, physical_path_length_range
-from vm_ros.node_params import NodeConfig
+from vm_ros.node.inputs import InputLimits, NodeInputs, physical_path_length_range
+from vm_ros.node.params import NodeConfig
 
 MUSCLES = ("vasti", "rectus_femoris")
 MS = 1_000_000

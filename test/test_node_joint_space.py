@@ -19,8 +19,8 @@ from vm_ros import telemetry as tm
 from vm_ros.errors import ConfigError
 from vm_ros.geometry import generalized_forces, write_geometry
 from vm_ros.model import MuscleBank
-from vm_ros.node_health import ISSUE_KINDS
-from vm_ros.node_inputs import physical_path_length_range
+from vm_ros.node.health import ISSUE_KINDS
+from vm_ros.node.inputs import physical_path_length_range
 
 pytestmark = pytest.mark.ros
 

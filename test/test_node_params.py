@@ -8,7 +8,7 @@ import pytest
 import yaml
 
 from vm_ros.errors import ConfigError
-from vm_ros.node_params import PARAMS, PARAMS_BY_NAME, NodeConfig, runtime_parameter_names
+from vm_ros.node.params import PARAMS, PARAMS_BY_NAME, NodeConfig, runtime_parameter_names
 from vm_ros.resources import config_dir
 
 

@@ -16,7 +16,7 @@ from conftest import STRICT, require_ros
 
 from vm_ros import telemetry as tm
 from vm_ros.model import MuscleBank
-from vm_ros.node_inputs import physical_path_length_range
+from vm_ros.node.inputs import physical_path_length_range
 
 pytestmark = pytest.mark.ros
 

@@ -1,4 +1,4 @@
-"""muscle_node's run log (vm_ros.node_recording): opened at the model start, earlier messages
+"""muscle_node's run log (vm_ros.node.recording): opened at the model start, earlier messages
 buffered, readable by read_run, a full disk reported in the status, never raised (no ROS needed:
 messages are CDR-encoded from bundled definitions)."""
 
@@ -11,7 +11,7 @@ import pytest
 from test_recording_writer import FullDisk
 
 from vm_ros import telemetry as tm
-from vm_ros.node_recording import NodeRunLog, node_run_extra
+from vm_ros.node.recording import NodeRunLog, node_run_extra
 from vm_ros.recording import RecorderError, RunInfo, RunTiming, read_run
 from vm_ros.recording.cdr import serialize
 from vm_ros.recording.messages import excitation_fields, float64_fields, kinematics_fields

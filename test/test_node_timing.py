@@ -1,4 +1,4 @@
-"""muscle_node's step scheduling and health bookkeeping (vm_ros.node_timing, vm_ros.node_health;
+"""muscle_node's step scheduling and health bookkeeping (vm_ros.node.timing, vm_ros.node.health;
 no ROS needed)."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ import math
 
 import pytest
 
-from vm_ros.node_health import ISSUE_KINDS, DurationWindow, Issue, IssueLog, format_value
-from vm_ros.node_timing import StepScheduler
+from vm_ros.node.health import ISSUE_KINDS, DurationWindow, Issue, IssueLog, format_value
+from vm_ros.node.timing import StepScheduler
 
 MS = 1_000_000
 

@@ -205,7 +205,7 @@ def test_node_log_with_a_malformed_input_recomputes_to_the_same_outputs(ros, tmp
     from test_node import MS, SIM_T0, set_clock
 
     from vm_ros.model import MuscleBank
-    from vm_ros.node_inputs import physical_path_length_range
+    from vm_ros.node.inputs import physical_path_length_range
 
     lo, hi = physical_path_length_range(MuscleBank.from_config(list(MUSCLES)), 0.0)
     path = tmp_path / "node.mcap"

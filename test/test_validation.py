@@ -1,5 +1,5 @@
 """Every item of spec/validation.md, as `vm-ros validate` checks it: each check carries explicit
-numeric criteria (bounds stated in vm_ros/validation.py next to the paper's claim); here every
+numeric criteria (bounds stated in vm_ros/validation/ next to the paper's claim); here every
 criterion must hold. The values are printed so a failing run shows how far off it is."""
 
 from __future__ import annotations

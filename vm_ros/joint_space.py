@@ -15,36 +15,11 @@ Pieces, each usable alone:
   and velocity come from joint_states through the geometry; geometry muscles that are not node
   muscles are ignored. ``joints`` orders joint_efforts and joint_effort_commands (default: every
   coordinate, in the file's order, under its robot name).
-- :class:`JointInputs`: joint_states messages -> coordinates -> ``geometry.evaluate(q, q')`` ->
-  the joint-driven muscles' path lengths and velocities, handed to
-  :class:`~vm_ros.node_inputs.NodeInputs` as kinematics received at that time (so extrapolation,
+- vm_ros.node.joint_inputs.JointInputs: joint_states messages -> coordinates ->
+  ``geometry.evaluate(q, q')`` -> the joint-driven muscles' path lengths and velocities, handed to
+  :class:`~vm_ros.node.inputs.NodeInputs` as kinematics received at that time (so extrapolation,
   staleness, the stale-input policy and the path-length checks are those of muscle_kinematics);
   the moment arms of that joint sample are held (zero-order hold) for the torques.
-
-joint_states rules (every bad message is reported as an Issue; nothing is stored from a dropped
-message):
-
-- name[] robot joints (empty: one position per joint of ``joints``, in that order), position[]
-  (rad or m), velocity[] optional: empty means 0 for every named joint, as muscle_kinematics
-  treats missing velocities; otherwise one per position.
-- sizes that do not match, a joint named twice, NaN or inf in a named joint's position or
-  velocity: message dropped. Names not in the map: those entries ignored, counted per entry.
-- A message may name some joints only: the others are taken where their latest position and
-  velocity put them now (moved on for at most extrapolation_max_s, then held with velocity 0),
-  as the path lengths of muscle_kinematics are; so muscles sharing a joint agree.
-- Coordinates outside the geometry's box: clamped to it, velocity taken as 0 (GeometryOutput), the
-  message used and the clamping counted.
-- The path lengths from the geometry go through the range and speed checks of
-  muscle_kinematics, the range widened to the geometry's own range over its box
-  (geometry_length_range); a message giving a length outside both, or a velocity beyond
-  path_speed_max_m_per_s, is dropped whole.
-- Waiting: no joint sample exists (and the joint-driven muscles have no path length, so the model
-  does not start) until every *needed* coordinate has a position: those a joint-driven muscle
-  crosses and those listed in ``joints``. Other coordinates, until received, are evaluated at 0
-  clamped into their box (they change no joint-driven path).
-- muscle_kinematics entries for joint-driven muscles are ignored and counted (NodeInputs): their
-  lengths must stay consistent with the moment arms used for the torques. Other muscles keep using
-  muscle_kinematics. Their ``initial_path_length_m`` entries are not used either.
 
 Torques: tau = r^T F (N m or N) with r = -dL/dq of the joint sample a step used and F the tendon
 forces of that step's output; power is invariant: sum(tau_robot * q'_robot) = -sum(F * L') over
@@ -61,12 +36,9 @@ import numpy as np
 import yaml
 
 from vm_ros.errors import ConfigError
-from vm_ros.geometry import JointGeometry, generalized_forces, load_geometry
-from vm_ros.node_health import Issue
+from vm_ros.geometry import JointGeometry, load_geometry
 
-TOPIC = "joint_states"
 _ENTRY_KEYS = ("coordinate", "sign", "offset")
-_SHOWN_NAMES = 5  # unknown joint names quoted in one issue text
 
 
 def parse_joint_map(text: str, source: str) -> dict[str, tuple[str, float, float]]:
@@ -273,25 +245,6 @@ def _crosses(geometry: JointGeometry, muscles: Sequence[str]) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class JointSample:
-    """One accepted joint_states message, evaluated: the model steps after it use its moment
-    arms, and its positions and velocities are what joint_efforts reports.
-
-    | field | shape | unit |
-    | --- | --- | --- |
-    | time_ns | - | ns, when it was applied (the time NodeInputs got its path kinematics) |
-    | q | (n_coordinates,) | rad or m, model convention, after clamping |
-    | qdot | (n_coordinates,) | rad/s or m/s, 0 where clamped |
-    | moment_arm | (n_driven, n_coordinates) | m (m/m): r = -dL/dq of the joint-driven muscles |
-    """
-
-    time_ns: int
-    q: np.ndarray
-    qdot: np.ndarray
-    moment_arm: np.ndarray
-
-
-@dataclass(frozen=True)
 class JointEfforts:
     """What joint_efforts and joint_effort_commands carry, robot convention, ordered by
     ``joints``: position (rad or m), velocity (rad/s or m/s), effort tau (N m or N)."""
@@ -302,196 +255,4 @@ class JointEfforts:
     effort: np.ndarray
 
 
-RANGE_POSES = 512        # random poses (fixed seed) sampled for geometry_length_range
-RANGE_MARGIN = 0.1       # of the sampled length range, added on each side (poses miss extremes)
-
-
-def geometry_length_range(geometry: JointGeometry, rows) -> tuple[np.ndarray, np.ndarray]:
-    """(lo, hi) path length (m) of the geometry's muscles ``rows`` over its box: sampled at the
-    box's centre, each coordinate's two ends (others at the centre) and RANGE_POSES random poses
-    (fixed seed, so the node and a recompute agree), widened by RANGE_MARGIN of the range."""
-    lower, upper = geometry.lower, geometry.upper
-    centre = (lower + upper) / 2
-    poses = [centre]
-    for j in range(len(lower)):
-        for end in (lower[j], upper[j]):
-            pose = centre.copy()
-            pose[j] = end
-            poses.append(pose)
-    rng = np.random.default_rng(0)
-    poses += list(lower + (upper - lower) * rng.random((RANGE_POSES, len(lower))))
-    lengths = np.array([geometry.evaluate(pose).length_m[rows] for pose in poses])
-    lo, hi = lengths.min(axis=0), lengths.max(axis=0)
-    return lo - RANGE_MARGIN * (hi - lo), hi + RANGE_MARGIN * (hi - lo)
-
-
-class JointInputs:
-    """joint_states -> the joint-driven muscles' path kinematics in ``inputs`` (a NodeInputs
-    built with ``joint_driven=space.driven``), and the latest joint sample for the torques.
-
-    Only the joint-driven muscles that cross a coordinate named in a message get new path
-    kinematics from it (all of them at the first sample), so that a message carrying other joints
-    (a gripper at its own rate) neither refreshes nor restarts their extrapolation.
-    """
-
-    def __init__(self, space: JointSpace, inputs):
-        if tuple(inputs.joint_driven_names) != space.driven:
-            raise ValueError("NodeInputs must be built with joint_driven = JointSpace.driven")
-        self.space = space
-        self.inputs = inputs
-        n = space.n_coordinates
-        self.q = np.full(n, np.nan)  # model convention, as received (before clamping)
-        self.qdot = np.zeros(n)
-        self.q_time_ns = np.zeros(n, dtype=np.int64)  # when each coordinate was received
-        self.seen = np.zeros(n, dtype=bool)
-        self.sample: JointSample | None = None
-        self.last_message_ns: int | None = None
-        geometry = space.geometry
-        self._default_q = np.clip(0.0, geometry.lower, geometry.upper)
-        lo, hi = geometry_length_range(geometry, space.rows)
-        inputs.allow_path_range(space.driven_index, lo, hi)
-
-    @property
-    def ready(self) -> bool:
-        """A joint sample exists (every needed coordinate has a position)."""
-        return self.sample is not None
-
-    def missing(self) -> list[str]:
-        """Robot names of the needed coordinates without a position yet."""
-        return [self.space.map.robot_names[j] for j in np.flatnonzero(
-            self.space.needed & ~self.seen)]
-
-    def rebase(self, now_ns: int) -> None:
-        """After the clock went backwards (NodeInputs.rebase does the kinematics times)."""
-        self.q_time_ns[self.seen] = now_ns
-        if self.last_message_ns is not None:
-            self.last_message_ns = now_ns
-
-    def age_s(self, now_ns: int) -> float | None:
-        """Age (s) of the newest accepted joint_states message; None if never received."""
-        if self.last_message_ns is None:
-            return None
-        return max(now_ns - self.last_message_ns, 0) * 1e-9
-
-    def _select(self, names, size: int) -> tuple[list[Issue], np.ndarray | None, list[int]]:
-        """(issues, coordinate index or None when the message is dropped, message index)."""
-        space = self.space
-        if len(names) == 0:
-            if size != len(space.output):
-                text = (f"{TOPIC}: {size} positions without names, expected "
-                        f"{len(space.output)} (one per joint of the joints parameter)")
-                return [Issue("joint_wrong_size", text)], None, []
-            return [], space.output.copy(), list(range(size))
-        if len(names) != size:
-            return [Issue("joint_wrong_size", f"{TOPIC}: {len(names)} names but {size} "
-                          "positions")], None, []
-        issues, coordinates, entries, unknown = [], [], [], []
-        for entry, name in enumerate(names):
-            j = space.map.index_of(name)
-            if j is None:
-                unknown.append(str(name))
-            else:
-                coordinates.append(j)
-                entries.append(entry)
-        if unknown:
-            shown = sorted(set(unknown))
-            more = f" (+{len(shown) - _SHOWN_NAMES} more)" if len(shown) > _SHOWN_NAMES else ""
-            text = ", ".join(repr(u[:40]) for u in shown[:_SHOWN_NAMES]) + more
-            issues.append(Issue("joint_unknown_name", f"{TOPIC}: joints not in the geometry or "
-                                f"joint_map: {text}", count=len(unknown)))
-        if len(set(coordinates)) != len(coordinates):
-            repeated = next(j for j in coordinates if coordinates.count(j) > 1)
-            issues.append(Issue("joint_duplicate_name", f"{TOPIC}: "
-                                f"{space.map.robot_names[repeated]!r} named twice"))
-            return issues, None, []
-        return issues, np.array(coordinates, dtype=int), entries
-
-    def on_joint_states(self, names: Sequence[str], position, velocity,
-                        now_ns: int) -> list[Issue]:
-        """A JointState on joint_states, applied at ``now_ns`` (module docstring)."""
-        position = np.asarray(position, dtype=float).ravel()
-        velocity = np.asarray(velocity, dtype=float).ravel()
-        if velocity.size not in (0, position.size):
-            return [Issue("joint_wrong_size", f"{TOPIC}: {velocity.size} velocities for "
-                          f"{position.size} positions (give none or one per position)")]
-        issues, index, entries = self._select(names, position.size)
-        if index is None or index.size == 0:
-            return issues
-        robot_q = position[entries]
-        robot_qdot = velocity[entries] if velocity.size else np.zeros(index.size)
-        if not (np.all(np.isfinite(robot_q)) and np.all(np.isfinite(robot_qdot))):
-            return issues + [Issue("joint_non_finite",
-                                   f"{TOPIC}: position or velocity is not finite")]
-        q, qdot, seen = self.q.copy(), self.qdot.copy(), self.seen.copy()
-        q_time = self.q_time_ns.copy()
-        q[index], qdot[index] = self.space.map.to_model(index, robot_q, robot_qdot)
-        seen[index] = True
-        q_time[index] = now_ns
-        if np.all(seen[self.space.needed]):
-            q_now, qdot_now = self._extrapolated(q, qdot, seen, q_time, now_ns)
-            sample, more = self._evaluate(q_now, qdot_now, seen, index, now_ns)
-            issues += more
-            if sample is None:  # NodeInputs rejected the paths: nothing is stored
-                return issues
-            self.sample = sample
-        self.q, self.qdot, self.seen, self.q_time_ns = q, qdot, seen, q_time
-        self.last_message_ns = now_ns
-        return issues
-
-    def _extrapolated(self, q, qdot, seen, q_time, now_ns) -> tuple[np.ndarray, np.ndarray]:
-        """Coordinates at ``now_ns``: each held one moved on by its velocity for at most
-        extrapolation_max_s since it was received (velocity 0 beyond), as NodeInputs moves path
-        lengths on. So a message naming some joints evaluates the muscles that also cross the
-        others where the muscles crossing only those are (a joint group published on its own
-        would otherwise pull their lengths back by r q' dt)."""
-        since_ns = np.maximum(now_ns - q_time, 0)
-        horizon_ns = self.inputs.limits.extrapolation_max_ns
-        moving = seen & (since_ns < horizon_ns)
-        return (q + np.where(seen, qdot * (np.minimum(since_ns, horizon_ns) * 1e-9), 0.0),
-                np.where(moving, qdot, 0.0))
-
-    def _evaluate(self, q, qdot, seen, index, now_ns) -> tuple[JointSample | None, list[Issue]]:
-        """Evaluate the geometry at q, q'; hand the paths of the joint-driven muscles that cross
-        a coordinate in ``index`` (all at the first sample) to NodeInputs. Returns (the sample, or
-        None when NodeInputs rejected the paths; issues)."""
-        space, issues = self.space, []
-        out = space.geometry.evaluate(np.where(seen, q, self._default_q),
-                                      np.where(seen, qdot, 0.0))
-        clamped = index[out.clamped[index]]
-        if clamped.size:
-            shown = clamped[:3]
-            before = space.map.to_robot(shown, q[shown], 0.0, 0.0)[0]
-            after = space.map.to_robot(shown, out.q[shown], 0.0, 0.0)[0]
-            details = ", ".join(f"{space.map.robot_names[k]} {a:.6g} -> {b:.6g}"
-                                for k, a, b in zip(shown, before, after, strict=True))
-            issues.append(Issue("joint_clamped", f"{TOPIC}: outside the geometry's box, "
-                                f"clamped: {details}", count=int(clamped.size)))
-        update = (np.ones(len(space.driven), dtype=bool) if self.sample is None
-                  else space.crosses[:, index].any(axis=1))
-        if np.any(update):
-            rows = space.rows[update]
-            more, accepted = self.inputs.set_path_kinematics(
-                TOPIC, space.driven_index[update], out.length_m[rows],
-                out.velocity_m_per_s[rows], now_ns)
-            issues += more
-            if not accepted:
-                return None, issues
-        sample = JointSample(int(now_ns), out.q, out.qdot, out.moment_arm[space.rows])
-        for array in (sample.q, sample.qdot, sample.moment_arm):
-            array.flags.writeable = False
-        return sample, issues
-
-    def efforts(self, sample: JointSample, force) -> JointEfforts:
-        """joint_efforts of a step: ``force`` (N, every node muscle, the step's output) through
-        the moment arms of ``sample`` (the joint sample that step used); robot convention,
-        ordered by ``joints``."""
-        tau = generalized_forces(sample.moment_arm,
-                                 np.asarray(force, dtype=float)[self.space.driven_index])
-        out = self.space.output
-        position, velocity, effort = self.space.map.to_robot(out, sample.q[out],
-                                                             sample.qdot[out], tau[out])
-        return JointEfforts(self.space.output_names, position, velocity, effort)
-
-
-__all__ = ["JointEfforts", "JointInputs", "JointMap", "JointSample", "JointSpace",
-           "geometry_length_range", "parse_joint_map"]
+__all__ = ["JointEfforts", "JointMap", "JointSpace", "parse_joint_map"]

@@ -45,7 +45,7 @@ Excitation-to-force latency: for each excitation message published in the window
 just before ``publish()`` to the arrival here of the first ``muscle_force`` message whose stamp is
 at or after ``e + 1/model_rate_hz``, where ``e`` is the model time of the first model step that
 used the excitation. With MCAP on, ``e`` is exact: the node logs every input at that model time
-(vm_ros.node_recording); the message is found by its header stamp. Without MCAP
+(vm_ros.node.recording); the message is found by its header stamp. Without MCAP
 (``latency_from_node_log`` false), ``e`` is taken as the excitation's publish time (ROS time):
 the force then comes from a step that started after the excitation was sent, so the value is an
 upper bound (too high by up to one publish period plus the model's lag behind ROS time). The
@@ -53,7 +53,7 @@ latency includes waiting for the next publish (outputs go out every
 round(model_rate_hz/publish_rate_hz) steps), DDS delivery both ways and both executors.
 
 Model time vs wall time: the node's /diagnostics report, at one instant, its model time and the
-skipped and paused model time so far (vm_ros.node_timing). Between the first and last report in
+skipped and paused model time so far (vm_ros.node.timing). Between the first and last report in
 the window, integrated model time = change of model time - change of skipped - change of paused
 time (= steps run x dt); wall time = change of the reports' stamps. Skipping keeps the stamps
 near wall time, so the stamps alone would hide a node that cannot keep up.
@@ -88,7 +88,7 @@ import vm_ros
 from vm_ros import telemetry as tm
 from vm_ros.model import MuscleBank
 from vm_ros.model.params import load_muscle_library
-from vm_ros.node_inputs import physical_path_length_range
+from vm_ros.node.inputs import physical_path_length_range
 
 MIB = 1024.0 * 1024.0
 START_TIMEOUT_S = 60.0  # node process start until the first muscle_force (imports, bank build)

@@ -9,8 +9,8 @@ with:
   log time <= t;
 - muscle_node logs and `vm-ros simulate --motion` logs (``node_parameters`` in the metadata):
   node conditioning, the recorded messages at their log times (the model time of the first step
-  that used them) through vm_ros.node_inputs.NodeInputs with the logged node parameters
-  (vm_ros.recording.node_replay), and the initial state published at the start time as the node
+  that used them) through vm_ros.node.inputs.NodeInputs with the logged node parameters
+  (vm_ros.node.replay), and the initial state published at the start time as the node
   does. With a geometry, joint_states go through vm_ros.joint_space.JointInputs with the logged
   joint_map and joints and the attached geometry.yaml, and joint_efforts and
   joint_effort_commands are recomputed (each step's forces through the moment arms of the joint
@@ -45,14 +45,14 @@ from vm_ros.cli.runs import (
     default_log_path,
 )
 from vm_ros.errors import VmRosError
-from vm_ros.node_recording import INPUT_RULE as NODE_INPUT_RULE
-from vm_ros.progress import Progress
-from vm_ros.recording.node_replay import (
+from vm_ros.node.recording import INPUT_RULE as NODE_INPUT_RULE
+from vm_ros.node.replay import (
     NodeReplayInputs,
     model_time_irregularities,
     node_config,
     node_joint_space,
 )
+from vm_ros.progress import Progress
 from vm_ros.recording.offline import OfflineRun, RecordedInputs
 from vm_ros.recording.run_log import (
     ATTACHMENT_GEOMETRY,

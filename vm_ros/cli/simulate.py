@@ -33,7 +33,7 @@ Joint space (--motion FILE.mot|.sto --geometry GEOMETRY.yaml):
                 text or file, as muscle_node's joint_map: robot q = sign (q - offset)); the
                 joint outputs are the coordinates crossed by the run's muscles
 Inputs are conditioned as muscle_node conditions them (vm_ros.joint_space.JointInputs and
-vm_ros.node_inputs.NodeInputs with the node's default input parameters, recorded in the log's
+vm_ros.node.inputs.NodeInputs with the node's default input parameters, recorded in the log's
 node_parameters): coordinates outside the geometry's box are clamped (counted per coordinate in
 the summary), joint_states giving non-physical path lengths are dropped (counted); the initial
 state is published at t = 0 as the node does. The summary adds per joint the peak and mean
@@ -64,13 +64,13 @@ from vm_ros.geometry import load_geometry
 from vm_ros.importers.motion import read_motion
 from vm_ros.joint_space import JointMap, JointSpace
 from vm_ros.model.params import load_muscle_library
-from vm_ros.node_params import NodeConfig
-from vm_ros.node_recording import INPUT_RULE as NODE_INPUT_RULE
+from vm_ros.node.motion_inputs import JointMotion, MotionInputs, parse_hold
+from vm_ros.node.params import NodeConfig
+from vm_ros.node.recording import INPUT_RULE as NODE_INPUT_RULE
+from vm_ros.node.replay import NODE_PARAMETERS_KEY, NodeConditioning
 from vm_ros.progress import Progress
 from vm_ros.recording.excitations import constant_excitation, load_excitations
 from vm_ros.recording.input_series import load_input_series
-from vm_ros.recording.motion_inputs import JointMotion, MotionInputs, parse_hold
-from vm_ros.recording.node_replay import NODE_PARAMETERS_KEY, NodeConditioning
 from vm_ros.recording.offline import OfflineResult, OfflineRun, SampledInputs
 from vm_ros.recording.run_config import RunConfig
 from vm_ros.recording.run_log import RunInfo, RunTiming, open_run_log

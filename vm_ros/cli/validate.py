@@ -39,9 +39,9 @@ def run(args) -> int:
     plots = None
     if not args.no_plots:
         try:
-            from vm_ros import validation_plots
+            from vm_ros.validation.plots import PLOTS
 
-            plots = validation_plots.PLOTS
+            plots = PLOTS
         except ImportError:
             print("matplotlib is not installed: no figures (pip install 'vm_ros[plot]')",
                   file=sys.stderr)

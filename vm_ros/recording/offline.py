@@ -3,7 +3,7 @@
 
     run = OfflineRun(bank, timing, recorder)
     result = run.run(inputs, n_steps)        # inputs: SampledInputs, RecordedInputs,
-                                             # node_replay.NodeReplayInputs or
+                                             # vm_ros.node.replay.NodeReplayInputs or
                                              # motion_inputs.MotionInputs
 
 Step k covers model time [t_k, t_k + dt) with t_k = start + k dt (integer ns). Inputs follow the
@@ -109,7 +109,7 @@ class RecordedInputs:
     its velocity (0 when the message has none). Other values leave the held input as it was.
     Before the first excitation the drive is 0. The run needs a kinematics message; if none is
     at or before the start time, the first one is used from the start. joint_states need the
-    node's conditioning (node_replay.NodeReplayInputs): a log with them is a RunLogError here.
+    node's conditioning (vm_ros.node.replay): a log with them is a RunLogError here.
     """
 
     def __init__(self, run: RunLog, n_muscles: int, sink: LogSink):

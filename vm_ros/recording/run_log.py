@@ -60,6 +60,8 @@ ATTACHMENT_MODEL = "model.yaml"
 ATTACHMENT_LIBRARY = "muscles.yaml"
 ATTACHMENT_OVERRIDES = "overrides.yaml"
 ATTACHMENT_GEOMETRY = "geometry.yaml"
+# run metadata key: muscle_node's parameters as JSON, in a log whose inputs the node conditioned
+NODE_PARAMETERS_KEY = "node_parameters"
 INPUT_HOLD = "zero-order hold: the step [t, t + dt) uses the latest input with log_time <= t"
 
 INPUT_TOPICS = (tm.TOPIC_EXCITATION, tm.TOPIC_EXCITATION_ARRAY, tm.TOPIC_KINEMATICS,
@@ -326,6 +328,22 @@ def open_run_log(path, info: RunInfo, bank: MuscleBank | None = None,
 
 
 # --- reading back ----------------------------------------------------------------------------
+
+
+def logged_node_parameters(run: RunLog) -> dict | None:
+    """The muscle_node parameters logged with ``run`` as a dict (None when it holds none).
+    Raises ConfigError naming the log when they are not a JSON object."""
+    if run.info is None or NODE_PARAMETERS_KEY not in run.info.extra:
+        return None
+    text = run.info.extra[NODE_PARAMETERS_KEY]
+    source = f"{run.path}: '{METADATA_NAME}' metadata"
+    try:
+        values = json.loads(text)
+    except ValueError as exc:
+        raise ConfigError(source, NODE_PARAMETERS_KEY, text, f"not JSON: {exc}") from None
+    if not isinstance(values, dict):
+        raise ConfigError(source, NODE_PARAMETERS_KEY, text, "expected a JSON object")
+    return values
 
 
 class RecordedEvent(NamedTuple):

@@ -14,8 +14,12 @@ from vm_ros.errors import VmRosError
 from vm_ros.geometry.file import loads as load_geometry_text
 from vm_ros.joint_space import JointMap
 from vm_ros.recording.messages import TOPIC_TELEMETRY
-from vm_ros.recording.node_replay import node_config
-from vm_ros.recording.run_log import ATTACHMENT_GEOMETRY, RunLog, TopicSeries
+from vm_ros.recording.run_log import (
+    ATTACHMENT_GEOMETRY,
+    RunLog,
+    TopicSeries,
+    logged_node_parameters,
+)
 from vm_ros.recording.summary import JointSummary, MuscleSummary, summarize, summarize_joints
 
 # MuscleTelemetry fields per muscle and per fibre type, with their units (msg_defs/)
@@ -161,8 +165,8 @@ def joint_geometry(run: RunLog):
     try:
         geometry = load_geometry_text(data.decode("utf-8", errors="replace"),
                                       f"{run.path}: {ATTACHMENT_GEOMETRY}", backend="numpy")
-        node = node_config(run)
-        text = node.joint_map if node is not None else (
+        node = logged_node_parameters(run)
+        text = str(node.get("joint_map", "")) if node is not None else (
             run.info.config.joint_map if run.info is not None else "")
         return geometry, JointMap.build(text, geometry, str(run.path))
     except VmRosError:

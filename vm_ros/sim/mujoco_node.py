@@ -45,7 +45,7 @@ from std_msgs.msg import Float64MultiArray
 
 from vm_ros.errors import VmRosError
 from vm_ros.geometry.mujoco_backend import MujocoGeometry, require_mujoco
-from vm_ros.node import run_node
+from vm_ros.node.shell import run_node
 from vm_ros.telemetry import TOPIC_JOINT_EFFORT_COMMANDS, TOPIC_JOINT_STATES
 
 NODE_NAME = "mujoco_sim_node"
@@ -136,7 +136,7 @@ class MujocoSim:
 
 class MujocoSimNode(Node):
     """The ROS shell around MujocoSim (module docstring). Usable in-process with a given
-    ``context`` and ``parameter_overrides``, like vm_ros.node.MuscleNode."""
+    ``context`` and ``parameter_overrides``, like vm_ros.node.shell.MuscleNode."""
 
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)

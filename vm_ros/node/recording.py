@@ -38,7 +38,7 @@ from vm_ros.recording.run_log import (
 from vm_ros.recording.writer import McapRecorder, RecorderError, RecorderStatus
 
 LOG_TOPICS = (*INPUT_TOPICS, *OUTPUT_TOPICS, tm.TOPIC_DIAGNOSTICS)  # JOINT_TOPICS: geometry only
-INPUT_RULE = ("muscle_node: inputs conditioned by vm_ros.node_inputs.NodeInputs with the "
+INPUT_RULE = ("muscle_node: inputs conditioned by vm_ros.node.inputs.NodeInputs with the "
               "node_parameters (bad messages dropped, drive clipped, kinematics extrapolated for "
               "at most extrapolation_max_s, stale_input_policy), joint_states by "
               "vm_ros.joint_space.JointInputs with the geometry; each input is logged at the "

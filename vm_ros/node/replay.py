@@ -2,8 +2,8 @@
 
 muscle_node logs every input message (exact bytes) at the model time of the first step that uses
 it, and its parameters as JSON in the ``vm_ros.run`` metadata key ``node_parameters``
-(vm_ros.node_recording). Feeding those messages, in log-time order, into a
-:class:`~vm_ros.node_inputs.NodeInputs` built from those parameters, and taking
+(vm_ros.node.recording). Feeding those messages, in log-time order, into a
+:class:`~vm_ros.node.inputs.NodeInputs` built from those parameters, and taking
 ``NodeInputs.sample(t)`` for the step at model time t, gives the inputs the node used step by step
 (clipping, rejected messages, stale_input_policy, path-length extrapolation bounded by
 extrapolation_max_s). With a ``geometry`` parameter, joint_states go through
@@ -25,7 +25,6 @@ Parameters changed at run time are not logged either (the log holds those at the
 
 from __future__ import annotations
 
-import json
 from collections import Counter
 from pathlib import Path
 
@@ -35,39 +34,33 @@ from vm_ros import telemetry as tm
 from vm_ros.errors import ConfigError
 from vm_ros.geometry import load_geometry
 from vm_ros.geometry.file import loads as load_geometry_text
-from vm_ros.joint_space import JointEfforts, JointInputs, JointMap, JointSpace
-from vm_ros.node_inputs import InputLimits, NodeInputs
-from vm_ros.node_params import NodeConfig
+from vm_ros.joint_space import JointEfforts, JointMap, JointSpace
+from vm_ros.node.inputs import InputLimits, NodeInputs
+from vm_ros.node.joint_inputs import JointInputs
+from vm_ros.node.params import NodeConfig
 from vm_ros.recording.cdr import deserialize
 from vm_ros.recording.run_log import (
     ATTACHMENT_GEOMETRY,
     INPUT_TOPICS,
     METADATA_NAME,
+    NODE_PARAMETERS_KEY,
     RunLog,
     RunLogError,
+    logged_node_parameters,
 )
-
-NODE_PARAMETERS_KEY = "node_parameters"
 
 
 def node_config(run: RunLog) -> NodeConfig | None:
     """The muscle_node parameters logged with ``run`` (None when it holds none). Raises
     ConfigError naming the log and the parameter when they cannot be used."""
-    if run.info is None or NODE_PARAMETERS_KEY not in run.info.extra:
+    values = logged_node_parameters(run)
+    if values is None:
         return None
-    text = run.info.extra[NODE_PARAMETERS_KEY]
-    source = f"{run.path}: '{METADATA_NAME}' metadata"
-    try:
-        values = json.loads(text)
-    except ValueError as exc:
-        raise ConfigError(source, NODE_PARAMETERS_KEY, text, f"not JSON: {exc}") from None
-    if not isinstance(values, dict):
-        raise ConfigError(source, NODE_PARAMETERS_KEY, text, "expected a JSON object")
     try:
         return NodeConfig.from_values(values)
     except ConfigError as exc:
-        raise ConfigError(source, f"{NODE_PARAMETERS_KEY}.{exc.field}", exc.value,
-                          exc.reason) from None
+        raise ConfigError(f"{run.path}: '{METADATA_NAME}' metadata",
+                          f"{NODE_PARAMETERS_KEY}.{exc.field}", exc.value, exc.reason) from None
 
 
 def is_node_log(run: RunLog) -> bool:
@@ -107,7 +100,7 @@ class NodeConditioning:
     """muscle_node's input conditioning without rclpy: NodeInputs and, with a JointSpace,
     JointInputs, fed with decoded messages as the node's subscriptions feed them.
 
-    Counts what the node would report: ``issues`` (Counter of vm_ros.node_health issue kinds,
+    Counts what the node would report: ``issues`` (Counter of vm_ros.node.health issue kinds,
     weighted by each issue's count; ``issue_text()`` quotes the first of each kind) and
     ``clamped`` (per coordinate of ``space``, the accepted joint_states messages in which that
     coordinate, named in the message, was outside the geometry's box and clamped).

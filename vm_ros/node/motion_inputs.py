@@ -18,7 +18,7 @@ motion's time axis.
 
 Every ``period_ns`` from 0 an excitation message (the drives) and a joint_states message (every
 geometry coordinate the motion or ``hold`` gives, under its robot name, robot convention through
-the joint map) are logged and handed to a node_replay.NodeConditioning at that time, in the order
+the joint map) are logged and handed to a replay.NodeConditioning at that time, in the order
 a recompute replays them (excitation first), so that `vm-ros recompute` reproduces the run.
 """
 
@@ -33,9 +33,9 @@ from vm_ros import telemetry as tm
 from vm_ros.errors import VmRosError
 from vm_ros.importers.motion import Motion
 from vm_ros.joint_space import JointMap
+from vm_ros.node.replay import NodeConditioning
 from vm_ros.recording import messages as msgs
 from vm_ros.recording.excitations import ExcitationSeries
-from vm_ros.recording.node_replay import NodeConditioning
 
 
 @dataclass(frozen=True)

@@ -1,9 +1,9 @@
 """muscle_node: the ROS 2 shell around MuscleBank.
 
-Messages in -> arrays (vm_ros.node_inputs) -> MuscleBank.step on a timer, in fixed steps of
-1/model_rate_hz by elapsed ROS time (vm_ros.node_timing) -> messages out (vm_ros.telemetry
-layouts). Parameters: vm_ros.node_params; bad-input behaviours and diagnostics counters:
-vm_ros.node_health. Topics (relative names, so namespaces and remapping apply):
+Messages in -> arrays (vm_ros.node.inputs) -> MuscleBank.step on a timer, in fixed steps of
+1/model_rate_hz by elapsed ROS time (vm_ros.node.timing) -> messages out (vm_ros.telemetry
+layouts). Parameters: vm_ros.node.params; bad-input behaviours and diagnostics counters:
+vm_ros.node.health. Topics (relative names, so namespaces and remapping apply):
 
 - in ``excitation`` (JointState), ``excitation_array`` (Float64MultiArray), ``muscle_kinematics``
   (JointState), and with a ``geometry`` ``joint_states`` (JointState): reliable, keep last
@@ -68,8 +68,8 @@ from std_msgs.msg import Float64, Float64MultiArray
 
 from vm_ros import telemetry as tm
 from vm_ros.errors import ConfigError, VmRosError
-from vm_ros.joint_space import JointInputs, JointSpace
-from vm_ros.node_health import (
+from vm_ros.joint_space import JointSpace
+from vm_ros.node.health import (
     ISSUE_KINDS,
     QUIET_KINDS,
     DurationWindow,
@@ -77,11 +77,12 @@ from vm_ros.node_health import (
     IssueLog,
     format_value,
 )
-from vm_ros.node_inputs import InputLimits, NodeInputs
-from vm_ros.node_params import PARAMS, PARAMS_SOURCE, NodeConfig, ParamSpec
-from vm_ros.node_params import runtime_parameter_names as _runtime_names
-from vm_ros.node_recording import NodeRunLog, node_run_extra
-from vm_ros.node_timing import StepScheduler
+from vm_ros.node.inputs import InputLimits, NodeInputs
+from vm_ros.node.joint_inputs import JointInputs
+from vm_ros.node.params import PARAMS, PARAMS_SOURCE, NodeConfig, ParamSpec
+from vm_ros.node.params import runtime_parameter_names as _runtime_names
+from vm_ros.node.recording import NodeRunLog, node_run_extra
+from vm_ros.node.timing import StepScheduler
 from vm_ros.recording.qos import offered_qos_profiles_yaml
 from vm_ros.recording.run_config import RunConfig
 from vm_ros.recording.run_log import RunInfo, RunTiming
@@ -146,7 +147,7 @@ def _finite(out) -> bool:
 
 
 class MuscleNode(Node):
-    """The muscle model as a ROS 2 node (see the module docstring and vm_ros.node_params).
+    """The muscle model as a ROS 2 node (see the module docstring and vm_ros.node.params).
 
     Raises ConfigError (naming the parameter or file field) for bad parameters; the partly
     built node is destroyed first.
@@ -301,7 +302,7 @@ class MuscleNode(Node):
         return SetParametersResult(successful=True)
 
     def _open_run_log(self) -> NodeRunLog | None:
-        """The MCAP run log (vm_ros.node_recording); inputs' offered QoS is not known here."""
+        """The MCAP run log (vm_ros.node.recording); inputs' offered QoS is not known here."""
         if not self.config.mcap_enabled:
             return None
         path = self.config.mcap_path or datetime.now().strftime(
@@ -334,7 +335,7 @@ class MuscleNode(Node):
                   tm.TOPIC_JOINT_STATES: self._on_joint_states}[topic]
         def receive(data: bytes) -> None:
             now_ns = self.get_clock().now().nanoseconds
-            # the model time of the first step that will use this message (vm_ros.node_recording)
+            # the model time of the first step that will use this message (vm_ros.node.recording)
             effective_ns = self.scheduler.model_time_ns if self.scheduler.started else now_ns
             if self.run_log is not None:
                 self.run_log.write(topic, data, effective_ns, now_ns)

@@ -3,7 +3,7 @@ step uses out (no rclpy here; vm_ros.node unpacks the messages).
 
 Every message is checked before anything is stored, so a bad message never reaches the model:
 it is dropped whole (or, for unknown names, those entries are) and reported as an
-:class:`~vm_ros.node_health.Issue`. Times are ROS-clock receipt times in integer ns; a message's
+:class:`~vm_ros.node.health.Issue`. Times are ROS-clock receipt times in integer ns; a message's
 header stamp is not used (publishers often leave it zero or use another clock).
 
 Kinematics between samples: the path length is extrapolated with the sample's velocity for at most
@@ -23,8 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vm_ros.node_health import Issue
-from vm_ros.node_params import NodeConfig
+from vm_ros.node.health import Issue
+from vm_ros.node.params import NodeConfig
 
 
 @dataclass(frozen=True)

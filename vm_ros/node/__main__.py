@@ -1,0 +1,5 @@
+import sys
+
+from vm_ros.node import main
+
+sys.exit(main())
