@@ -100,3 +100,99 @@ def test_unreadable_and_invalid_yaml(tmp_path):
     bad.write_text("a: [1, 2\n")
     with pytest.raises(ConfigError, match="not valid YAML"):
         load_model_params(bad)
+
+
+def _model_file(tmp_path, change):
+    """The shipped model.yaml with ``change(data)`` applied, written to tmp_path."""
+    data = yaml.safe_load((config_dir() / "model.yaml").read_text())
+    change(data)
+    path = tmp_path / "model.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+def _set(section, name, key, value):
+    def change(data):
+        node = data
+        for part in section.split("."):
+            node = node[part]
+        node[name][key] = value
+
+    return change
+
+
+@pytest.mark.parametrize(
+    ("section", "name", "unit"),
+    [
+        ("fibre_type_parameters", "tf1", "msec"),  # a typo once read as 34.3 s
+        ("fibre_type_parameters", "tf1", "mm"),  # a length for a time constant
+        ("generic", "specific_tension", "N/cm2"),
+        ("generic", "muscle_density", "ms"),
+        ("recruitment.continuous", "tau_rise", "L0"),
+        ("energetics", "e1", "W s^2/(kg L0^2)"),  # the wrong power of velocity
+        ("recruitment.lumped", "t_rise_poly", "1"),
+    ],
+)
+def test_bad_unit_names_file_field_and_unit(tmp_path, section, name, unit):
+    path = _model_file(tmp_path, _set(section, name, "unit", unit))
+    with pytest.raises(ConfigError) as info:
+        load_model_params(path)
+    err = info.value
+    assert err.field == f"{section}.{name}.unit"
+    assert err.value == unit
+    message = str(err)
+    assert str(path) in message and f"{section}.{name}.unit" in message and repr(unit) in message
+    assert "\n" not in message
+
+
+def test_time_constant_in_s_or_ms_loads_the_same(tmp_path):
+    path = _model_file(tmp_path, lambda d: d["fibre_type_parameters"]["tf1"].update(
+        slow=0.0343, fast=0.0206, unit="s"))
+    assert load_model_params(path).fibre.tf1 == pytest.approx(load_model_params().fibre.tf1,
+                                                              rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("change", "field"),
+    [
+        (_set("generic", "fmin", "value", "low"), "generic.fmin.value"),
+        (_set("generic", "fmin", "tag", "X"), "generic.fmin.tag"),
+        (_set("generic", "fmin", "source", ""), "generic.fmin.source"),
+        (_set("generic", "fmin", "sorce", "typo"), "generic.fmin.sorce"),
+        (_set("fibre_type_parameters", "tf1", "medium", 1.0), "fibre_type_parameters.tf1.medium"),
+        (_set("recruitment.lumped", "t_rise_poly", "value", 0.3),
+         "recruitment.lumped.t_rise_poly.value"),
+        (_set("recruitment.lumped", "cap_recruitment_at_full", "value", "yes"),
+         "recruitment.lumped.cap_recruitment_at_full.value"),
+        (_set("energetics", "recovery_mode", "value", 3), "energetics.recovery_mode.value"),
+        (lambda d: d["recruitment"].pop("lumped"), "recruitment.lumped"),
+    ],
+)
+def test_bad_entry_names_its_field(tmp_path, change, field):
+    with pytest.raises(ConfigError) as info:
+        load_model_params(_model_file(tmp_path, change))
+    assert info.value.field == field
+
+
+def test_loaded_parameters_keep_unit_tag_and_source():
+    data = yaml.safe_load((config_dir() / "model.yaml").read_text())
+    params = load_model_params()
+    sections = {"fibre_type_parameters": data["fibre_type_parameters"],
+                "generic": data["generic"], "energetics": data["energetics"],
+                **{f"recruitment.{k}": v for k, v in data["recruitment"].items()}}
+    expected = {f"{s}.{n}": e for s, entries in sections.items() for n, e in entries.items()}
+    assert set(params.info) == set(expected)
+    for name, entry in expected.items():
+        info = params.info[name]
+        assert (info.unit, info.tag, info.source) == (entry["unit"], entry["tag"],
+                                                      entry["source"]), name
+    assert params.info["fibre_type_parameters.tf1"].si == "s"
+    assert params.value_of("fibre_type_parameters.tf1") == pytest.approx([0.0343, 0.0206])
+    assert params.value_of("generic.specific_tension") == pytest.approx(318_000.0)
+
+
+def test_repeated_muscle_is_named_once_in_a_short_message():
+    with pytest.raises(ConfigError) as info:
+        MuscleBank.from_config(["soleus"] * 10_000)
+    assert info.value.value == "soleus"
+    assert "10000 times" in str(info.value) and len(str(info.value)) < 300

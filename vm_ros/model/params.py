@@ -13,7 +13,9 @@ the field name): ``mass_kg``, ``l0_m``, ``l0t_m``, ``path_length_max_m`` (or ``l
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
+from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,20 +24,34 @@ import numpy as np
 import yaml
 
 from vm_ros.errors import ConfigError
+from vm_ros.model.units import unit_for_field
 from vm_ros.resources import config_dir
 
 FIBRE_TYPES = ("slow", "fast")
 SLOW, FAST = 0, 1
 TAGS = ("C", "L", "R")
 
-# Factor converting a config unit to SI (or to the normalised unit it stays in).
-_TO_SI = {
-    "ms": 1e-3,
-    "s": 1.0,
-    "N/cm^2": 1e4,
-    "g/cm^3": 1e3,
-    "kJ/(kg K)": 1e3,
-}
+
+def _holds(unit: str):
+    """A dataclass field whose value is in ``unit`` (a key of vm_ros.model.units.UNITS); the
+    loader accepts any unit of the same quantity in the file and converts it."""
+    return field(metadata={"unit": unit})
+
+
+@dataclass(frozen=True)
+class ParamInfo:
+    """Where a model constant comes from, as written in its file.
+
+    ``name`` is dotted (``fibre_type_parameters.tf1``); ``unit`` is the unit written in the file
+    (``ms``); ``si`` the unit of the loaded value (``s``); ``tag`` C, L or R; ``source`` the
+    citation.
+    """
+
+    name: str
+    unit: str
+    si: str
+    tag: str
+    source: str
 
 
 def _load_yaml(path: Path) -> dict:
@@ -51,61 +67,79 @@ def _load_yaml(path: Path) -> dict:
     return data
 
 
-def _entry_scale(path, name: str, entry) -> float:
-    if not isinstance(entry, dict):
-        raise ConfigError(path, name, entry, "must be a mapping with value/unit/tag/source")
-    for key in ("unit", "tag", "source"):
-        if key not in entry:
-            raise ConfigError(path, f"{name}.{key}", None, "missing")
-    if entry["tag"] not in TAGS:
-        raise ConfigError(path, f"{name}.tag", entry["tag"], f"must be one of {TAGS}")
-    return _TO_SI.get(entry["unit"], 1.0)
-
-
 def _finite_number(path, name: str, value) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise ConfigError(path, name, value, "must be a finite number")
     return float(value)
 
 
-def _section(path, data: dict, name: str) -> dict:
-    section = data.get(name)
-    if not isinstance(section, dict):
-        raise ConfigError(path, name, section, "missing or not a mapping")
+def _section(path, data: dict, dotted: str) -> dict:
+    """The mapping at ``dotted`` (``"recruitment.lumped"``) in ``data``."""
+    section, parts = data, dotted.split(".")
+    for depth in range(len(parts)):
+        section = section.get(parts[depth])
+        if not isinstance(section, dict):
+            where = ".".join(parts[: depth + 1])
+            raise ConfigError(path, where, section, "missing or not a mapping")
     return section
 
 
-def _fields_from_section(cls, path, section: dict, section_name: str, read) -> dict:
-    names = {f.name for f in dataclasses.fields(cls)}
-    unknown = sorted(set(section) - names)
+def _read_value(path, name: str, kind: str, entry: dict, factor: float):
+    """One entry's value, by the kind of the field it fills (its annotation)."""
+    if kind == "np.ndarray":  # one value per fibre type
+        return np.array([_finite_number(path, f"{name}.{t}", entry.get(t)) for t in FIBRE_TYPES]
+                        ) * factor
+    value = entry.get("value")
+    if kind == "float":
+        return _finite_number(path, f"{name}.value", value) * factor
+    if kind == "tuple":  # polynomial coefficients
+        if not isinstance(value, list) or not value:
+            raise ConfigError(path, f"{name}.value", value, "must be a non-empty list of numbers")
+        return tuple(_finite_number(path, f"{name}.value", v) * factor for v in value)
+    if kind == "bool":
+        if not isinstance(value, bool):
+            raise ConfigError(path, f"{name}.value", value, "must be true or false")
+        return value
+    if kind == "str":
+        if not isinstance(value, str):
+            raise ConfigError(path, f"{name}.value", value, "must be a name (text)")
+        return value
+    raise TypeError(f"{name}: no reader for fields of type {kind}")
+
+
+def _read_section(cls, path, section: dict, section_name: str, info: dict) -> dict:
+    """The fields of ``cls`` from one section of a model file, converted to the unit each field
+    holds; each entry's unit, tag and source go into ``info``."""
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    unknown = sorted(set(section) - set(fields))
     if unknown:
         raise ConfigError(path, f"{section_name}.{unknown[0]}", None, "unknown parameter")
-    missing = sorted(names - set(section))
+    missing = sorted(set(fields) - set(section))
     if missing:
         raise ConfigError(path, f"{section_name}.{missing[0]}", None, "missing")
-    return {name: read(f"{section_name}.{name}", section[name]) for name in names}
-
-
-def _per_type_reader(path):
-    def read(name, entry):
-        scale = _entry_scale(path, name, entry)
-        values = [_finite_number(path, f"{name}.{t}", entry.get(t)) for t in FIBRE_TYPES]
-        return np.array(values) * scale
-
-    return read
-
-
-def _scalar_reader(path):
-    def read(name, entry):
-        scale = _entry_scale(path, name, entry)
-        value = entry.get("value")
-        if isinstance(value, (bool, str)):
-            return value
-        if isinstance(value, list):
-            return tuple(_finite_number(path, name, v) * scale for v in value)
-        return _finite_number(path, name, value) * scale
-
-    return read
+    values = {}
+    for name, f in fields.items():
+        where, entry = f"{section_name}.{name}", section[name]
+        keys = {*FIBRE_TYPES} if f.type == "np.ndarray" else {"value"}
+        if not isinstance(entry, dict):
+            raise ConfigError(path, where, entry,
+                              f"must be a mapping with {'/'.join(sorted(keys))}/unit/tag/source")
+        for key in ("unit", "tag", "source"):
+            if key not in entry:
+                raise ConfigError(path, f"{where}.{key}", None, "missing")
+        extra = sorted(set(entry) - keys - {"unit", "tag", "source"})
+        if extra:
+            raise ConfigError(path, f"{where}.{extra[0]}", entry[extra[0]],
+                              f"unknown key (an entry has {', '.join(sorted(keys))}, unit, tag, "
+                              f"source)")
+        if entry["tag"] not in TAGS:
+            raise ConfigError(path, f"{where}.tag", entry["tag"], f"must be one of {TAGS}")
+        if not isinstance(entry["source"], str) or not entry["source"].strip():
+            raise ConfigError(path, f"{where}.source", entry["source"], "must be a citation")
+        unit = unit_for_field(path, f"{where}.unit", entry["unit"], f.metadata["unit"])
+        values[name] = _read_value(path, where, f.type, entry, unit.factor)
+        info[where] = ParamInfo(where, unit.symbol, unit.si, entry["tag"], entry["source"])
+    return values
 
 
 @dataclass(frozen=True)
@@ -116,31 +150,31 @@ class FibreTypeParams:
     fibres and yield (cy) for fast ones, so one code path serves both types.
     """
 
-    omega: np.ndarray
-    beta: np.ndarray
-    rho: np.ndarray
-    vmax: np.ndarray
-    cv0: np.ndarray
-    cv1: np.ndarray
-    av0: np.ndarray
-    av1: np.ndarray
-    av2: np.ndarray
-    bv: np.ndarray
-    af: np.ndarray
-    nf0: np.ndarray
-    nf1: np.ndarray
-    tf1: np.ndarray
-    tf2: np.ndarray
-    tf3: np.ndarray
-    tf4: np.ndarray
-    as1: np.ndarray
-    as2: np.ndarray
-    ts: np.ndarray
-    sag_rate_threshold: np.ndarray
-    cy: np.ndarray
-    vy: np.ndarray
-    ty: np.ndarray
-    f_half_pps: np.ndarray
+    omega: np.ndarray = _holds("1")
+    beta: np.ndarray = _holds("1")
+    rho: np.ndarray = _holds("1")
+    vmax: np.ndarray = _holds("L0/s")
+    cv0: np.ndarray = _holds("1")
+    cv1: np.ndarray = _holds("1")
+    av0: np.ndarray = _holds("1")
+    av1: np.ndarray = _holds("1")
+    av2: np.ndarray = _holds("1")
+    bv: np.ndarray = _holds("L0/s")
+    af: np.ndarray = _holds("f0.5")
+    nf0: np.ndarray = _holds("1")
+    nf1: np.ndarray = _holds("1")
+    tf1: np.ndarray = _holds("s")
+    tf2: np.ndarray = _holds("s")
+    tf3: np.ndarray = _holds("s")
+    tf4: np.ndarray = _holds("s")
+    as1: np.ndarray = _holds("1")
+    as2: np.ndarray = _holds("1")
+    ts: np.ndarray = _holds("s")
+    sag_rate_threshold: np.ndarray = _holds("f0.5")
+    cy: np.ndarray = _holds("1")
+    vy: np.ndarray = _holds("L0/s")
+    ty: np.ndarray = _holds("s")
+    f_half_pps: np.ndarray = _holds("1/s")
 
     def take(self, index: np.ndarray) -> FibreTypeParams:
         """The same parameters gathered along the fibre-type axis (e.g. one entry per unit)."""
@@ -153,84 +187,99 @@ class FibreTypeParams:
 class GenericParams:
     """Constants shared by both fibre types (VM 4.0). Forces in F0, lengths in L0 or L0T."""
 
-    fmin: float
-    fmax: float
-    c1: float
-    k1: float
-    lr1: float
-    eta: float
-    c2: float
-    k2: float
-    lr2: float
-    ct: float
-    kt: float
-    lrt: float
-    specific_tension: float  # Pa
-    muscle_density: float  # kg/m^3
-    ur_default: float
-    l_activation_max_fraction: float
-    l_activation_min: float
-    fv_denominator_min: float
+    fmin: float = _holds("f0.5")
+    fmax: float = _holds("f0.5")
+    c1: float = _holds("F0")
+    k1: float = _holds("1")
+    lr1: float = _holds("1")
+    eta: float = _holds("F0 s/L0")
+    c2: float = _holds("F0")
+    k2: float = _holds("1/L0")
+    lr2: float = _holds("L0")
+    ct: float = _holds("F0/L0T")
+    kt: float = _holds("L0T")
+    lrt: float = _holds("L0T")
+    specific_tension: float = _holds("Pa")
+    muscle_density: float = _holds("kg/m^3")
+    ur_default: float = _holds("1")
+    l_activation_max_fraction: float = _holds("1")
+    l_activation_min: float = _holds("L0")
+    fv_denominator_min: float = _holds("1")
 
 
 @dataclass(frozen=True)
 class LumpedParams:
     """Tsianos 2012 Appendix A lumped-unit constants (polynomials in U2, highest power first)."""
 
-    u1: float
-    t_rise_poly: tuple
-    t_fall_poly: tuple
-    t_rise_step_scale: float
-    w_slow_poly: tuple
-    w_slow_a_poly: tuple
-    w_slow_tau: float
-    w_fast_b_poly: tuple
-    w_fast_c_poly: tuple
-    w_fast_offset: float
-    w_fast_rise: float
-    w_fast_tau_poly: tuple
-    cap_recruitment_at_full: bool
+    u1: float = _holds("1")
+    t_rise_poly: tuple = _holds("s")
+    t_fall_poly: tuple = _holds("s")
+    t_rise_step_scale: float = _holds("1/s")
+    w_slow_poly: tuple = _holds("1")
+    w_slow_a_poly: tuple = _holds("1")
+    w_slow_tau: float = _holds("1")
+    w_fast_b_poly: tuple = _holds("1")
+    w_fast_c_poly: tuple = _holds("1")
+    w_fast_offset: float = _holds("1")
+    w_fast_rise: float = _holds("1")
+    w_fast_tau_poly: tuple = _holds("1")
+    cap_recruitment_at_full: bool = _holds("bool")
 
 
 @dataclass(frozen=True)
 class NaturalParams:
     """Discrete natural-unit recruitment (Cheng 2000)."""
 
-    units_per_type: float
-    apportioning: str
-    geometric_ratio: float
-    u_threshold_min: float
+    units_per_type: float = _holds("1")
+    apportioning: str = _holds("-")
+    geometric_ratio: float = _holds("1")
+    u_threshold_min: float = _holds("1")
 
 
 @dataclass(frozen=True)
 class ContinuousParams:
     """Continuous recruitment (Song 2008)."""
 
-    u_threshold_min: float
-    tau_rise: float
-    tau_fall: float
+    u_threshold_min: float = _holds("1")
+    tau_rise: float = _holds("s")
+    tau_fall: float = _holds("s")
 
 
 @dataclass(frozen=True)
 class EnergeticsParams:
     """Tsianos 2012 energetics. e1..e4 per fibre type (W/kg dry, V in L0/s); recovery in s."""
 
-    e1: np.ndarray
-    e2: np.ndarray
-    e3: np.ndarray
-    e4: np.ndarray
-    recovery_ratio: np.ndarray
-    activation_fraction: float
-    dry_to_wet_mass: float
-    heat_capacity: float  # J/(kg K)
-    recovery_mode: str
-    recovery_tau_rise: float
-    recovery_tau_decay: float
+    e1: np.ndarray = _holds("W s/(kg L0)")
+    e2: np.ndarray = _holds("W/kg")
+    e3: np.ndarray = _holds("W L0/(kg s)")
+    e4: np.ndarray = _holds("L0/s")
+    recovery_ratio: np.ndarray = _holds("1")
+    activation_fraction: float = _holds("1")
+    dry_to_wet_mass: float = _holds("1")
+    heat_capacity: float = _holds("J/(kg K)")
+    recovery_mode: str = _holds("-")
+    recovery_tau_rise: float = _holds("s")
+    recovery_tau_decay: float = _holds("s")
+
+
+# Sections of a model file: dotted name in the file -> attribute of ModelParams, class.
+SECTIONS = {
+    "fibre_type_parameters": ("fibre", FibreTypeParams),
+    "generic": ("generic", GenericParams),
+    "recruitment.lumped": ("lumped", LumpedParams),
+    "recruitment.natural": ("natural", NaturalParams),
+    "recruitment.continuous": ("continuous", ContinuousParams),
+    "energetics": ("energetics", EnergeticsParams),
+}
 
 
 @dataclass(frozen=True)
 class ModelParams:
-    """Everything in ``config/model.yaml``, validated and in SI/normalised units."""
+    """Everything in ``config/model.yaml``, validated and in SI/normalised units.
+
+    ``info`` maps each constant's dotted name to its :class:`ParamInfo` (unit as written, tag,
+    source); :meth:`value_of` gives its current value.
+    """
 
     fibre: FibreTypeParams
     generic: GenericParams
@@ -239,9 +288,17 @@ class ModelParams:
     continuous: ContinuousParams
     energetics: EnergeticsParams
     path: str = "<defaults>"
+    info: dict = field(default_factory=dict, compare=False, repr=False)
 
     def with_energetics(self, **changes) -> ModelParams:
         return dataclasses.replace(self, energetics=dataclasses.replace(self.energetics, **changes))
+
+    def value_of(self, name: str):
+        """The value (SI or normalised) of the constant ``name`` (``fibre_type_parameters.tf1``)."""
+        section, _, field_name = name.rpartition(".")
+        if section not in SECTIONS:
+            raise KeyError(name)
+        return getattr(getattr(self, SECTIONS[section][0]), field_name)
 
 
 RECOVERY_MODES = ("static", "dynamic")
@@ -249,65 +306,23 @@ APPORTIONING = ("equal", "geometric")
 
 
 def load_model_params(path: str | Path | None = None) -> ModelParams:
-    """Load and validate a model parameter file (default: the shipped ``config/model.yaml``)."""
+    """Load and validate a model parameter file (default: the shipped ``config/model.yaml``).
+
+    Each entry's unit must be in vm_ros.model.units.UNITS and measure what its field holds
+    (``ms`` for a time constant, not ``mm`` or ``msec``); values are converted once, here.
+    """
     path = Path(path) if path is not None else config_dir() / "model.yaml"
     data = _load_yaml(path)
     if data.get("fibre_types") != list(FIBRE_TYPES):
         raise ConfigError(
             path, "fibre_types", data.get("fibre_types"), f"must be {list(FIBRE_TYPES)}"
         )
-    per_type, scalar = _per_type_reader(path), _scalar_reader(path)
-    fibre = FibreTypeParams(
-        **_fields_from_section(
-            FibreTypeParams,
-            path,
-            _section(path, data, "fibre_type_parameters"),
-            "fibre_type_parameters",
-            per_type,
-        )
-    )
-    generic = GenericParams(
-        **_fields_from_section(
-            GenericParams, path, _section(path, data, "generic"), "generic", scalar
-        )
-    )
-    recruitment = _section(path, data, "recruitment")
-    lumped = LumpedParams(
-        **_fields_from_section(
-            LumpedParams, path, _section(path, recruitment, "lumped"), "recruitment.lumped", scalar
-        )
-    )
-    natural = NaturalParams(
-        **_fields_from_section(
-            NaturalParams,
-            path,
-            _section(path, recruitment, "natural"),
-            "recruitment.natural",
-            scalar,
-        )
-    )
-    continuous = ContinuousParams(
-        **_fields_from_section(
-            ContinuousParams,
-            path,
-            _section(path, recruitment, "continuous"),
-            "recruitment.continuous",
-            scalar,
-        )
-    )
-    energetics_section = _section(path, data, "energetics")
-    per_type_names = {"e1", "e2", "e3", "e4", "recovery_ratio"}
-
-    def read_energetics(name, entry):
-        reader = per_type if name.rsplit(".", 1)[-1] in per_type_names else scalar
-        return reader(name, entry)
-
-    energetics = EnergeticsParams(
-        **_fields_from_section(
-            EnergeticsParams, path, energetics_section, "energetics", read_energetics
-        )
-    )
-    params = ModelParams(fibre, generic, lumped, natural, continuous, energetics, str(path))
+    info: dict[str, ParamInfo] = {}
+    groups = {}
+    for section_name, (attribute, cls) in SECTIONS.items():
+        section = _section(path, data, section_name)
+        groups[attribute] = cls(**_read_section(cls, path, section, section_name, info))
+    params = ModelParams(**groups, path=str(path), info=info)
     _validate_model_params(params)
     return params
 
@@ -398,28 +413,20 @@ class MuscleSpec:
     """
 
     name: str
-    mass_kg: float
-    l0_m: float
-    l0t_m: float
-    fpcsa_slow: float
-    ur: float
-    path_length_max_m: float | None = None
-    lmax: float | None = None
-    path_length_min_m: float | None = None
+    mass_kg: float = _holds("kg")
+    l0_m: float = _holds("m")
+    l0t_m: float = _holds("m")
+    fpcsa_slow: float = _holds("1")
+    ur: float = _holds("1")
+    path_length_max_m: float | None = field(default=None, metadata={"unit": "m"})
+    lmax: float | None = field(default=None, metadata={"unit": "L0"})
+    path_length_min_m: float | None = field(default=None, metadata={"unit": "m"})
     source: Mapping = field(default_factory=dict)
     description: str = ""
 
 
-_MUSCLE_NUMBERS = (
-    "mass_kg",
-    "l0_m",
-    "l0t_m",
-    "fpcsa_slow",
-    "ur",
-    "path_length_max_m",
-    "lmax",
-    "path_length_min_m",
-)
+# The numeric fields of a library entry (unit in the field name, SI or L0; never converted).
+_MUSCLE_NUMBERS = tuple(f.name for f in dataclasses.fields(MuscleSpec) if "unit" in f.metadata)
 _MUSCLE_FIELDS = set(_MUSCLE_NUMBERS) | {"source", "description"}
 
 
@@ -483,6 +490,38 @@ def load_muscle_library(path: str | Path | None = None) -> dict[str, dict]:
     return muscles
 
 
+def near_matches(name: str, known) -> str:
+    """``"near matches: a, b"`` for a mistyped ``name`` (names containing it, then similar ones),
+    or all of ``known`` when there are few."""
+    known = sorted(known)
+    if len(known) <= 8:
+        return f"have: {', '.join(known)}"
+    text = str(name).lower()
+    near = [k for k in known if text and text in k.lower()]
+    near += difflib.get_close_matches(str(name), known, n=5, cutoff=0.6)
+    near = list(dict.fromkeys(near))[:5]
+    return f"near matches: {', '.join(near)}" if near else "no near match"
+
+
+def model_rows(params: ModelParams) -> list[tuple[ParamInfo, object]]:
+    """Each constant of ``params`` with its current value (SI or normalised), in file order."""
+    return [(info, params.value_of(name)) for name, info in params.info.items()]
+
+
+def muscle_rows(spec: MuscleSpec) -> list[tuple[ParamInfo, object]]:
+    """Each numeric field of a muscle with its value (SI or L0) and the source given for it."""
+    rows = []
+    for f in dataclasses.fields(MuscleSpec):
+        value = getattr(spec, f.name)
+        if "unit" not in f.metadata or value is None:
+            continue
+        source = spec.source.get(f.name) or spec.source.get("all", "")
+        unit = f.metadata["unit"]
+        rows.append((ParamInfo(f"muscles.{spec.name}.{f.name}", unit, unit, "", str(source)),
+                     value))
+    return rows
+
+
 def resolve_muscles(
     names, library: str | Path | None, overrides: Mapping | None, ur_default: float
 ) -> list[MuscleSpec]:
@@ -495,8 +534,10 @@ def resolve_muscles(
     names = list(names)
     if not names:
         raise ConfigError(lib_path, "muscles", names, "need at least one muscle")
-    if len(set(names)) != len(names):
-        raise ConfigError(lib_path, "muscles", names, "muscle names must be unique")
+    repeated = next((n for n, k in Counter(names).items() if k > 1), None)
+    if repeated is not None:
+        raise ConfigError(lib_path, "muscles", repeated,
+                          f"listed {names.count(repeated)} times; muscle names must be unique")
     for name in overrides:
         if name not in names:
             raise ConfigError(
@@ -505,12 +546,9 @@ def resolve_muscles(
     specs = []
     for name in names:
         if name not in entries:
-            raise ConfigError(
-                lib_path,
-                f"muscles.{name}",
-                None,
-                f"not in the library (have: {', '.join(sorted(entries))})",
-            )
+            raise ConfigError(lib_path, f"muscles.{name}", name,
+                              f"not in the library ({len(entries)} muscles); "
+                              + near_matches(name, entries))
         fields = dict(entries[name] or {})
         extra = overrides.get(name) or {}
         if not isinstance(extra, Mapping):
