@@ -26,6 +26,7 @@ VERBS = {
     "import-osim": "import_osim",
     "import-mjcf": "import_mjcf",
     "closed-loop": "closed_loop",
+    "params": "params",
 }
 
 
