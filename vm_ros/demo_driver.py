@@ -5,8 +5,7 @@ sends joint_states).
 
     driver = DemoDriver("knee_extension", context=ctx)   # excitation + muscle_kinematics
     monitor = DemoMonitor(context=ctx)                   # muscle_force, energy_rate, energy_total
-    ...spin...
-    summary = monitor.summary()
+    ...spin until monitor.stamps_ns...; driver.start(monitor.stamps_ns[0]); ...spin...
 
     loop = LoopDriver(names, pulses, context=ctx)        # excitation; counts joint_efforts
 """
@@ -14,7 +13,6 @@ sends joint_states).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
@@ -31,8 +29,10 @@ _QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000,
 
 
 class DemoDriver(Node):
-    """Publishes a scenario's drive and path kinematics at ``rate_hz``, scenario time running
-    from the first tick (ROS clock), wrapped at the scenario's duration."""
+    """Publishes a scenario's drive and path kinematics at ``rate_hz``. Scenario time is 0 until
+    :meth:`start` is given the model's start time (muscle_node starts its model on the first
+    kinematics, so it starts from the scenario's t = 0), then runs on the ROS clock from there,
+    wrapped at the scenario's duration: the model sees the same scenario whenever it starts."""
 
     def __init__(self, scenario: str = "knee_extension", rate_hz: float = 200.0, **kwargs):
         super().__init__("vm_ros_demo_driver", **kwargs)
@@ -42,14 +42,18 @@ class DemoDriver(Node):
         self.inputs = self.scenario.inputs(bank)
         self._excitation = self.create_publisher(JointState, tm.TOPIC_EXCITATION, _QOS)
         self._kinematics = self.create_publisher(JointState, tm.TOPIC_KINEMATICS, _QOS)
-        self._start_ns: int | None = None
+        self.start_ns: int | None = None
         self.create_timer(1.0 / rate_hz, self._tick)
+
+    def start(self, start_ns: int) -> None:
+        """Scenario time 0 is ROS time ``start_ns`` (the model's first output stamp)."""
+        self.start_ns = int(start_ns)
 
     def _tick(self) -> None:
         now = self.get_clock().now()
-        if self._start_ns is None:
-            self._start_ns = now.nanoseconds
-        t = ((now.nanoseconds - self._start_ns) * 1e-9) % self.scenario.duration_s
+        t = 0.0
+        if self.start_ns is not None:
+            t = (max(now.nanoseconds - self.start_ns, 0) * 1e-9) % self.scenario.duration_s
         for publisher, position, velocity in (
                 (self._excitation, self.inputs.excitation(t), ()),
                 (self._kinematics, self.inputs.path_length(t), self.inputs.path_velocity(t))):
@@ -95,36 +99,15 @@ class LoopDriver(Node):
             self.sent_to_subscriber += 1
 
 
-@dataclass(frozen=True)
-class DemoSummary:
-    """What the monitor saw. Energies in J by integrating energy_rate over the force stamps.
-
-    | field | shape | unit |
-    | names | (n,) | muscle names |
-    | duration_s | () | s, first to last force stamp |
-    | messages | () | force messages received |
-    | peak_force, mean_force | (n,) | N |
-    | energy | (n, 3 fibre labels, 4 components) | J, telemetry layout |
-    | energy_total | () | J, change of energy_total over the run |
-    | diagnostics | dict | the node's last /diagnostics values (key -> text) |
-    """
-
-    names: tuple
-    duration_s: float
-    messages: int
-    peak_force: np.ndarray
-    mean_force: np.ndarray
-    energy: np.ndarray
-    energy_total: float
-    diagnostics: dict
-
-
 class DemoMonitor(Node):
-    """Records muscle_force stamps and efforts, energy_rate arrays and energy_total values."""
+    """Records what muscle_node publishes, in arrival order: muscle_force stamps and efforts,
+    energy_rate arrays, energy_total values and the last /diagnostics values (key -> text).
+    vm_ros.cli.demo.demo_summary turns them into the demo's table."""
 
     def __init__(self, **kwargs):
         super().__init__("vm_ros_demo_monitor", **kwargs)
-        self.forces: list[tuple[int, np.ndarray]] = []
+        self.stamps_ns: list[int] = []
+        self.efforts: list[np.ndarray] = []
         self.energy_rates: list[np.ndarray] = []
         self.energy_totals: list[float] = []
         self.names: tuple = ()
@@ -136,6 +119,12 @@ class DemoMonitor(Node):
         self.create_subscription(DiagnosticArray, tm.TOPIC_DIAGNOSTICS, self._on_diagnostics,
                                  _QOS)
 
+    def model_time_s(self) -> float:
+        """Model time covered so far (s): the stamp of the last muscle_force whose energy_rate and
+        energy_total have arrived too, minus the first."""
+        k = min(len(self.stamps_ns), len(self.energy_rates), len(self.energy_totals))
+        return (self.stamps_ns[k - 1] - self.stamps_ns[0]) * 1e-9 if k else 0.0
+
     def _on_diagnostics(self, msg: DiagnosticArray) -> None:
         for status in msg.status:
             if status.hardware_id == "vm_ros":
@@ -143,8 +132,8 @@ class DemoMonitor(Node):
 
     def _on_force(self, msg: JointState) -> None:
         self.names = tuple(msg.name)
-        stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-        self.forces.append((stamp_ns, np.array(msg.effort)))
+        self.stamps_ns.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+        self.efforts.append(np.array(msg.effort))
 
     def _on_energy(self, msg: Float64MultiArray) -> None:
         shape = tuple(d.size for d in msg.layout.dim)
@@ -153,23 +142,5 @@ class DemoMonitor(Node):
             raise ValueError(f"energy_rate layout {labels} is not (muscle, fibre, component)")
         self.energy_rates.append(np.array(msg.data[msg.layout.data_offset:]).reshape(shape))
 
-    def summary(self) -> DemoSummary:
-        """Force statistics and energies; energy_rate k is paired with force stamp k (both are
-        published together) and held over the interval ending at that stamp."""
-        k = min(len(self.forces), len(self.energy_rates))
-        if k < 2:
-            raise RuntimeError(f"too few messages from muscle_node ({k})")
-        stamps = np.array([s for s, _ in self.forces[:k]], dtype=np.int64)
-        efforts = np.array([f for _, f in self.forces[:k]])
-        rates = np.array(self.energy_rates[:k])
-        dt_s = np.diff(stamps) * 1e-9
-        totals = self.energy_totals
-        return DemoSummary(
-            names=self.names, duration_s=float((stamps[-1] - stamps[0]) * 1e-9), messages=k,
-            peak_force=efforts.max(axis=0), mean_force=efforts.mean(axis=0),
-            energy=np.tensordot(dt_s, rates[1:], axes=1),
-            energy_total=float(totals[-1] - totals[0]) if len(totals) > 1 else float("nan"),
-            diagnostics=dict(self.diagnostics))
 
-
-__all__ = ["DemoDriver", "DemoMonitor", "DemoSummary", "LoopDriver"]
+__all__ = ["DemoDriver", "DemoMonitor", "LoopDriver"]

@@ -5,7 +5,8 @@
     python -m vm_ros.bench.node_bench --geometry geometry.yaml --library muscles.yaml  # joints
 
 What runs: a library YAML in ``workdir`` with ``n_muscles`` uniquely named copies of the shipped
-muscles (every field and source kept), a params YAML, and ``python -m vm_ros.node`` as a child
+muscles (every field and source kept), a params YAML, and ``python -P -m vm_ros.node`` (this
+process's vm_ros, never a source tree in the working folder: vm_ros.child_process) as a child
 process (MCAP to ``workdir/node_bench.mcap`` when ``mcap``). A driver node in this process
 publishes ``muscle_kinematics`` (path lengths oscillating by 10 % of each muscle's anatomical
 range at 0.25 Hz, with their velocities) and ``excitation`` (JointState, every muscle the same
@@ -84,8 +85,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-import vm_ros
 from vm_ros import telemetry as tm
+from vm_ros.child_process import module_command, module_environment
 from vm_ros.model import MuscleBank
 from vm_ros.model.params import load_muscle_library
 from vm_ros.node.inputs import physical_path_length_range
@@ -172,15 +173,8 @@ def write_params(path: Path, names: list[str], library: Path, model_rate_hz: flo
 
 
 def _node_command(params_path: Path) -> list[str]:
-    return [sys.executable, "-m", "vm_ros.node", "--ros-args", "--params-file", str(params_path)]
-
-
-def _node_environment() -> dict:
-    """This environment, with the vm_ros that this process runs first on the child's path."""
-    env = dict(os.environ)
-    root = str(Path(vm_ros.__file__).resolve().parent.parent)
-    env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH")) if p)
-    return env
+    """muscle_node of the vm_ros this process runs (not a source tree in the working folder)."""
+    return module_command("vm_ros.node", "--ros-args", "--params-file", str(params_path))
 
 
 # --- /proc -------------------------------------------------------------------------------------
@@ -596,7 +590,7 @@ def _run(setup, model_rate_hz, publish_rate_hz, duration_s, mcap, workdir, progr
         executor.add_node(driver.node)
 
         with open(log_path, "wb") as log:
-            process = subprocess.Popen(_node_command(params_path), env=_node_environment(),
+            process = subprocess.Popen(_node_command(params_path), env=module_environment(),
                                        cwd=workdir, stdout=log, stderr=subprocess.STDOUT,
                                        stdin=subprocess.DEVNULL)
         try:

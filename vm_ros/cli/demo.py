@@ -1,22 +1,23 @@
 """Run muscle_node on the knee-extension scenario for a few seconds and summarise what it published;
 with --closed-loop, let it drive a MuJoCo arm over ROS 2 and plot the motion.
 
-muscle_node runs as a child process (`python -m vm_ros.node`, the same code as the muscle_node
-executable), so that it has a core and an interpreter lock of its own, as in real use, and so that
-the demo also exercises its clean shutdown: it is stopped with SIGINT, which finishes its MCAP
-file. This process runs the driver (excitation and muscle_kinematics from the scenario, in real
-time) and a monitor that subscribes to muscle_force, energy_rate and energy_total; the table is
-computed from those messages.
+muscle_node runs as a child process (``python -P -m vm_ros.node`` of the vm_ros this process runs,
+never a source tree in the working folder: vm_ros.child_process), so that it has a core and an
+interpreter lock of its own, as in real use, and so that the demo also exercises its clean
+shutdown: it is stopped with SIGINT, which finishes its MCAP file. This process runs the driver
+(excitation and muscle_kinematics from the scenario, in real time) and a monitor that subscribes
+to muscle_force, energy_rate and energy_total; the table is computed from those messages.
 
---closed-loop: the model's geometry is imported (vm-ros import-mjcf MODEL --out DIR; reused when
-DIR already holds one of the same model file and MuJoCo version); muscle_node (that geometry and
-library, joint_map identity, MCAP on) and mujoco_sim_node (`python -m vm_ros.sim.mujoco_node`,
-the model with its actuation off, stepped in real time) run as child processes, and this process
-publishes the drive: alternating pulses about the first coordinate (vm_ros.closed_loop.
-pulse_excitation: muscles with r > 0 at 0.5 for the first half of each second, those with r < 0
-at 0.2 for the second half, 0.05 otherwise). Both children are stopped with SIGINT; then
-DIR/closed_loop.png (joint angle, drive, joint torque, muscle forces, energy rate and cumulative
-energy) is drawn from muscle_node's MCAP (DIR/closed_loop.mcap) and a summary printed.
+Every run covers the same model time: the scenario starts with the model (the driver holds the
+scenario's t = 0 until the first muscle_force, whose stamp is the model's start) and the table
+covers the messages stamped within --duration of it, however late they arrive. One total: the
+energy between two messages is the change of energy_total (the model's own sum over its steps,
+exact), split over muscles, fibre types and components in the proportions of energy_rate at the
+two messages (its mean); so the table adds up to energy_total, and only the split between
+messages is interpolated. A busy machine can stop muscle_node for tens of milliseconds; it
+catches up on up to CATCH_UP_S of model time after such a stall (the default
+max_catch_up_steps, 50 ms, is for controllers that would rather skip than run late), so that no
+model time is skipped and the run does not depend on the load.
 
 rclpy runs in a loopback-only network namespace: inside scripts/netns-run (VM_ROS_NETNS=1) the
 demo runs directly, otherwise it starts one for itself (unshare -n; needs root).
@@ -29,22 +30,28 @@ import shutil
 import signal
 import subprocess
 import sys
+import textwrap
 import time
+from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
+import numpy as np
+
+from vm_ros.child_process import module_command, module_environment
 from vm_ros.errors import VmRosError
 
 HELP = ("run muscle_node with a knee-extension driver and print forces and energies; "
         "--closed-loop: muscle_node driving a MuJoCo arm over ROS 2, plotted")
 SCENARIO = "knee_extension"
+CATCH_UP_S = 1.0  # s of model time muscle_node catches up on after a stall (module docstring)
 LOOP_MCAP = "closed_loop.mcap"
 LOOP_PNG = "closed_loop.png"
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("--duration", type=float, default=10.0, metavar="S",
-                        help="seconds to run after the first force arrives (default 10)")
+                        help="seconds of model time from the model's start (default 10)")
     parser.add_argument("--mcap", metavar="FILE", default=None,
                         help="MCAP log muscle_node writes (default out/demo-<timestamp>.mcap)")
     parser.add_argument("--no-mcap", action="store_true", help="do not record")
@@ -89,8 +96,8 @@ def _in_loopback_namespace(args) -> int:
                          "inside scripts/netns-run, or install util-linux and iproute2")
     print("vm-ros demo: starting a loopback-only network namespace (unshare -n)",
           file=sys.stderr)
-    process = subprocess.Popen(_loopback_only([sys.executable, "-m", "vm_ros.cli",
-                                               *_command_line(args)]))
+    process = subprocess.Popen(_loopback_only(module_command("vm_ros.cli",
+                                                             *_command_line(args))))
     while True:
         try:
             return process.wait()
@@ -99,17 +106,20 @@ def _in_loopback_namespace(args) -> int:
 
 
 def _node_command(args, scenario, mcap_path: Path | None) -> list:
+    """muscle_node (the installed package) with the scenario's muscles, catching up on CATCH_UP_S
+    of model time after a stall."""
     params = {
         "muscles": "[" + ", ".join(scenario.muscles) + "]",
         "recovery_mode": scenario.recovery_mode,
         "recruitment": args.recruitment,
         "model_rate_hz": f"{args.model_rate_hz:g}",
+        "max_catch_up_steps": str(max(1, round(CATCH_UP_S * args.model_rate_hz))),
         "executor": args.executor,
         "mcap.enabled": "false" if mcap_path is None else "true",
     }
     if mcap_path is not None:
         params["mcap.path"] = str(mcap_path)
-    command = [sys.executable, "-m", "vm_ros.node", "--ros-args"]
+    command = module_command("vm_ros.node", "--ros-args")
     for name, value in params.items():
         command += ["-p", f"{name}:={value}"]
     return command
@@ -128,13 +138,88 @@ def _stop(process: subprocess.Popen, timeout_s: float = 15.0) -> int:
     return process.wait()
 
 
-def format_summary(summary, mcap_path: Path | None) -> str:
+@dataclass(frozen=True)
+class DemoSummary:
+    """What the monitor saw within the run's model time (messages 0..k-1, stamped within the
+    duration of the first).
+
+    | field | shape | unit |
+    | names | (n,) | muscle names |
+    | duration_s | () | s, first to last stamp |
+    | messages | () | k, force messages in the window |
+    | peak_force, mean_force | (n,) | N, over the k messages |
+    | energy | (n, 3 fibres, 4 components) | J, from message 0 to k-1 (demo_summary) |
+    | energy_total | () | J, change of energy_total from message 0 to k-1 |
+    | skipped_s | () | s, model time muscle_node skipped (its diagnostics) |
+    | diagnostics | dict | the node's last /diagnostics values (key -> text) |
+    """
+
+    names: tuple
+    duration_s: float
+    messages: int
+    peak_force: np.ndarray
+    mean_force: np.ndarray
+    energy: np.ndarray
+    energy_total: float
+    skipped_s: float
+    diagnostics: dict
+
+
+def split_energy(rates, totals) -> np.ndarray:
+    """Energy (J, n x 3 fibres x 4 components) from message 0 to the last: each interval's
+    energy is the change of ``totals`` (J, the model's energy_total), split in the proportions
+    of the mean of ``rates`` (W, n x 3 x 4, energy_rate) at its two ends over muscles, the slow
+    and fast fibres and the activation, cross-bridge and recovery components. The result adds
+    up to totals[-1] - totals[0]."""
+    rates = np.asarray(rates, dtype=float)
+    parts = rates[:, :, :2, :3]  # (k, n, slow/fast, activation/cross_bridge/recovery)
+    mean = 0.5 * (parts[1:] + parts[:-1])
+    weight = mean.sum(axis=(1, 2, 3))
+    energy_j = np.diff(np.asarray(totals, dtype=float))
+    share = np.divide(mean, weight[:, None, None, None],
+                      out=np.zeros_like(mean), where=weight[:, None, None, None] != 0)
+    cells = np.tensordot(energy_j, share, axes=1)  # (n, 2, 3)
+    cells = np.concatenate([cells, cells.sum(axis=1, keepdims=True)], axis=1)  # all fibres
+    return np.concatenate([cells, cells.sum(axis=2, keepdims=True)], axis=2)  # total
+
+
+def demo_summary(names, stamps_ns, efforts, rates, totals, duration_s: float,
+                 diagnostics: dict) -> DemoSummary:
+    """The table's numbers from muscle_node's messages in arrival order (published together, so
+    the i-th of each belong together), over the messages stamped within ``duration_s`` of the
+    first."""
+    k = min(len(stamps_ns), len(efforts), len(rates), len(totals))
+    if k < 2:
+        raise VmRosError(f"too few messages from muscle_node ({k})")
+    stamps = np.asarray(stamps_ns[:k], dtype=np.int64)
+    k = int(np.searchsorted(stamps, stamps[0] + round(duration_s * 1e9), side="right"))
+    force = np.asarray(efforts[:k], dtype=float)
+    return DemoSummary(
+        names=tuple(names), duration_s=float((stamps[k - 1] - stamps[0]) * 1e-9), messages=k,
+        peak_force=force.max(axis=0), mean_force=force.mean(axis=0),
+        energy=split_energy(rates[:k], totals[:k]),
+        energy_total=float(totals[k - 1] - totals[0]),
+        skipped_s=_number(diagnostics, "skipped model time (s)"),
+        diagnostics=dict(diagnostics))
+
+
+def _number(diagnostics: dict, key: str) -> float:
+    """A /diagnostics value as a number (NaN when missing or not a number)."""
+    try:
+        return float(diagnostics.get(key, "nan"))
+    except ValueError:
+        return float("nan")
+
+
+def format_summary(summary: DemoSummary, mcap_path: Path | None, description: str = "") -> str:
+    """The demo's report: forces, energies by muscle, fibre type and component, one total."""
     from vm_ros.telemetry import COMPONENT_LABELS, FIBRE_LABELS
 
     width = max(len(n) for n in (*summary.names, "muscle", "all muscles"))
-    lines = [f"{SCENARIO}: {summary.duration_s:.2f} s of model time, {summary.messages} "
-             "force messages", "",
-             f"{'muscle':<{width}}  {'peak force (N)':>14}  {'mean force (N)':>14}"]
+    lines = textwrap.wrap(f"{SCENARIO}: {description}", 100) if description else [SCENARIO]
+    lines += [f"{summary.duration_s:.2f} s of model time, {summary.messages} messages from "
+              "muscle_node", "",
+              f"{'muscle':<{width}}  {'peak force (N)':>14}  {'mean force (N)':>14}"]
     for i, name in enumerate(summary.names):
         lines.append(f"{name:<{width}}  {summary.peak_force[i]:14.1f}  "
                      f"{summary.mean_force[i]:14.1f}")
@@ -146,19 +231,18 @@ def format_summary(summary, mcap_path: Path | None) -> str:
             lines.append(f"{name if j == 0 else '':<{width}}  {fibre:<5}  {cells}")
     cells = "  ".join(f"{e:12.3f}" for e in summary.energy[:, -1].sum(axis=0))
     lines.append(f"{'all muscles':<{width}}  {'all':<5}  {cells}")
-    lines += ["", "energies: energy_rate messages integrated over the force stamps (rectangle "
-                  "rule at the publish rate, so approximate)",
-              f"energy_total over the run: {summary.energy_total:.3f} J (the model's own "
-              f"cumulative total; integrated: {summary.energy[:, -1, -1].sum():.3f} J)"]
+    lines.append("")
+    lines.append(f"total energy: {summary.energy_total:.3f} J (muscle_node's energy_total; the "
+                 "table splits it by energy_rate)")
+    if summary.skipped_s > 0:
+        lines.append(f"muscle_node fell behind real time and skipped {summary.skipped_s:.3g} s of "
+                     "model time (CPU starved; see its /diagnostics and max_catch_up_steps)")
     diag = summary.diagnostics
-    skipped = float(diag.get("skipped model time (s)", "0") or 0)
-    if skipped > 0:
-        lines.append(f"muscle_node fell behind real time and skipped {skipped:.3g} s of model "
-                     "time (CPU starved; see its /diagnostics and max_catch_up_steps)")
     if diag:
-        lines.append(f"muscle_node step time p50/p99: {diag.get('step time p50 (ms)')}/"
-                     f"{diag.get('step time p99 (ms)')} ms, overruns: "
-                     f"{diag.get('overruns (ticks longer than a step)')}")
+        p50, p99 = _number(diag, "step time p50 (ms)"), _number(diag, "step time p99 (ms)")
+        budget = 1e6 / _number(diag, "model rate (Hz)")
+        lines.append(f"model step time: {1e3 * p50:.0f} us median, {1e3 * p99:.0f} us at the "
+                     f"99th percentile (real time allows {budget:.0f} us per step)")
     if mcap_path is not None:
         lines.append(f"MCAP log: {mcap_path}")
     return "\n".join(lines)
@@ -173,7 +257,7 @@ def run(args) -> int:
         return run_closed_loop(args)
     try:
         import rclpy
-        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.experimental import EventsExecutor
         from rclpy.signals import SignalHandlerOptions
 
         from vm_ros.demo_driver import DemoDriver, DemoMonitor
@@ -189,37 +273,43 @@ def run(args) -> int:
         mcap_path = Path(args.mcap or datetime.now().strftime("out/demo-%Y%m%d-%H%M%S.mcap"))
         mcap_path = mcap_path.resolve()
 
-    process = subprocess.Popen(_node_command(args, scenario, mcap_path))
+    process = subprocess.Popen(_node_command(args, scenario, mcap_path), env=module_environment())
     context = rclpy.Context()
     # no rclpy signal handlers here: Ctrl-C raises KeyboardInterrupt, and `finally` stops the node
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
-    executor = SingleThreadedExecutor(context=context)
-    nodes = [DemoDriver(SCENARIO, context=context), DemoMonitor(context=context)]
-    monitor = nodes[1]
-    for node in nodes:
+    # the events executor: half the single-threaded one's CPU, so that the driver's ticks stay
+    # on time on a busy machine
+    executor = EventsExecutor(context=context)
+    driver, monitor = DemoDriver(SCENARIO, context=context), DemoMonitor(context=context)
+    for node in (driver, monitor):
         executor.add_node(node)
     try:
         deadline = time.monotonic() + args.startup_timeout
-        while not monitor.forces:
+        while not monitor.stamps_ns:
             if process.poll() is not None:
                 raise VmRosError(f"muscle_node exited with status {process.returncode}")
             if time.monotonic() > deadline:
                 raise VmRosError(f"no muscle_force within {args.startup_timeout:g} s")
             executor.spin_once(timeout_sec=0.05)
+        driver.start(monitor.stamps_ns[0])
         print(f"vm-ros demo: muscle_node is running; {args.duration:g} s of {SCENARIO}...",
               file=sys.stderr)
-        end = time.monotonic() + args.duration
-        while time.monotonic() < end and process.poll() is None:
+        deadline = time.monotonic() + args.duration + args.startup_timeout
+        while (monitor.model_time_s() < args.duration and process.poll() is None
+               and time.monotonic() < deadline):
             executor.spin_once(timeout_sec=0.05)
     finally:
         status = _stop(process)
         executor.shutdown(timeout_sec=1.0)
-        for node in nodes:
+        for node in (driver, monitor):
             node.destroy_node()
         rclpy.try_shutdown(context=context)
     if status != 0:
         raise VmRosError(f"muscle_node ended with status {status}")
-    print(format_summary(monitor.summary(), mcap_path))
+    summary = demo_summary(monitor.names, monitor.stamps_ns, monitor.efforts,
+                           monitor.energy_rates, monitor.energy_totals, args.duration,
+                           monitor.diagnostics)
+    print(format_summary(summary, mcap_path, scenario.description))
     return 0
 
 
@@ -246,8 +336,8 @@ def prepare_geometry(model: str, out: Path) -> tuple[Path, Path]:
             print(f"vm-ros demo: reusing {geometry} and {library}", file=sys.stderr)
             return geometry, library
     print(f"vm-ros demo: vm-ros import-mjcf {model} --out {out}", file=sys.stderr)
-    status = subprocess.run([sys.executable, "-m", "vm_ros.cli", "import-mjcf", model,
-                             "--out", str(out)]).returncode
+    status = subprocess.run(module_command("vm_ros.cli", "import-mjcf", model,
+                                           "--out", str(out))).returncode
     if status != 0:
         raise VmRosError(f"vm-ros import-mjcf {model} ended with status {status}")
     return geometry, library
@@ -332,14 +422,16 @@ def run_closed_loop(args) -> int:
     muscle_params, sim_params, drive, muscles = loop_parameters(
         args, geometry_path, library_path, mcap_path)
     commands = {
-        "muscle_node": [sys.executable, "-m", "vm_ros.node", "--ros-args", "--params-file",
-                        str(_params_file(out / "muscle_node.yaml", muscle_params))],
-        "mujoco_sim_node": [sys.executable, "-m", "vm_ros.sim.mujoco_node", "--ros-args",
-                            "--params-file",
-                            str(_params_file(out / "mujoco_sim_node.yaml", sim_params))]}
+        "muscle_node": module_command(
+            "vm_ros.node", "--ros-args", "--params-file",
+            str(_params_file(out / "muscle_node.yaml", muscle_params))),
+        "mujoco_sim_node": module_command(
+            "vm_ros.sim.mujoco_node", "--ros-args", "--params-file",
+            str(_params_file(out / "mujoco_sim_node.yaml", sim_params)))}
     print(f"vm-ros demo: {drive.description}", file=sys.stderr)
     wall_start = time.monotonic()
-    processes = {"muscle_node": subprocess.Popen(commands["muscle_node"])}
+    processes = {"muscle_node": subprocess.Popen(commands["muscle_node"],
+                                                 env=module_environment())}
     context = rclpy.Context()
     # no rclpy signal handlers here: Ctrl-C raises KeyboardInterrupt, and `finally` stops both
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
@@ -352,7 +444,8 @@ def run_closed_loop(args) -> int:
         # simulator starts only once muscle_node has received some (else the arm would fall)
         _wait(executor, lambda: driver.sent_to_subscriber >= 2, args.startup_timeout,
               processes, "waiting for muscle_node to subscribe to excitation")
-        processes["mujoco_sim_node"] = subprocess.Popen(commands["mujoco_sim_node"])
+        processes["mujoco_sim_node"] = subprocess.Popen(commands["mujoco_sim_node"],
+                                                         env=module_environment())
         _wait(executor, lambda: driver.efforts > 0, args.startup_timeout, processes,
               "waiting for muscle_node's first joint_efforts")
         loop_start = time.monotonic()

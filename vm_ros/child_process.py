@@ -1,0 +1,43 @@
+"""Command lines that run one of vm_ros's modules in a child Python process, with the vm_ros that
+this process imported (the installed package), never a ``vm_ros/`` folder in the working
+directory.
+
+``python -m vm_ros.node`` puts the working directory first on ``sys.path``: started from a source
+checkout, the child would run the source tree while this process runs the installed package.
+``-P`` (Python 3.11+) leaves the working directory out; on 3.10 the same is done by dropping
+``sys.path[0]`` before running the module. The environment puts this process's vm_ros first, so
+that a vm_ros reached through PYTHONPATH (a colcon prefix) is the child's too.
+
+    subprocess.Popen(module_command("vm_ros.node", "--ros-args", ...), env=module_environment())
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import vm_ros
+
+SAFE_PATH_FLAG = sys.version_info >= (3, 11)  # python -P
+
+
+def module_command(module: str, *args: str, safe_path: bool = SAFE_PATH_FLAG) -> list[str]:
+    """``python -P -m MODULE ARGS`` (or its Python 3.10 equivalent when ``safe_path`` is
+    False)."""
+    if safe_path:
+        return [sys.executable, "-P", "-m", module, *args]
+    code = ("import runpy, sys; del sys.path[0]; "
+            f"runpy.run_module({module!r}, run_name='__main__', alter_sys=True)")
+    return [sys.executable, "-c", code, *args]
+
+
+def module_environment() -> dict:
+    """This environment with the folder holding this process's vm_ros first on PYTHONPATH."""
+    env = dict(os.environ)
+    root = str(Path(vm_ros.__file__).resolve().parent.parent)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH")) if p)
+    return env
+
+
+__all__ = ["module_command", "module_environment"]
