@@ -112,3 +112,16 @@ def test_runs_and_logs_without_any_ros_package(tmp_path):
     assert proc.returncode == 0, proc.stderr
     run = read_run(out)
     assert run.complete and len(run.get("muscle_force")) == 5
+
+
+def test_no_source_runs_the_default_scenario_and_says_which(tmp_path, capsys):
+    from vm_ros.cli.simulate import DEFAULT_SCENARIO
+    from vm_ros.scenarios import load_scenario
+
+    out = tmp_path / "default.mcap"
+    assert main(["simulate", "--duration", "0.05", "--out", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert f"running the default scenario, {DEFAULT_SCENARIO}" in captured.err
+    run = read_run(out)
+    assert run.info.extra["scenario"] == DEFAULT_SCENARIO
+    assert run.info.config.muscles == load_scenario(DEFAULT_SCENARIO).muscles

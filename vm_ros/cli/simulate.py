@@ -1,6 +1,8 @@
 """Run the model offline (no ROS needed) on a built-in scenario, on input time series or on an
 OpenSim motion through a joint-space geometry, write an MCAP log with the channels muscle_node
-writes, and print a per-muscle (and per-joint) summary.
+writes, and print a per-muscle (and per-joint) summary. Without --scenario, --inputs or --motion
+it runs the DEFAULT_SCENARIO (knee_extension, Tsianos 2012 Fig. 7, 180 s of model time), and
+says so.
 
 The log holds the inputs (excitation, muscle_kinematics or joint_states, sampled every
 --input-rate), the outputs (muscle_force, energy_rate, energy_rate_total, energy_total, and
@@ -86,11 +88,14 @@ from vm_ros.telemetry import energy_partition
 HELP = ("run the model offline on a scenario, CSV inputs or an OpenSim motion (joint space); "
         "write MCAP and print a summary")
 JOINT_OPTIONS = ("geometry", "excitations", "excitation", "joint_map", "hold")
+DEFAULT_SCENARIO = "knee_extension"  # the paper's headline run (Fig. 7), also the demo's
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    source = parser.add_mutually_exclusive_group(required=True)
-    source.add_argument("--scenario", choices=scenario_names(), help="built-in scenario")
+    source = parser.add_mutually_exclusive_group()
+    source.add_argument("--scenario", choices=scenario_names(),
+                        help=f"built-in scenario (default {DEFAULT_SCENARIO} when neither "
+                             "--inputs nor --motion is given)")
     source.add_argument("--inputs", metavar="FILE.csv", help="input time series (see above)")
     source.add_argument("--motion", type=Path, metavar="FILE.mot|.sto",
                         help="OpenSim motion or states file, with --geometry (see above)")
@@ -153,6 +158,10 @@ def _sampled(functions):
 
 def _source(args) -> _Source:
     muscles = _muscle_list(args)
+    if not args.scenario and not args.inputs:
+        args.scenario = DEFAULT_SCENARIO
+        print(f"vm-ros simulate: no --scenario, --inputs or --motion: running the default "
+              f"scenario, {DEFAULT_SCENARIO}", file=sys.stderr)
     if args.scenario:
         scenario = load_scenario(args.scenario)
         config = RunConfig(muscles or scenario.muscles, recovery_mode=scenario.recovery_mode)
