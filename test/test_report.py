@@ -76,3 +76,28 @@ def test_missing_matplotlib_is_a_clear_error(logs, tmp_path, monkeypatch):
     report_verb.add_arguments(parser)
     with pytest.raises(VmRosError, match="needs matplotlib.*--no-plots"):
         report_verb.run(parser.parse_args([str(logs[0]), "--out", str(tmp_path / "r")]))
+
+
+def test_efficiency_is_na_when_net_work_is_not_positive():
+    from vm_ros.recording.summary import summarize, summary_records, summary_table
+
+    energy = np.zeros((3, 3, 4))
+    energy[:, -1, -1] = [10.0, 20.0, 40.0]
+    rows = summarize(("shortening", "lengthening", "isometric"), np.ones((4, 3)), energy,
+                     [2.5, -5.0, 0.0])
+    assert rows[0].efficiency == pytest.approx(0.25)
+    assert np.isnan(rows[1].efficiency) and np.isnan(rows[2].efficiency)
+    table = summary_table(rows)
+    lines = table.splitlines()
+    first = {line.split()[0]: i for i, line in enumerate(lines) if line.split()}
+
+    def efficiency_cell(name):  # the muscle's "all" row: two lines below its name
+        return lines[first[name] + 2].split()[-1]
+
+    assert efficiency_cell("shortening") == "25.0"
+    assert efficiency_cell("lengthening") == "n/a" and efficiency_cell("isometric") == "n/a"
+    all_muscles = next(line for line in lines if line.startswith("all muscles"))
+    assert all_muscles.split()[-1] == "n/a"  # net work 2.5 - 5.0 < 0
+    assert "-" + "50.0" not in table and "eff n/a: net mechanical work not positive" in table
+    records = [r for r in summary_records(rows) if r["fibre"] == "all"]
+    assert [r["efficiency"] for r in records] == [pytest.approx(0.25), "", ""]

@@ -6,7 +6,11 @@ joint (joint-space runs): peak and mean generalized force, joint work and clampi
 
 energy: (n, 3, 4) J, fibre (slow, fast, all) x component (activation, cross_bridge, recovery,
 total), the layout of the energy_rate topic. Efficiency is the net mechanical efficiency,
-mechanical work over total energy (work done on the load while shortening counts positive).
+mechanical work over total energy (work done on the load while shortening counts positive). It
+is defined only when the net work is positive (and the energy too): when the muscle did no net
+work (isometric) or the load did more work on it while it lengthened than it did on the load, the
+ratio would mean nothing, so the efficiency is NaN, printed "n/a" with the reason below the
+table, and left empty in CSV records.
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ class MuscleSummary:
     | peak_force, mean_force | N (over the published samples) |
     | energy | J, (3 fibre labels, 4 components) |
     | mechanical_work | J (NaN when the log has no telemetry) |
-    | efficiency | 1, mechanical work / total energy (NaN when undefined) |
+    | efficiency | 1, mechanical work / total energy (NaN unless both are positive) |
     """
 
     name: str
@@ -36,8 +40,17 @@ class MuscleSummary:
 
     @property
     def efficiency(self) -> float:
-        total = float(self.energy[-1, -1])
-        return self.mechanical_work / total if total > 0 else float("nan")
+        return net_efficiency(self.mechanical_work, float(self.energy[-1, -1]))
+
+
+def net_efficiency(work_j: float, energy_j: float) -> float:
+    """Mechanical work over total energy (1); NaN unless both are positive (module docstring)."""
+    return work_j / energy_j if work_j > 0 and energy_j > 0 else float("nan")
+
+
+def _efficiency_cell(efficiency: float, width: int) -> str:
+    """Percent, or "n/a" when undefined."""
+    return f"{100 * efficiency:>{width}.1f}" if np.isfinite(efficiency) else f"{'n/a':>{width}}"
 
 
 def summarize(names, force_samples, energy, mechanical_work) -> list[MuscleSummary]:
@@ -67,7 +80,8 @@ def summary_records(rows: list[MuscleSummary]) -> list[dict]:
             for k, component in enumerate(COMPONENT_LABELS):
                 record[f"{component}_energy_J"] = float(row.energy[j, k])
             record["mechanical_work_J"] = row.mechanical_work if whole else ""
-            record["efficiency"] = row.efficiency if whole else ""
+            efficiency = row.efficiency
+            record["efficiency"] = efficiency if whole and np.isfinite(efficiency) else ""
             records.append(record)
     return records
 
@@ -85,16 +99,21 @@ def summary_table(rows: list[MuscleSummary]) -> str:
             name = row.name if j == 0 else ""
             force = f"{row.peak_force:>10.1f}{row.mean_force:>10.1f}" if whole else " " * 20
             energies = "".join(f"{row.energy[j, k]:>11.2f}" for k in range(4))
-            tail = f"{row.mechanical_work:>10.2f}{100 * row.efficiency:>7.1f}" if whole else ""
+            tail = (f"{row.mechanical_work:>10.2f}{_efficiency_cell(row.efficiency, 7)}"
+                    if whole else "")
             lines.append(f"{name:<22}{fibre:<6}{force}{energies}{tail}")
     total = sum(row.energy for row in rows)
     work = sum(row.mechanical_work for row in rows)
     if len(rows) > 1:
         lines.append("-" * len(header))
         energies = "".join(f"{total[-1, k]:>11.2f}" for k in range(4))
-        efficiency = 100 * work / total[-1, -1] if total[-1, -1] > 0 else float("nan")
+        efficiency = net_efficiency(work, float(total[-1, -1]))
         lines.append(f"{'all muscles':<22}{'all':<6}{'':>20}{energies}{work:>10.2f}"
-                     f"{efficiency:>7.1f}")
+                     f"{_efficiency_cell(efficiency, 7)}")
+    if any(row.mechanical_work <= 0 for row in rows) or (len(rows) > 1 and work <= 0):
+        lines.append("eff n/a: net mechanical work not positive (isometric, or the muscle was "
+                     "stretched by the load more than it shortened), so work / energy is no "
+                     "efficiency")
     return "\n".join(lines)
 
 
