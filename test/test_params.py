@@ -196,3 +196,18 @@ def test_repeated_muscle_is_named_once_in_a_short_message():
         MuscleBank.from_config(["soleus"] * 10_000)
     assert info.value.value == "soleus"
     assert "10000 times" in str(info.value) and len(str(info.value)) < 300
+
+
+def test_muscle_rows_give_units_and_sources(tmp_path):
+    from vm_ros.model.params import muscle_rows, resolve_muscles
+
+    path = _write_library(tmp_path, {**GOOD, "source": {"mass_kg": "weighed"}})
+    (spec,) = resolve_muscles(["m"], path, None, ur_default=0.8)
+    rows = {info.name: (info, value) for info, value in muscle_rows(spec)}
+    assert set(rows) == {f"muscles.m.{f}" for f in ("mass_kg", "l0_m", "l0t_m", "fpcsa_slow",
+                                                     "ur", "lmax")}
+    info, value = rows["muscles.m.mass_kg"]
+    assert (info.unit, info.source, value) == ("kg", "weighed", 0.1)
+    assert rows["muscles.m.lmax"][0].unit == "L0"
+    info, value = rows["muscles.m.ur"]
+    assert value == 0.8 and "ur_default" in info.source

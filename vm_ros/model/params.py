@@ -1,9 +1,11 @@
 """Model parameters: loading, unit conversion to SI, validation; frozen containers.
 
 Every constant comes from ``config/model.yaml`` (or a user file of the same form), where each entry
-carries its unit, confidence tag (C certain, L likely, R reconstructed) and source. Milliseconds,
-N/cm^2, g/cm^3 and kJ are converted here, once; everything downstream is SI or VM's normalised
-units (L0, L0/s, F0, f0.5).
+carries its unit, confidence tag (C certain, L likely, R reconstructed) and source. Each field
+declares the unit its value is held in (``_holds``); the unit written in the file must be one of
+vm_ros.model.units.UNITS for the same quantity, and is converted here, once (ms, N/cm^2, g/cm^3,
+kJ); everything downstream is SI or VM's normalised units (L0, L0/s, F0, f0.5). The unit, tag and
+source of each constant stay on the loaded parameters (``ModelParams.info``; ``vm-ros params``).
 
 Muscle libraries are YAML files with a top-level ``muscles:`` mapping of name to fields (SI, unit in
 the field name): ``mass_kg``, ``l0_m``, ``l0t_m``, ``path_length_max_m`` (or ``lmax``),
@@ -516,6 +518,8 @@ def muscle_rows(spec: MuscleSpec) -> list[tuple[ParamInfo, object]]:
         if "unit" not in f.metadata or value is None:
             continue
         source = spec.source.get(f.name) or spec.source.get("all", "")
+        if not source and f.name == "ur":
+            source = "not given for this muscle: the model's generic.ur_default"
         unit = f.metadata["unit"]
         rows.append((ParamInfo(f"muscles.{spec.name}.{f.name}", unit, unit, "", str(source)),
                      value))
