@@ -111,3 +111,20 @@ def test_validate_cli_reports_a_skipped_check(monkeypatch, tmp_path, capsys):
     assert "joint_torque skipped: mujoco" in out and "not installed" in out
     assert "pip install 'vm_ros[mujoco]'" in out
     assert "skipped" in (tmp_path / "validation.csv").read_text(encoding="utf-8")
+
+
+def test_short_fig7_run_says_its_duration_and_is_not_compared_with_the_180s_total(tmp_path):
+    from vm_ros.validation.paper import FIG7_PAPER_TOTAL_J
+    from vm_ros.validation.plots import fig7_paper_comparison, plot_fig7
+
+    result = CHECKS["fig7"](duration_s=3.0)
+    assert result.title.startswith("Fig. 7: 3 s ") and "180" not in result.title
+    d = result.data
+    assert d["duration_s"] == 3.0 and d["paper_duration_s"] == 180.0
+    text = fig7_paper_comparison(d["total_energy_j"], 3.0, FIG7_PAPER_TOTAL_J, 180.0)
+    assert "not comparable" in text and " x " not in text
+    same = fig7_paper_comparison(11_600.0, 180.0, FIG7_PAPER_TOTAL_J, 180.0)
+    assert same.startswith(f"{11_600.0 / FIG7_PAPER_TOTAL_J:.2f} x the paper's 35 kJ")
+    pytest.importorskip("matplotlib")
+    plot_fig7(result, tmp_path / "fig7.png")
+    assert (tmp_path / "fig7.png").stat().st_size > 0
