@@ -335,14 +335,14 @@ def test_pause_policy_stops_model_time_while_inputs_are_stale(ros, lengths):
 @pytest.mark.parametrize(
     ("params", "field"),
     [
-        ({"muscles": ["vasti", "no_such_muscle"]}, "muscles.no_such_muscle"),
+        ({"muscles": ["vasti", "no_such_muscle"]}, "muscles"),
         ({"model_rate_hz": -5.0}, "model_rate_hz"),
         ({"model_rate_hz": "fast"}, "model_rate_hz"),
         ({"publish_rate_hz": 5000.0}, "publish_rate_hz"),
         ({"stale_input_policy": "whatever"}, "stale_input_policy"),
         ({"recruitment": 3}, "recruitment"),
         ({"qos_depth": 0}, "qos_depth"),
-        ({"overrides": "{vasti: {no_field: 1}}"}, "muscles.vasti.no_field"),
+        ({"overrides": "{vasti: {no_field: 1}}"}, "overrides"),
         ({"initial_path_length_m": [0.3]}, "initial_path_length_m"),
         ({"initial_path_length_m": [5.0, 5.0]}, "initial_path_length_m"),
         ({"model_rate": 500.0}, "model_rate"),

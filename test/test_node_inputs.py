@@ -227,3 +227,34 @@ def test_hostile_inputs_keep_the_model_finite(bank):
         inputs.on_excitation_array([u, u], k * MS)
         out = bank.step(1e-3, *inputs.sample(k * MS))
         assert np.all(np.isfinite(out.force)) and np.isfinite(out.total_energy_rate)
+
+
+def test_initial_length_holds_without_kinematics(bank):
+    """initial_path_length_m and no kinematics topic: not stale (it was WARN 'stale inputs'
+    forever); once kinematics arrived, their age counts as before."""
+    config = NodeConfig.from_values({"muscles": list(MUSCLES), "input_timeout_s": 0.1})
+    inputs = NodeInputs(bank.names, InputLimits.for_bank(bank, config), mid_lengths(bank))
+    inputs.on_excitation_array([0.2, 0.2], 0)
+    assert inputs.update_staleness(50 * MS) == [] and not inputs.any_stale
+    assert not inputs.length_stale.any()
+    inputs.on_excitation_array([0.2, 0.2], 1000 * MS)
+    assert not inputs.update_staleness(1000 * MS) and not inputs.any_stale  # still holding
+    inputs.on_kinematics(list(MUSCLES), mid_lengths(bank), [], 1000 * MS)
+    issues = inputs.update_staleness(1200 * MS)
+    assert kinds(issues) == ["stale_excitation", "stale_kinematics"]
+    assert inputs.length_stale.all()
+
+
+@pytest.mark.parametrize(("policy", "excitation", "kinematics"), [
+    ("hold", "last drive held", "length held, velocity 0"),
+    ("zero_drive", "drive 0", "length held, velocity 0"),
+    ("pause", "model paused", "model paused")])
+def test_stale_reports_say_what_the_policy_does(bank, policy, excitation, kinematics):
+    inputs = make_inputs(bank, stale_input_policy=policy, input_timeout_s=0.1)
+    inputs.on_excitation_array([0.2, 0.2], 0)
+    inputs.on_kinematics(list(MUSCLES), mid_lengths(bank), [], 0)
+    assert inputs.update_staleness(10 * MS) == []
+    issues = {i.kind: i for i in inputs.update_staleness(500 * MS)}
+    assert excitation in issues["stale_excitation"].behaviour
+    assert kinematics in issues["stale_kinematics"].behaviour
+    assert f"stale_input_policy {policy}" in issues["stale_kinematics"].behaviour

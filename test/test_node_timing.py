@@ -7,7 +7,15 @@ import math
 
 import pytest
 
-from vm_ros.node.health import ISSUE_KINDS, DurationWindow, Issue, IssueLog, format_value
+from vm_ros.node.health import (
+    ISSUE_KINDS,
+    DurationWindow,
+    Issue,
+    IssueLog,
+    SequenceGaps,
+    format_seconds,
+    format_value,
+)
 from vm_ros.node.timing import StepScheduler
 
 MS = 1_000_000
@@ -101,7 +109,34 @@ def test_duration_window_percentiles():
 
 def test_format_value():
     assert format_value(None) == "never"
-    assert format_value(0.123456) == "0.1235"
+    assert format_value(0.123456) == "0.123456"
+    # 4 digits showed 1000000.05 s as 1e+06, and a later skip of 0.05 s changed nothing
+    assert format_value(1e6 + 0.05) == "1000000.05" != format_value(1e6)
+    assert format_seconds(1_000_000_050_000_000) == "1000000.05"
+    assert format_seconds(9_900_000_000) == "9.9" and format_seconds(0) == "0"
+    assert format_seconds(1) == "0.000000001"
     assert format_value(float("nan")) == "nan"
     assert format_value(True) == "true"
     assert format_value(12) == "12"
+
+
+def test_sequence_gaps_count_lost_messages_per_publisher():
+    gaps = SequenceGaps()
+    assert gaps.supported is None
+    assert [gaps.add(s) for s in (5, 6, 7, 10, 11)] == [0, 0, 0, 2, 0]  # 8, 9 lost
+    assert [gaps.add(s) for s in (1, 2, 12, 4, 15)] == [0, 0, 0, 1, 2]  # a second publisher
+    assert gaps.lost == 5 and gaps.supported
+
+
+def test_sequence_gaps_without_numbers_count_nothing_and_say_so():
+    gaps = SequenceGaps()
+    assert gaps.add(None) == 0 and gaps.add(0) == 0
+    assert gaps.supported is False and gaps.lost == 0
+
+
+def test_stale_lines_name_the_policy_in_force():
+    for policy in ("hold", "zero_drive", "pause"):
+        log = IssueLog()
+        line = log.record(Issue("stale_kinematics", "kinematics stale",
+                                behaviour=f"x (stale_input_policy {policy})"), 0.0)
+        assert line.endswith(f"(stale_input_policy {policy})")

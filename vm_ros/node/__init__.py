@@ -1,15 +1,26 @@
 """muscle_node: the ROS 2 program around MuscleBank, and its conditioning without ROS.
 
-shell (the rclpy node and the program's main), params (the parameter table), inputs (messages to
-step arrays, every bad input counted), health (issue kinds, diagnostics values), timing (fixed
-steps by elapsed ROS time), recording (the node's run log), replay (the node's conditioning
-replayed from a log without rclpy) and motion_inputs (an OpenSim motion conditioned as the node
-would). Only shell imports rclpy; ``main`` imports it when called.
+shell (the rclpy node and the program's main), params (the parameter table), startup (parameters
+to the model and the start-up error line, without ROS), inputs (messages to step arrays, every
+bad input counted), health (issue kinds, diagnostics values), timing (fixed steps by elapsed ROS
+time), signals (SIGINT/SIGTERM as a flag), recording (the node's run log), replay (the node's
+conditioning replayed from a log without rclpy) and motion_inputs (an OpenSim motion conditioned
+as the node would). Only shell imports rclpy; ``main`` imports it when called.
 """
 
 
 def main(args=None) -> int:
-    """The muscle_node entry point (console script ``muscle_node``, ``python -m vm_ros.node``)."""
-    from vm_ros.node.shell import main as shell_main
+    """The muscle_node entry point (console script ``muscle_node``, ``python -m vm_ros.node``).
 
+    SIGINT/SIGTERM handlers go in before rclpy is imported (about 0.5 s), so that a signal at
+    any time after this point is a clean stop."""
+    from vm_ros.node.signals import ShutdownRequest
+
+    stop = ShutdownRequest.install()
+    try:
+        from vm_ros.node.shell import main as shell_main
+    except KeyboardInterrupt:  # a second signal during the import
+        return 0
+    if stop.requested:  # stopped while rclpy was imported: nothing was started
+        return 0
     return shell_main(args)

@@ -64,6 +64,17 @@ def physical_path_length_range(bank, margin_l0: float) -> tuple[np.ndarray, np.n
     return lo, hi + margin_l0 * l0
 
 
+def stale_behaviour(stream: str, policy: str) -> str:
+    """What a stale ``stream`` ('excitation' or 'kinematics') does under ``policy``."""
+    if policy == "pause":
+        return "model paused until it is fresh (stale_input_policy pause)"
+    if stream == "kinematics":
+        return f"length held, velocity 0 (stale_input_policy {policy})"
+    if policy == "zero_drive":
+        return "drive 0 while stale (stale_input_policy zero_drive)"
+    return "last drive held (stale_input_policy hold)"
+
+
 class NodeInputs:
     """Latest valid drive and kinematics per muscle, and what a model step at time t uses.
 
@@ -91,6 +102,9 @@ class NodeInputs:
         self.length_m = np.full(self.n, np.nan)
         if initial_path_length is not None and len(initial_path_length):
             self.length_m[:] = np.where(self.joint_driven, np.nan, initial_path_length)
+        # a muscle given an initial length is not stale before its first kinematics: the
+        # initial length holds (documented behaviour of initial_path_length_m)
+        self.length_initial = np.isfinite(self.length_m)
         self.velocity_m_per_s = np.zeros(self.n)
         self.length_seen = np.zeros(self.n, dtype=bool)
         self.length_time_ns = np.zeros(self.n, dtype=np.int64)
@@ -245,14 +259,17 @@ class NodeInputs:
         the fresh -> stale reports; sample() judges staleness at its own time)."""
         timeout = self.limits.timeout_ns
         self.drive_stale = ~self.drive_seen | (now_ns - self.drive_time_ns > timeout)
-        self.length_stale = ~self.length_seen | (now_ns - self.length_time_ns > timeout)
+        self.length_stale = np.where(self.length_seen, now_ns - self.length_time_ns > timeout,
+                                     ~self.length_initial)
         issues = []
         for name, stale in (("excitation", self.drive_stale), ("kinematics", self.length_stale)):
             now_stale = bool(np.any(stale))
             if now_stale and not self._was_stale[name]:
                 muscles = ", ".join(n for n, s in zip(self.names, stale, strict=True) if s)
+                policy = self.limits.stale_policy
                 issues.append(Issue(f"stale_{name}", f"{name} stale for {muscles} (older than "
-                                    f"{timeout * 1e-9:g} s)"))
+                                    f"{timeout * 1e-9:g} s)",
+                                    behaviour=stale_behaviour(name, policy)))
             self._was_stale[name] = now_stale
         return issues
 

@@ -13,6 +13,7 @@ model while the model runs would need a new model.
 from __future__ import annotations
 
 import math
+from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -206,8 +207,12 @@ class NodeConfig:
     def _check_cross_fields(self) -> None:
         if not self.muscles:
             raise ConfigError(PARAMS_SOURCE, "muscles", [], "need at least one muscle")
-        if len(set(self.muscles)) != len(self.muscles):
-            raise ConfigError(PARAMS_SOURCE, "muscles", list(self.muscles), "names must be unique")
+        repeated = [name for name, k in Counter(self.muscles).items() if k > 1]
+        if repeated:
+            shown = ", ".join(repeated[:3]) + (f" and {len(repeated) - 3} more"
+                                                if len(repeated) > 3 else "")
+            raise ConfigError(PARAMS_SOURCE, "muscles", list(self.muscles),
+                              f"names must be unique: {shown} named more than once")
         if self.publish_rate_hz > self.model_rate_hz:
             raise ConfigError(PARAMS_SOURCE, "publish_rate_hz", self.publish_rate_hz,
                               f"must not exceed model_rate_hz ({self.model_rate_hz:g} Hz)")

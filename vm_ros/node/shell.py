@@ -32,11 +32,10 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
-import signal
+import re
 import sys
 import time
 from datetime import datetime
-from pathlib import Path
 
 import numpy as np
 import rclpy
@@ -68,13 +67,15 @@ from std_msgs.msg import Float64, Float64MultiArray
 
 from vm_ros import telemetry as tm
 from vm_ros.errors import ConfigError, VmRosError
-from vm_ros.joint_space import JointSpace
+from vm_ros.node.cdr import payload_problem
 from vm_ros.node.health import (
     ISSUE_KINDS,
     QUIET_KINDS,
     DurationWindow,
     Issue,
     IssueLog,
+    SequenceGaps,
+    format_seconds,
     format_value,
 )
 from vm_ros.node.inputs import InputLimits, NodeInputs
@@ -82,14 +83,40 @@ from vm_ros.node.joint_inputs import JointInputs
 from vm_ros.node.params import PARAMS, PARAMS_SOURCE, NodeConfig, ParamSpec
 from vm_ros.node.params import runtime_parameter_names as _runtime_names
 from vm_ros.node.recording import NodeRunLog, node_run_extra
+from vm_ros.node.signals import ShutdownRequest
+from vm_ros.node.startup import EXIT_BAD_PARAMETER, build_model, error_line
 from vm_ros.node.timing import StepScheduler
 from vm_ros.recording.qos import offered_qos_profiles_yaml
-from vm_ros.recording.run_config import RunConfig
 from vm_ros.recording.run_log import RunInfo, RunTiming
 
 NODE_NAME = "muscle_node"
 RCLError = _rclpy.RCLError
 LOG_THROTTLE_S = 2.0
+GRAPH_CHECK_PERIOD_S = 1.0  # steady clock: how often input topics' publishers are type-checked
+
+# (topic, message type, description); joint topics only with a geometry
+INPUT_TOPICS = (
+    (tm.TOPIC_EXCITATION, JointState, "drive per muscle by name: name[], position[] in [0, 1]"),
+    (tm.TOPIC_EXCITATION_ARRAY, Float64MultiArray, "drive, one per muscle in muscles order"),
+    (tm.TOPIC_KINEMATICS, JointState,
+     "muscle path length (position[], m) and velocity (velocity[], m/s) by name"),
+)
+JOINT_INPUT_TOPICS = (
+    (tm.TOPIC_JOINT_STATES, JointState, "robot joint positions and velocities (with geometry)"),
+)
+OUTPUT_TOPICS = (
+    (tm.TOPIC_FORCE, JointState, "tendon force (effort[], N), fascicle length and velocity"),
+    (tm.TOPIC_ENERGY_RATE, Float64MultiArray,
+     "energy rate (W) by muscle x fibre (slow, fast, all) x component"),
+    (tm.TOPIC_ENERGY_RATE_TOTAL, Float64, "energy rate of all muscles (W)"),
+    (tm.TOPIC_ENERGY_TOTAL, Float64, "energy since the start (J)"),
+    (tm.TOPIC_DIAGNOSTICS, DiagnosticArray, "node health and counters (steady clock)"),
+)
+JOINT_OUTPUT_TOPICS = (
+    (tm.TOPIC_JOINT_EFFORTS, JointState, "joint efforts (N m or N) by joint (with geometry)"),
+    (tm.TOPIC_JOINT_EFFORT_COMMANDS, Float64MultiArray,
+     "joint efforts in joints order (with geometry)"),
+)
 
 _ROS_TYPES = {"bool": ParameterType.PARAMETER_BOOL, "integer": ParameterType.PARAMETER_INTEGER,
               "double": ParameterType.PARAMETER_DOUBLE, "string": ParameterType.PARAMETER_STRING,
@@ -139,6 +166,29 @@ def fill_message(msg, fields: dict):
     return msg
 
 
+_TYPE_CLASH = re.compile(r"parameter '(?P<name>[^']*)' to '(?P<value>.*)' of type '(?P<given>\w+)'"
+                         r", expecting type '(?:Type\.)?(?P<expected>\w+)'", re.DOTALL)
+
+
+def _parameter_error(exc: Exception, overrides: dict) -> ConfigError:
+    """rclpy's parameter exception (a value of the wrong type for a typed declaration, e.g.
+    use_sim_time:=maybe) as a ConfigError naming the parameter and the value given."""
+    match = _TYPE_CLASH.search(str(exc))
+    if match is None:
+        name = str(exc).rsplit(": ", 1)[-1]  # ParameterException: "<message>: <name>"
+        given = overrides[name].value if name in overrides else None
+        return ConfigError(PARAMS_SOURCE, name, given, str(exc))
+    name = match["name"]
+    given = overrides[name].value if name in overrides else match["value"]
+    return ConfigError(PARAMS_SOURCE, match["name"], given,
+                       f"expected {match['expected'].lower()}, got {match['given'].lower()}")
+
+
+def _type_name(msg_type) -> str:
+    """'sensor_msgs/msg/JointState' of the JointState class (the graph's type names)."""
+    return f"{msg_type.__module__.split('.')[0]}/msg/{msg_type.__name__}"
+
+
 def _finite(out) -> bool:
     """Tendon force (from the fascicle length), contractile force (length and velocity) and
     energy rate all finite (a NaN or inf makes the sum so)."""
@@ -154,7 +204,10 @@ class MuscleNode(Node):
     """
 
     def __init__(self, node_name: str = NODE_NAME, **kwargs):
-        super().__init__(node_name, **kwargs)
+        try:
+            super().__init__(node_name, **kwargs)
+        except (InvalidParameterTypeException, InvalidParameterValueException) as exc:
+            raise _parameter_error(exc, {}) from exc  # e.g. use_sim_time:=maybe
         self.run_log: NodeRunLog | None = None
         try:
             self._setup()
@@ -167,31 +220,18 @@ class MuscleNode(Node):
     def _setup(self) -> None:
         self.config = self._declare_parameters()
         c = self.config
-        self.run_config = RunConfig(
-            tuple(c.muscles), recruitment=c.recruitment, recovery_mode=c.recovery_mode,
-            overrides=c.overrides_mapping(), library=Path(c.library) if c.library else None,
-            params=Path(c.model) if c.model else None,
-            units_per_type=c.units_per_type or None,
-            geometry=Path(c.geometry) if c.geometry else None, joint_map=c.joint_map,
-            joints=tuple(c.joints))
-        self.bank = self.run_config.make_bank()
-        self.joint_space = (JointSpace.load(c.geometry, c.joint_map, self.bank.names, c.joints,
-                                            PARAMS_SOURCE) if c.geometry else None)
+        model = build_model(c)  # vm_ros.node.startup: the same path without ROS
+        self.run_config, self.bank, self.joint_space = model.run_config, model.bank, \
+            model.joint_space
+        initial = model.initial_path_length_m
         driven = self.joint_space.driven if self.joint_space is not None else ()
-        limits = InputLimits.for_bank(self.bank, c)
-        initial = np.array(c.initial_path_length_m) if c.initial_path_length_m else None
-        used = ~np.isin(self.bank.names, driven)  # joint-driven muscles wait for joint_states
-        if initial is not None and np.any(used & (
-                (initial < limits.path_length_min_m) | (initial > limits.path_length_max_m))):
-            raise ConfigError(PARAMS_SOURCE, "initial_path_length_m", list(initial),
-                              "outside the physical range "
-                              f"{np.round(limits.path_length_min_m, 4).tolist()} .. "
-                              f"{np.round(limits.path_length_max_m, 4).tolist()} m")
-        self.inputs = NodeInputs(self.bank.names, limits, initial, joint_driven=driven)
+        self.inputs = NodeInputs(self.bank.names, model.limits, initial, joint_driven=driven)
         self.joint_inputs = (JointInputs(self.joint_space, self.inputs)
                              if self.joint_space is not None else None)
         self.scheduler = StepScheduler(c.step_ns, c.max_catch_up_steps)
         self.issues = IssueLog(LOG_THROTTLE_S)
+        self._gaps: dict[str, SequenceGaps] = {}  # input topic -> publication sequence gaps
+        self._wrong_type_publishers: set = set()  # (topic, endpoint gid) seen
         self._reported_counts = dict(self.issues.counts)
         self._dt_s = c.step_ns * 1e-9
         self._step_times = DurationWindow()
@@ -208,6 +248,9 @@ class MuscleNode(Node):
         self._model_timer = self.create_timer(self._dt_s, self._on_tick)
         self._diagnostics_timer = self.create_timer(
             c.diagnostics_period_s, self._publish_diagnostics,
+            clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self._graph_timer = self.create_timer(
+            GRAPH_CHECK_PERIOD_S, self._check_publisher_types,
             clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._log_joint_space(initial is not None)
@@ -235,28 +278,32 @@ class MuscleNode(Node):
         ``qos_overrides.<topic>.<publisher|subscription>.<history|depth|reliability>``
         parameters may change."""
         overridable = QoSOverridingOptions.with_default_policies()
-        outputs = [(tm.TOPIC_FORCE, JointState), (tm.TOPIC_ENERGY_RATE, Float64MultiArray),
-                   (tm.TOPIC_ENERGY_RATE_TOTAL, Float64), (tm.TOPIC_ENERGY_TOTAL, Float64),
-                   (tm.TOPIC_DIAGNOSTICS, DiagnosticArray)]
-        inputs = [(tm.TOPIC_EXCITATION, JointState),
-                  (tm.TOPIC_EXCITATION_ARRAY, Float64MultiArray),
-                  (tm.TOPIC_KINEMATICS, JointState)]
+        outputs, inputs = list(OUTPUT_TOPICS), list(INPUT_TOPICS)
         if self.joint_space is not None:
-            outputs += [(tm.TOPIC_JOINT_EFFORTS, JointState),
-                        (tm.TOPIC_JOINT_EFFORT_COMMANDS, Float64MultiArray)]
-            inputs += [(tm.TOPIC_JOINT_STATES, JointState)]
+            outputs += JOINT_OUTPUT_TOPICS
+            inputs += JOINT_INPUT_TOPICS
+        self._input_types = {topic: msg_type for topic, msg_type, _ in inputs}
+        qos_values = {name: p.value for name, p in self._parameter_overrides.items()
+                      if name.startswith("qos_overrides.")}
+        for name, value in qos_values.items():  # rcl prints an rcutils warning block for these
+            if name.endswith(".depth") and (not isinstance(value, int) or value < 0):
+                raise ConfigError(PARAMS_SOURCE, name, value, "depth must be an integer >= 0")
         try:
             self._publishers_by_topic = {
                 topic: self.create_publisher(msg_type, topic, stream_qos(depth),
                                              qos_overriding_options=overridable)
-                for topic, msg_type in outputs}
+                for topic, msg_type, _ in outputs}
             self._subscriptions_by_topic = {
                 topic: self.create_subscription(
                     msg_type, topic, self._receiver(topic, msg_type), stream_qos(depth),
                     qos_overriding_options=overridable, raw=True)
-                for topic, msg_type in inputs}
+                for topic, msg_type, _ in inputs}
         except (RuntimeError, InvalidQosOverridesError, InvalidParameterTypeException) as exc:
-            raise ConfigError(PARAMS_SOURCE, "qos_overrides", None, str(exc)) from exc
+            named = {k: v for k, v in qos_values.items()
+                     if k in str(exc) or str(v) in str(exc)} or qos_values
+            name, value = (next(iter(named.items())) if len(named) == 1
+                           else ("qos_overrides", named))
+            raise ConfigError(PARAMS_SOURCE, name, value, str(exc)) from exc
 
     def _declare_parameters(self) -> NodeConfig:
         values = {}
@@ -274,7 +321,9 @@ class MuscleNode(Node):
                     values[spec.name] = self.declare_parameter(
                         spec.name, spec.default, parameter_descriptor(spec)).value
             except (InvalidParameterTypeException, InvalidParameterValueException) as exc:
-                raise ConfigError(PARAMS_SOURCE, spec.name, None, str(exc)) from exc
+                raise _parameter_error(exc, self._parameter_overrides) from exc
+            if values[spec.name] is None and spec.kind in _EMPTY_ARRAY_TYPES:
+                values[spec.name] = []  # '[]' given: rcl reads an empty list as not set
         return NodeConfig.from_values(values)
 
     def _check_no_unknown_parameters(self) -> None:
@@ -333,12 +382,25 @@ class MuscleNode(Node):
                   tm.TOPIC_EXCITATION_ARRAY: self._on_excitation_array,
                   tm.TOPIC_KINEMATICS: self._on_kinematics,
                   tm.TOPIC_JOINT_STATES: self._on_joint_states}[topic]
+        gaps = self._gaps[topic] = SequenceGaps()
+
+        def receive_counted(data: bytes, info) -> None:
+            lost = gaps.add(info.get("publication_sequence_number"))
+            if lost:
+                self._report([Issue("input_lost", f"{topic}: {lost} message(s) lost before "
+                                    "the node took them", count=lost)])
+            receive(data)
+
         def receive(data: bytes) -> None:
             now_ns = self.get_clock().now().nanoseconds
             # the model time of the first step that will use this message (vm_ros.node.recording)
             effective_ns = self.scheduler.model_time_ns if self.scheduler.started else now_ns
             if self.run_log is not None:
                 self.run_log.write(topic, data, effective_ns, now_ns)
+            problem = payload_problem(data, msg_type)  # rclpy would print to stderr (cdr)
+            if problem is not None:
+                self._report([Issue("undecodable", f"{topic}: {problem}")])
+                return
             try:
                 msg = deserialize_message(data, msg_type)
             except Exception as exc:  # corrupt bytes: never let them stop the node
@@ -346,7 +408,9 @@ class MuscleNode(Node):
                 return
             self._report(handle(msg, effective_ns))
 
-        return receive
+        # rclpy 7.1.6's EventsExecutor cannot call a callback that takes the message info
+        # (SystemError: null argument): with it, losses are not counted (diagnostics say so)
+        return receive if self.config.executor == "events" else receive_counted
 
     def _on_excitation(self, msg: JointState, now_ns: int):
         return self.inputs.on_excitation(msg.name, msg.position, now_ns)
@@ -359,6 +423,24 @@ class MuscleNode(Node):
 
     def _on_joint_states(self, msg: JointState, now_ns: int):
         return self.joint_inputs.on_joint_states(msg.name, msg.position, msg.velocity, now_ns)
+
+    def _check_publisher_types(self) -> None:
+        """Publishers of another message type on an input topic are never matched, so nothing
+        of theirs arrives: count each one once and say so (rmw_fastrtps accepts the
+        INCOMPATIBLE_TYPE event but never raises it; the graph is asked instead)."""
+        if not self.context.ok():
+            return
+        for topic, msg_type in self._input_types.items():
+            expected = _type_name(msg_type)
+            name = self.resolve_topic_name(topic)
+            for info in self.get_publishers_info_by_topic(name):
+                key = (name, bytes(info.endpoint_gid))
+                if info.topic_type == expected or key in self._wrong_type_publishers:
+                    continue
+                self._wrong_type_publishers.add(key)
+                node = f"{info.node_namespace.rstrip('/')}/{info.node_name}"
+                self._report([Issue("wrong_type_publisher", f"{name}: publisher {node} offers "
+                                    f"{info.topic_type}, this node takes {expected}")])
 
     def _report(self, issues) -> None:
         for issue in issues:
@@ -512,8 +594,8 @@ class MuscleNode(Node):
             ("tick time p99 (ms)", tick_p99),
             ("overruns (ticks longer than a step)", self._overruns),
             ("catch-up ticks", s.catch_up_ticks),
-            ("skipped model time (s)", s.skipped_ns * 1e-9),
-            ("paused model time (s)", s.paused_ns * 1e-9),
+            ("skipped model time (s)", format_seconds(s.skipped_ns)),
+            ("paused model time (s)", format_seconds(s.paused_ns)),
             ("excitation age (s)", ages["excitation"]),
             ("kinematics age (s)", ages["kinematics"]),
             ("stale excitation", ", ".join(stale["excitation"]) or "-"),
@@ -521,6 +603,11 @@ class MuscleNode(Node):
         ]
         if self.joint_inputs is not None:
             values += [("joint_states age (s)", self.joint_inputs.age_s(now_ns))]
+        if self.config.executor == "events":
+            values += [("lost input messages", "not counted with executor events (it passes no "
+                        "message info; executor single_threaded counts them)")]
+        elif any(g.supported is False for g in self._gaps.values()):
+            values += [("lost input messages", "not counted: the rmw gives no sequence numbers")]
         values += [(ISSUE_KINDS[kind][0], count) for kind, count in self.issues.counts.items()]
         values += self._recorder_values()
         level, message = self._level(stale)
@@ -537,7 +624,7 @@ class MuscleNode(Node):
                                "joint_states (a message giving physical path lengths)")
             return f"waiting for {' and '.join(waiting)}" if waiting else "starting"
         if self.config.stale_input_policy == "pause" and self.inputs.any_stale:
-            return "paused (stale inputs)"
+            return "paused (stale inputs, stale_input_policy pause)"
         return "running"
 
     def _recorder_values(self) -> list:
@@ -561,7 +648,9 @@ class MuscleNode(Node):
         if not self.scheduler.started:
             return DiagnosticStatus.WARN, self._state_text()
         if stale["excitation"] or stale["kinematics"]:
-            return DiagnosticStatus.WARN, "stale inputs"
+            which = " and ".join(k for k in ("excitation", "kinematics") if stale[k])
+            return DiagnosticStatus.WARN, (f"stale inputs ({which}; stale_input_policy "
+                                           f"{self.config.stale_input_policy})")
         if any(new.values()):
             kinds = ", ".join(k for k, v in new.items() if v)
             return DiagnosticStatus.WARN, f"input or timing issues: {kinds}"
@@ -610,57 +699,51 @@ def make_executor(kind: str, context=None):
     return SingleThreadedExecutor(context=context)
 
 
-class ShutdownRequest:
-    """SIGINT/SIGTERM handlers that only set a flag, checked between spin_once calls.
-
-    rclpy's own handlers are not used: they shut the context down from the signal handler
-    while a callback may be publishing (RCLError), chain a KeyboardInterrupt that can land in
-    the middle of the clean-up, and in rclpy 7.1.6 EventsExecutor.spin() never returns after
-    them (measured with a 1 kHz timer). A second signal interrupts at once.
-    """
-
-    def __init__(self):
-        self.requested = False
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(sig, self._handle)
-
-    def _handle(self, signum, frame):
-        if self.requested:
-            raise KeyboardInterrupt
-        self.requested = True
-
-
 def spin(executor, context, stop: ShutdownRequest) -> None:
     """spin_once until a shutdown is requested or the context is shut down."""
     while not stop.requested and context.ok():
         executor.spin_once(timeout_sec=0.1)
 
 
+def _topic_lines(topics) -> list[str]:
+    return [f"  {topic} ({_type_name(t)}): {text}" for topic, t, text in topics]
+
+
 def _argument_parser() -> argparse.ArgumentParser:
     lines = [f"  {p.name} ({p.kind}, default {p.default!r}): {p.describe()}" for p in PARAMS]
+    epilog = ["inputs (reliable, keep last qos_depth; relative names):",
+              *_topic_lines(INPUT_TOPICS + JOINT_INPUT_TOPICS),
+              "outputs (reliable, keep last qos_depth):",
+              *_topic_lines(OUTPUT_TOPICS + JOINT_OUTPUT_TOPICS),
+              "parameters:", *lines,
+              "The node interface (layouts, bad inputs, diagnostics) is described in "
+              "docs/node.md and the README."]
     return argparse.ArgumentParser(
         prog="muscle_node", formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Virtual Muscle force and fibre-type energetics as a ROS 2 node. Set "
                     "parameters with --ros-args -p NAME:=VALUE or --params-file FILE.",
-        epilog="parameters:\n" + "\n".join(lines))
+        epilog="\n".join(epilog))
 
 
 def run_node(name: str, parser: argparse.ArgumentParser, make_node, executor_for,
              args=None) -> int:
     """The Jazzy-style main of a vm_ros node program: --help (ROS arguments stripped), init with
     vm_ros's signal handling, ``make_node()``, spin on ``executor_for(node)`` until SIGINT or
-    SIGTERM, destroy, shutdown. Exit status 2 with one line for a VmRosError (a bad parameter) or
-    an rcl error at init (an unparsable --params-file); 0 otherwise."""
+    SIGTERM, destroy, shutdown. Exit status 2 with one line (vm_ros.node.startup.error_line) for
+    a VmRosError (a bad parameter) or an rcl error at init (an unparsable --params-file); 0
+    otherwise, also when a signal came before the node was built (then nothing was started)."""
     argv = sys.argv if args is None else list(args)
+    stop = ShutdownRequest.install()  # vm_ros.node.main installs it before rclpy's import
     try:
         parser.parse_args(remove_ros_args(argv)[1:])
-        stop = ShutdownRequest()
         rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    except RCLError as exc:  # e.g. an unparsable --params-file: rcl's message names it
-        print(f"{name}: error: {exc}", file=sys.stderr)
-        return 2
+    except RCLError as exc:  # e.g. an unparsable --params-file or -p: rcl's message names it
+        print(error_line(name, exc), file=sys.stderr)
+        return EXIT_BAD_PARAMETER
     node = executor = None
     try:
+        if stop.requested:
+            return 0
         node = make_node()
         executor = executor_for(node)
         executor.add_node(node)
@@ -668,8 +751,8 @@ def run_node(name: str, parser: argparse.ArgumentParser, make_node, executor_for
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except VmRosError as exc:
-        print(f"{name}: error: {exc}", file=sys.stderr)
-        return 2
+        print(error_line(name, exc), file=sys.stderr)
+        return EXIT_BAD_PARAMETER
     finally:
         if executor is not None:
             executor.shutdown()

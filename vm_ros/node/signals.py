@@ -1,0 +1,47 @@
+"""SIGINT/SIGTERM for vm_ros node programs: a flag, installed before rclpy is imported.
+
+A signal in the first second after launch used to land in rclpy's import (a KeyboardInterrupt
+traceback for SIGINT, death by signal -15 for SIGTERM, no log file finished). The handlers are
+therefore installed first thing in ``main`` (vm_ros.node.main), and run_node checks the flag
+before building the node and between spin_once calls: every stop is a clean exit 0, and a run
+log that was opened is finished.
+"""
+
+from __future__ import annotations
+
+import signal
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+class ShutdownRequest:
+    """SIGINT/SIGTERM handlers that only set a flag, checked between spin_once calls.
+
+    rclpy's own handlers are not used: they shut the context down from the signal handler
+    while a callback may be publishing (RCLError), chain a KeyboardInterrupt that can land in
+    the middle of the clean-up, and in rclpy 7.1.6 EventsExecutor.spin() never returns after
+    them (measured with a 1 kHz timer). A second signal interrupts at once (KeyboardInterrupt).
+    """
+
+    _installed: ShutdownRequest | None = None
+
+    def __init__(self):
+        self.requested = False
+        self.signal: int | None = None
+        for sig in STOP_SIGNALS:
+            signal.signal(sig, self._handle)
+
+    @classmethod
+    def install(cls) -> ShutdownRequest:
+        """The process's request (installed once, at the first call)."""
+        if cls._installed is None:
+            cls._installed = cls()
+        return cls._installed
+
+    def _handle(self, signum, frame):
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested, self.signal = True, signum
+
+
+__all__ = ["ShutdownRequest"]
