@@ -13,6 +13,7 @@ import yaml
 
 from vm_ros.cli import main
 from vm_ros.model.params import load_model_params, load_muscle_library
+from vm_ros.model.units import UNITS
 from vm_ros.resources import config_dir
 
 
@@ -70,6 +71,17 @@ def test_list_muscles(capsys):
     code, out, _ = _run(capsys, "--list-muscles")
     assert code == 0
     assert [line.split()[0] for line in out.splitlines()] == list(load_muscle_library())
+
+
+def test_units_lists_the_table(capsys):
+    code, out, _ = _run(capsys, "--units")
+    # columns of 12 characters: unit, SI, factor (units such as "J/(kg K)" hold spaces)
+    rows = {line[:12].strip(): (line[14:26].strip(), line[28:40].strip())
+            for line in out.splitlines()[1:]}
+    assert code == 0 and set(rows) == set(UNITS)
+    assert rows["ms"] == ("s", "0.001")
+    assert rows["N/cm^2"] == ("Pa", "10000")
+    assert rows["kJ/(kg K)"] == ("J/(kg K)", "1000")
 
 
 @pytest.mark.parametrize(("name", "near"), [("bicep", "biceps_long_head"), ("soleos", "soleus"),

@@ -8,8 +8,9 @@ fields from the muscle library (config/muscles.yaml or --library FILE), each wit
 for it (library fields carry their unit in their name and have no tag). --list-muscles lists the
 library's muscles.
 
-Units accepted in a model file are those of vm_ros.model.units; a unit that is not in that table,
-or that measures another quantity than its parameter (ms for a length), is an error (exit 2).
+A model file may use the units that --units lists (the table of vm_ros.model.units); a unit that
+is not in that table, or that measures another quantity than its parameter (ms for a length), is
+an error (exit 2).
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from vm_ros.model.params import (
     muscle_rows,
     resolve_muscles,
 )
+from vm_ros.model.units import UNITS
 
 HELP = "print the model's (or a muscle's) parameters: value in SI, unit as written, tag, source"
 
@@ -37,14 +39,16 @@ COLUMNS = ("parameter", "value", "SI unit", "unit in file", "tag", "source")
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--params", type=Path, default=None,
+    parser.add_argument("--params", type=Path, default=None, metavar="FILE",
                         help="model parameter YAML (default: the shipped config/model.yaml)")
     what = parser.add_mutually_exclusive_group()
     what.add_argument("--muscle", nargs="+", metavar="NAME",
                       help="print these muscles' parameters from the library instead")
     what.add_argument("--list-muscles", action="store_true",
                       help="list the muscles of the library (name and description)")
-    parser.add_argument("--library", type=Path, default=None,
+    what.add_argument("--units", action="store_true",
+                      help="list the units a model file may use, with their quantity and SI factor")
+    parser.add_argument("--library", type=Path, default=None, metavar="FILE",
                         help="muscle library YAML (default: the shipped config/muscles.yaml)")
     parser.add_argument("--format", choices=("text", "csv", "markdown"), default="text",
                         help="output format (default text: aligned columns)")
@@ -96,6 +100,11 @@ def run(args) -> int:
         for name, fields in load_muscle_library(args.library).items():
             description = fields.get("description", "") if isinstance(fields, dict) else ""
             out.write(f"{name}  {description}".rstrip() + "\n")
+        return _print(out.getvalue())
+    if args.units:
+        out.write(f"{'unit':12}  {'SI':12}  {'factor':>12}  quantity\n")
+        for unit in UNITS.values():
+            out.write(f"{unit.symbol:12}  {unit.si:12}  {unit.factor:12.6g}  {unit.quantity}\n")
         return _print(out.getvalue())
     if args.muscle:
         specs = resolve_muscles(args.muscle, args.library, None, params.generic.ur_default)
