@@ -45,7 +45,7 @@ def test_api_shapes_and_units():
     for name in ("force", "fascicle_length", "fascicle_velocity", "mechanical_power"):
         assert getattr(out, name).shape == (n,)
     assert out.energy_rate.total.shape == (n,)
-    assert out.energy_rate_by_fiber.total.shape == (n, 2)
+    assert out.energy_rate_by_fibre.total.shape == (n, 2)
     assert out.firing_rate_f05.shape == (n, 2)
     assert out.fascicle_length == pytest.approx(out.length_l0 * bank.l0_m)
 
@@ -107,7 +107,7 @@ def test_no_nan_over_a_grid_of_drive_length_and_velocity(scheme):
                 for k in range(40):
                     out = bank.step(DT, np.full(3, u), lp + k * DT * vp, vp)
                 values = [out.force, out.contractile_force, out.fascicle_length,
-                          out.energy_rate_by_fiber.as_array(), out.mechanical_power]
+                          out.energy_rate_by_fibre.as_array(), out.mechanical_power]
                 assert all(np.all(np.isfinite(v)) for v in values), (u, l_factor, v_l0)
                 assert np.all(out.force >= 0) and np.all(out.energy_rate.total >= 0)
 
@@ -189,8 +189,8 @@ def test_pure_slow_and_pure_fast_muscles_work_in_every_scheme():
             assert np.isfinite(out.force[0]) and out.force[0] > 0.3 * bank.f0[0]
             absent = 1 if fs == 1.0 else 0
             assert out.effective_activation[0, absent] == 0.0
-            assert out.energy_rate_by_fiber.total[0, absent] == 0.0
-            assert out.energy_rate_by_fiber.total[0, 1 - absent] > 0.0
+            assert out.energy_rate_by_fibre.total[0, absent] == 0.0
+            assert out.energy_rate_by_fibre.total[0, 1 - absent] > 0.0
 
 
 def test_lumped_slow_fibres_are_recruited_first():

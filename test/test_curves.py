@@ -87,9 +87,8 @@ def test_nf_zero_length_is_clamped():
     # nf = 0 at L = nf1/(nf1-nf0): 1.72 slow, 2.75 fast
     for t, l_zero in ((SLOW, 1.724), (FAST, 2.75)):
         assert F.nf1[t] / (F.nf1[t] - F.nf0[t]) == pytest.approx(l_zero, abs=0.001)
-        l = act.clamp_activation_length(np.array([0.1, 5.0]), F.nf0[t], F.nf1[t],
-                                        G.l_activation_min, G.l_activation_max_fraction)
-        assert l[0] == G.l_activation_min and l[1] < l_zero
+        l_max = act.activation_length_max(F.nf0[t], F.nf1[t], G.l_activation_max_fraction)
+        assert 1.0 < l_max < l_zero
 
 
 def test_tendon_force_is_f0_at_l0t_and_inverse_is_consistent():

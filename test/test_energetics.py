@@ -205,7 +205,7 @@ def test_dynamic_recovery_in_the_bank_total_is_one_plus_r_times_initial():
         bank.step(DT, [0.5], lp)
     for _ in range(8000):  # long rest at a coarse step: the implicit step allows it
         out = bank.step(1.0, [0.0], lp)
-    e = out.energy_by_fiber
+    e = out.energy_by_fibre
     initial = e.activation[0, SLOW] + e.cross_bridge[0, SLOW]
     assert e.recovery[0, SLOW] == pytest.approx(1.5 * initial, rel=0.01)
     assert e.total[0, SLOW] == pytest.approx(2.5 * initial, rel=0.01)
@@ -237,7 +237,7 @@ def test_bookkeeping_components_add_up_and_integrals_match_a_reference():
     e = out.energy
     assert e.total == pytest.approx(e.activation + e.cross_bridge + e.recovery, rel=1e-12)
     assert e.total == pytest.approx(summed, rel=1e-12)
-    assert out.energy_by_fiber.total.sum(axis=1) == pytest.approx(e.total, rel=1e-12)
+    assert out.energy_by_fibre.total.sum(axis=1) == pytest.approx(e.total, rel=1e-12)
     assert out.total_energy == pytest.approx(e.total.sum(), rel=1e-12)
     reference = ref.states[-1].energy_j.sum(axis=1)  # (n, 3) per component
     assert e.activation == pytest.approx(reference[:, 0], rel=0.01)

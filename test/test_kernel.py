@@ -61,8 +61,8 @@ def assert_close(a, b, name=""):
 def assert_outputs_equal(a, b):
     for name in FIELDS:
         assert_close(getattr(a, name), getattr(b, name), name)
-    assert_close(a.energy_rate_by_fiber.as_array(), b.energy_rate_by_fiber.as_array(), "rates")
-    assert_close(a.energy_by_fiber.as_array(), b.energy_by_fiber.as_array(), "energies")
+    assert_close(a.energy_rate_by_fibre.as_array(), b.energy_rate_by_fibre.as_array(), "rates")
+    assert_close(a.energy_by_fibre.as_array(), b.energy_by_fibre.as_array(), "energies")
 
 
 @needs_numba

@@ -17,13 +17,15 @@ LP = P.lumped
 def test_weighting_endpoints_for_u2_032():
     # model.md section 9: W_S(U1)=0.872, W_S(U2)=0.660, W_S(1)=1.005, W_F(U2)=0.811,
     # W_F(Ur)=0.768, W_F(1)=1.015 for U2 = 0.32 (Ur = 0.8)
-    u2, ur = 0.32, 0.8
-    ws = lambda u: rc.lumped_weighting_slow_tsianos2012(np.array(u), LP.u1, u2, LP)  # noqa: E731
-    wf = lambda u: rc.lumped_weighting_fast_tsianos2012(np.array(u), u2, ur, LP)  # noqa: E731
+    r = _lumped(0.4)  # U2 = 0.32, Ur = 0.8
+    u2 = r.u2[0]  # 0.32 to rounding (0.8 * 0.4)
+    assert u2 == pytest.approx(0.32)
+    ws = lambda u: r.weighting(np.array([u]))[0, 0]  # noqa: E731
+    wf = lambda u: r.weighting(np.array([u]))[0, 1]  # noqa: E731
     assert ws(0.01) == pytest.approx(0.872, abs=0.0006)
-    assert ws(0.32) == pytest.approx(0.660, abs=0.0006)
+    assert ws(u2) == pytest.approx(0.660, abs=0.0006)
     assert ws(1.0) == pytest.approx(1.005, abs=0.0012)
-    assert wf(0.32) == pytest.approx(0.811, abs=0.0006)
+    assert wf(u2) == pytest.approx(0.811, abs=0.0006)
     assert wf(0.8) == pytest.approx(0.768, abs=0.0006)
     assert wf(1.0) == pytest.approx(1.015, abs=0.0012)
     assert ws(0.005) == 0.0 and wf(0.31) == 0.0
@@ -33,10 +35,14 @@ def test_lumped_drive_filter_is_one_ms_for_full_step_and_t_rise_for_small():
     u2 = 0.32
     t_rise = 0.38 * u2**2 + 0.8 * u2 + 0.14
     t_fall = -0.32 * u2**4 + 0.82 * u2**3 - 0.28 * u2**2 + 0.014 * u2 + 0.09
-    tau = rc.lumped_drive_time_constant_tsianos2012
-    assert tau(1.0, 0.0, u2, LP) == pytest.approx(0.001, rel=1e-9)
-    assert tau(0.5, 0.5, u2, LP) == pytest.approx(t_rise, rel=1e-12)
-    assert tau(0.2, 0.5, u2, LP) == pytest.approx(t_fall, rel=1e-12)
+    r = _lumped(0.4)  # U2 = 0.32
+
+    def tau(u, ueff):
+        return r.drive_tau(np.array([u]), np.array([ueff]))[0]
+
+    assert tau(1.0, 0.0) == pytest.approx(0.001, rel=1e-9)
+    assert tau(0.5, 0.5) == pytest.approx(t_rise, rel=1e-12)
+    assert tau(0.2, 0.5) == pytest.approx(t_fall, rel=1e-12)
 
 
 def _lumped(fs, ur=0.8):

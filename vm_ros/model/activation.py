@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vm_ros.model.jit import clip, jitable, where
+from vm_ros.model.jit import jitable, where
 
 
 @jitable
@@ -74,8 +74,8 @@ def yield_target(v, cy, vy):
     return 1.0 - cy * (-np.expm1(-np.abs(v) / vy))
 
 
-@jitable
-def clamp_activation_length(l, nf0, nf1, l_min, max_fraction):
-    """L as used inside the activation relations: clipped to [l_min, max_fraction * L_nf0],
-    where L_nf0 = nf1 / (nf1 - nf0) is the length at which nf reaches zero."""
-    return clip(l, l_min, max_fraction * nf1 / (nf1 - nf0))
+def activation_length_max(nf0, nf1, max_fraction):
+    """Largest L (L0) used inside the activation relations: ``max_fraction`` of L_nf0 =
+    nf1 / (nf1 - nf0), the length at which nf reaches zero (1.72 slow, 2.75 fast). The step
+    clips L to [l_activation_min, this] per pool."""
+    return max_fraction * nf1 / (nf1 - nf0)

@@ -1,141 +1,31 @@
 """The fixed step compiled with Numba: one loop over muscles and pools, scalars in registers.
 
 It calls the model's own equation functions (curves, activation, recruitment, mechanics,
-energetics; each marked ``@jitable``), in the order :meth:`MuscleBank.step` calls their NumPy
-forms, so there is one source of every equation; test_kernel.py holds the two back ends equal to
-rounding. What lives here is only the loop and the packing of constants into record arrays.
+energetics; each marked ``@jitable``), in the order the NumPy step
+(vm_ros.model.numpy_step.NumpyStep.step) calls their array forms, phase by phase as
+vm_ros.model.phases numbers them, so there is one source of every equation. Its arguments are the
+flat list vm_ros.model.layout declares (test_model_layout.py checks both signatures against it);
+the packing of constants and the call live in vm_ros.model.compiled_step. Run as plain Python
+(``_advance``) it equals the NumPy step to rounding (test_model_layout.py, with or without Numba);
+compiled, to the fast-math tolerance of test_kernel.py.
 
 The bank uses this path when Numba is importable (see vm_ros.model.jit); otherwise the NumPy step.
 """
 
 from __future__ import annotations
 
-from collections import namedtuple
-from dataclasses import dataclass
-
 import numpy as np
 
 from vm_ros.model import activation as act
-from vm_ros.model import curves
+from vm_ros.model import curves, layout
 from vm_ros.model import energetics as en
 from vm_ros.model import mechanics as mech
 from vm_ros.model import recruitment as rc
 from vm_ros.model.jit import HAVE_NUMBA, clip, jitable, model_cache_directory, numba
+from vm_ros.model.layout import N_TERMS, M, P, S, T
 
 SCHEME_CODES = {"lumped": 0, "natural": 1, "continuous": 2}
 LUMPED, NATURAL, CONTINUOUS = 0, 1, 2
-
-
-def _columns(name, fields):
-    """Column indices of a constants table, by field name (Numba folds them as constants)."""
-    return namedtuple(name, fields)(*range(len(fields)))
-
-
-# per muscle
-M = _columns("MuscleColumns", (
-    "f0", "l0", "l0t", "m_eff", "lmax", "dry_mass", "ur", "u2",
-    "fpcsa_s", "fpcsa_f", "rec_lower_s", "rec_lower_f", "rec_upper_s", "rec_upper_f",
-    "t_rise", "t_fall", "w_slow_at_u2", "w_slow_amplitude", "w_fast_b", "w_fast_c", "w_fast_tau",
-))  # fmt: skip
-# per motor-unit pool (shared by every muscle)
-P = _columns("PoolColumns", (
-    "af", "nf0", "nf1", "tf1", "tf2", "tf3", "tf4", "as1", "as2", "sag_rate_threshold", "ts",
-    "cy", "vy", "ty", "l_max",
-))  # fmt: skip
-# per fibre type
-T = _columns("TypeColumns", (
-    "omega", "beta", "rho", "vmax", "cv0", "cv1", "av0", "av1", "av2", "bv",
-    "e1", "e2", "e3", "e4", "recovery_ratio",
-))  # fmt: skip
-# shared scalars
-S = _columns("SharedColumns", (
-    "fmin", "fmax", "c1", "k1", "lr1", "eta", "c2", "k2", "lr2", "ct", "kt", "lrt",
-    "l_activation_min", "fv_denominator_min", "activation_fraction",
-    "recovery_tau_rise", "recovery_tau_decay",
-    "u1", "t_rise_step_scale", "w_slow_tau", "w_fast_offset", "w_fast_rise",
-    "continuous_tau_rise", "continuous_tau_fall",
-))  # fmt: skip
-
-
-def _table(columns, rows: int, sources) -> np.ndarray:
-    """A (rows, fields) float table with each column taken from the first source that has it."""
-    table = np.zeros((rows, len(columns)))
-    for name, index in columns._asdict().items():
-        for source in sources:
-            if isinstance(source, dict) and name in source:
-                table[:, index] = source[name]
-                break
-            if not isinstance(source, dict) and hasattr(source, name):
-                table[:, index] = getattr(source, name)
-                break
-    return table
-
-
-@dataclass(frozen=True)
-class KernelConstants:
-    """Everything constant that the compiled step reads, packed from a MuscleBank."""
-
-    scheme: int
-    dynamic_recovery: bool
-    muscle: np.ndarray  # (n, len(M))
-    pool: np.ndarray  # (P, len(P))
-    pool_type: np.ndarray  # (P,) int64
-    thresholds: np.ndarray  # (n, P)
-    pool_pcsa: np.ndarray  # (n, P)
-    fibre_type: np.ndarray  # (2, len(T))
-    shared: np.ndarray  # (1, len(S))
-    w_slow_poly: np.ndarray  # coefficients in Ueff, highest power first
-
-    def arguments(self) -> tuple:
-        """The constants in the kernel's argument order."""
-        return (
-            self.scheme, self.dynamic_recovery, self.muscle, self.pool, self.pool_type,
-            self.thresholds, self.pool_pcsa, self.fibre_type, self.shared, self.w_slow_poly,
-        )  # fmt: skip
-
-    @classmethod
-    def from_bank(cls, bank) -> KernelConstants:
-        p, geo, rec = bank.params, bank.geometry, bank.recruitment
-        scheme = SCHEME_CODES[rec.name]
-        per_muscle = {
-            "dry_mass": bank._dry_mass[:, 0],
-            "ur": bank.ur,
-            "fpcsa_s": bank.fpcsa[:, 0],
-            "fpcsa_f": bank.fpcsa[:, 1],
-        }
-        lumped_sources = []
-        if scheme == LUMPED:
-            lower, upper = rec._recruitment_range
-            per_muscle.update(
-                u2=rec.u2, rec_lower_s=lower[:, 0], rec_lower_f=lower[:, 1],
-                rec_upper_s=upper[:, 0], rec_upper_f=upper[:, 1],
-            )  # fmt: skip
-            lumped_sources = [rec.coefficients]
-        continuous = {
-            "continuous_tau_rise": p.continuous.tau_rise,
-            "continuous_tau_fall": p.continuous.tau_fall,
-        }
-        return cls(
-            scheme=scheme,
-            dynamic_recovery=bank.recovery_mode == "dynamic",
-            muscle=_table(M, bank.n, [geo, per_muscle, *lumped_sources]),
-            pool=_table(P, bank.n_pools, [bank._pool_fibre, {"l_max": bank._pool_l_max}]),
-            pool_type=np.ascontiguousarray(rec.fibre_index, dtype=np.int64),
-            thresholds=np.ascontiguousarray(rec.thresholds, dtype=float),
-            pool_pcsa=np.ascontiguousarray(rec.pool_pcsa, dtype=float),
-            fibre_type=_table(T, 2, [p.energetics, p.fibre]),
-            shared=_table(S, 1, [p.generic, p.energetics, p.lumped, continuous]),
-            w_slow_poly=np.asarray(p.lumped.w_slow_poly, dtype=float),
-        )
-
-
-def state_arguments(state) -> tuple:
-    """The state arrays of a BankState in the kernel's argument order (updated in place)."""
-    return (
-        state.effective_drive, state.firing_rate_intermediate, state.firing_rate_effective,
-        state.sag, state.yield_factor, state.fascicle_length_m, state.fascicle_velocity_m_per_s,
-        state.recovery_filter, state.energy_j, state.mechanical_work_j,
-    )  # fmt: skip
 
 
 # --- the compiled loop -----------------------------------------------------------------------
@@ -146,9 +36,8 @@ def state_arguments(state) -> tuple:
 (
     FL_SLOW, FL_FAST, FV_SLOW, FV_FAST, PE1, PE2,
     DFL_SLOW, DFL_FAST, DFVDV_SLOW, DFVDV_FAST, DFVDL_SLOW, DFVDL_FAST, DPE1, DPE2,
-) = range(14)
+) = range(N_TERMS)
 # fmt: on
-N_TERMS = 14
 
 
 @jitable
@@ -247,10 +136,10 @@ def _type_weights(scheme, ueff, m, threshold_s, threshold_f, w_slow_poly, s):
 
 
 def _advance(
-    dt, excitation, path_length, path_velocity, clipped_excitation, scheme, dynamic_recovery,
+    dt, excitation, path_length, path_velocity, scheme, dynamic_recovery,
     muscle, pool, pool_type, thresholds, pool_pcsa, fibre_type, shared, w_slow_poly,
     effective_drive, f_int, f_eff, sag, yield_factor, x_state, xdot_state, recovery_filter,
-    energy, work, terms_end, xv_end,
+    energy, work, terms_end, xv_end, out_excitation,
     out_f_se, out_f_ce, out_activity, out_stimulation, out_components, out_rates, out_power,
 ):  # fmt: skip
     """Advance every muscle by dt in place (state arrays) and fill the outputs.
@@ -273,10 +162,10 @@ def _advance(
         if not (np.isfinite(excitation[i]) and np.isfinite(lp) and lp > 0.0 and np.isfinite(vp)):
             return i + 1
         u = min(max(excitation[i], 0.0), 1.0)
-        clipped_excitation[i] = u
+        out_excitation[i] = u
         x, xdot = x_state[i], xdot_state[i]
         l, v = x / m[M.l0], xdot / m[M.l0]
-        # drive filter
+        # Phase 1, DRIVE: filtered drive Ueff and the pool weights it sets
         if scheme == LUMPED:
             tau = rc.lumped_drive_tau(
                 u, effective_drive[i], m[M.t_rise], m[M.t_fall], s[S.t_rise_step_scale]
@@ -295,13 +184,14 @@ def _advance(
             weight_s, weight_f = _type_weights(
                 scheme, ueff, m, thresholds[i, 0], thresholds[i, 1], w_slow_poly, s
             )
-        # activation path of every pool, then its share of the type's activation
+        # every pool: its activation path, then its share of the type's activation
         activity = out_activity[i]
         stimulation = out_stimulation[i]
         activity[:] = 0.0
         stimulation[:] = 0.0
         for j in range(n_pools):
             p = pool[j]
+            # Phase 2, FIRING: rise/fall cascade, sag and yield of the pool
             l_pool = clip(l, s[S.l_activation_min], p[P.l_max])
             f_env = act.firing_envelope(u, thresholds[i, j], s[S.fmin], s[S.fmax])
             fe_old = f_eff[i, j]
@@ -327,6 +217,7 @@ def _advance(
             f_int[i, j], f_eff[i, j], sag[i, j], yield_factor[i, j] = (
                 fi_new, fe_new, sag_new, yield_new,
             )  # fmt: skip
+            # Phase 3, ACTIVATION: the pool's share of Acteff and stimulation of its type
             t = pool_type[j]
             weight = pool_pcsa[i, j] if scheme == NATURAL else (weight_s if t == 0 else weight_f)
             af = curves.activation_frequency_brown1999(
@@ -337,7 +228,7 @@ def _advance(
             )
             activity[t] += weight * af
             stimulation[t] += weight * af_l0
-        # fascicle mechanics (ROS2, activation held over the step, analytic Jacobian). The
+        # Phase 4, MECHANICS (ROS2, activation held over the step, analytic Jacobian). The
         # curves' terms and slopes depend on (x, xdot) only: those of the last step's end state are
         # kept in terms_end and reused while (x, xdot) are bit-for-bit the same.
         l0 = m[M.l0]
@@ -362,7 +253,7 @@ def _advance(
             x_new = floor
             xdot_new = max(xdot_new, 0.0)
         x_state[i], xdot_state[i] = x_new, xdot_new
-        # outputs and energetics at the end of the step
+        # Phase 5, INITIAL_ENERGY: forces, E_a and E_xb at the step's end state (STEPs 1-5)
         l_new, v_new = x_new / l0, xdot_new / l0
         _fibre_terms(l_new, v_new, m, fibre_type, s, base, True)
         xv_end[i, 0], xv_end[i, 1] = x_new, xdot_new
@@ -371,7 +262,6 @@ def _advance(
         out_f_se[i], out_f_ce[i] = f_se, f_ce
         power = -f_ce * xdot_new
         out_power[i] = power
-        work[i] += dt * power
         rates = out_rates[i]
         rates[:] = 0.0
         for t in range(2):
@@ -381,6 +271,7 @@ def _advance(
                 ft[T.e1], ft[T.e2], ft[T.e3], ft[T.e4], s[S.activation_fraction], ft[T.vmax],
             )  # fmt: skip
             initial = e_act + e_xb
+            # Phase 6, RECOVERY: STEP 6 (static) or the Appendix B filter (dynamic)
             if dynamic_recovery:
                 z_decay = en.recovery_state_step(
                     recovery_filter[i, t, 0], initial, s[S.recovery_tau_decay], dt
@@ -398,6 +289,7 @@ def _advance(
                 )
             else:
                 recovery = en.static_recovery_rate(initial, ft[T.recovery_ratio])
+            # Phase 7, TOTALS: rates summed (STEP 7), energies and work integrated
             out_components[i, t, 0] = e_act
             out_components[i, t, 1] = e_xb
             out_components[i, t, 2] = recovery
@@ -408,14 +300,15 @@ def _advance(
             rates[1] += e_xb
             rates[2] += recovery
         rates[3] = rates[0] + rates[1] + rates[2]
+        work[i] += dt * power
     return 0
 
 
 def _advance_series(
-    dt, excitation, path_length, path_velocity, clipped_excitation, scheme, dynamic_recovery,
+    dt, excitation, path_length, path_velocity, scheme, dynamic_recovery,
     muscle, pool, pool_type, thresholds, pool_pcsa, fibre_type, shared, w_slow_poly,
     effective_drive, f_int, f_eff, sag, yield_factor, x_state, xdot_state, recovery_filter,
-    energy, work, terms_end, xv_end,
+    energy, work, terms_end, xv_end, out_excitation,
     out_f_se, out_f_ce, out_activity, out_stimulation, out_components, out_rates, out_power,
     out_length, out_velocity,
 ):  # fmt: skip
@@ -425,11 +318,12 @@ def _advance_series(
     n = excitation.shape[1]
     for k in range(excitation.shape[0]):
         status = _advance_step(
-            dt, excitation[k], path_length[k], path_velocity[k], clipped_excitation[k], scheme,
-            dynamic_recovery, muscle, pool, pool_type, thresholds, pool_pcsa, fibre_type, shared,
-            w_slow_poly, effective_drive, f_int, f_eff, sag, yield_factor, x_state, xdot_state,
-            recovery_filter, energy, work, terms_end, xv_end, out_f_se[k], out_f_ce[k],
-            out_activity[k], out_stimulation[k], out_components[k], out_rates[k], out_power[k],
+            dt, excitation[k], path_length[k], path_velocity[k], scheme, dynamic_recovery,
+            muscle, pool, pool_type, thresholds, pool_pcsa, fibre_type, shared, w_slow_poly,
+            effective_drive, f_int, f_eff, sag, yield_factor, x_state, xdot_state,
+            recovery_filter, energy, work, terms_end, xv_end, out_excitation[k], out_f_se[k],
+            out_f_ce[k], out_activity[k], out_stimulation[k], out_components[k], out_rates[k],
+            out_power[k],
         )  # fmt: skip
         if status != 0:
             return k * n + status
@@ -458,21 +352,12 @@ def warm_up() -> None:
     step: about 10 s the first time on a machine, 0.3 s after."""
     if not AVAILABLE or advance.signatures:
         return
-    v1, v2, v3 = np.zeros(0), np.zeros((0, 2)), np.zeros((0, 2, 3))
-    advance(
-        1e-3, v1, v1, v1, v1, LUMPED, False,
-        np.zeros((0, len(M))), np.zeros((2, len(P))), np.zeros(2, dtype=np.int64), v2, v2,
-        np.zeros((2, len(T))), np.zeros((1, len(S))), np.zeros(3),
-        v1, v2, v2, v2, v2, v1, v1, np.zeros((0, 2, 2)), v3, v1, np.zeros((0, N_TERMS)), v2,
-        v1, v1, v2, v2, v3, np.zeros((0, 4)), v1,
-    )  # fmt: skip
+    advance(*layout.dummy_arguments(LUMPED))
 
 
 __all__ = [
     "AVAILABLE",
-    "KernelConstants",
     "advance",
     "advance_series",
-    "state_arguments",
     "warm_up",
 ]

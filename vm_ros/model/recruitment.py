@@ -94,12 +94,6 @@ def lumped_drive_tau(u, ueff, t_rise, t_fall, step_scale):
     return where(u >= ueff, rising, t_fall)
 
 
-def lumped_drive_time_constant_tsianos2012(u, ueff, u2, p: LumpedParams):
-    """:func:`lumped_drive_tau` with T_rise and T_fall from U2 (see LumpedCoefficients)."""
-    c = LumpedCoefficients.tsianos2012(u2, p)
-    return lumped_drive_tau(u, ueff, c.t_rise, c.t_fall, p.t_rise_step_scale)
-
-
 @jitable
 def linear_recruited_fraction(ueff, fpcsa, lower, upper):
     """rF = Fpcsa clip((Ueff - lower) / (upper - lower), 0, 1); 0 for an absent type."""
@@ -132,21 +126,6 @@ def lumped_weight_fast(ueff, u2, ur, b, c, tau_f, offset, rise):
     at_ur = safe_ratio(ur - b, c) ** 2 + offset
     above = at_ur - rise * np.expm1(-np.maximum(ueff - ur, 0.0) / tau_f)
     return where(ueff < u2, 0.0, where(ueff < ur, quadratic, above))
-
-
-def lumped_weighting_slow_tsianos2012(ueff, u1, u2, p: LumpedParams):
-    """W_S(Ueff) (:func:`lumped_weight_slow`) with the U2 coefficients from ``p``."""
-    c = LumpedCoefficients.tsianos2012(u2, p)
-    poly = np.asarray(p.w_slow_poly, dtype=float)
-    return lumped_weight_slow(ueff, u1, u2, poly, c.w_slow_at_u2, c.w_slow_amplitude, p.w_slow_tau)
-
-
-def lumped_weighting_fast_tsianos2012(ueff, u2, ur, p: LumpedParams):
-    """W_F(Ueff) (:func:`lumped_weight_fast`) with the U2 coefficients from ``p``."""
-    c = LumpedCoefficients.tsianos2012(u2, p)
-    return lumped_weight_fast(
-        ueff, u2, ur, c.w_fast_b, c.w_fast_c, c.w_fast_tau, p.w_fast_offset, p.w_fast_rise
-    )
 
 
 @dataclass(frozen=True)
@@ -193,7 +172,9 @@ class LumpedRecruitment(_OnePoolPerFibreType):
         return lumped_drive_tau(u, ueff, c.t_rise, c.t_fall, self.params.t_rise_step_scale)
 
     @cached_property
-    def _recruitment_range(self):
+    def recruitment_range(self):
+        """Drive (lower, upper), each (n, 2), over which rF rises from 0 to Fpcsa: (U1, U2) to
+        (U2, Ur) capped at full recruitment, or (1, 1) as the paper reads."""
         lower = self.thresholds
         if self.params.cap_recruitment_at_full:
             upper = np.stack([self.u2, self.ur], axis=-1)
@@ -202,12 +183,13 @@ class LumpedRecruitment(_OnePoolPerFibreType):
         return lower, upper
 
     def recruited_fraction(self, u, ueff):
-        lower, upper = self._recruitment_range
+        lower, upper = self.recruitment_range
         return lumped_recruited_fraction_tsianos2012(ueff, self.fpcsa, lower, upper)
 
-    def pool_weights(self, ueff):
+    def weighting(self, ueff):
+        """Weighting (W_S, W_F) at filtered drive Ueff (n,), shape (n, 2)."""
         c, p, u2 = self.coefficients, self.params, self.u2
-        weighting = np.stack(
+        return np.stack(
             [
                 lumped_weight_slow(
                     ueff, p.u1, u2, self.w_slow_poly, c.w_slow_at_u2, c.w_slow_amplitude,
@@ -220,7 +202,9 @@ class LumpedRecruitment(_OnePoolPerFibreType):
             ],
             axis=-1,
         )
-        return self.recruited_fraction(ueff, ueff) * weighting
+
+    def pool_weights(self, ueff):
+        return self.recruited_fraction(ueff, ueff) * self.weighting(ueff)
 
 
 # --- Cheng 2000 natural (discrete) units ---------------------------------------------------------

@@ -14,18 +14,19 @@ from collections.abc import Callable
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from vm_ros.model.bank import ODE_FIELDS, BankState, MuscleBank
+from vm_ros.model.bank import MuscleBank
+from vm_ros.model.layout import OUTPUT_INTEGRALS, STATE, STATE_NAMES, BankState
 
 
 def pack_state(state: BankState) -> np.ndarray:
-    """Flatten the integrated fields of a state into one vector (order: ODE_FIELDS)."""
-    return np.concatenate([np.ravel(getattr(state, name)) for name in ODE_FIELDS])
+    """Flatten the integrated fields of a state into one vector (order: layout.STATE)."""
+    return np.concatenate([np.ravel(getattr(state, name)) for name in STATE_NAMES])
 
 
 def unpack_state(vector: np.ndarray, template: BankState, time_s: float) -> BankState:
     """Inverse of :func:`pack_state`, shapes taken from ``template``."""
     fields, offset = {"time_s": time_s}, 0
-    for name in ODE_FIELDS:
+    for name in STATE_NAMES:
         shape = np.shape(getattr(template, name))
         size = int(np.prod(shape))
         fields[name] = vector[offset : offset + size].reshape(shape)
@@ -54,33 +55,30 @@ def jacobian_sparsity(template: BankState) -> np.ndarray:
     filters do feed the recovery energy). Lets the solver's finite-difference Jacobian use a few
     grouped evaluations instead of one per state."""
     owners, feeds_back = [], []
-    for name in ODE_FIELDS:
+    for name in STATE_NAMES:
         value = np.asarray(getattr(template, name))
         n = value.shape[0]
         per_muscle = int(np.prod(value.shape[1:]))
         owners.append(np.repeat(np.arange(n), per_muscle))
-        feeds_back.append(np.full(n * per_muscle, name not in _OUTPUT_ONLY))
+        feeds_back.append(np.full(n * per_muscle, name not in OUTPUT_INTEGRALS))
     owner, feeds = np.concatenate(owners), np.concatenate(feeds_back)
     sparsity = (owner[:, None] == owner[None, :]) & feeds[None, :]
     np.fill_diagonal(sparsity, True)
     return sparsity
 
 
-_OUTPUT_ONLY = ("energy_j", "mechanical_work_j")
-
-
 def absolute_scale(bank: MuscleBank, template: BankState) -> np.ndarray:
-    """A physical magnitude per state for the absolute tolerance: L0 for lengths, L0/s for
-    velocities, 1 for normalised activation states, and the energy a muscle spends in 1 s at
-    1 kW/kg for energies and recovery filters."""
-    l0 = bank.l0_m
+    """A physical magnitude per state for the absolute tolerance, by the state's unit
+    (layout.STATE): L0 for m, L0 per second for m/s, the energy a muscle spends in 1 s at 1 kW/kg
+    for J, and 1 for the normalised activation states (units 1 and f0.5)."""
     energy = 1e3 * bank.mass_kg
-    scales = {"fascicle_length_m": l0, "fascicle_velocity_m_per_s": l0,
-              "recovery_filter": energy, "energy_j": energy, "mechanical_work_j": energy}
+    by_unit = {"m": bank.l0_m, "m/s": bank.l0_m, "J": energy, "1": 1.0, "f0.5": 1.0}
     parts = []
-    for name in ODE_FIELDS:
-        value = np.asarray(getattr(template, name))
-        per_muscle = scales.get(name, np.ones(bank.n))
+    for declared in STATE:
+        if declared.unit not in by_unit:
+            raise ValueError(f"no tolerance scale for state {declared.name} in {declared.unit}")
+        value = np.asarray(getattr(template, declared.name))
+        per_muscle = np.broadcast_to(by_unit[declared.unit], (bank.n,))
         parts.append(np.broadcast_to(per_muscle.reshape((-1,) + (1,) * (value.ndim - 1)),
                                      value.shape).ravel())
     return np.concatenate(parts)

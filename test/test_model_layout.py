@@ -1,0 +1,170 @@
+"""The step's declared layout (vm_ros.model.layout) and phases (vm_ros.model.phases) against the
+code that uses them, and the kernel run as plain Python against the NumPy step.
+
+These tests need no Numba: the kernel's Python function (``kernel._advance``) runs uncompiled with
+the same arguments the compiled one gets. Uncompiled it evaluates the same equation functions in the
+same order on the same float64 numbers, so after 300 steps it equals the NumPy step to rounding
+(measured at most 3.4e-15 of each field's largest value, every scheme and recovery mode); held
+here to 1e-13. An error in an equation or in the order of the phases shows up far above that.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import pickle
+import re
+import types
+import warnings
+
+import numpy as np
+import pytest
+
+from vm_ros.bench import model_bench
+from vm_ros.model import SCHEMES, BankState, MuscleBank, Phase, StepRecord, kernel, layout
+from vm_ros.model.compiled_step import CompiledStep, KernelConstants
+from vm_ros.model.numpy_step import NumpyStep
+from vm_ros.model.reference import absolute_scale, pack_state
+
+DT = 1e-3
+RELATIVE = 1e-13
+
+
+def test_kernel_signatures_follow_the_declaration():
+    for function, series in ((kernel._advance, False), (kernel._advance_series, True)):
+        names = tuple(inspect.signature(function).parameters)
+        assert names == layout.kernel_parameters(series), function.__name__
+    if kernel.AVAILABLE:
+        assert kernel.advance.py_func is kernel._advance
+        assert kernel.advance_series.py_func is kernel._advance_series
+
+
+def test_records_and_state_follow_the_declaration():
+    assert [f.name for f in dataclasses.fields(BankState)] == ["time_s", *layout.STATE_NAMES]
+    assert StepRecord._fields == tuple(a.name for a in layout.OUTPUTS)
+    assert [f.name for f in dataclasses.fields(KernelConstants)] == [
+        a.name for a in layout.CONSTANTS
+    ]
+    for declared in (*layout.STATE, *layout.OUTPUTS, *layout.CONSTANTS):
+        doc = {**dict.fromkeys(layout.STATE, BankState.__doc__),
+               **dict.fromkeys(layout.OUTPUTS, StepRecord.__doc__)}.get(
+            declared, KernelConstants.__doc__)
+        assert f"| {declared.name} | " in doc and declared.unit in doc
+
+
+def test_state_shapes_reset_and_set_state_come_from_the_declaration():
+    bank = MuscleBank.from_config(["vasti", "soleus"], recruitment="natural", units_per_type=3,
+                                  backend="numpy")
+    lp = bank.l0_m + bank.l0t_m
+    bank.reset(lp, excitation=0.3)
+    state = bank.state
+    sizes = {"n": 2, "P": 6}
+    for declared in layout.STATE:
+        assert getattr(state, declared.name).shape == declared.shape_for(sizes)
+    assert pack_state(state).size == absolute_scale(bank, state).size
+    copied = pickle.loads(pickle.dumps(state))
+    np.testing.assert_array_equal(copied.sag, state.sag)
+    wrong = dataclasses.replace(state, recovery_filter=np.zeros((2, 2)))
+    with pytest.raises(ValueError, match=r"state\.recovery_filter has shape \(2, 2\)"):
+        bank.set_state(wrong)
+
+
+def test_a_missing_kernel_constant_is_an_error_naming_it():
+    with pytest.raises(layout.MissingConstantError, match=r"shared\.fmin"):
+        layout.table("shared", layout.S, 1, [{}])
+    bank = MuscleBank.from_config(["vasti"], backend="numpy")
+    p = bank.params
+    generic = {f.name: getattr(p.generic, f.name) for f in dataclasses.fields(p.generic)}
+    generic["viscosity"] = generic.pop("eta")  # a renamed model parameter
+    renamed = types.SimpleNamespace(**{name: getattr(bank, name) for name in (
+        "equations", "geometry", "recruitment", "ur", "fpcsa", "recovery_mode", "n", "n_pools")})
+    renamed.params = types.SimpleNamespace(
+        generic=types.SimpleNamespace(**generic), energetics=p.energetics, lumped=p.lumped,
+        continuous=p.continuous, fibre=p.fibre)
+    with pytest.raises(layout.MissingConstantError, match=r"shared\.eta"):
+        KernelConstants.from_bank(renamed)
+
+
+def _phase_labels(source: str) -> list:
+    return [(int(number), name) for number, name in re.findall(r"# Phase (\d+), ([A-Z_]+)", source)]
+
+
+def test_both_executors_run_every_phase_once_in_order():
+    expected = [(p.value, p.name) for p in Phase]
+    numpy_source = inspect.getsource(NumpyStep.advance_activation) + inspect.getsource(
+        NumpyStep.step)
+    assert _phase_labels(numpy_source) == expected
+    assert _phase_labels(inspect.getsource(kernel._advance)) == expected
+
+
+def _uncompiled(bank) -> CompiledStep:
+    """The kernel as plain Python, fed by the same glue as the compiled one."""
+    return CompiledStep(KernelConstants.from_bank(bank), bank.n, advance=kernel._advance,
+                        advance_series=kernel._advance_series)
+
+
+def _assert_equal_to_rounding(a, b, name):
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    scale = float(np.max(np.abs(b))) if b.size else 0.0
+    np.testing.assert_allclose(a, b, rtol=0.0, atol=RELATIVE * scale + 1e-300, err_msg=name)
+
+
+@pytest.mark.parametrize("recovery_mode", ["static", "dynamic"])
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_uncompiled_kernel_equals_numpy_step(scheme, recovery_mode):
+    units = 3 if scheme == "natural" else None
+    bank = model_bench.library_bank(4, scheme, "numpy", units, recovery_mode=recovery_mode)
+    lp0 = bank.l0_m + bank.l0t_m
+    bank.reset(lp0, excitation=np.full(bank.n, 0.2))
+    python_kernel = _uncompiled(bank)
+    state = bank.state
+    phase = np.arange(bank.n)
+    for k in range(300):
+        u = 0.5 + 0.6 * np.sin(0.02 * k + phase)  # exceeds [0, 1]: the clipping too
+        lp = lp0 + 0.015 * np.sin(0.05 * k + phase)
+        vp = 0.015 * 0.05 / DT * np.cos(0.05 * k + phase)
+        out = bank.step(DT, u, lp, vp)
+        state, record = python_kernel.step(state, DT, u, lp, vp)
+    for declared in layout.STATE:
+        _assert_equal_to_rounding(getattr(state, declared.name),
+                                  getattr(bank.state, declared.name), declared.name)
+    for name, value in record._asdict().items():
+        _assert_equal_to_rounding(value, getattr(out.record, name), name)
+    assert state.time_s == bank.time_s
+    assert np.max(out.force / bank.f0) > 0.2  # the comparison covered active states
+
+
+def test_uncompiled_series_equals_uncompiled_steps():
+    bank = model_bench.library_bank(2, "lumped", "numpy", recovery_mode="dynamic")
+    lp0 = bank.l0_m + bank.l0t_m
+    bank.reset(lp0, excitation=np.full(bank.n, 0.3))
+    k = 20
+    u = np.linspace(0.1, 0.9, k)[:, None] * np.ones(bank.n)
+    lp = np.tile(lp0, (k, 1))
+    vp = np.zeros((k, bank.n))
+    status, end, series, length, _ = _uncompiled(bank).series(bank.state, DT, u, lp, vp)
+    assert status == 0
+    stepper, state = _uncompiled(bank), bank.state
+    for row in range(k):
+        state, record = stepper.step(state, DT, u[row], lp[row], vp[row])
+        np.testing.assert_array_equal(length[row], state.fascicle_length_m)
+    np.testing.assert_array_equal(series.row(-1).force, record.force)
+    np.testing.assert_array_equal(end.energy_j, state.energy_j)
+
+
+def test_old_fiber_names_warn_and_return_the_fibre_fields():
+    bank = MuscleBank.from_config(["vasti"], backend="numpy")
+    lp = bank.l0_m + bank.l0t_m
+    bank.reset(lp, excitation=0.5)
+    out = bank.step(DT, 0.5, lp)
+    trajectory = bank.run(DT, np.full((3, 1), 0.5), np.tile(lp, (3, 1)))
+    pairs = ((out, "energy_rate_by_fiber", "energy_rate_by_fibre"),
+             (out, "energy_by_fiber", "energy_by_fibre"),
+             (trajectory, "energy_rate_by_fiber", "energy_rate_by_fibre"))
+    for record, old, new in pairs:
+        with pytest.warns(DeprecationWarning, match=new):
+            value = getattr(record, old)
+        np.testing.assert_array_equal(value.as_array(), getattr(record, new).as_array())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        _ = out.energy_rate_by_fibre, trajectory.energy_rate_by_fibre
