@@ -8,6 +8,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -90,6 +91,8 @@ def test_signal_stops_the_node_and_finishes_the_log(ros, installed, lengths, tmp
         assert ros.spin_until(lambda: len(probe.forces) >= 5 or process.poll() is not None,
                               timeout_s=START_TIMEOUT_S)
         assert process.poll() is None, process.communicate()[1]
+        assert ros.spin_until(lambda: probe.excitation_array.get_subscription_count() > 0,
+                              timeout_s=START_TIMEOUT_S)  # matched: the message cannot be lost
         probe.send_excitation_array([0.5, 0.5])
         n = len(probe.forces)
         assert ros.spin_until(lambda: len(probe.forces) >= n + 10)
@@ -144,3 +147,45 @@ def test_help_lists_the_parameters(installed):
     assert proc.returncode == 0
     for name in ("muscles", "model_rate_hz", "stale_input_policy", "mcap.path"):
         assert name in proc.stdout
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+@pytest.mark.parametrize("delay_s", [0.05, 0.3, 0.8])
+def test_a_signal_soon_after_launch_is_a_clean_stop(sig, delay_s, tmp_path):
+    """A signal while Python imports rclpy (the first second) or builds the node: exit 0, no
+    traceback; the MCAP file, if the node got far enough to open it, is finished."""
+    require_ros()
+    path = tmp_path / "early.mcap"
+    process = subprocess.Popen(
+        [sys.executable, "-P", "-m", "vm_ros.node", *ros_args(mcap__enabled="true",
+                                                            mcap__path=str(path))],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    try:
+        time.sleep(delay_s)
+        process.send_signal(sig)
+        _, stderr = process.communicate(timeout=30)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert process.returncode == 0, stderr
+    assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, stderr
+    if path.exists():
+        from vm_ros.recording import read_run
+
+        assert read_run(path).complete
+
+
+def test_help_lists_the_topics_with_their_types(installed):
+    shim, env = installed
+    proc = subprocess.run([str(shim), "--help"], env=env, capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 0
+    for topic, msg_type in ((tm.TOPIC_EXCITATION, "sensor_msgs/msg/JointState"),
+                            (tm.TOPIC_EXCITATION_ARRAY, "std_msgs/msg/Float64MultiArray"),
+                            (tm.TOPIC_KINEMATICS, "sensor_msgs/msg/JointState"),
+                            (tm.TOPIC_FORCE, "sensor_msgs/msg/JointState"),
+                            (tm.TOPIC_ENERGY_TOTAL, "std_msgs/msg/Float64"),
+                            (tm.TOPIC_DIAGNOSTICS, "diagnostic_msgs/msg/DiagnosticArray")):
+        assert f"  {topic} ({msg_type})" in proc.stdout, topic
+    assert "docs/node.md" in proc.stdout

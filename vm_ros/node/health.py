@@ -170,7 +170,8 @@ class SequenceGaps:
     rclpy's message info gives no publisher id, so messages are assigned to publisher streams:
     a message continues the stream whose last number is the largest below its own (a gap of
     ``seq - last - 1`` lost); one with no such stream starts a new stream (a new or restarted
-    publisher; what it sent before the node matched it is not counted). Exact for one publisher
+    publisher). Counting starts at a stream's first message: what a publisher sent before that
+    (before the node matched it, or lost before anything of it arrived) is not counted. Exact for one publisher
     per topic; with several, a loss is counted on the nearest stream. The rmw's MESSAGE_LOST
     event is not used: rmw_fastrtps accepts it but never raised it for queue overflow
     (measured: 0 events for 4940 messages lost in a burst).
