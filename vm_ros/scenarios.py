@@ -22,9 +22,17 @@ import yaml
 from vm_ros.errors import ConfigError
 from vm_ros.model import MuscleBank
 from vm_ros.model.curves import tendon_length_at_force
+from vm_ros.model.units import unit_for_field
 from vm_ros.resources import config_dir
 
-_UNITS = {"deg": np.pi / 180.0}
+# What each scenario constant holds (its SI or normalised unit, vm_ros.model.units): a unit
+# written in config/scenarios.yaml must be one of that quantity's units, and is converted.
+HOLDS = {
+    "duration": "s", "energy_bin": "s", "frequency": "1/s", "angle_min": "rad", "angle_max": "rad",
+    "drive": "1", "drive_fraction": "1", "drive_amplitude": "1", "moment_arm": "m",
+    "mid_range_length": "L0", "mid_range_tendon_force": "F0", "path_speed": "L0/s",
+    "recovery_mode": "-",
+}
 
 
 @dataclass(frozen=True)
@@ -148,8 +156,13 @@ def load_scenario(name: str, path: str | Path | None = None) -> Scenario:
     entry = entries[name]
     values = {}
     for key, item in entry.items():
-        if isinstance(item, dict) and "value" in item:
-            value = item["value"]
-            values[key] = value * _UNITS.get(item.get("unit"), 1.0) if isinstance(
-                value, (int, float)) and not isinstance(value, bool) else value
+        if not (isinstance(item, dict) and "value" in item):
+            continue
+        field = f"scenarios.{name}.{key}"
+        if key not in HOLDS:
+            raise ConfigError(path, field, key, f"unknown constant (have: {', '.join(HOLDS)})")
+        unit = unit_for_field(path, f"{field}.unit", item.get("unit"), HOLDS[key])
+        value = item["value"]
+        values[key] = value * unit.factor if isinstance(
+            value, (int, float)) and not isinstance(value, bool) else value
     return Scenario(name, entry.get("description", ""), tuple(entry["muscles"]), values)
