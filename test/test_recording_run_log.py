@@ -79,7 +79,7 @@ def test_outputs_decoded_by_mcap_ros2_equal_the_bank(sine_run):
     telemetry = [m for _, m in decoded["/" + TOPIC_TELEMETRY]]
     assert len(telemetry) == STEPS // 20
     np.testing.assert_allclose(telemetry[-1].energy, energy_partition(
-        outputs[-1].energy_by_fiber, outputs[-1].energy).ravel())
+        outputs[-1].energy_by_fibre, outputs[-1].energy).ravel())
     np.testing.assert_allclose(telemetry[-1].firing_rate, outputs[-1].firing_rate_f05.ravel())
 
 

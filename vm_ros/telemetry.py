@@ -82,7 +82,7 @@ def energy_partition(by_fibre, total) -> np.ndarray:
 
 def energy_rate_array(out: StepOutput) -> np.ndarray:
     """Energy rates (W) as (n_muscles, 3 fibre labels, 4 components)."""
-    return energy_partition(out.energy_rate_by_fiber, out.energy_rate)
+    return energy_partition(out.energy_rate_by_fibre, out.energy_rate)
 
 
 def energy_rate_layout(n_muscles: int) -> list[dict]:

@@ -93,7 +93,7 @@ def activation_switch_bound(drive=None, drive_fraction=None, params=None):
         a, xb = initial_energy_rates_tsianos2012(act, act, fl, v[:, None], dry, e.e1, e.e2, e.e3,
                                                  e.e4, e.activation_fraction, f.vmax)
         energy += float(np.sum(a + xb)) * dt
-    iso = _isometric_at(bank, np.full(bank.n, s.values["drive"])).energy_rate_by_fiber
+    iso = _isometric_at(bank, np.full(bank.n, s.values["drive"])).energy_rate_by_fibre
     weights = (iso.activation + iso.cross_bridge).sum(axis=0)
     r_mean = float(np.sum(weights * np.asarray(e.recovery_ratio)) / weights.sum())
     t_eff, _ = recovery_seconds(params)

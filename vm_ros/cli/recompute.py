@@ -238,7 +238,7 @@ def run(args) -> int:
     if result.last is not None:
         last = result.last
         print(summary_table(summarize(bank.names, result.force_samples,
-                                      energy_partition(last.energy_by_fiber, last.energy),
+                                      energy_partition(last.energy_by_fibre, last.energy),
                                       last.mechanical_work)))
     if len(result.joints):
         conditioning = inputs.conditioning

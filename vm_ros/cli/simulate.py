@@ -308,7 +308,7 @@ def run(args) -> int:
     if result.last is not None:
         last = result.last
         rows = summarize(bank.names, result.force_samples,
-                         energy_partition(last.energy_by_fiber, last.energy),
+                         energy_partition(last.energy_by_fibre, last.energy),
                          last.mechanical_work)
         print(summary_table(rows))
     for line in source.report(inputs, result):

@@ -62,8 +62,8 @@ def telemetry_fields(out: StepOutput, names, time_ns: int, path_length, path_vel
         "firing_rate": flat(out.firing_rate_f05),
         "recruited_fraction": flat(out.recruited_fraction),
         "effective_activation": flat(out.effective_activation),
-        "energy_rate": flat(energy_partition(out.energy_rate_by_fiber, out.energy_rate)),
-        "energy": flat(energy_partition(out.energy_by_fiber, out.energy)),
+        "energy_rate": flat(energy_partition(out.energy_rate_by_fibre, out.energy_rate)),
+        "energy": flat(energy_partition(out.energy_by_fibre, out.energy)),
         "total_energy_rate": float(out.total_energy_rate),
         "total_energy": float(out.total_energy),
     }

@@ -89,7 +89,7 @@ def check_fig2_energy_velocity(params=None) -> CheckResult:
             # per kg dry and per unit activation, at the FL of the instant (close to 1)
             fl = np.exp(-np.abs((out.length_l0[0] ** params.fibre.beta[t] - 1)
                                 / params.fibre.omega[t]) ** params.fibre.rho[t])
-            r = out.energy_rate_by_fiber
+            r = out.energy_rate_by_fibre
             model.append((r.activation[0, t] / act0 + r.cross_bridge[0, t] / (acteff * fl)) / dry)
             e_act.append(r.activation[0, t])
         # compare at the fascicle velocity actually realised (the tendon takes up some motion)
