@@ -42,6 +42,7 @@ import sys
 import time
 from pathlib import Path
 
+from vm_ros.child_process import module_command, module_environment
 from vm_ros.errors import VmRosError
 
 HELP = "benchmark the model, offline runs and muscle_node; write JSON/CSV and print a table"
@@ -113,12 +114,13 @@ def _node_rows(duration_s: float, workdir: Path) -> list[dict]:
 
 
 def _node_process(config: dict, arguments: list, duration_s: float) -> dict:
-    """``python -m vm_ros.bench.node_bench ARGUMENTS`` (in a loopback-only namespace): its JSON
-    after ``config``, or ``config`` with the error's last lines."""
-    command = [sys.executable, "-m", "vm_ros.bench.node_bench", *arguments]
+    """``python -P -m vm_ros.bench.node_bench ARGUMENTS`` with this process's vm_ros (in a
+    loopback-only namespace): its JSON after ``config``, or ``config`` with the error's last
+    lines."""
+    command = module_command("vm_ros.bench.node_bench", *arguments)
     if os.environ.get("VM_ROS_NETNS") != "1":
         command = _loopback_only(command)
-    result = subprocess.run(command, capture_output=True, text=True,
+    result = subprocess.run(command, capture_output=True, text=True, env=module_environment(),
                             timeout=duration_s * 3 + 180)
     if result.returncode != 0:
         tail = (result.stderr or result.stdout).strip().splitlines()[-5:]
