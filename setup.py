@@ -33,7 +33,7 @@ setup(
         "zstandard>=0.21",
     ],
     extras_require={
-        # ROS 2 Jazzy wheels from PyPI (third-party build): exact pins, see interfaces.md section 2.
+        # ROS 2 Jazzy wheels from PyPI (third-party build): exact pins, see docs/node.md section 1.
         "ros": [
             "ros-rclpy[fastrtps]==7.1.6",
             "ros-std-msgs==5.3.6",

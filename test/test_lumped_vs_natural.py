@@ -34,7 +34,8 @@ def test_fig9_steady_isometric_force_lumped_matches_natural_within_2_percent():
 
 
 def test_fig9_comparison_fails_for_uncapped_recruitment():
-    """Reading rF literally (full recruitment only at U = 1) breaks the match (model.md 5b)."""
+    """Reading rF literally (full recruitment only at U = 1) breaks the match
+    (docs/model.md section 5b)."""
     import dataclasses
 
     literal = dataclasses.replace(PARAMS, lumped=dataclasses.replace(

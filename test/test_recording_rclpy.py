@@ -1,5 +1,5 @@
 """Run logs decode with rclpy's own deserializer, message by message, to the same values as the
-independent mcap_ros2 decoder (interfaces.md section 4: readable with and without ROS)."""
+independent mcap_ros2 decoder (docs/log_format.md section 1: readable with and without ROS)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Every item of spec/validation.md, as `vm-ros validate` checks it: each check carries explicit
+"""Every item of docs/validation.md, as `vm-ros validate` checks it: each check carries explicit
 numeric criteria (bounds stated in vm_ros/validation/ next to the paper's claim); here every
 criterion must hold. The values are printed so a failing run shows how far off it is."""
 
@@ -42,7 +42,8 @@ def test_fig7_knee_extension_180s():
     assert result.data["time"][-1] > 179.0, "the check must run the full 180 s"
     _assert_all(result)
     assert result.data["total_energy_j"] < FIG7_EXPERIMENT_BAND_J[0], (
-        "the model now reaches the experiment's band: update the Fig. 7 criteria and REPORT.md")
+        "the model now reaches the experiment's band: update the Fig. 7 criteria and "
+        "test/validation/REPORT.md")
 
 
 def test_criteria_fail_outside_their_bounds():

@@ -1,4 +1,5 @@
-"""Why the Fig. 7 energy is a third of the paper's: the numbers behind REPORT.md, item 9.
+"""Why the Fig. 7 energy is a third of the paper's: the numbers behind test/validation/REPORT.md,
+item 9.
 
     PYTHONPATH=. python test/validation/fig7_gap.py          # about 3 minutes
 

@@ -1,6 +1,6 @@
-"""Cross-check for item 10 of REPORT.md (joint torque): the same sweep with the source models' own
-Hill-type muscles in OpenSim, and the OpenSim path lengths written into config/joint_validation.yaml
-(`reference_paths`).
+"""Cross-check for item 10 of test/validation/REPORT.md (joint torque): the same sweep with the
+source models' own Hill-type muscles in OpenSim, and the OpenSim path lengths written into
+config/joint_validation.yaml (`reference_paths`).
 
     .venv/bin/python test/validation/joint_torque_opensim.py MODELS_DIR
 

@@ -130,7 +130,7 @@ def check_loopback_only() -> None:
         raise RuntimeError(
             f"network interface(s) {', '.join(up)} are up: the node benchmark starts DDS, whose "
             "discovery multicasts on every interface. Run it in a loopback-only network "
-            "namespace: scripts/netns-run vm-ros bench ... (interfaces.md section 6)")
+            "namespace: scripts/netns-run vm-ros bench ... (docs/node.md section 6)")
     if not loopback_up:
         raise RuntimeError("the loopback interface is down: DDS needs it (`ip link set lo up`, "
                            "as scripts/netns-run does)")

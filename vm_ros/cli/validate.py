@@ -1,4 +1,4 @@
-"""Reproduce the checks of Tsianos, Rustin & Loeb 2012 (spec/validation.md): each item is run,
+"""Reproduce the checks of Tsianos, Rustin & Loeb 2012 (docs/validation.md): each item is run,
 compared with explicit criteria, drawn (one PNG per figure) and tabulated (validation.csv).
 Exits 1 when any criterion fails. Fig. 7 simulates 180 s of knee extension (a few minutes);
 `--quick` shortens it to 30 s (its energy and rise criteria then do not apply). A check that cannot
@@ -90,7 +90,7 @@ def run(args) -> int:
     for reason in dict.fromkeys(c.known_gap for c in gaps):
         print(f"GAP: {reason}")
     print(f"\n{counts['pass']} passed, {counts['FAIL']} failed"
-          + (f", {counts['GAP']} known gaps (not counted as failures; REPORT.md)"
+          + (f", {counts['GAP']} known gaps (not counted as failures; test/validation/REPORT.md)"
              if counts["GAP"] else "")
           + (f", {len(skipped)} check(s) skipped" if skipped else "")
           + f"  (figures and validation.csv in {args.out})")

@@ -23,7 +23,8 @@ JOINT_VALIDATION_FILE = "joint_validation.yaml"
 CROSSING_MOMENT_ARM_M = 1e-3       # a muscle crosses the joint where |r| exceeds this on the sweep
 # The library's l0/l0t describe the source OpenSim model's path: a MuJoCo path that differs from
 # it by more than 0.1 L0 (another model, or an entry made for another path) puts the fascicle
-# somewhere else on FL, and the comparison says nothing about VM (REPORT.md, item 10).
+# somewhere else on FL, and the comparison says nothing about VM (test/validation/REPORT.md,
+# item 10).
 PATH_COMPATIBILITY_L0 = 0.1
 STEADY_CHECK_S = 2.0               # drive and paths held this long after reset
 STEADY_TOLERANCE_F0 = 1e-4         # force change over it (F0): reset must be the steady state
@@ -246,11 +247,11 @@ def _crossing_muscles(geometry, coordinate, posture_deg, angles_deg) -> list:
             if r > CROSSING_MOMENT_ARM_M]
 
 
-_KNEE_GAP = ("known gap (REPORT.md item 10): the source model's geometry puts the vasti at L0 "
-             "near 41-53 deg and their moment arm falls from 38 to 22 mm by 90 deg; Rajagopal's "
-             "own Hill muscles on these paths peak earlier still")
-_ELBOW_GAP = ("known gap (REPORT.md item 10): the flexor fascicles are at 0.54-0.61 L0 at 130 "
-              "deg, where VM's active force at full drive is about 0.1 F0")
+_KNEE_GAP = ("known gap (test/validation/REPORT.md item 10): the source model's geometry puts "
+             "the vasti at L0 near 41-53 deg and their moment arm falls from 38 to 22 mm by 90 "
+             "deg; Rajagopal's own Hill muscles on these paths peak earlier still")
+_ELBOW_GAP = ("known gap (test/validation/REPORT.md item 10): the flexor fascicles are at "
+              "0.54-0.61 L0 at 130 deg, where VM's active force at full drive is about 0.1 F0")
 # The shape criteria the model misses today, with why; vm-ros validate reports them as GAP.
 JOINT_TORQUE_KNOWN_GAPS = {
     "knee: angle of peak torque (deg)": _KNEE_GAP,

@@ -462,7 +462,8 @@ def check_fig7_knee_extension(params=None, duration_s=None, progress=None) -> Ch
         # The gap, pinned: the model gives 0.333 of the paper's 35 000 J (11.6 kJ; the experiment's
         # band is 30 000-40 000 J). Any change of the model or the scenario that moves this by more
         # than about 10 % must update this band and test/validation/REPORT.md.
-        Criterion("total energy / paper's 35 000 J (GAP: experiment 30-40 kJ; see REPORT.md)",
+        Criterion("total energy / paper's 35 000 J (GAP: experiment 30-40 kJ; see "
+                  "test/validation/REPORT.md)",
                   float(out.total_energy) / FIG7_PAPER_TOTAL_J, 0.30, 0.37),
     ]
     result.data = {"time": run.bin_time_s, "bins": bins, "total_energy_j": out.total_energy,
