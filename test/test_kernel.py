@@ -8,7 +8,8 @@ steps at most 4e-6 of the largest fascicle velocity (where FV is flat a rounding
 difference moves V most), 2e-8 of length, 7e-9 of force. Held here to 1e-5 of each field's scale;
 an error in an equation shows up at 1e-3 or more. Without Numba the compiled
 step is unavailable, the bank falls back to NumPy, and the comparisons are skipped (they are
-recorded as skips, so a Numba-less run shows them).
+recorded as skips, so a Numba-less run shows them); the kernel's own code is still held to the
+NumPy step, run as plain Python, by test_model_layout.py.
 """
 
 from __future__ import annotations
