@@ -6,7 +6,7 @@ Every state here obeys a first-order lag dy/dt = (target - y) / tau. Functions r
 unconditionally stable for any dt.
 
 Rates in f0.5, time in s, L in L0, V in L0/s (negative shortening).
-References: Brown & Loeb 2000; Cheng, Brown & Loeb 2000; model.md section 3.
+References: Brown & Loeb 2000; Cheng, Brown & Loeb 2000; docs/model.md section 3.
 """
 
 from __future__ import annotations

@@ -22,7 +22,7 @@ def force_length_cheng2000(l, omega, beta, rho):
 
     FL(L) = exp(-|(L^beta - 1) / omega|^rho)
 
-    omega, beta, rho per fibre type (model.md section 8). FL(1) = 1. L is clipped at 0.
+    omega, beta, rho per fibre type (docs/model.md section 8). FL(1) = 1. L is clipped at 0.
     """
     return force_length_and_slope_cheng2000(l, omega, beta, rho)[0]
 

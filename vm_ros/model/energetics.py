@@ -12,7 +12,7 @@ activation, FL, and the muscle's dry mass. Velocities in L0/s, negative when sho
 | E_rec | recovery (ATP/PCr resynthesis) energy rate, R x E_i (static) or filtered (dynamic) |
 
 References: Barclay CJ 1996 J Physiol 497:781; Tsianos, Rustin & Loeb 2012 IEEE TNSRE 20:117;
-model.md sections 6-7.
+docs/model.md sections 6-7.
 """
 
 from __future__ import annotations

@@ -13,7 +13,7 @@ Comput 20:1456), a W-method that stays second order with any Jacobian; the one u
 analytic, from the slopes of the curves. Activation
 is held over the step (it varies on time scales of 1 ms and longer).
 
-References: Cheng, Brown & Loeb 2000; model.md section 4.
+References: Cheng, Brown & Loeb 2000; docs/model.md section 4.
 """
 
 from __future__ import annotations

@@ -104,7 +104,7 @@ def linear_recruited_fraction(ueff, fpcsa, lower, upper):
 def lumped_recruited_fraction_tsianos2012(ueff, fpcsa, lower, upper):
     """rF_i = Fpcsa_i clip((Ueff - lower_i) / (upper_i - lower_i), 0, 1); 0 for an absent type.
 
-    lower = (U1, U2); upper = (U2, Ur) capped (model.md 5b note) or (1, 1) as the paper reads.
+    lower = (U1, U2); upper = (U2, Ur) capped (docs/model.md 5b note) or (1, 1) as the paper reads.
     """
     return linear_recruited_fraction(ueff[..., None], fpcsa, lower, upper)
 
