@@ -1,4 +1,4 @@
-"""Recruitment schemes against the spec's numbers (model.md sections 5 and 9)."""
+"""Recruitment schemes against the spec's numbers (docs/model.md sections 5 and 9)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ LP = P.lumped
 
 
 def test_weighting_endpoints_for_u2_032():
-    # model.md section 9: W_S(U1)=0.872, W_S(U2)=0.660, W_S(1)=1.005, W_F(U2)=0.811,
+    # docs/model.md section 9: W_S(U1)=0.872, W_S(U2)=0.660, W_S(1)=1.005, W_F(U2)=0.811,
     # W_F(Ur)=0.768, W_F(1)=1.015 for U2 = 0.32 (Ur = 0.8)
     r = _lumped(0.4)  # U2 = 0.32, Ur = 0.8
     u2 = r.u2[0]  # 0.32 to rounding (0.8 * 0.4)
