@@ -54,7 +54,7 @@ setup(
         "console_scripts": [
             "muscle_node = vm_ros.node:main",
             # extras ros and mujoco (without mujoco it says so and exits 2)
-            "mujoco_sim_node = vm_ros.sim.mujoco_node:main",
+            "mujoco_sim_node = vm_ros.sim:mujoco_sim_main",
             "vm-ros = vm_ros.cli:main",
         ],
     },

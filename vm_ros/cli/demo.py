@@ -426,7 +426,7 @@ def run_closed_loop(args) -> int:
             "vm_ros.node", "--ros-args", "--params-file",
             str(_params_file(out / "muscle_node.yaml", muscle_params))),
         "mujoco_sim_node": module_command(
-            "vm_ros.sim.mujoco_node", "--ros-args", "--params-file",
+            "vm_ros.sim", "--ros-args", "--params-file",
             str(_params_file(out / "mujoco_sim_node.yaml", sim_params)))}
     print(f"vm-ros demo: {drive.description}", file=sys.stderr)
     wall_start = time.monotonic()

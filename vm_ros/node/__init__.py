@@ -14,13 +14,11 @@ def main(args=None) -> int:
 
     SIGINT/SIGTERM handlers go in before rclpy is imported (about 0.5 s), so that a signal at
     any time after this point is a clean stop."""
-    from vm_ros.node.signals import ShutdownRequest
+    from vm_ros.node.signals import main_after_signals
 
-    stop = ShutdownRequest.install()
-    try:
+    def import_main():
         from vm_ros.node.shell import main as shell_main
-    except KeyboardInterrupt:  # a second signal during the import
-        return 0
-    if stop.requested:  # stopped while rclpy was imported: nothing was started
-        return 0
-    return shell_main(args)
+
+        return shell_main
+
+    return main_after_signals(import_main, args)

@@ -44,4 +44,18 @@ class ShutdownRequest:
         self.requested, self.signal = True, signum
 
 
-__all__ = ["ShutdownRequest"]
+def main_after_signals(import_main, args=None) -> int:
+    """Install the handlers, then import the program (``import_main()`` returns its main, which
+    imports rclpy) and run it with ``args``: a signal during the import is a clean exit 0 with
+    nothing started."""
+    stop = ShutdownRequest.install()
+    try:
+        program_main = import_main()
+    except KeyboardInterrupt:  # a second signal during the import
+        return 0
+    if stop.requested:  # stopped while rclpy was imported: nothing was started
+        return 0
+    return program_main(args)
+
+
+__all__ = ["ShutdownRequest", "main_after_signals"]

@@ -7,3 +7,16 @@
   energy as arrays, a summary and a plot (no rclpy, no MuJoCo; used by ``vm-ros demo
   --closed-loop``).
 """
+
+
+def mujoco_sim_main(args=None) -> int:
+    """The mujoco_sim_node entry point: SIGINT/SIGTERM handlers before rclpy's import, as
+    muscle_node's (vm_ros.node.signals)."""
+    from vm_ros.node.signals import main_after_signals
+
+    def import_main():
+        from vm_ros.sim.mujoco_node import main as node_main
+
+        return node_main
+
+    return main_after_signals(import_main, args)
