@@ -156,9 +156,11 @@ def write_library(path: Path, n_muscles: int) -> list[str]:
 
 def write_params(path: Path, names: list[str], library: Path, model_rate_hz: float,
                  publish_rate_hz: float, mcap_path: Path | None,
-                 diagnostics_period_s: float, geometry: Path | None = None) -> None:
+                 diagnostics_period_s: float, geometry: Path | None = None,
+                 node_parameters: dict | None = None) -> None:
     """muscle_node's params YAML (the model starts at the first muscle_kinematics, or with a
-    ``geometry`` file at the first joint_states naming every coordinate)."""
+    ``geometry`` file at the first joint_states naming every coordinate); ``node_parameters``
+    adds or replaces parameters (e.g. ``{"executor": "single_threaded"}``)."""
     params = {
         "muscles": list(names), "library": str(library), "model_rate_hz": float(model_rate_hz),
         "publish_rate_hz": float(publish_rate_hz),
@@ -168,6 +170,7 @@ def write_params(path: Path, names: list[str], library: Path, model_rate_hz: flo
     }
     if geometry is not None:
         params["geometry"] = str(geometry)
+    params.update(node_parameters or {})
     path.write_text(yaml.safe_dump({"/**": {"ros__parameters": params}}, sort_keys=False),
                     encoding="utf-8")
 
@@ -503,8 +506,10 @@ def run_node_benchmark(n_muscles: int, model_rate_hz: float = 1000.0,
                        publish_rate_hz: float = 100.0, duration_s: float = 60.0,
                        mcap: bool = True, workdir: Path | str | None = None,
                        progress: Callable[[float, float], None] | None = None, *,
-                       warmup_s: float = 5.0, drive_rate_hz: float = 100.0) -> dict:
-    """Run muscle_node with ``n_muscles`` as a process and measure it (module docstring).
+                       warmup_s: float = 5.0, drive_rate_hz: float = 100.0,
+                       node_parameters: dict | None = None) -> dict:
+    """Run muscle_node with ``n_muscles`` as a process and measure it (module docstring);
+    ``node_parameters`` are added to its params file.
 
     Call inside a loopback-only network namespace (scripts/netns-run); raises RuntimeError when
     another interface is up, and when the node does not start or dies. ``workdir`` receives the
@@ -521,9 +526,10 @@ def run_node_benchmark(n_muscles: int, model_rate_hz: float = 1000.0,
                                                   LENGTH_SWING)
 
     result = _run(setup, model_rate_hz, publish_rate_hz, duration_s, mcap, workdir, progress,
-                  warmup_s, drive_rate_hz, None)
+                  warmup_s, drive_rate_hz, None, node_parameters)
     return {"n_muscles": n_muscles, "model_rate_hz": float(model_rate_hz),
-            "publish_rate_hz": float(publish_rate_hz), "mcap": bool(mcap), **result}
+            "publish_rate_hz": float(publish_rate_hz), "mcap": bool(mcap),
+            "node_parameters": dict(node_parameters or {}), **result}
 
 
 def run_joint_node_benchmark(geometry: Path | str, library: Path | str,
@@ -532,7 +538,8 @@ def run_joint_node_benchmark(geometry: Path | str, library: Path | str,
                              workdir: Path | str | None = None,
                              progress: Callable[[float, float], None] | None = None, *,
                              warmup_s: float = 5.0, drive_rate_hz: float = 100.0,
-                             joint_rate_hz: float = 1000.0) -> dict:
+                             joint_rate_hz: float = 1000.0,
+                             node_parameters: dict | None = None) -> dict:
     """Run muscle_node from joint space (module docstring) and measure it as
     :func:`run_node_benchmark` does: the ``geometry`` file, the ``library`` muscles it covers
     (all joint-driven), joint_states for every coordinate at ``joint_rate_hz``."""
@@ -548,15 +555,16 @@ def run_joint_node_benchmark(geometry: Path | str, library: Path | str,
                          paths.upper, JOINT_SWING)
     result = _run(lambda _workdir: (names, library, geometry, sweep), model_rate_hz,
                   publish_rate_hz, duration_s, mcap, workdir, progress, warmup_s,
-                  drive_rate_hz, joint_rate_hz)
+                  drive_rate_hz, joint_rate_hz, node_parameters)
     return {"n_muscles": len(names), "n_geometry_muscles": len(paths.muscle_names),
             "n_coordinates": len(paths.coordinates), "input": tm.TOPIC_JOINT_STATES,
             "joint_rate_hz": float(joint_rate_hz), "model_rate_hz": float(model_rate_hz),
-            "publish_rate_hz": float(publish_rate_hz), "mcap": bool(mcap), **result}
+            "publish_rate_hz": float(publish_rate_hz), "mcap": bool(mcap),
+            "node_parameters": dict(node_parameters or {}), **result}
 
 
 def _run(setup, model_rate_hz, publish_rate_hz, duration_s, mcap, workdir, progress, warmup_s,
-         drive_rate_hz, sweep_rate_hz) -> dict:
+         drive_rate_hz, sweep_rate_hz, node_parameters=None) -> dict:
     """The benchmark of either input: ``setup(workdir)`` gives (muscle names, library path,
     geometry path or None, Sweep); ``sweep_rate_hz`` None publishes the sweep with the drive."""
     import rclpy
@@ -576,7 +584,7 @@ def _run(setup, model_rate_hz, publish_rate_hz, duration_s, mcap, workdir, progr
         params_path = workdir / "node_bench_params.yaml"
         write_params(params_path, names, library, model_rate_hz, publish_rate_hz, mcap_path,
                      diagnostics_period_s=1.0 if duration_s >= 10.0 else 0.25,
-                     geometry=geometry)
+                     geometry=geometry, node_parameters=node_parameters)
         step_ns = int(round(1e9 / model_rate_hz))
         log_path = workdir / "muscle_node.log"
 
@@ -722,6 +730,9 @@ def main(argv=None) -> int:
     parser.add_argument("--joint-rate", type=float, default=1000.0,
                         help="joint_states rate with --geometry (Hz)")
     parser.add_argument("--no-mcap", action="store_true", help="run the node without MCAP")
+    parser.add_argument("--node-param", action="append", default=[], metavar="NAME=VALUE",
+                        help="a muscle_node parameter for the run (VALUE read as YAML), e.g. "
+                             "executor=single_threaded; repeatable")
     parser.add_argument("--workdir", type=Path, default=None,
                         help="keep library, params, node log and MCAP here (default: temporary)")
     args = parser.parse_args(argv)
@@ -733,8 +744,18 @@ def main(argv=None) -> int:
             sys.stderr.write(f"\rnode bench {100.0 * done / total:5.1f}% ")
             sys.stderr.flush()
 
+    node_parameters = {}
+    for item in args.node_param:
+        name, sep, value = item.partition("=")
+        if not sep or not name:
+            parser.error(f"--node-param {item!r}: expected NAME=VALUE")
+        try:
+            node_parameters[name] = yaml.safe_load(value)
+        except yaml.YAMLError as exc:
+            parser.error(f"--node-param {item!r}: VALUE is not YAML ({exc.problem})")
     common = dict(mcap=not args.no_mcap, workdir=args.workdir, progress=progress,
-                  warmup_s=args.warmup, drive_rate_hz=args.drive_rate)
+                  warmup_s=args.warmup, drive_rate_hz=args.drive_rate,
+                  node_parameters=node_parameters)
     try:
         if args.geometry is not None:
             result = run_joint_node_benchmark(
