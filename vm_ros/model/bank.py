@@ -239,7 +239,7 @@ class MuscleBank:
             return eq.effective_activation(
                 weights[idx], proto.firing_rate_effective[idx], proto.sag[idx],
                 proto.yield_factor[idx], l,
-            )[0]  # fmt: skip
+            )[0]
 
         g = self.params.generic
         proto.fascicle_length_m = equilibrium_fascicle_length(

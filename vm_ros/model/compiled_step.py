@@ -33,7 +33,7 @@ def _from_bank(cls, bank):
         per_muscle.update(
             u2=rec.u2, rec_lower_s=lower[:, 0], rec_lower_f=lower[:, 1],
             rec_upper_s=upper[:, 0], rec_upper_f=upper[:, 1],
-        )  # fmt: skip
+        )
         lumped_sources = [rec.coefficients]
     else:
         lumped_sources = [dict.fromkeys(LUMPED_ONLY, np.nan)]  # read by the lumped scheme only

@@ -32,12 +32,10 @@ LUMPED, NATURAL, CONTINUOUS = 0, 1, 2
 
 
 # the terms of F_CE, and their slopes, that depend on (L, V) only, as kept per muscle
-# fmt: off
 (
     FL_SLOW, FL_FAST, FV_SLOW, FV_FAST, PE1, PE2,
     DFL_SLOW, DFL_FAST, DFVDV_SLOW, DFVDV_FAST, DFVDL_SLOW, DFVDL_FAST, DPE1, DPE2,
 ) = range(N_TERMS)
-# fmt: on
 
 
 @jitable
@@ -50,7 +48,7 @@ def _fibre_terms(l, v, m, fibre_type, s, terms, with_slopes):
         terms[FL_SLOW + t] = fl
         terms[DFL_SLOW + t] = dfl
         fv_args = (ft[T.vmax], ft[T.cv0], ft[T.cv1], ft[T.av0], ft[T.av1], ft[T.av2], ft[T.bv],
-                   s[S.fv_denominator_min])  # fmt: skip
+                   s[S.fv_denominator_min])
         terms[FV_SLOW + t] = curves.force_velocity_cheng2000(v, l, *fv_args)
         if with_slopes:
             dfv_dv, dfv_dl = curves.force_velocity_slopes_cheng2000(v, l, *fv_args)
@@ -91,7 +89,7 @@ def _contractile_force_and_slopes(activity, terms, m, s):
         dl, dv = mech.active_force_slopes(
             activity[t], terms[FL_SLOW + t], terms[DFL_SLOW + t], terms[FV_SLOW + t],
             terms[DFVDV_SLOW + t], terms[DFVDL_SLOW + t], terms[DPE2],
-        )  # fmt: skip
+        )
         active_dl += dl
         active_dv += dv
     d_ce_dl, d_ce_dv = mech.contractile_force_slopes_total(
@@ -118,13 +116,13 @@ def _type_weights(scheme, ueff, m, threshold_s, threshold_f, w_slow_poly, s):
         ) * rc.lumped_weight_slow(
             ueff, s[S.u1], m[M.u2], w_slow_poly, m[M.w_slow_at_u2], m[M.w_slow_amplitude],
             s[S.w_slow_tau],
-        )  # fmt: skip
+        )
         fast = rc.linear_recruited_fraction(
             ueff, m[M.fpcsa_f], m[M.rec_lower_f], m[M.rec_upper_f]
         ) * rc.lumped_weight_fast(
             ueff, m[M.u2], m[M.ur], m[M.w_fast_b], m[M.w_fast_c], m[M.w_fast_tau],
             s[S.w_fast_offset], s[S.w_fast_rise],
-        )  # fmt: skip
+        )
         return slow, fast
     excess_s = rc.continuous_excess_song2008(ueff, threshold_s, m[M.fpcsa_s] > 0.0)
     excess_f = rc.continuous_excess_song2008(ueff, threshold_f, m[M.fpcsa_f] > 0.0)
@@ -141,7 +139,7 @@ def _advance(
     effective_drive, f_int, f_eff, sag, yield_factor, x_state, xdot_state, recovery_filter,
     energy, work, terms_end, xv_end, out_excitation,
     out_f_se, out_f_ce, out_activity, out_stimulation, out_components, out_rates, out_power,
-):  # fmt: skip
+):
     """Advance every muscle by dt in place (state arrays) and fill the outputs.
 
     out_rates (n, 4): the energy rates summed over fibre types (activation, cross-bridge,
@@ -216,7 +214,7 @@ def _advance(
             )
             f_int[i, j], f_eff[i, j], sag[i, j], yield_factor[i, j] = (
                 fi_new, fe_new, sag_new, yield_new,
-            )  # fmt: skip
+            )
             # Phase 3, ACTIVATION: the pool's share of Acteff and stimulation of its type
             t = pool_type[j]
             weight = pool_pcsa[i, j] if scheme == NATURAL else (weight_s if t == 0 else weight_f)
@@ -240,7 +238,7 @@ def _advance(
         d_se_dx = mech.tendon_force_slope(
             mech.tendon_length_normalised(lp, x, m[M.l0t]), m[M.f0], m[M.l0t], s[S.ct], s[S.kt],
             s[S.lrt],
-        )  # fmt: skip
+        )
         accel, a_x, a_v, a_p = mech.ros2_jacobian(f_se, f_ce, d_se_dx, d_ce_dx, d_ce_dv, m[M.m_eff])
         k1_x, k1_v, x2, v2 = mech.ros2_stage1(x, xdot, vp, dt, accel, a_x, a_v, a_p)
         _fibre_terms(x2 / l0, v2 / l0, m, fibre_type, s, terms_tmp, False)
@@ -269,7 +267,7 @@ def _advance(
             e_act, e_xb = en.initial_energy_rates_tsianos2012(
                 stimulation[t], activity[t], base[FL_SLOW + t], v_new, m[M.dry_mass],
                 ft[T.e1], ft[T.e2], ft[T.e3], ft[T.e4], s[S.activation_fraction], ft[T.vmax],
-            )  # fmt: skip
+            )
             initial = e_act + e_xb
             # Phase 6, RECOVERY: STEP 6 (static) or the Appendix B filter (dynamic)
             if dynamic_recovery:
@@ -311,7 +309,7 @@ def _advance_series(
     energy, work, terms_end, xv_end, out_excitation,
     out_f_se, out_f_ce, out_activity, out_stimulation, out_components, out_rates, out_power,
     out_length, out_velocity,
-):  # fmt: skip
+):
     """:func:`_advance` for k steps: inputs and outputs carry a leading step axis (k, n, ...);
     the state arrays end at the last step. Returns 0, or 1 + the flat index step * n + muscle
     of the first bad input (the caller discards the state arrays)."""
@@ -324,7 +322,7 @@ def _advance_series(
             recovery_filter, energy, work, terms_end, xv_end, out_excitation[k], out_f_se[k],
             out_f_ce[k], out_activity[k], out_stimulation[k], out_components[k], out_rates[k],
             out_power[k],
-        )  # fmt: skip
+        )
         if status != 0:
             return k * n + status
         out_length[k] = x_state

@@ -73,7 +73,7 @@ STATE = (
     Array("energy_j", "energy", ("n", 2, 3), "J",
           "energy since reset per fibre type and component (activation, cross-bridge, recovery)"),
     Array("mechanical_work_j", "work", ("n",), "J", "mechanical work since reset"),
-)  # fmt: skip
+)
 STATE_NAMES = tuple(a.name for a in STATE)
 # states that feed nothing back into the dynamics (integrals of outputs)
 OUTPUT_INTEGRALS = ("energy_j", "mechanical_work_j")
@@ -151,7 +151,7 @@ M, M_UNITS = _columns("MuscleColumns", (
     ("rec_lower_s", "1"), ("rec_lower_f", "1"), ("rec_upper_s", "1"), ("rec_upper_f", "1"),
     ("t_rise", "s"), ("t_fall", "s"), ("w_slow_at_u2", "1"), ("w_slow_amplitude", "1"),
     ("w_fast_b", "1"), ("w_fast_c", "1"), ("w_fast_tau", "1"),
-))  # fmt: skip
+))
 LUMPED_ONLY = ("u2", "rec_lower_s", "rec_lower_f", "rec_upper_s", "rec_upper_f", "t_rise",
                "t_fall", "w_slow_at_u2", "w_slow_amplitude", "w_fast_b", "w_fast_c", "w_fast_tau")
 # per motor-unit pool (shared by every muscle)
@@ -159,13 +159,13 @@ P, P_UNITS = _columns("PoolColumns", (
     ("af", "f0.5"), ("nf0", "1"), ("nf1", "1"), ("tf1", "s"), ("tf2", "s"), ("tf3", "s"),
     ("tf4", "s"), ("as1", "1"), ("as2", "1"), ("sag_rate_threshold", "f0.5"), ("ts", "s"),
     ("cy", "1"), ("vy", "L0/s"), ("ty", "s"), ("l_max", "L0"),
-))  # fmt: skip
+))
 # per fibre type
 T, T_UNITS = _columns("TypeColumns", (
     ("omega", "1"), ("beta", "1"), ("rho", "1"), ("vmax", "L0/s"), ("cv0", "1"), ("cv1", "1"),
     ("av0", "1"), ("av1", "1"), ("av2", "1"), ("bv", "L0/s"), ("e1", "W s/(kg L0)"),
     ("e2", "W/kg"), ("e3", "W L0/(kg s)"), ("e4", "L0/s"), ("recovery_ratio", "1"),
-))  # fmt: skip
+))
 # shared scalars
 S, S_UNITS = _columns("SharedColumns", (
     ("fmin", "f0.5"), ("fmax", "f0.5"), ("c1", "1"), ("k1", "1"), ("lr1", "1"),
@@ -174,7 +174,7 @@ S, S_UNITS = _columns("SharedColumns", (
     ("activation_fraction", "1"), ("recovery_tau_rise", "s"), ("recovery_tau_decay", "s"),
     ("u1", "1"), ("t_rise_step_scale", "1/s"), ("w_slow_tau", "1"), ("w_fast_offset", "1"),
     ("w_fast_rise", "1"), ("continuous_tau_rise", "s"), ("continuous_tau_fall", "s"),
-))  # fmt: skip
+))
 
 # In the kernel's argument order.
 CONSTANTS = (
@@ -189,7 +189,7 @@ CONSTANTS = (
     Array("fibre_type", "fibre_type", (2, len(T)), "T_UNITS", "per-fibre-type table, columns T"),
     Array("shared", "shared", (1, len(S)), "S_UNITS", "shared scalars, columns S"),
     Array("w_slow_poly", "w_slow_poly", ("poly",), "1", "W_S polynomial in Ueff, highest first"),
-)  # fmt: skip
+)
 
 
 def table(name: str, columns, rows: int, sources) -> np.ndarray:
@@ -264,4 +264,4 @@ __all__ = [
     "TIME", "Array", "BankState", "M", "MissingConstantError", "P", "S", "T",
     "checked_state", "dummy_arguments", "kernel_parameters", "state_arguments", "table",
     "zero_state",
-]  # fmt: skip
+]

@@ -184,7 +184,7 @@ def musculotendon_forces(
 def musculotendon_forces_and_slopes(
     x, xdot, path_length, activity, geometry: MuscleGeometry, fibre: FibreTypeParams,
     g: GenericParams,
-):  # fmt: skip
+):
     """The forces of :func:`musculotendon_forces` (N) with their slopes: (F_SE, F_CE,
     dF_SE/dx, dF_CE/dx (N/m), dF_CE/dxdot (N s/m)), each (..., n). F_SE depends on x through
     L_SE = (L_path - x) / L0T."""

@@ -114,7 +114,7 @@ class NumpyStep:
         tf = act.rise_fall_time_constant(
             f_env, state.firing_rate_intermediate, state.firing_rate_effective, l_pool, af_now,
             p.tf1, p.tf2, p.tf3, p.tf4,
-        )  # fmt: skip
+        )
         return LagTargets(
             l=l,
             v=v,
@@ -134,7 +134,7 @@ class NumpyStep:
         return en.initial_energy_rates_tsianos2012(
             stimulation, activity, fl, v[:, None], self.dry_mass, e.e1, e.e2, e.e3, e.e4,
             e.activation_fraction, fibre.vmax,
-        )  # fmt: skip
+        )
 
     def recovery_rate(self, recovery_filter, initial):
         """Recovery energy rate (W), (n, 2): R E_i (static, STEP 6) or from the filter states
@@ -168,7 +168,7 @@ class NumpyStep:
         activity, stimulation = self.effective_activation(
             self.recruitment.pool_weights(state.effective_drive),
             state.firing_rate_effective, state.sag, state.yield_factor, l,
-        )  # fmt: skip
+        )
         x, xdot = state.fascicle_length_m, state.fascicle_velocity_m_per_s
         p = self.params
         f_se, f_ce, fl = musculotendon_forces(x, xdot, lp, activity, self.geometry, p.fibre,
@@ -269,7 +269,7 @@ class NumpyStep:
         x, xdot = rosenbrock_step(
             old.fascicle_length_m, old.fascicle_velocity_m_per_s, lp, vp, dt, forces,
             forces_and_slopes, geometry.m_eff,
-        )  # fmt: skip
+        )
         floor = g.l_activation_min * geometry.l0
         at_floor = x < floor
         x = new.fascicle_length_m = np.where(at_floor, floor, x)

@@ -123,7 +123,7 @@ class StepOutput:
         "recruited_fraction", "effective_activation", "energy_rate", "energy_rate_by_fibre",
         "energy", "energy_by_fibre", "mechanical_power", "mechanical_work", "total_energy_rate",
         "total_energy",
-    )  # fmt: skip
+    )
 
     def __init__(self, equations: NumpyStep, state, record):
         self._equations = equations
