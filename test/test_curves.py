@@ -1,4 +1,4 @@
-"""Curves and activation relations against the spec's numbers (docs/model.md section 9) and limits.
+"""Curves and activation relations against docs/model.md section 9's numbers and limits.
 
 Expected values are computed by hand from the published constants (written out here), not taken
 from the code's output.
@@ -49,7 +49,7 @@ def test_force_velocity_is_one_when_isometric(l):
 
 
 @pytest.mark.parametrize(("t", "v_half"), [(SLOW, -1.00), (FAST, -1.67)])
-def test_half_force_velocity_matches_spec(t, v_half):
+def test_half_force_velocity_matches_the_published_value(t, v_half):
     # V0.5 = Vmax / (cV0 + cV1 + 2) at L = 1 (docs/model.md section 9): FV(V0.5) = 0.5
     assert F.vmax[t] / (F.cv0[t] + F.cv1[t] + 2) == pytest.approx(v_half, abs=0.005)
     assert _fv(v_half, 1.0, t) == pytest.approx(0.5, abs=0.003)

@@ -1,6 +1,6 @@
-"""Energetics (Tsianos 2012 STEPs 1-7, Appendix B) against the spec's numbers and the paper.
+"""Energetics (Tsianos 2012 STEPs 1-7, Appendix B) against published numbers and the paper.
 
-Expected numbers are the spec's (docs/model.md section 9) or computed here from the published
+Expected numbers are those of docs/model.md section 9 or computed here from the published
 constants, never copied from the code's output.
 """
 

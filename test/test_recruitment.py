@@ -1,4 +1,4 @@
-"""Recruitment schemes against the spec's numbers (docs/model.md sections 5 and 9)."""
+"""Recruitment schemes against the numbers of docs/model.md sections 5 and 9."""
 
 from __future__ import annotations
 
