@@ -13,14 +13,11 @@ import dataclasses
 import warnings
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
 from vm_ros.model import layout
-
-if TYPE_CHECKING:  # pragma: no cover
-    from vm_ros.model.numpy_step import NumpyStep
 
 ENERGY_COMPONENTS = ("activation", "cross_bridge", "recovery", "total")
 
@@ -125,7 +122,8 @@ class StepOutput:
         "total_energy",
     )
 
-    def __init__(self, equations: NumpyStep, state, record):
+    def __init__(self, equations, state, record):
+        # equations: the NumpyStep whose methods compute the fields read on demand
         self._equations = equations
         self._state = state  # never modified once published (every step works on a copy)
         self.record = record
