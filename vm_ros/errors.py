@@ -2,6 +2,32 @@
 
 from __future__ import annotations
 
+import numpy as np
+
+ITEMS_SHOWN = 4  # items of a long list or dict that an error message quotes
+
+
+def plain_value(value) -> str:
+    """A value as a short, plain literal: numbers as numbers (not np.float64(...)), long lists
+    by their first items and length, long text cut."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if isinstance(value, (list, tuple)):
+        shown = ", ".join(plain_value(v) for v in value[:ITEMS_SHOWN])
+        more = f", ... ({len(value)} items)" if len(value) > ITEMS_SHOWN else ""
+        return f"[{shown}{more}]"
+    if isinstance(value, dict):
+        items = list(value.items())
+        shown = ", ".join(f"{plain_value(k)}: {plain_value(v)}" for k, v in items[:ITEMS_SHOWN])
+        more = f", ... ({len(items)} items)" if len(items) > ITEMS_SHOWN else ""
+        return f"{{{shown}{more}}}"
+    if isinstance(value, float):
+        return repr(value)
+    text = repr(value)
+    return text if len(text) <= 120 else f"{text[:100]}... ({len(text)} chars)"
+
 
 class VmRosError(Exception):
     """Base class of every error vm_ros raises on purpose."""
@@ -18,7 +44,7 @@ class ConfigError(VmRosError):
         self.field = field
         self.value = value
         self.reason = reason
-        super().__init__(f"{self.path}: field '{field}' = {value!r}: {reason}")
+        super().__init__(f"{self.path}: field '{field}' = {plain_value(value)}: {reason}")
 
 
 class InputError(VmRosError):
@@ -28,4 +54,4 @@ class InputError(VmRosError):
         self.name = name
         self.value = value
         self.reason = reason
-        super().__init__(f"input '{name}': {reason} (got {value!r})")
+        super().__init__(f"input '{name}': {reason} (got {plain_value(value)})")

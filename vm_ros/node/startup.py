@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vm_ros.errors import ConfigError
+from vm_ros.errors import ConfigError, plain_value
 from vm_ros.joint_space import JointSpace
 from vm_ros.model import MuscleBank
 from vm_ros.node.inputs import InputLimits
@@ -27,7 +27,6 @@ from vm_ros.recording.run_config import RunConfig
 
 EXIT_BAD_PARAMETER = 2  # exit status of a start-up error (argparse's for a usage error)
 LINE_MAX_CHARS = 600  # longest start-up error line (a value or reason is shortened to fit)
-_ITEMS_SHOWN = 4  # list items shown of a long list value
 
 
 @dataclass(frozen=True)
@@ -109,34 +108,12 @@ def _against_parameter(exc: ConfigError, c: NodeConfig, run_config: RunConfig) -
 # --- the error line ------------------------------------------------------------------------------
 
 
-def brief(value) -> str:
-    """A value as a short, plain literal: numbers as numbers (not np.float64(...)), long lists
-    by their first items and length, long text cut."""
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, np.ndarray):
-        value = value.tolist()
-    if isinstance(value, (list, tuple)):
-        shown = ", ".join(brief(v) for v in value[:_ITEMS_SHOWN])
-        more = f", ... ({len(value)} items)" if len(value) > _ITEMS_SHOWN else ""
-        return f"[{shown}{more}]"
-    if isinstance(value, dict):
-        items = list(value.items())
-        shown = ", ".join(f"{brief(k)}: {brief(v)}" for k, v in items[:_ITEMS_SHOWN])
-        more = f", ... ({len(items)} items)" if len(items) > _ITEMS_SHOWN else ""
-        return f"{{{shown}{more}}}"
-    if isinstance(value, float):
-        return repr(value)
-    text = repr(value)
-    return text if len(text) <= 120 else f"{text[:100]}... ({len(text)} chars)"
-
-
 def error_line(program: str, exc: BaseException) -> str:
     """The single stderr line of a start-up error: ``program: error: ...`` naming the parameter
     (or file field) and its value, newlines folded, at most LINE_MAX_CHARS characters."""
     if isinstance(exc, ConfigError):
         where = "parameter" if exc.path == PARAMS_SOURCE else f"{exc.path}: field"
-        value = "" if exc.value is None else f" = {brief(exc.value)}"
+        value = "" if exc.value is None else f" = {plain_value(exc.value)}"
         text = f"{where} '{exc.field}'{value}: {exc.reason}"
     else:
         text = str(exc)
@@ -146,5 +123,4 @@ def error_line(program: str, exc: BaseException) -> str:
     return text
 
 
-__all__ = ["EXIT_BAD_PARAMETER", "NodeModel", "brief", "build_model", "check_parameters",
-           "error_line"]
+__all__ = ["EXIT_BAD_PARAMETER", "NodeModel", "build_model", "check_parameters", "error_line"]
