@@ -257,7 +257,9 @@ def test_unknown_joints_alone_do_not_raise_a_warning(ros, geometry_file):
 
     def ok_report():
         diag = probe.base.last_diagnostics()
-        return diag.get(ISSUE_KINDS["joint_unknown_name"][0]) == "12" and diag["_level"] == 0
+        # not a WARN about joints (a WARN for falling behind on a loaded machine is pace)
+        return diag.get(ISSUE_KINDS["joint_unknown_name"][0]) == "12" and (
+            diag["_level"] == 0 or "joint" not in diag["_message"])
     assert ros.spin_until(ok_report, timeout_s=5), probe.base.last_diagnostics()
 
 
