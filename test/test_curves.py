@@ -89,6 +89,12 @@ def test_nf_zero_length_is_clamped():
         assert F.nf1[t] / (F.nf1[t] - F.nf0[t]) == pytest.approx(l_zero, abs=0.001)
         l_max = act.activation_length_max(F.nf0[t], F.nf1[t], G.l_activation_max_fraction)
         assert 1.0 < l_max < l_zero
+        # 5 % inside the published nf-zero length (docs/model.md section 3), where nf > 0 and
+        # Af is a proper fraction; at l_zero itself nf = 0 and Af is not defined
+        assert l_max == pytest.approx(0.95 * l_zero, abs=0.002)
+        af = curves.activation_frequency_brown1999(1.0, l_max, 1.0, 1.0, F.af[t], F.nf0[t],
+                                                   F.nf1[t])
+        assert 0.0 < af < 1.0
 
 
 def test_tendon_force_is_f0_at_l0t_and_inverse_is_consistent():
