@@ -75,6 +75,24 @@ def require_ros():
     return rclpy
 
 
+def early_signal_stop(command, sig, delay_s: float, cwd) -> tuple[int, str]:
+    """Start ``command``, send ``sig`` after ``delay_s`` (its start-up), and return its exit
+    status and stderr (the process is killed if it has not exited 30 s after the signal)."""
+    import subprocess
+
+    process = subprocess.Popen(command, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True)
+    try:
+        time.sleep(delay_s)
+        process.send_signal(sig)
+        _, stderr = process.communicate(timeout=30)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    return process.returncode, stderr
+
+
 class Probe:
     """A test node: publishes inputs (and /clock), records every output message."""
 

@@ -8,9 +8,7 @@ the CLI (files written, a bad model name is one line and exit 2).
 from __future__ import annotations
 
 import signal
-import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -211,18 +209,10 @@ def test_muscle_node_drives_the_sim_node(ros, tmp_path, capsys):
 def test_a_signal_soon_after_the_sim_node_starts_is_a_clean_stop(sig, tmp_path):
     """mujoco_sim_node (``python -m vm_ros.sim``, what the console script runs): a signal while
     rclpy and MuJoCo are imported is exit 0 without a traceback, as for muscle_node."""
-    from conftest import require_ros
+    from conftest import early_signal_stop, require_ros
 
     require_ros()
-    process = subprocess.Popen([sys.executable, "-P", "-m", "vm_ros.sim"], cwd=tmp_path,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        time.sleep(0.3)
-        process.send_signal(sig)
-        _, stderr = process.communicate(timeout=30)
-    finally:
-        if process.poll() is None:
-            process.kill()
-            process.wait()
-    assert process.returncode == 0, stderr
+    status, stderr = early_signal_stop([sys.executable, "-P", "-m", "vm_ros.sim"], sig, 0.3,
+                                       tmp_path)
+    assert status == 0, stderr
     assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, stderr

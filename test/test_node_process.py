@@ -8,12 +8,11 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import STRICT, require_ros
+from conftest import STRICT, early_signal_stop, require_ros
 
 from vm_ros import telemetry as tm
 from vm_ros.model import MuscleBank
@@ -158,19 +157,11 @@ def test_a_signal_soon_after_launch_is_a_clean_stop(sig, delay_s, tmp_path):
     traceback; the MCAP file, if the node got far enough to open it, is finished."""
     require_ros()
     path = tmp_path / "early.mcap"
-    process = subprocess.Popen(
+    status, stderr = early_signal_stop(
         [sys.executable, "-P", "-m", "vm_ros.node", *ros_args(mcap__enabled="true",
                                                             mcap__path=str(path))],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
-    try:
-        time.sleep(delay_s)
-        process.send_signal(sig)
-        _, stderr = process.communicate(timeout=30)
-    finally:
-        if process.poll() is None:
-            process.kill()
-            process.wait()
-    assert process.returncode == 0, stderr
+        sig, delay_s, tmp_path)
+    assert status == 0, stderr
     assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, stderr
     if path.exists():
         from vm_ros.recording import read_run
