@@ -95,6 +95,19 @@ def test_nf_zero_length_is_clamped():
         af = curves.activation_frequency_brown1999(1.0, l_max, 1.0, 1.0, F.af[t], F.nf0[t],
                                                    F.nf1[t])
         assert 0.0 < af < 1.0
+        # by hand: nf = 2.1 + nf1 (1/l_max - 1), Af = 1 - exp(-(1 / (0.56 nf))^nf)
+        assert af == pytest.approx({SLOW: 0.76673, FAST: 0.70916}[t], abs=1e-4)
+
+
+def test_the_step_clips_the_activation_length_to_the_published_limits():
+    from vm_ros.model import MuscleBank
+
+    equations = MuscleBank.from_config(["vasti"], backend="numpy").equations
+    pools = equations.pool_length(np.array([0.1, 5.0]))
+    slow = equations.recruitment.fibre_index == SLOW
+    # l_activation_min 0.3; 0.95 x 5/2.9 (slow) and 0.95 x 3.3/1.2 (fast)
+    np.testing.assert_allclose(pools[0], 0.3)
+    np.testing.assert_allclose(pools[1], np.where(slow, 0.95 * 5 / 2.9, 0.95 * 3.3 / 1.2))
 
 
 def test_tendon_force_is_f0_at_l0t_and_inverse_is_consistent():
