@@ -59,7 +59,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.qos_overriding_options import InvalidQosOverridesError, QoSOverridingOptions
-from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.serialization import serialize_message
 from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 from sensor_msgs.msg import JointState
@@ -67,7 +67,6 @@ from std_msgs.msg import Float64, Float64MultiArray
 
 from vm_ros import telemetry as tm
 from vm_ros.errors import ConfigError, VmRosError
-from vm_ros.node.cdr import payload_problem
 from vm_ros.node.health import (
     ISSUE_KINDS,
     QUIET_KINDS,
@@ -86,6 +85,7 @@ from vm_ros.node.recording import NodeRunLog, node_run_extra
 from vm_ros.node.signals import ShutdownRequest
 from vm_ros.node.startup import EXIT_BAD_PARAMETER, build_model, error_line
 from vm_ros.node.timing import StepScheduler
+from vm_ros.recording.cdr import decoder
 from vm_ros.recording.qos import offered_qos_profiles_yaml
 from vm_ros.recording.run_log import RunInfo, RunTiming
 
@@ -383,6 +383,10 @@ class MuscleNode(Node):
                   tm.TOPIC_KINEMATICS: self._on_kinematics,
                   tm.TOPIC_JOINT_STATES: self._on_joint_states}[topic]
         gaps = self._gaps[topic] = SequenceGaps()
+        # the decoder a recompute uses (vm_ros.recording.cdr), so that the node and its replay
+        # agree on what is undecodable; rclpy's deserialiser printed a stderr line per oversized
+        # payload and then returned a garbage message
+        decode = decoder(_type_name(msg_type))
 
         def receive_counted(data: bytes, info) -> None:
             lost = gaps.add(info.get("publication_sequence_number"))
@@ -397,12 +401,8 @@ class MuscleNode(Node):
             effective_ns = self.scheduler.model_time_ns if self.scheduler.started else now_ns
             if self.run_log is not None:
                 self.run_log.write(topic, data, effective_ns, now_ns)
-            problem = payload_problem(data, msg_type)  # rclpy would print to stderr (cdr)
-            if problem is not None:
-                self._report([Issue("undecodable", f"{topic}: {problem}")])
-                return
             try:
-                msg = deserialize_message(data, msg_type)
+                msg = decode(data)
             except Exception as exc:  # corrupt bytes: never let them stop the node
                 self._report([Issue("undecodable", f"{topic}: {type(exc).__name__}: {exc}")])
                 return
