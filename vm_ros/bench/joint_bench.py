@@ -271,7 +271,8 @@ def bench_closed_loop(cases: list[dict], duration_s: float = 2.0, repeats: int =
                 geometry = MujocoGeometry(case["model"])
         library = case["library"] or derived_library(
             geometry, case["cache"] / case["model"] / "muscles.yaml")
-        names = [m for m in geometry.muscle_names if m in load_muscle_library(library)]
+        known = load_muscle_library(library)
+        names = [m for m in geometry.muscle_names if m in known]
         bank = MuscleBank.from_config(names, library=library)
         q0 = (geometry.lower + geometry.upper) / 2
         excitation = pulse_excitation(geometry.evaluate(q0).moment_arm[:, 0],

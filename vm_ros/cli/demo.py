@@ -40,6 +40,8 @@ import numpy as np
 
 from vm_ros.child_process import module_command, module_environment
 from vm_ros.errors import VmRosError
+from vm_ros.model.params import load_muscle_library
+from vm_ros.sim.loop_log import diagnostics_number
 
 HELP = ("run muscle_node with a knee-extension driver and print forces and energies; "
         "--closed-loop: muscle_node driving a MuJoCo arm over ROS 2, plotted")
@@ -199,16 +201,8 @@ def demo_summary(names, stamps_ns, efforts, rates, totals, duration_s: float,
         peak_force=force.max(axis=0), mean_force=force.mean(axis=0),
         energy=split_energy(rates[:k], totals[:k]),
         energy_total=float(totals[k - 1] - totals[0]),
-        skipped_s=_number(diagnostics, "skipped model time (s)"),
+        skipped_s=diagnostics_number(diagnostics, "skipped model time (s)"),
         diagnostics=dict(diagnostics))
-
-
-def _number(diagnostics: dict, key: str) -> float:
-    """A /diagnostics value as a number (NaN when missing or not a number)."""
-    try:
-        return float(diagnostics.get(key, "nan"))
-    except ValueError:
-        return float("nan")
 
 
 def format_summary(summary: DemoSummary, mcap_path: Path | None, description: str = "") -> str:
@@ -239,8 +233,9 @@ def format_summary(summary: DemoSummary, mcap_path: Path | None, description: st
                      "model time (CPU starved; see its /diagnostics and max_catch_up_steps)")
     diag = summary.diagnostics
     if diag:
-        p50, p99 = _number(diag, "step time p50 (ms)"), _number(diag, "step time p99 (ms)")
-        budget = 1e6 / _number(diag, "model rate (Hz)")
+        p50 = diagnostics_number(diag, "step time p50 (ms)")
+        p99 = diagnostics_number(diag, "step time p99 (ms)")
+        budget = 1e6 / diagnostics_number(diag, "model rate (Hz)")
         lines.append(f"model step time: {1e3 * p50:.0f} us median, {1e3 * p99:.0f} us at the "
                      f"99th percentile (real time allows {budget:.0f} us per step)")
     if mcap_path is not None:
@@ -353,8 +348,7 @@ def loop_parameters(args, geometry_path: Path, library_path: Path, mcap_path: Pa
     from vm_ros.geometry import load_geometry
 
     geometry = load_geometry(geometry_path)
-    with open(library_path, encoding="utf-8") as handle:
-        in_library = set((yaml.safe_load(handle) or {}).get("muscles", {}))
+    in_library = load_muscle_library(library_path)
     rows = [i for i, name in enumerate(geometry.muscle_names) if name in in_library]
     if not rows:
         raise VmRosError(f"no muscle of {geometry_path} has parameters in {library_path}")

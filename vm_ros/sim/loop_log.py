@@ -144,7 +144,8 @@ def read_loop_log(path) -> LoopLog:
         diagnostics)
 
 
-def _number(diagnostics: dict, key: str) -> float:
+def diagnostics_number(diagnostics: dict, key: str) -> float:
+    """A /diagnostics value as a number (NaN when missing or not a number)."""
     try:
         return float(diagnostics.get(key, "nan"))
     except ValueError:
@@ -172,10 +173,11 @@ def loop_numbers(log: LoopLog) -> dict:
         "joint_work_net_j": net,
         "joint_work_positive_j": positive,
         "model_time_s": log.duration_s,
-        "step_rate_hz": (float(np.median([_number(d, "step rate (Hz)") for d in running]))
+        "step_rate_hz": (float(np.median([diagnostics_number(d, "step rate (Hz)")
+                                          for d in running]))
                          if running else float("nan")),
         "step_rate_windows": len(running),
-        "skipped_s": _number(log.diagnostics[-1], "skipped model time (s)")
+        "skipped_s": diagnostics_number(log.diagnostics[-1], "skipped model time (s)")
         if log.diagnostics else float("nan"),
     }
 
