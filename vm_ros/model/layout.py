@@ -120,11 +120,6 @@ def checked_state(state, n: int, pools: int) -> BankState:
     return BankState(time_s=float(state.time_s), **arrays)
 
 
-def state_arguments(state) -> tuple:
-    """The state arrays of a BankState in the kernel's argument order (updated in place)."""
-    return tuple(getattr(state, name) for name in STATE_NAMES)
-
-
 # --- kernel constants ----------------------------------------------------------------------------
 
 
@@ -262,6 +257,6 @@ def dummy_arguments(scheme: int = 0) -> tuple:
 __all__ = [
     "CACHE", "CONSTANTS", "INPUTS", "N_TERMS", "OUTPUTS", "SERIES_OUTPUTS", "STATE", "STATE_NAMES",
     "TIME", "Array", "BankState", "M", "MissingConstantError", "P", "S", "T",
-    "checked_state", "dummy_arguments", "kernel_parameters", "state_arguments", "table",
+    "checked_state", "dummy_arguments", "kernel_parameters", "table",
     "zero_state",
 ]
