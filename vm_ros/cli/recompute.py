@@ -11,8 +11,8 @@ with:
   node conditioning, the recorded messages at their log times (the model time of the first step
   that used them) through vm_ros.node.inputs.NodeInputs with the logged node parameters
   (vm_ros.node.replay), and the initial state published at the start time as the node
-  does. With a geometry, joint_states go through vm_ros.joint_space.JointInputs with the logged
-  joint_map and joints and the attached geometry.yaml, and joint_efforts and
+  does. With a geometry, joint_states go through vm_ros.node.joint_inputs.JointInputs with the
+  logged joint_map and joints and the attached geometry.yaml, and joint_efforts and
   joint_effort_commands are recomputed (each step's forces through the moment arms of the joint
   sample it used).
 

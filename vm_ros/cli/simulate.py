@@ -34,7 +34,7 @@ Joint space (--motion FILE.mot|.sto --geometry GEOMETRY.yaml):
   joints        joint_states and joint_efforts name the coordinates through --joint-map (YAML
                 text or file, as muscle_node's joint_map: robot q = sign (q - offset)); the
                 joint outputs are the coordinates crossed by the run's muscles
-Inputs are conditioned as muscle_node conditions them (vm_ros.joint_space.JointInputs and
+Inputs are conditioned as muscle_node conditions them (vm_ros.node.joint_inputs.JointInputs and
 vm_ros.node.inputs.NodeInputs with the node's default input parameters, recorded in the log's
 node_parameters): coordinates outside the geometry's box are clamped (counted per coordinate in
 the summary), joint_states giving non-physical path lengths are dropped (counted); the initial

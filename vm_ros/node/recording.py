@@ -41,7 +41,7 @@ LOG_TOPICS = (*INPUT_TOPICS, *OUTPUT_TOPICS, tm.TOPIC_DIAGNOSTICS)  # JOINT_TOPI
 INPUT_RULE = ("muscle_node: inputs conditioned by vm_ros.node.inputs.NodeInputs with the "
               "node_parameters (bad messages dropped, drive clipped, kinematics extrapolated for "
               "at most extrapolation_max_s, stale_input_policy), joint_states by "
-              "vm_ros.joint_space.JointInputs with the geometry; each input is logged at the "
+              "vm_ros.node.joint_inputs.JointInputs with the geometry; each input is logged at the "
               "model time of the first step that uses it")
 
 

@@ -7,7 +7,7 @@ it, and its parameters as JSON in the ``vm_ros.run`` metadata key ``node_paramet
 ``NodeInputs.sample(t)`` for the step at model time t, gives the inputs the node used step by step
 (clipping, rejected messages, stale_input_policy, path-length extrapolation bounded by
 extrapolation_max_s). With a ``geometry`` parameter, joint_states go through
-:class:`~vm_ros.joint_space.JointInputs` with the logged ``joint_map`` and ``joints`` and the
+:class:`~vm_ros.node.joint_inputs.JointInputs` with the logged ``joint_map`` and ``joints`` and the
 attached ``geometry.yaml``, and each step's joint efforts use the moment arms of the joint sample
 that step used, as in the node. `vm-ros recompute`, `vm-ros simulate --motion` (which conditions
 its inputs as the node would and logs the parameters used in ``node_parameters``) and the node
