@@ -115,8 +115,8 @@ def test_validate_cli_reports_a_skipped_check(monkeypatch, tmp_path, capsys):
 
 
 def test_short_fig7_run_says_its_duration_and_is_not_compared_with_the_180s_total(tmp_path):
-    from vm_ros.validation.paper import FIG7_PAPER_TOTAL_J
-    from vm_ros.validation.plots import fig7_paper_comparison, plot_fig7
+    from vm_ros.validation.knee_extension import FIG7_PAPER_TOTAL_J
+    from vm_ros.validation.knee_extension_plot import fig7_paper_comparison, plot_fig7
 
     result = CHECKS["fig7"](duration_s=3.0)
     assert result.title.startswith("Fig. 7: 3 s ") and "180" not in result.title

@@ -14,14 +14,13 @@ from vm_ros.validation.joint_torque import (
     check_joint_torque,
     published_ratio,
 )
+from vm_ros.validation.knee_extension import FIG7_EXPERIMENT_BAND_J, check_fig7_knee_extension
 from vm_ros.validation.paper import (
-    FIG7_EXPERIMENT_BAND_J,
     check_fig2_energy_velocity,
     check_fig3_fibre_type_energy,
     check_fig4_biceps_velocity_sweep,
     check_fig5_fibre_composition,
     check_fig6_drive,
-    check_fig7_knee_extension,
     check_fig9_lumped_steady,
     check_fig10_lumped_sinusoidal,
     check_lumped_cost,

@@ -3,7 +3,6 @@ Agg backend; imported only when plotting)."""
 
 from __future__ import annotations
 
-import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -13,16 +12,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from vm_ros.validation import JOINT_TORQUE_BANDS, CheckResult, published_ratio  # noqa: E402
-
-
-def _finish(fig, result: CheckResult, path: Path, top: float = 0.9) -> None:
-    status = result.status
-    # about 13 characters of 9 pt text per inch of figure width
-    claim = textwrap.fill(f"Paper: {result.claim}", int(13 * fig.get_figwidth()))
-    fig.suptitle(f"{result.title}  [{status}]\n{claim}", fontsize=9)
-    fig.tight_layout(rect=(0, 0, 1, top))
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+from vm_ros.validation.knee_extension_plot import plot_fig7  # noqa: E402
+from vm_ros.validation.plot_style import finish  # noqa: E402
 
 
 def plot_fig2(result: CheckResult, path: Path) -> None:
@@ -43,7 +34,7 @@ def plot_fig2(result: CheckResult, path: Path) -> None:
            ylabel="tetanic initial energy rate (W/kg dry)")
     ax.axvline(0, color="grey", lw=0.5)
     ax.legend(fontsize=8)
-    _finish(fig, result, path)
+    finish(fig, result, path)
 
 
 def plot_fig3(result: CheckResult, path: Path) -> None:
@@ -79,7 +70,7 @@ def plot_fig3(result: CheckResult, path: Path) -> None:
         ax.legend(fontsize=7)
     axes[2].set_ylim(0, 1.6 * axes[2].get_ylim()[1])  # room for the legend above the curves
     axes[2].legend(fontsize=6, ncol=2, loc="upper center")
-    _finish(fig, result, path)
+    finish(fig, result, path)
 
 
 def plot_fig4(result: CheckResult, path: Path) -> None:
@@ -99,7 +90,7 @@ def plot_fig4(result: CheckResult, path: Path) -> None:
     for ax in (ax_f, ax_e):
         ax.axvline(0, color="grey", lw=0.5)
         ax.legend(fontsize=7)
-    _finish(fig, result, path)
+    finish(fig, result, path)
 
 
 def plot_fig5(result: CheckResult, path: Path) -> None:
@@ -116,7 +107,7 @@ def plot_fig5(result: CheckResult, path: Path) -> None:
     ax.set_xlim(0, max(d["fast_percent"]) + 12)
     ax.set(xlabel="fast fibres (% PCSA)", ylabel="temperature rate at MVC (mK/s)")
     ax.legend(fontsize=8)
-    _finish(fig, result, path)
+    finish(fig, result, path)
 
 
 def plot_fig6(result: CheckResult, path: Path) -> None:
@@ -128,69 +119,7 @@ def plot_fig6(result: CheckResult, path: Path) -> None:
     ax.set_title("drive at 10-90 % of the 'MVC' drive (U = 1 or U = 0.8), fascicle at L0",
                  fontsize=9)
     ax.legend(fontsize=8)
-    _finish(fig, result, path)
-
-
-def fig7_paper_comparison(total_j: float, run_s: float, paper_total_j: float,
-                          paper_s: float) -> str:
-    """The model's total against the paper's, like with like: the ratio only for a run as long as
-    the paper's (the rate rises by about 40 % over it, so a shorter run's total, scaled or not,
-    is not comparable)."""
-    if abs(run_s - paper_s) > 1e-9 * paper_s:
-        return (f"a shorter run: not comparable with the paper's {paper_total_j / 1e3:.0f} kJ "
-                f"over {paper_s:g} s")
-    return f"{total_j / paper_total_j:.2f} x the paper's {paper_total_j / 1e3:.0f} kJ"
-
-
-def plot_fig7(result: CheckResult, path: Path) -> None:
-    d = result.data
-    fig, (ax, ax_act, ax_v) = plt.subplots(1, 3, figsize=(15, 4.8),
-                                           gridspec_kw={"width_ratios": [1.4, 1, 1]})
-    labels = ("activation", "cross-bridge", "recovery", "total")
-    for k, label in enumerate(labels):
-        ax.plot(d["time"], d["bins"][:, k], label=label)
-    ax.plot(d["time"], d["bins"][:, 0] + d["bins"][:, 1], "k--", lw=1, label="initial")
-    duration = d["paper_duration_s"]
-    paper_w = d["paper_total_j"] / duration
-    low, high = (e / duration for e in d["experiment_band_j"])
-    ax.axhspan(low, high, color="grey", alpha=0.15,
-               label=f"mean rate of the experiment's 30-40 kJ over {duration:g} s "
-                     f"({low:.0f}-{high:.0f} W)")
-    ax.axhline(paper_w, color="grey", ls=":", label=f"mean rate of the paper's 35 kJ over "
-               f"{duration:g} s ({paper_w:.0f} W)")
-    ax.set(xlabel="time (s)", ylabel="energy rate, 1 s bins (W), rectus femoris + vasti",
-           ylim=(0, None))
-    work = float(np.sum(d["work_j"]))
-    run_s = d["duration_s"]
-    versus = fig7_paper_comparison(d["total_energy_j"], run_s, d["paper_total_j"], duration)
-    ax.set_title(f"model, {run_s:g} s: total {d['total_energy_j'] / 1e3:.1f} kJ\n{versus}\n"
-                 f"net fascicle work {work / 1e3:.2f} kJ ({work / run_s:.0f} W); "
-                 f"quadriceps {np.sum(d['mass_kg']):.2f} kg", fontsize=9)
-    ax.legend(fontsize=7, loc="center right")
-    c = d["cycle"]
-    t = c["time_s"] - c["time_s"][0]
-    colours = ("tab:purple", "tab:green")
-    for i, name in enumerate(d["names"]):
-        ax_act.plot(t, c["activation"][:, i], color=colours[i],
-                    label=f"{name}: Acteff / steady at U = 0.8")
-        ax_act.plot(t, c["force_f0"][:, i], "--", color=colours[i],
-                    label=f"{name}: tendon force (F0)")
-        ax_v.plot(t, c["velocity_l0_per_s"][:, i], color=colours[i], label=f"{name}: velocity")
-    ax_act.plot(t, c["drive"][:, 0], "k", lw=1, label="drive U")
-    ax_act.plot(t, c["effective_drive"][:, 1], "k:", lw=1, label="Ueff (lumped filter, vasti)")
-    ax_act.set(xlabel="time in the last cycle (s)", ylabel="fraction",
-               ylim=(0, 1.05))
-    ax_act.set_title("one cycle: drive on for 0.25 s, activation builds slowly", fontsize=9)
-    ax_act.legend(fontsize=7)
-    ax_v.axhline(0, color="grey", lw=0.5)
-    ax_v.set(xlabel="time in the last cycle (s)", ylabel="fascicle velocity (L0/s, < 0 shortening)")
-    ax_e = ax_v.twinx()
-    ax_e.plot(t, c["energy_rate_w"].sum(axis=1), color="tab:red", lw=1, label="total energy rate")
-    ax_e.set_ylabel("total energy rate, both muscles (W)", color="tab:red")
-    ax_v.set_title("one cycle: fascicle velocity and energy rate", fontsize=9)
-    ax_v.legend(fontsize=7, loc="upper left")
-    ax_e.legend(fontsize=7, loc="upper right")
-    _finish(fig, result, path)
+    finish(fig, result, path)
 
 
 def plot_fig9(result: CheckResult, path: Path) -> None:
@@ -213,7 +142,7 @@ def plot_fig9(result: CheckResult, path: Path) -> None:
     ax_err.set(xlabel="drive U", ylabel="lumped - natural force (% of natural F(U=1))")
     ax_err.set_title(f"error: max {np.abs(error).max():.2f} %", fontsize=9)
     ax_err.legend(fontsize=7)
-    _finish(fig, result, path)
+    finish(fig, result, path)
 
 
 def plot_fig10(result: CheckResult, path: Path) -> None:
@@ -236,7 +165,7 @@ def plot_fig10(result: CheckResult, path: Path) -> None:
     tab.scale(1, 0.9)
     ax_tab.set_title("lumped - natural, % of natural F(U=1): transient = RMS over the first "
                      "cycle;\nmean and range = steady state (last two cycles)", fontsize=9)
-    _finish(fig, result, path)
+    finish(fig, result, path)
 
 
 def plot_cost(result: CheckResult, path: Path) -> None:
@@ -251,7 +180,7 @@ def plot_cost(result: CheckResult, path: Path) -> None:
     ax.set(xlabel="muscles in the bank", ylabel="median step time (us)")
     ax.set_title("labels: natural / lumped step time", fontsize=9)
     ax.legend(fontsize=8)
-    _finish(fig, result, path)
+    finish(fig, result, path)
 
 
 def _joint_row(axes, key, run) -> None:
@@ -331,7 +260,7 @@ def plot_joint_torque(result: CheckResult, path: Path) -> None:
     fig, axes = plt.subplots(len(keys), 3, figsize=(16, 6.4 * len(keys)), squeeze=False)
     for row, key in zip(axes, keys, strict=True):
         _joint_row(row, key, result.data[key])
-    _finish(fig, result, path, top=0.965)
+    finish(fig, result, path, top=0.965)
 
 
 PLOTS = {"fig2": plot_fig2, "fig3": plot_fig3, "fig4": plot_fig4, "fig5": plot_fig5,

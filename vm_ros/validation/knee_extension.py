@@ -1,0 +1,141 @@
+"""Item 9: the 180 s dynamic knee extension of Tsianos, Rustin & Loeb 2012 (Fig. 7).
+
+The task is config/scenarios.yaml ``knee_extension``; :func:`run_knee_extension` simulates it and
+:func:`check_fig7_knee_extension` compares it with the paper's claims.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from vm_ros.model import MuscleBank, load_model_params
+from vm_ros.scenarios import load_scenario
+from vm_ros.validation.paper import DT, isometric_at
+from vm_ros.validation.results import CheckResult, Criterion
+
+# The paper's total energy for the 180 s task, and the experiment's band (Tsianos 2012 Fig. 7).
+FIG7_PAPER_TOTAL_J = 35_000.0
+FIG7_EXPERIMENT_BAND_J = (30_000.0, 40_000.0)
+
+
+@dataclass(frozen=True)
+class KneeExtensionRun:
+    """The Fig. 7 task as simulated.
+
+    | field | shape | unit | meaning |
+    | bin_time_s | (k,) | s | centres of the energy bins |
+    | bins_w | (k, 4) | W | mean rate per bin, both muscles: activation, cross-bridge, |
+    |  |  |  | recovery, total |
+    | cycle | dict | SI | traces of the last full cycle (see :func:`run_knee_extension`) |
+    | out | StepOutput | | the last step (cumulative energies and work) |
+    | bank | MuscleBank | | the bank, for names, masses and F0 |
+    """
+
+    bin_time_s: np.ndarray
+    bins_w: np.ndarray
+    cycle: dict
+    out: object
+    bank: MuscleBank
+
+
+def run_knee_extension(duration_s=None, dt=DT, progress=None, params=None) -> KneeExtensionRun:
+    """The Fig. 7 task (config/scenarios.yaml ``knee_extension``), 1 s energy bins.
+
+    ``cycle`` holds the last full cycle: time_s (k,), drive U, Ueff, force (F0), velocity (L0/s),
+    energy rate (W; all (k, n)) and activation (k, n): Acteff summed over fibre types relative to
+    its isometric steady value at the scenario's drive.
+    """
+    scenario = load_scenario("knee_extension")
+    bank = scenario.make_bank(params=params or load_model_params())
+    inputs = scenario.inputs(bank)
+    duration = duration_s or scenario.duration_s
+    drive = np.full(bank.n, scenario.values["drive"])
+    steady = isometric_at(bank, drive).effective_activation.sum(axis=-1)
+    bank.reset(inputs.path_length(0.0))
+    steps = int(round(duration / dt))
+    bin_steps = int(round(scenario.values["energy_bin"] / dt))
+    cycle_steps = int(round(1.0 / (scenario.values["frequency"] * dt)))
+    first_traced = max((steps // cycle_steps - 1) * cycle_steps, 0)
+    rates = np.zeros((steps, 4))
+    trace = {key: [] for key in ("time_s", "drive", "effective_drive", "activation",
+                                 "force_f0", "velocity_l0_per_s", "energy_rate_w")}
+    out = None
+    chunk = 2000
+    for start in range(0, first_traced, chunk):  # whole chunks of steps in one call each
+        stop = min(start + chunk, first_traced)
+        run = bank.run(dt, *inputs.sample(dt * np.arange(start, stop)))
+        rates[start:stop] = run.energy_rate.as_array().sum(axis=1)
+        out = run.last
+        if progress is not None:
+            progress(stop, steps)
+    for k in range(first_traced, steps):  # the traced cycles step by step
+        t = k * dt
+        out = bank.step(dt, inputs.excitation(t), inputs.path_length(t), inputs.path_velocity(t))
+        rates[k] = out.energy_rate.as_array().sum(axis=0)
+        if first_traced <= k < first_traced + cycle_steps:
+            for key, value in (("time_s", out.time_s), ("drive", out.excitation),
+                               ("effective_drive", out.effective_drive),
+                               ("activation", out.effective_activation.sum(-1) / steady),
+                               ("force_f0", out.force / bank.f0),
+                               ("velocity_l0_per_s", out.velocity_l0_per_s),
+                               ("energy_rate_w", out.energy_rate.total)):
+                trace[key].append(np.copy(value))
+        if progress is not None and k % 2000 == 0:
+            progress(k, steps)
+    n_bins = steps // bin_steps
+    bins = rates[: n_bins * bin_steps].reshape(n_bins, bin_steps, 4).mean(axis=1)
+    times = (np.arange(n_bins) + 0.5) * scenario.values["energy_bin"]
+    return KneeExtensionRun(times, bins, {k: np.array(v) for k, v in trace.items()}, out, bank)
+
+
+def check_fig7_knee_extension(params=None, duration_s=None, progress=None) -> CheckResult:
+    """Fig. 7. The model does NOT reach the paper's total energy: it gives about a third of the
+    35 000 J (test/validation/REPORT.md explains the gap). The criteria hold what the paper's
+    trace shows and the model reproduces (constant initial energy, rising recovery, a ~40 % rise),
+    the cost per unit of work (a physiological efficiency), and the gap itself, so that any
+    change of it is seen. ``vm-ros validate --quick`` keeps the first two criteria only."""
+    paper_duration_s = load_scenario("knee_extension").duration_s
+    run_s = duration_s or paper_duration_s
+    result = CheckResult("9", f"Fig. 7: {run_s:g} s dynamic knee extension",
+                         "initial energy constant cycle to cycle, recovery energy rises, total "
+                         "rate rises by about 40 % over the run; total energy about 35 000 J "
+                         "(experiment 30 000-40 000 J)")
+    run = run_knee_extension(duration_s, progress=progress, params=params)
+    bins, out = run.bins_w, run.out
+    initial = bins[:, 0] + bins[:, 1]
+    total = bins[:, 3]
+    first = slice(1, 6)  # skip the first bin (start-up transient)
+    last = slice(len(bins) - 5, len(bins))
+    rise = total[last].mean() / total[first].mean() - 1.0
+    work = float(out.mechanical_work.sum())
+    result.criteria += [
+        # Nothing in the initial-energy path is slower than the 1 s cycle (drive filter < 0.5 s,
+        # yield 0.2 s, sag 43 ms): it repeats to < 0.1 %; 1 % catches any drift or state leak.
+        Criterion("initial energy rate: last 5 bins / first 5 bins (paper: constant)",
+                  float(initial[last].mean() / initial[first].mean()), 0.99, 1.01),
+        Criterion("recovery rate: last 5 bins / first 5 bins (paper: rises)",
+                  float(bins[last, 2].mean() / bins[first, 2].mean()), 1.5, None),
+        # "About 40 %" is read from the paper's figure of 1 s bins; the rise is set by the
+        # recovery kernel [R, chosen for it] and the fibre mix (R 1.5 slow, 1.0 fast): +-0.10.
+        Criterion("total rate rise, first to last 5 bins (paper ~0.40)", float(rise), 0.30, 0.50),
+        # Mechanical efficiency (work / (heat + work)) of human knee-extensor exercise measured
+        # from muscle heat and work: 0.32-0.56 (Krustrup et al. 2003, J Physiol 549:255); widened
+        # to 0.25-0.60 because the model's work is net fascicle work, not ergometer work.
+        Criterion("net fascicle work / total energy (measured 0.32-0.56)",
+                  work / float(out.total_energy), 0.25, 0.60),
+        # The gap, pinned: the model gives 0.333 of the paper's 35 000 J (11.6 kJ; the experiment's
+        # band is 30 000-40 000 J). Any change of the model or the scenario that moves this by more
+        # than about 10 % must update this band and test/validation/REPORT.md.
+        Criterion("total energy / paper's 35 000 J (GAP: experiment 30-40 kJ; see "
+                  "test/validation/REPORT.md)",
+                  float(out.total_energy) / FIG7_PAPER_TOTAL_J, 0.30, 0.37),
+    ]
+    result.data = {"time": run.bin_time_s, "bins": bins, "total_energy_j": out.total_energy,
+                   "energy_by_muscle_j": out.energy.total, "work_j": out.mechanical_work,
+                   "names": run.bank.names, "mass_kg": run.bank.mass_kg, "cycle": run.cycle,
+                   "paper_total_j": FIG7_PAPER_TOTAL_J,
+                   "paper_duration_s": paper_duration_s, "duration_s": run_s,
+                   "experiment_band_j": FIG7_EXPERIMENT_BAND_J}
+    return result
