@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -35,7 +36,7 @@ def test_lumped_drive_filter_is_one_ms_for_full_step_and_t_rise_for_small():
     u2 = 0.32
     t_rise = 0.38 * u2**2 + 0.8 * u2 + 0.14
     t_fall = -0.32 * u2**4 + 0.82 * u2**3 - 0.28 * u2**2 + 0.014 * u2 + 0.09
-    r = _lumped(0.4)  # U2 = 0.32
+    r = _lumped(0.4, params=dataclasses.replace(LP, drive_law="tsianos2012"))  # U2 = 0.32
 
     def tau(u, ueff):
         return r.drive_tau(np.array([u]), np.array([ueff]))[0]
@@ -45,8 +46,27 @@ def test_lumped_drive_filter_is_one_ms_for_full_step_and_t_rise_for_small():
     assert tau(0.2, 0.5) == pytest.approx(t_fall, rel=1e-12)
 
 
-def _lumped(fs, ur=0.8):
-    return rc.LumpedRecruitment(np.array([[fs, 1 - fs]]), np.array([ur]), LP)
+def test_relative_drive_law_at_its_limits():
+    # docs/model.md section 5c, with hand-chosen constants
+    lumped = dataclasses.replace(LP, drive_law="relative_drive", relative_rise_poly=(0.1,),
+                                 relative_fall_poly=(0.6,), relative_fall_floor=0.05,
+                                 relative_fall_power=4.0, drive_tau_min=1e-4)
+    r = _lumped(0.4, params=lumped)
+
+    def tau(u, ueff):
+        return r.drive_tau(np.array([u]), np.array([ueff]))[0]
+
+    assert tau(0.5, 0.0) == 1e-4  # from rest: no lag beyond the floor
+    assert tau(0.0, 0.0) == 1e-4  # at rest: 0/0 held finite
+    assert tau(0.6, 0.3) == pytest.approx(0.1 * 0.5)
+    assert tau(0.5, 0.5) == pytest.approx(0.1)  # caught up: T_r
+    assert tau(0.0, 0.8) == pytest.approx(0.05 + 0.6)  # release: T_f0 + T_f
+    assert tau(0.3, 0.6) == pytest.approx(0.05 + 0.6 * 0.5**4)
+    assert tau(0.59, 0.6) == pytest.approx(0.05, abs=1e-6)  # small fall: T_f0
+
+
+def _lumped(fs, ur=0.8, params=LP):
+    return rc.LumpedRecruitment(np.array([[fs, 1 - fs]]), np.array([ur]), params)
 
 
 def test_lumped_recruitment_capped_at_full_recruitment_of_each_type():

@@ -40,6 +40,7 @@ def _from_bank(cls, bank):
     continuous = {
         "continuous_tau_rise": p.continuous.tau_rise,
         "continuous_tau_fall": p.continuous.tau_fall,
+        "drive_law_code": kernel.DRIVE_LAW_CODES[p.lumped.drive_law],
     }
     return cls(
         scheme=scheme,

@@ -23,9 +23,12 @@ from vm_ros.model import mechanics as mech
 from vm_ros.model import recruitment as rc
 from vm_ros.model.jit import HAVE_NUMBA, clip, jitable, model_cache_directory, numba
 from vm_ros.model.layout import N_TERMS, M, P, S, T
+from vm_ros.model.params import DRIVE_LAWS
 
 SCHEME_CODES = {"lumped": 0, "natural": 1, "continuous": 2}
 LUMPED, NATURAL, CONTINUOUS = 0, 1, 2
+DRIVE_LAW_CODES = {law: code for code, law in enumerate(DRIVE_LAWS)}  # of the lumped scheme
+RELATIVE_DRIVE = DRIVE_LAW_CODES["relative_drive"]
 
 
 # --- the compiled loop -----------------------------------------------------------------------
@@ -165,9 +168,15 @@ def _advance(
         l, v = x / m[M.l0], xdot / m[M.l0]
         # Phase 1, DRIVE: filtered drive Ueff and the pool weights it sets
         if scheme == LUMPED:
-            tau = rc.lumped_drive_tau(
-                u, effective_drive[i], m[M.t_rise], m[M.t_fall], s[S.t_rise_step_scale]
-            )
+            if s[S.drive_law_code] == RELATIVE_DRIVE:
+                tau = rc.relative_drive_tau(
+                    u, effective_drive[i], m[M.relative_rise], m[M.relative_fall],
+                    s[S.relative_fall_floor], s[S.relative_fall_power], s[S.drive_tau_min],
+                )
+            else:
+                tau = rc.lumped_drive_tau(
+                    u, effective_drive[i], m[M.t_rise], m[M.t_fall], s[S.t_rise_step_scale]
+                )
             ueff = act.lag_step(effective_drive[i], u, tau, dt)
         elif scheme == CONTINUOUS:
             tau = rc.continuous_drive_tau_song2008(

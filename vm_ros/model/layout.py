@@ -145,10 +145,12 @@ M, M_UNITS = _columns("MuscleColumns", (
     ("ur", "1"), ("u2", "1"), ("fpcsa_s", "1"), ("fpcsa_f", "1"),
     ("rec_lower_s", "1"), ("rec_lower_f", "1"), ("rec_upper_s", "1"), ("rec_upper_f", "1"),
     ("t_rise", "s"), ("t_fall", "s"), ("w_slow_at_u2", "1"), ("w_slow_amplitude", "1"),
-    ("w_fast_b", "1"), ("w_fast_c", "1"), ("w_fast_tau", "1"),
+    ("w_fast_b", "1"), ("w_fast_c", "1"), ("w_fast_tau", "1"), ("relative_rise", "s"),
+    ("relative_fall", "s"),
 ))
 LUMPED_ONLY = ("u2", "rec_lower_s", "rec_lower_f", "rec_upper_s", "rec_upper_f", "t_rise",
-               "t_fall", "w_slow_at_u2", "w_slow_amplitude", "w_fast_b", "w_fast_c", "w_fast_tau")
+               "t_fall", "w_slow_at_u2", "w_slow_amplitude", "w_fast_b", "w_fast_c", "w_fast_tau",
+               "relative_rise", "relative_fall")
 # per motor-unit pool (shared by every muscle)
 P, P_UNITS = _columns("PoolColumns", (
     ("af", "f0.5"), ("nf0", "1"), ("nf1", "1"), ("tf1", "s"), ("tf2", "s"), ("tf3", "s"),
@@ -169,6 +171,8 @@ S, S_UNITS = _columns("SharedColumns", (
     ("activation_fraction", "1"), ("recovery_tau_rise", "s"), ("recovery_tau_decay", "s"),
     ("u1", "1"), ("t_rise_step_scale", "1/s"), ("w_slow_tau", "1"), ("w_fast_offset", "1"),
     ("w_fast_rise", "1"), ("continuous_tau_rise", "s"), ("continuous_tau_fall", "s"),
+    ("drive_law_code", "1"), ("relative_fall_floor", "s"), ("relative_fall_power", "1"),
+    ("drive_tau_min", "s"),
 ))
 
 # In the kernel's argument order.

@@ -217,6 +217,12 @@ class LumpedParams:
     t_rise_poly: tuple = _holds("s")
     t_fall_poly: tuple = _holds("s")
     t_rise_step_scale: float = _holds("1/s")
+    drive_law: str = _holds("-")
+    relative_rise_poly: tuple = _holds("s")
+    relative_fall_poly: tuple = _holds("s")
+    relative_fall_floor: float = _holds("s")
+    relative_fall_power: float = _holds("1")
+    drive_tau_min: float = _holds("s")
     w_slow_poly: tuple = _holds("1")
     w_slow_a_poly: tuple = _holds("1")
     w_slow_tau: float = _holds("1")
@@ -304,6 +310,7 @@ class ModelParams:
 
 
 RECOVERY_MODES = ("static", "dynamic")
+DRIVE_LAWS = ("tsianos2012", "relative_drive")
 APPORTIONING = ("equal", "geometric")
 
 
@@ -391,6 +398,21 @@ def _validate_model_params(p: ModelParams) -> None:
             n.units_per_type,
             "must be a whole number >= 1",
         )
+    lumped = p.lumped
+    if lumped.drive_law not in DRIVE_LAWS:
+        raise ConfigError(
+            path, "recruitment.lumped.drive_law", lumped.drive_law, f"one of {DRIVE_LAWS}"
+        )
+    if lumped.drive_tau_min <= 0:
+        raise ConfigError(
+            path, "recruitment.lumped.drive_tau_min", lumped.drive_tau_min, "must be > 0"
+        )
+    if lumped.relative_fall_floor < 0:
+        raise ConfigError(path, "recruitment.lumped.relative_fall_floor",
+                          lumped.relative_fall_floor, "must be >= 0")
+    if lumped.relative_fall_power <= 0:
+        raise ConfigError(path, "recruitment.lumped.relative_fall_power",
+                          lumped.relative_fall_power, "must be > 0")
     c = p.continuous
     if c.tau_rise <= 0 or c.tau_fall <= 0:
         raise ConfigError(path, "recruitment.continuous.tau_rise", c.tau_rise, "must be > 0")

@@ -8,7 +8,8 @@ from its firing threshold; the scheme supplies, per muscle and pool:
 | ``fibre_index`` | (P,) | fibre type of each pool (0 slow, 1 fast) |
 | ``thresholds`` | (n, P) | drive at which the pool starts firing (raw U) |
 | ``pool_pcsa`` | (n, P) | PCSA fraction of the pool (sums to 1 per muscle) |
-| ``drive_tau(u, ueff)`` | (n,) | time constant of the filtered drive Ueff (None: no filter) |
+| ``drive_tau(u, ueff)`` | (n,) | time constant of the filtered drive Ueff (None: no filter); |
+| | | lumped: by ``params.drive_law`` (DRIVE_LAWS) |
 | ``pool_weights(ueff)`` | (n, P) | weight so that effective activation = weight * Af |
 | ``recruited_fraction(u, ueff)`` | (n, P) | recruited PCSA fraction of the pool |
 
@@ -59,6 +60,8 @@ class LumpedCoefficients:
 
     t_rise: np.ndarray
     t_fall: np.ndarray
+    relative_rise: np.ndarray
+    relative_fall: np.ndarray
     w_slow_at_u2: np.ndarray
     w_slow_amplitude: np.ndarray
     w_fast_b: np.ndarray
@@ -70,11 +73,14 @@ class LumpedCoefficients:
         """T_rise = 0.38 U2^2 + 0.8 U2 + 0.14; T_fall = -0.32 U2^4 + 0.82 U2^3 - 0.28 U2^2
         + 0.014 U2 + 0.09; W_S(U2); A = -1.99 U2^4 + 1.90 U2^3 - 1.75 U2^2 + 1.19 U2 + 0.13;
         B = 0.59 U2 + 0.39; C = -98.82 U2^5 + 155.7 U2^4 - 85.96 U2^3 + 19.32 U2^2 - 2.62 U2
-        + 1.02; tau_f = -0.27 U2 + 0.25 (held above 1e-12). Constants for Ur = 0.8."""
+        + 1.02; tau_f = -0.27 U2 + 0.25 (held above 1e-12). Constants for Ur = 0.8.
+        T_r(U2) and T_f(U2) of the relative_drive law (fitted, vm_ros.model.lumped_fit)."""
         u2 = np.asarray(u2, dtype=float)
         return cls(
             t_rise=np.polyval(p.t_rise_poly, u2),
             t_fall=np.polyval(p.t_fall_poly, u2),
+            relative_rise=np.polyval(p.relative_rise_poly, u2),
+            relative_fall=np.polyval(p.relative_fall_poly, u2),
             w_slow_at_u2=np.polyval(p.w_slow_poly, u2),
             w_slow_amplitude=np.polyval(p.w_slow_a_poly, u2),
             w_fast_b=np.polyval(p.w_fast_b_poly, u2),
@@ -92,6 +98,22 @@ def lumped_drive_tau(u, ueff, t_rise, t_fall, step_scale):
     """
     rising = t_rise * np.exp(-(u - ueff) * np.log(step_scale * t_rise))
     return where(u >= ueff, rising, t_fall)
+
+
+@jitable
+def relative_drive_tau(u, ueff, t_rise, t_fall, fall_floor, fall_power, tau_min):
+    """Time constant (s) of the filtered drive Ueff, relative_drive law (docs/model.md 5c).
+
+    U >= Ueff: T_U = T_r Ueff / U, 0 from rest: the lumped unit's own firing-rate rise carries
+    the lag, as each natural unit's does; T_r as Ueff nears U (units recruited on top of active
+    ones build up behind them).
+    U < Ueff: T_U = T_f0 + T_f (1 - U / Ueff)^p: T_f0 + T_f on release (W held while the firing
+    rate, and with it Af, decays as in natural units), near T_f0 for a small fall (derecruited
+    units decay at their fall rate). Held at or above ``tau_min``.
+    """
+    rising = t_rise * clip(safe_ratio(ueff, u), 0.0, 1.0)
+    falling = fall_floor + t_fall * clip(1.0 - safe_ratio(u, ueff), 0.0, 1.0) ** fall_power
+    return np.maximum(where(u >= ueff, rising, falling), tau_min)
 
 
 @jitable
@@ -168,8 +190,12 @@ class LumpedRecruitment(_OnePoolPerFibreType):
         return np.asarray(self.params.w_slow_poly, dtype=float)
 
     def drive_tau(self, u, ueff):
-        c = self.coefficients
-        return lumped_drive_tau(u, ueff, c.t_rise, c.t_fall, self.params.t_rise_step_scale)
+        c, p = self.coefficients, self.params
+        if p.drive_law == "relative_drive":
+            return relative_drive_tau(u, ueff, c.relative_rise, c.relative_fall,
+                                      p.relative_fall_floor, p.relative_fall_power,
+                                      p.drive_tau_min)
+        return lumped_drive_tau(u, ueff, c.t_rise, c.t_fall, p.t_rise_step_scale)
 
     @cached_property
     def recruitment_range(self):
