@@ -22,6 +22,114 @@ def test_validation_item(name):
     _assert_all(CHECKS[name]())
 
 
+def _value(result, start):
+    """The value of the one criterion whose description starts with ``start``."""
+    found = [c for c in result.criteria if c.description.startswith(start)]
+    assert len(found) == 1, [c.description for c in result.criteria]
+    return found[0].value
+
+
+# Muscle specific heat, 3.75 kJ/(kg K) (the paper's section III), written here on purpose instead
+# of read from config/model.yaml, so that the conversion to temperature rate is checked.
+SPECIFIC_HEAT_J_PER_KG_K = 3750.0
+
+
+def test_fig5_and_fig6_compare_initial_energy_in_millikelvin_per_second():
+    """Items 7-8: the compared rate is E_a + E_xb, in mK/s = 1e3 W / (kg x 3750 J/(kg K)),
+    recomputed here by hand for vastus lateralis at MVC (U = 1 and 0.8); the correlation is on
+    those initial rates; the total with static recovery is reported beside it and lies between
+    (1 + R_fast) and (1 + R_slow) times the initial rate."""
+    import numpy as np
+
+    from vm_ros.model import MuscleBank, load_model_params
+    from vm_ros.validation.paper import isometric_at
+
+    params = load_model_params()
+    fig5, fig6 = CHECKS["fig5"](params=params), CHECKS["fig6"](params=params)
+    names = list(fig5.data["names"])
+    vl = names.index("vastus_lateralis")
+    bank = MuscleBank.from_config(["vastus_lateralis"], params=params)
+    for u in (1.0, 0.8):
+        out = isometric_at(bank, [u])
+        watts = out.energy_rate.activation[0] + out.energy_rate.cross_bridge[0]
+        mk_per_s = 1e3 * watts / (bank.mass_kg[0] * SPECIFIC_HEAT_J_PER_KG_K)
+        assert 5.0 < mk_per_s < 500.0  # a working muscle warms by millikelvins per second
+        assert fig5.data["rates_mk_per_s"]["initial"][u][vl] == pytest.approx(mk_per_s, rel=1e-6)
+        assert _value(fig6, f"MVC at U = {u}: initial dT/dt at 100 % MVC") == pytest.approx(
+            mk_per_s, rel=1e-6)
+        total = out.energy_rate.total[0] * 1e3 / (bank.mass_kg[0] * SPECIFIC_HEAT_J_PER_KG_K)
+        assert _value(fig6, f"MVC at U = {u}: total dT/dt at 100 % MVC") == pytest.approx(
+            total, rel=1e-6)
+
+        initial = fig5.data["rates_mk_per_s"]["initial"][u]
+        r = np.corrcoef(fig5.data["fast_percent"], initial)[0, 1]
+        assert _value(fig5, f"U = {u} at MVC: Pearson r, initial") == pytest.approx(r)
+        assert _value(fig5, f"U = {u} at MVC: initial dT/dt, highest") == pytest.approx(
+            initial.max())
+        assert _value(fig5, f"U = {u} at MVC: initial dT/dt, lowest") == pytest.approx(
+            initial.min())
+        ratio = fig5.data["rates_mk_per_s"]["total"][u] / initial
+        recovery = params.energetics.recovery_ratio
+        assert params.energetics.recovery_mode == "static"
+        assert np.all(ratio >= 1 + recovery.min() - 1e-9)
+        assert np.all(ratio <= 1 + recovery.max() + 1e-9)
+        # Fig. 6's shape criteria are on the initial rate, in mK/s
+        series = fig6.data["series"][u]
+        assert _value(fig6, f"MVC at U = {u}: min rise of initial") == pytest.approx(
+            np.diff(series["initial"]).min())
+
+
+def test_fig3_ratio_on_total_energy_is_the_initial_ratio_times_the_recovery_factors():
+    """Item 2: the paper's "more than five times" is held on initial energy; the ratio on total
+    energy is reported beside it and equals the initial one x (1 + R_fast) / (1 + R_slow) under
+    static recovery (R = 1.0 / 1.5 in config: 0.8 x)."""
+    from vm_ros.model import load_model_params
+    from vm_ros.model.params import FAST, SLOW
+
+    params = load_model_params()
+    result = CHECKS["fig3"](params=params)
+    initial = _value(result, "fast/slow initial energy per newton")
+    total = _value(result, "fast/slow total energy per newton")
+    r = params.energetics.recovery_ratio
+    assert initial >= 5.0
+    assert total == pytest.approx(initial * (1 + r[FAST]) / (1 + r[SLOW]), rel=1e-6)
+
+
+def test_fig4_peak_is_relative_to_the_isometric_force_with_yield_on_and_off():
+    """Item 3: the stretched peak is divided by the U = 1 isometric force (computed here again),
+    not by F0; yield off (cy = 0) leaves the isometric force unchanged and cannot lower the
+    stretched peak (yield only ever scales the slow fibres' activation down)."""
+    import dataclasses
+
+    import numpy as np
+
+    from vm_ros.model import MuscleBank, load_model_params
+    from vm_ros.validation.paper import isometric_at, without_yield
+
+    params = load_model_params()
+    off = without_yield(params)
+    assert np.all(off.fibre.cy == 0.0) and np.any(params.fibre.cy > 0.0)
+    assert dataclasses.replace(off, fibre=params.fibre) == params  # nothing else changed
+    iso = {}
+    for name, p in (("on", params), ("off", off)):
+        bank = MuscleBank.from_config(["biceps_long_head"], params=p)
+        iso[name] = isometric_at(bank, [1.0]).force[0] / bank.f0[0]
+    assert iso["off"] == pytest.approx(iso["on"], rel=1e-9)
+    assert 0.5 < iso["on"] < 1.0  # W and Af below 1 at the top firing rate
+
+    result = CHECKS["fig4"](params=params)
+    d = result.data
+    stretch = d["velocity"] > 1.0
+    peak_f0 = d["force_f0"][-1, stretch].max()
+    assert _value(result, "U=1 max force stretched > 1 L0/s / U=1 isometric force, yield on") \
+        == pytest.approx(peak_f0 / iso["on"], rel=1e-6)
+    assert _value(result, "U=1 max force stretched > 1 L0/s (F0") == pytest.approx(peak_f0)
+    yield_off = _value(result, "the same, yield off")
+    assert yield_off == pytest.approx(d["force_f0_no_yield"][stretch].max() / iso["off"],
+                                      rel=1e-6)
+    assert yield_off >= _value(result, "U=1 max force stretched > 1 L0/s / U=1 isometric") - 1e-9
+
+
 def test_fig10_lumped_vs_natural_sinusoidal():
     _assert_all(CHECKS["fig10"]())
 
