@@ -9,10 +9,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from vm_ros.errors import ConfigError
 from vm_ros.model import MuscleBank, load_model_params
 from vm_ros.model import energetics as en
 from vm_ros.model.curves import tendon_length_at_force
-from vm_ros.model.params import FAST, SLOW
+from vm_ros.model.params import FAST, RECOVERY_KERNELS, SLOW
 
 P = load_model_params()
 E = P.energetics
@@ -173,11 +174,12 @@ def test_mechanical_power_sign_and_work():
     assert out.mechanical_power[0] < out.energy_rate.total[0]
 
 
-def test_dynamic_recovery_rises_towards_r_times_initial_and_integrates_to_r():
+@pytest.mark.parametrize("kernel", RECOVERY_KERNELS)
+def test_dynamic_recovery_rises_towards_r_times_initial_and_integrates_to_r(kernel):
     """Constant initial rate: E_rec(t) = R E_i (1 - (td e^{-t/td} - tr e^{-t/tr})/(td - tr));
     after the activity stops, the recovery energy released over a long rest brings the total to
-    (1 + R) times the initial energy."""
-    tr, td = E.recovery_tau_rise, E.recovery_tau_decay
+    (1 + R) times the initial energy. For every recovery kernel of the model file."""
+    tr, td = E.kernel_taus(kernel)
     e_i, r = 10.0, 1.5
     states = np.zeros((1, 2))
     taus = en.recovery_filter_taus(tr, td)
@@ -195,6 +197,72 @@ def test_dynamic_recovery_rises_towards_r_times_initial_and_integrates_to_r():
         states = en.recovery_filter_step(states, np.array([0.0]), taus, dt)
         rec_energy += dt * en.dynamic_recovery_rate(states, r, tr, td)[0]
     assert rec_energy == pytest.approx(r * init_energy, rel=0.01)
+
+
+def kernel_step_integral(t, r, tr, td):
+    """H(t) = integral_0^t h: R (1 - (td e^{-t/td} - tr e^{-t/tr})/(td - tr)), zero for t < 0."""
+    t = np.maximum(t, 0.0)
+    return r * (1.0 - (td * np.exp(-t / td) - tr * np.exp(-t / tr)) / (td - tr))
+
+
+def test_kernel_impulse_response_integrates_to_r_by_quadrature():
+    """h(t) = R (e^{-t/td} - e^{-t/tr})/(td - tr) of each kernel integrates to R (scipy quad)
+    and its peak is where dh/dt = 0: t* = tr td ln(td/tr)/(td - tr)."""
+    from scipy.integrate import quad
+
+    for kernel in RECOVERY_KERNELS:
+        tr, td = E.kernel_taus(kernel)
+        def h(t, tr=tr, td=td):
+            return 1.5 * (np.exp(-t / td) - np.exp(-t / tr)) / (td - tr)
+        integral, _ = quad(h, 0.0, np.inf)
+        assert integral == pytest.approx(1.5, rel=1e-8), kernel
+        peak = tr * td * np.log(td / tr) / (td - tr)
+        assert h(peak) > max(h(0.99 * peak), h(1.01 * peak)), kernel
+
+
+@pytest.mark.parametrize("kernel", RECOVERY_KERNELS)
+@pytest.mark.parametrize("backend", ["numpy", "auto"])
+def test_bank_recovery_is_the_selected_kernel_convolved_with_the_initial_rate(kernel, backend):
+    """5 s at constant drive, slow fibres (R = 1.5): the bank's recovery rate at each second is
+    sum_j E_i(j) [H(t - t_(j-1)) - H(t - t_j)], E_i held over each step, H the kernel's integral
+    written out here. Both back ends; the kernel is chosen by name in the parameters."""
+    params = P.with_energetics(recovery_kernel=kernel)
+    tr, td = params.energetics.kernel_taus(kernel)
+    bank = pure_bank(1.0, recovery_mode="dynamic", params=params, backend=backend)
+    lp = rest_path(bank, force_f0=0.3)
+    bank.reset(lp, excitation=[0.5])
+    steps = 5_000  # covers the rise of both kernels (tr 1 s and 10 s), where they differ most
+    run = bank.run(DT, np.full((steps, 1), 0.5), np.full((steps, 1), lp), np.zeros((steps, 1)))
+    rates = run.energy_rate.as_array()[:, 0]  # (steps, 4): activation, cross-bridge, recovery
+    initial = rates[:, 0] + rates[:, 1]
+    edges = DT * np.arange(steps + 1)
+    for k in range(999, steps, 1000):
+        t = edges[k + 1]
+        weights = (kernel_step_integral(t - edges[: k + 1], 1.5, tr, td)
+                   - kernel_step_integral(t - edges[1 : k + 2], 1.5, tr, td))
+        assert rates[k, 2] == pytest.approx(weights @ initial[: k + 1], rel=1e-6), (kernel, t)
+
+
+@pytest.mark.parametrize(("entry", "value", "field"), [
+    ("recovery_kernel", "leijendekker1990", "energetics.recovery_kernel"),
+    ("pcr_slade2006_tau_rise", 50.0, "energetics.pcr_slade2006_tau_rise"),
+    ("fitted_fig7_tau_rise", 0.0, "energetics.fitted_fig7_tau_rise"),
+])
+def test_bad_recovery_kernel_is_a_one_line_config_error(tmp_path, entry, value, field):
+    import yaml
+
+    from vm_ros.resources import config_dir
+
+    data = yaml.safe_load((config_dir() / "model.yaml").read_text())
+    data["energetics"][entry]["value"] = value
+    path = tmp_path / "model.yaml"
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(ConfigError) as info:
+        load_model_params(path)
+    assert info.value.field == field and "\n" not in str(info.value)
+    unknown = P.with_energetics(recovery_kernel="leijendekker1990").energetics
+    with pytest.raises(ConfigError, match="recovery_kernel"):
+        unknown.kernel_taus()
 
 
 def test_dynamic_recovery_in_the_bank_total_is_one_plus_r_times_initial():

@@ -255,7 +255,13 @@ class ContinuousParams:
 
 @dataclass(frozen=True)
 class EnergeticsParams:
-    """Tsianos 2012 energetics. e1..e4 per fibre type (W/kg dry, V in L0/s); recovery in s."""
+    """Tsianos 2012 energetics. e1..e4 per fibre type (W/kg dry, V in L0/s); recovery in s.
+
+    Dynamic recovery uses the kernel named ``recovery_kernel`` (one of RECOVERY_KERNELS), whose
+    time constants are the fields ``<name>_tau_rise`` and ``<name>_tau_decay``;
+    ``recovery_tau_rise`` and ``recovery_tau_decay`` are the selected kernel's (docs/model.md
+    section 7).
+    """
 
     e1: np.ndarray = _holds("W s/(kg L0)")
     e2: np.ndarray = _holds("W/kg")
@@ -266,8 +272,29 @@ class EnergeticsParams:
     dry_to_wet_mass: float = _holds("1")
     heat_capacity: float = _holds("J/(kg K)")
     recovery_mode: str = _holds("-")
-    recovery_tau_rise: float = _holds("s")
-    recovery_tau_decay: float = _holds("s")
+    recovery_kernel: str = _holds("-")
+    fitted_fig7_tau_rise: float = _holds("s")
+    fitted_fig7_tau_decay: float = _holds("s")
+    pcr_slade2006_tau_rise: float = _holds("s")
+    pcr_slade2006_tau_decay: float = _holds("s")
+
+    def kernel_taus(self, kernel: str | None = None) -> tuple[float, float]:
+        """(tr, td) in s of the recovery kernel ``kernel`` (default: the selected one)."""
+        name = self.recovery_kernel if kernel is None else kernel
+        if name not in RECOVERY_KERNELS:
+            raise ConfigError("<parameters>", "energetics.recovery_kernel", name,
+                              f"one of {RECOVERY_KERNELS}")
+        return getattr(self, f"{name}_tau_rise"), getattr(self, f"{name}_tau_decay")
+
+    @property
+    def recovery_tau_rise(self) -> float:
+        """tr (s) of the selected recovery kernel."""
+        return self.kernel_taus()[0]
+
+    @property
+    def recovery_tau_decay(self) -> float:
+        """td (s) of the selected recovery kernel."""
+        return self.kernel_taus()[1]
 
 
 # Sections of a model file: dotted name in the file -> attribute of ModelParams, class.
@@ -310,6 +337,8 @@ class ModelParams:
 
 
 RECOVERY_MODES = ("static", "dynamic")
+# Dynamic recovery kernels (docs/model.md section 7), each with <name>_tau_rise/_tau_decay fields.
+RECOVERY_KERNELS = ("fitted_fig7", "pcr_slade2006")
 DRIVE_LAWS = ("tsianos2012", "relative_drive")
 APPORTIONING = ("equal", "geometric")
 
@@ -377,13 +406,15 @@ def _validate_model_params(p: ModelParams) -> None:
         raise ConfigError(
             path, "energetics.activation_fraction", e.activation_fraction, "in (0, 1)"
         )
-    if not 0 < e.recovery_tau_rise < e.recovery_tau_decay:
+    if e.recovery_kernel not in RECOVERY_KERNELS:
         raise ConfigError(
-            path,
-            "energetics.recovery_tau_rise",
-            e.recovery_tau_rise,
-            "need 0 < recovery_tau_rise < recovery_tau_decay",
+            path, "energetics.recovery_kernel", e.recovery_kernel, f"one of {RECOVERY_KERNELS}"
         )
+    for kernel in RECOVERY_KERNELS:
+        tau_rise, tau_decay = e.kernel_taus(kernel)
+        if not 0 < tau_rise < tau_decay:
+            raise ConfigError(path, f"energetics.{kernel}_tau_rise", tau_rise,
+                              f"need 0 < {kernel}_tau_rise < {kernel}_tau_decay")
     if np.any(e.e4 <= 0):
         raise ConfigError(path, "energetics.e4", e.e4.tolist(), "must be > 0")
     n = p.natural
