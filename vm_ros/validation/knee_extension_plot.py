@@ -21,10 +21,40 @@ def fig7_paper_comparison(total_j: float, run_s: float, paper_total_j: float,
     return f"{total_j / paper_total_j:.2f} x the paper's {paper_total_j / 1e3:.0f} kJ"
 
 
+def plot_fig7_table(ax, d: dict) -> None:
+    """Cumulative total energy (kJ) against time for each row of the Fig. 7 table: colour the
+    recruitment scheme and drive law, line style the recovery kernel; the paper's 35 kJ and the
+    experiment's band at the paper's duration."""
+    rows = d["table"]
+    kernels = list(dict.fromkeys(r["recovery_kernel"] for r in rows))
+    schemes = list(dict.fromkeys((r["recruitment"], r["drive_law"]) for r in rows))
+    styles = {k: ("-", "--", ":", "-.")[i % 4] for i, k in enumerate(kernels)}
+    colours = {s: f"C{i % 10}" for i, s in enumerate(schemes)}
+    for r in rows:
+        scheme = r["recruitment"] + ("" if r["drive_law"] == "-" else f" {r['drive_law']}")
+        width_s = 2.0 * r["bin_time_s"][0]  # bins are centred: the first starts at 0
+        ax.plot(r["bin_time_s"] + 0.5 * width_s, np.cumsum(r["total_rate_w"]) * width_s / 1e3,
+                ls=styles[r["recovery_kernel"]],
+                color=colours[r["recruitment"], r["drive_law"]],
+                label=f"{scheme}, {r['recovery_kernel']}: {r['total_energy_j'] / 1e3:.1f} kJ, "
+                      f"rise {r['total_rate_rise']:+.0%}")
+    low, high = (e / 1e3 for e in d["experiment_band_j"])
+    ax.errorbar([d["paper_duration_s"]], [d["paper_total_j"] / 1e3],
+                yerr=[[d["paper_total_j"] / 1e3 - low], [high - d["paper_total_j"] / 1e3]],
+                fmt="ks", ms=5, capsize=3, label="paper 35 kJ (experiment 30-40 kJ)")
+    ax.set(xlabel="time (s)", ylabel="total energy, both muscles (kJ)", ylim=(0, None))
+    ax.set_title("recruitment scheme x drive law x recovery kernel", fontsize=9)
+    ax.legend(fontsize=6, loc="upper left")
+
+
 def plot_fig7(result: CheckResult, path: Path) -> None:
     d = result.data
-    fig, (ax, ax_act, ax_v) = plt.subplots(1, 3, figsize=(15, 4.8),
-                                           gridspec_kw={"width_ratios": [1.4, 1, 1]})
+    with_table = bool(d.get("table"))
+    fig, axes = plt.subplots(1, 3 + with_table, figsize=(15 + 5 * with_table, 4.8),
+                             gridspec_kw={"width_ratios": [1.4, 1, 1] + [1.3] * with_table})
+    ax, ax_act, ax_v = axes[:3]
+    if with_table:
+        plot_fig7_table(axes[3], d)
     labels = ("activation", "cross-bridge", "recovery", "total")
     for k, label in enumerate(labels):
         ax.plot(d["time"], d["bins"][:, k], label=label)
