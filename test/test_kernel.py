@@ -23,14 +23,16 @@ import pytest
 
 from vm_ros.bench import model_bench
 from vm_ros.errors import InputError
-from vm_ros.model import SCHEMES, MuscleBank, kernel
+from vm_ros.model import SCHEMES, MuscleBank, kernel, load_model_params
+from vm_ros.model.lumped_fit import with_drive_law
+from vm_ros.model.params import DRIVE_LAWS
 
 DT = 1e-3
 needs_numba = pytest.mark.skipif(not kernel.AVAILABLE, reason="numba not importable")
 
 
-def library_bank(scheme, recovery_mode, backend, count=13, units_per_type=None):
-    return model_bench.library_bank(count, scheme, backend, units_per_type,
+def library_bank(scheme, recovery_mode, backend, count=13, units_per_type=None, params=None):
+    return model_bench.library_bank(count, scheme, backend, units_per_type, params=params,
                                     recovery_mode=recovery_mode)
 
 
@@ -82,6 +84,25 @@ def test_compiled_step_equals_numpy_step(scheme, recovery_mode):
         if k % 50 == 0 or k > 1450:
             assert_outputs_equal(*outs)
     assert np.max(outs[0].force / banks[0].f0) > 0.3  # the comparison covered active states
+
+
+@needs_numba
+@pytest.mark.parametrize("law", DRIVE_LAWS)
+def test_compiled_step_equals_numpy_step_for_each_drive_law(law):
+    params = with_drive_law(load_model_params(), law)
+    banks = [library_bank("lumped", "static", b, params=params) for b in ("numpy", "numba")]
+    lp0 = banks[0].l0_m + banks[0].l0t_m
+    for b in banks:
+        b.reset(lp0)
+    drive = np.repeat([0.0, 0.6, 0.2, 1.0, 0.0], 150)  # steps up and down, from and to rest
+    lag = 0.0
+    for k, level in enumerate(drive):
+        u = np.full(banks[0].n, level)
+        outs = [b.step(DT, u, lp0) for b in banks]
+        lag = max(lag, float(np.max(np.abs(outs[0].effective_drive - level))))
+        if k % 25 == 0:
+            assert_outputs_equal(*outs)
+    assert lag > 0.1  # the filter's law was exercised, not bypassed
 
 
 @needs_numba

@@ -39,7 +39,7 @@ def test_lumped_drive_filter_is_one_ms_for_full_step_and_t_rise_for_small():
     r = _lumped(0.4, params=dataclasses.replace(LP, drive_law="tsianos2012"))  # U2 = 0.32
 
     def tau(u, ueff):
-        return r.drive_tau(np.array([u]), np.array([ueff]))[0]
+        return r.drive_tau(np.array([u]), np.array([ueff]), np.array([1.0]))[0]
 
     assert tau(1.0, 0.0) == pytest.approx(0.001, rel=1e-9)
     assert tau(0.5, 0.5) == pytest.approx(t_rise, rel=1e-12)
@@ -49,24 +49,31 @@ def test_lumped_drive_filter_is_one_ms_for_full_step_and_t_rise_for_small():
 def test_relative_drive_law_at_its_limits():
     # docs/model.md section 5c, with hand-chosen constants
     lumped = dataclasses.replace(LP, drive_law="relative_drive", relative_rise_poly=(0.1,),
-                                 relative_fall_poly=(0.6,), relative_fall_floor=0.05,
+                                 relative_rise_power=2.0, relative_fall_poly=(0.6,),
                                  relative_fall_power=4.0, drive_tau_min=1e-4)
     r = _lumped(0.4, params=lumped)
 
-    def tau(u, ueff):
-        return r.drive_tau(np.array([u]), np.array([ueff]))[0]
+    def tau(u, ueff, active=1.0):
+        return r.drive_tau(np.array([u]), np.array([ueff]), np.array([active]))[0]
 
-    assert tau(0.5, 0.0) == 1e-4  # from rest: no lag beyond the floor
+    assert tau(0.5, 0.0) == 1e-4  # Ueff at rest: no lag beyond the floor
+    assert tau(0.6, 0.3, active=0.0) == 1e-4  # units no longer firing: as from rest
     assert tau(0.0, 0.0) == 1e-4  # at rest: 0/0 held finite
-    assert tau(0.6, 0.3) == pytest.approx(0.1 * 0.5)
-    assert tau(0.5, 0.5) == pytest.approx(0.1)  # caught up: T_r
+    assert tau(0.6, 0.3) == pytest.approx(0.1 * 0.5**2)
+    assert tau(0.6, 0.3, active=0.5) == pytest.approx(0.1 * 0.5**2 * 0.5)
+    assert tau(0.5, 0.5) == pytest.approx(0.1)  # caught up and firing: T_r
     assert tau(0.0, 0.8) == pytest.approx(0.05 + 0.6)  # release: T_f0 + T_f
     assert tau(0.3, 0.6) == pytest.approx(0.05 + 0.6 * 0.5**4)
     assert tau(0.59, 0.6) == pytest.approx(0.05, abs=1e-6)  # small fall: T_f0
 
 
+def test_firing_fraction():
+    f = rc.firing_fraction(np.array([0.0, 0.5, 2.0, 1.0, 0.3]), np.array([1.0, 1.0, 1.0, 0.0, -1]))
+    assert f.tolist() == [0.0, 0.5, 1.0, 0.0, 0.0]
+
+
 def _lumped(fs, ur=0.8, params=LP):
-    return rc.LumpedRecruitment(np.array([[fs, 1 - fs]]), np.array([ur]), params)
+    return rc.LumpedRecruitment(np.array([[fs, 1 - fs]]), np.array([ur]), params, 0.05)
 
 
 def test_lumped_recruitment_capped_at_full_recruitment_of_each_type():
@@ -121,5 +128,5 @@ def test_continuous_weights_follow_song2008():
     w = r.pool_weights(np.array([0.6]))[0]
     d = (0.6 - 0.001) + (0.6 - 0.4)
     assert w == pytest.approx([0.6 * (0.599 / d), 0.6 * (0.2 / d)])
-    assert r.drive_tau(np.array([1.0]), np.array([0.0]))[0] == 0.03
-    assert math.isclose(float(r.drive_tau(np.array([0.0]), np.array([1.0]))[0]), 0.15)
+    assert r.drive_tau(np.array([1.0]), np.array([0.0]), np.ones(1))[0] == 0.03
+    assert math.isclose(float(r.drive_tau(np.array([0.0]), np.array([1.0]), np.ones(1))[0]), 0.15)

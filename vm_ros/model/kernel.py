@@ -169,9 +169,15 @@ def _advance(
         # Phase 1, DRIVE: filtered drive Ueff and the pool weights it sets
         if scheme == LUMPED:
             if s[S.drive_law_code] == RELATIVE_DRIVE:
+                # the slow pool (pool 0) says how active the lumped units already are
+                active = rc.firing_fraction(
+                    f_eff[i, 0], act.firing_envelope(u, thresholds[i, 0], s[S.fmin], s[S.fmax])
+                )
                 tau = rc.relative_drive_tau(
-                    u, effective_drive[i], m[M.relative_rise], m[M.relative_fall],
-                    s[S.relative_fall_floor], s[S.relative_fall_power], s[S.drive_tau_min],
+                    u, effective_drive[i], active, m[M.relative_rise], s[S.relative_rise_power],
+                    m[M.relative_fall],
+                    rc.mid_activation_fall_time_constant(pool[0, P.tf3], pool[0, P.tf4]),
+                    s[S.relative_fall_power], s[S.drive_tau_min],
                 )
             else:
                 tau = rc.lumped_drive_tau(

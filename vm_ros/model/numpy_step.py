@@ -22,6 +22,7 @@ import numpy as np
 
 from vm_ros.model import activation as act
 from vm_ros.model import energetics as en
+from vm_ros.model import recruitment as rc
 from vm_ros.model.curves import activation_frequency_brown1999
 from vm_ros.model.layout import BankState
 from vm_ros.model.mechanics import (
@@ -118,7 +119,11 @@ class NumpyStep:
         return LagTargets(
             l=l,
             v=v,
-            drive_tau=self.recruitment.drive_tau(u, state.effective_drive),
+            # pool 0: the slow unit of a lumped muscle, whose firing says how active it already is
+            drive_tau=self.recruitment.drive_tau(
+                u, state.effective_drive,
+                rc.firing_fraction(state.firing_rate_effective[:, 0], f_env[:, 0]),
+            ),
             f_env=f_env,
             tf=tf,
             sag_target=act.sag_target(

@@ -219,8 +219,8 @@ class LumpedParams:
     t_rise_step_scale: float = _holds("1/s")
     drive_law: str = _holds("-")
     relative_rise_poly: tuple = _holds("s")
+    relative_rise_power: float = _holds("1")
     relative_fall_poly: tuple = _holds("s")
-    relative_fall_floor: float = _holds("s")
     relative_fall_power: float = _holds("1")
     drive_tau_min: float = _holds("s")
     w_slow_poly: tuple = _holds("1")
@@ -438,9 +438,9 @@ def _validate_model_params(p: ModelParams) -> None:
         raise ConfigError(
             path, "recruitment.lumped.drive_tau_min", lumped.drive_tau_min, "must be > 0"
         )
-    if lumped.relative_fall_floor < 0:
-        raise ConfigError(path, "recruitment.lumped.relative_fall_floor",
-                          lumped.relative_fall_floor, "must be >= 0")
+    if lumped.relative_rise_power <= 0:
+        raise ConfigError(path, "recruitment.lumped.relative_rise_power",
+                          lumped.relative_rise_power, "must be > 0")
     if lumped.relative_fall_power <= 0:
         raise ConfigError(path, "recruitment.lumped.relative_fall_power",
                           lumped.relative_fall_power, "must be > 0")

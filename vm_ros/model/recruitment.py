@@ -8,8 +8,9 @@ from its firing threshold; the scheme supplies, per muscle and pool:
 | ``fibre_index`` | (P,) | fibre type of each pool (0 slow, 1 fast) |
 | ``thresholds`` | (n, P) | drive at which the pool starts firing (raw U) |
 | ``pool_pcsa`` | (n, P) | PCSA fraction of the pool (sums to 1 per muscle) |
-| ``drive_tau(u, ueff)`` | (n,) | time constant of the filtered drive Ueff (None: no filter); |
-| | | lumped: by ``params.drive_law`` (DRIVE_LAWS) |
+| ``drive_tau(u, ueff, active)`` | (n,) | time constant of the filtered drive Ueff (None: no |
+| | | filter); lumped: by ``params.drive_law`` (DRIVE_LAWS); ``active`` (n,): the slow |
+| | | pool's firing fraction (:func:`firing_fraction`) |
 | ``pool_weights(ueff)`` | (n, P) | weight so that effective activation = weight * Af |
 | ``recruited_fraction(u, ueff)`` | (n, P) | recruited PCSA fraction of the pool |
 
@@ -101,17 +102,35 @@ def lumped_drive_tau(u, ueff, t_rise, t_fall, step_scale):
 
 
 @jitable
-def relative_drive_tau(u, ueff, t_rise, t_fall, fall_floor, fall_power, tau_min):
-    """Time constant (s) of the filtered drive Ueff, relative_drive law (docs/model.md 5c).
+def firing_fraction(f_eff, f_env):
+    """How far a pool's firing rate has reached its target: clip(f_eff / f_env, 0, 1) (0 at
+    rest or with no target)."""
+    return where(f_env > 0.0, clip(safe_ratio(f_eff, f_env), 0.0, 1.0), 0.0)
 
-    U >= Ueff: T_U = T_r Ueff / U, 0 from rest: the lumped unit's own firing-rate rise carries
-    the lag, as each natural unit's does; T_r as Ueff nears U (units recruited on top of active
-    ones build up behind them).
+
+@jitable
+def mid_activation_fall_time_constant(tf3, tf4):
+    """The firing-rate fall time constant (tf3 + tf4 Af) / L at Af = 1/2 and L = L0 (s): the
+    rate at which a unit that stops firing lets go, in the middle of its activation range."""
+    return tf3 + 0.5 * tf4
+
+
+@jitable
+def relative_drive_tau(u, ueff, active, t_rise, rise_power, t_fall, fall_floor, fall_power,
+                       tau_min):
+    """Time constant (s) of the filtered drive Ueff, relative_drive law (docs/model.md section 5d).
+
+    U >= Ueff: T_U = T_r (Ueff / U)^q a, with a the slow lumped unit's firing fraction
+    (:func:`firing_fraction`; the slow unit is recruited first and fires whenever any unit does):
+    0 from rest, where the lumped unit's own firing-rate rise carries the lag as each natural
+    unit's does; up to T_r when units are recruited on top of active ones, which build up behind
+    them.
     U < Ueff: T_U = T_f0 + T_f (1 - U / Ueff)^p: T_f0 + T_f on release (W held while the firing
-    rate, and with it Af, decays as in natural units), near T_f0 for a small fall (derecruited
-    units decay at their fall rate). Held at or above ``tau_min``.
+    rate, and with it Af, decays as in natural units), near T_f0 for a small fall: T_f0 is the
+    slow fibres' :func:`mid_activation_fall_time_constant`, at which derecruited units let go.
+    Held at or above ``tau_min``.
     """
-    rising = t_rise * clip(safe_ratio(ueff, u), 0.0, 1.0)
+    rising = t_rise * clip(safe_ratio(ueff, u), 0.0, 1.0) ** rise_power * active
     falling = fall_floor + t_fall * clip(1.0 - safe_ratio(u, ueff), 0.0, 1.0) ** fall_power
     return np.maximum(where(u >= ueff, rising, falling), tau_min)
 
@@ -171,6 +190,7 @@ class LumpedRecruitment(_OnePoolPerFibreType):
     """One lumped unit per fibre type (Tsianos 2012 Appendix A), the default scheme."""
 
     params: LumpedParams
+    slow_fall_s: float  # T_f0 of the relative_drive law (s): mid_activation_fall_time_constant
     name: str = "lumped"
 
     @cached_property
@@ -189,11 +209,12 @@ class LumpedRecruitment(_OnePoolPerFibreType):
     def w_slow_poly(self) -> np.ndarray:
         return np.asarray(self.params.w_slow_poly, dtype=float)
 
-    def drive_tau(self, u, ueff):
+    def drive_tau(self, u, ueff, active):
         c, p = self.coefficients, self.params
         if p.drive_law == "relative_drive":
-            return relative_drive_tau(u, ueff, c.relative_rise, c.relative_fall,
-                                      p.relative_fall_floor, p.relative_fall_power,
+            return relative_drive_tau(u, ueff, active, c.relative_rise, p.relative_rise_power,
+                                      c.relative_fall,
+                                      self.slow_fall_s, p.relative_fall_power,
                                       p.drive_tau_min)
         return lumped_drive_tau(u, ueff, c.t_rise, c.t_fall, p.t_rise_step_scale)
 
@@ -284,7 +305,7 @@ class NaturalRecruitment:
     def thresholds(self):
         return natural_thresholds_cheng2000(self.pool_pcsa, self.ur, self.params.u_threshold_min)
 
-    def drive_tau(self, u, ueff):
+    def drive_tau(self, u, ueff, active):
         return None
 
     def recruited_fraction(self, u, ueff):
@@ -334,7 +355,7 @@ class ContinuousRecruitment(_OnePoolPerFibreType):
         u2 = np.maximum(fast_threshold(self.fpcsa[:, SLOW], self.ur), u_min)
         return np.stack([np.full_like(u2, u_min), u2], axis=-1)
 
-    def drive_tau(self, u, ueff):
+    def drive_tau(self, u, ueff, active):
         return continuous_drive_tau_song2008(u, ueff, self.params.tau_rise, self.params.tau_fall)
 
     def recruited_fraction(self, u, ueff):
@@ -351,7 +372,9 @@ class ContinuousRecruitment(_OnePoolPerFibreType):
 def make_recruitment(scheme: str, fpcsa, ur, params):
     """Build the scheme named ``scheme`` from (n, 2) PCSA fractions, (n,) Ur and ModelParams."""
     if scheme == "lumped":
-        return LumpedRecruitment(fpcsa, ur, params.lumped)
+        fibre = params.fibre
+        slow_fall = mid_activation_fall_time_constant(fibre.tf3[SLOW], fibre.tf4[SLOW])
+        return LumpedRecruitment(fpcsa, ur, params.lumped, float(slow_fall))
     if scheme == "natural":
         return NaturalRecruitment(fpcsa, ur, params.natural)
     if scheme == "continuous":
