@@ -11,12 +11,21 @@ while still failing if the lumped filter or W were off by a visible amount.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from vm_ros.cli import main as cli_main
 from vm_ros.model import load_model_params
-from vm_ros.model.lumped_fit import compare_sinusoidal, compare_steady, fit_weighting
+from vm_ros.model.lumped_fit import (
+    FILTER_FIELDS,
+    compare_sinusoidal,
+    compare_steady,
+    drive_filter_rms_percent,
+    fit_drive_filter,
+    fit_weighting,
+)
 from vm_ros.model.params import resolve_muscles
 
 PARAMS = load_model_params()
@@ -76,3 +85,21 @@ def test_fit_w_command_writes_table_params_and_plot(tmp_path, capsys):
     rows = np.loadtxt(tmp_path / "fit_w.csv", delimiter=",", skiprows=1)
     assert rows.shape == (2, 3) and np.all(rows[:, 2] <= rows[:, 1] + 1e-9)
     assert (tmp_path / "fit_w.png").stat().st_size > 10_000
+
+
+def test_drive_filter_fit_finds_the_shipped_constants_neighbourhood_from_far_off():
+    """Started with every relative_drive constant 2.5x its shipped value (the fit's own training
+    drive, two fibre mixes, 10 units per type, 5 ms steps to keep it short), the least-squares fit
+    must bring the training error down to within 25 % of the shipped constants' error: the fit
+    finds the optimum the shipped constants came from, and the shipped constants are near it."""
+    setting = {"fpcsa_slow_grid": (0.3, 0.6), "units_per_type": 10, "dt": 0.005}
+    lumped = PARAMS.lumped
+    far = dataclasses.replace(PARAMS, lumped=dataclasses.replace(lumped, **{
+        name: (tuple(2.5 * v for v in getattr(lumped, name))
+               if isinstance(getattr(lumped, name), tuple) else 2.5 * getattr(lumped, name))
+        for name in FILTER_FIELDS["relative_drive"]}))
+    shipped = drive_filter_rms_percent(PARAMS, **setting)
+    fit = fit_drive_filter(far, max_nfev=40, **setting)
+    print(f"\nshipped {shipped}, from far {fit.rms_start_percent} -> {fit.rms_fitted_percent}")
+    assert np.all(fit.rms_start_percent > 1.5 * shipped)  # the start really is far off
+    assert np.all(fit.rms_fitted_percent < 1.25 * shipped)

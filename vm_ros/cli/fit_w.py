@@ -1,10 +1,14 @@
-"""Refit the lumped units' weighting W (and optionally the drive filter's T_rise/T_fall) from the
-natural-units model, for a recruitment range Ur and a grid of fibre mixes, and report how well the
-published coefficients (fitted by Tsianos 2012 for Ur = 0.8) and the refit match natural units.
+"""Refit the lumped units' weighting W (and optionally the constants of the drive filter's law)
+from the natural-units model, for a recruitment range Ur and a grid of fibre mixes, and report how
+well the starting coefficients (W: Tsianos 2012's, fitted for Ur = 0.8) and the refit match natural
+units.
 
 Writes, in --out: fit_w.csv (max error per fibre mix, published vs refit), fit_w.png (lumped vs
 natural isometric force-drive curves), and model_fit_w.yaml: a copy of the model parameter file
-with the refit recruitment.lumped coefficients, usable as `--params` / `params=` elsewhere.
+with the refit recruitment.lumped coefficients, usable as `--params` / `params=` elsewhere. With
+--drive-filter also drive_filter_steps.csv: the refit law on drive steps the fit did not see
+(lumped / natural initial energy and force impulse over 0.25 s, full model, at L0), and the
+paper's Fig. 10 sinusoids.
 """
 
 from __future__ import annotations
@@ -18,11 +22,14 @@ import yaml
 from vm_ros.model import load_model_params
 from vm_ros.model.lumped_fit import (
     DEFAULT_FPCSA_GRID,
-    FILTER_FIELDS,
     W_FIELDS,
+    compare_sinusoidal,
+    compare_steps,
     fit_drive_filter,
     fit_weighting,
+    with_drive_law,
 )
+from vm_ros.model.params import DRIVE_LAWS, resolve_muscles
 from vm_ros.resources import config_dir
 
 HELP = "refit the lumped weighting W (and drive filter) from natural units"
@@ -36,7 +43,11 @@ def add_arguments(parser) -> None:
     parser.add_argument("--units", type=int, default=50,
                         help="natural units per fibre type in the reference ensemble (default 50)")
     parser.add_argument("--drive-filter", action="store_true",
-                        help="also refit T_rise(U2) and T_fall(U2) against step responses (~1 min)")
+                        help="also refit the drive filter's law against natural units through "
+                             "steps and sinusoids, and check it on held-out drives (~3 min)")
+    parser.add_argument("--drive-law", choices=DRIVE_LAWS, default=None,
+                        help="the drive filter's law to fit and write (default: the parameter "
+                             "file's recruitment.lumped.drive_law)")
     parser.add_argument("--params", type=Path, default=None,
                         help="model parameter YAML to start from (default: the shipped one)")
     parser.add_argument("--out", type=Path, default=Path("out/fit-w"),
@@ -47,6 +58,7 @@ def add_arguments(parser) -> None:
 def _write_params_yaml(source: Path, lumped, ur: float, units: int, fields, path: Path) -> None:
     data = yaml.safe_load(source.read_text(encoding="utf-8"))
     section = data["recruitment"]["lumped"]
+    section["drive_law"]["value"] = lumped.drive_law
     for name in fields:
         value = getattr(lumped, name)
         section[name] = {
@@ -54,9 +66,35 @@ def _write_params_yaml(source: Path, lumped, ur: float, units: int, fields, path
             else round(float(value), 6),
             "unit": section[name]["unit"], "tag": "R",
             "source": f"vm-ros fit-w: least squares against {units} natural units per type, "
-                      f"Ur = {ur}; published value {section[name]['value']}",
+                      f"Ur = {ur}; value before the fit {section[name]['value']}",
         }
     path.write_text(yaml.safe_dump(data, sort_keys=False, width=100), encoding="utf-8")
+
+
+def _held_out(params, start_params, ur: float, path: Path) -> None:
+    """The refit law against natural units on drives the fit did not see, before and after."""
+    muscle = resolve_muscles(["vastus_lateralis"], None, None, ur)[0]
+    rows, summary = [], []
+    for label, p in (("before", start_params), ("refit", params)):
+        steps = compare_steps(p, ur=ur)
+        sines = compare_sinusoidal(p, muscle, cycles=3)
+        rows += [[label, *case, e, f] for case, e, f in
+                 zip(steps.cases, steps.energy_ratio, steps.impulse_ratio, strict=True)]
+        worst = np.abs(sines.rows[:, 3:]).max(axis=0)
+        summary.append((label, steps, worst))
+    with open(path, "w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["law_constants", "fpcsa_slow", "drive_before", "drive_after",
+                         "energy_ratio", "impulse_ratio"])
+        writer.writerows([[r[0]] + [f"{v:.4f}" for v in r[1:]] for r in rows])
+    print("\nheld-out drives, lumped / natural over the first 0.25 s after a step (full model, L0)"
+          " and the paper's Fig. 10 sinusoids (worst |error|, % F(U=1))")
+    for label, steps, worst in summary:
+        e, f = steps.energy_ratio, steps.impulse_ratio
+        print(f"  {label:6}  initial energy {e.min():.2f}-{e.max():.2f} (median "
+              f"{np.median(e):.3f}), force impulse {f.min():.2f}-{f.max():.2f} (median "
+              f"{np.median(f):.3f}); Fig. 10 transient {worst[0]:.2f}, mean {worst[1]:.2f}, "
+              f"range {worst[2]:.2f}")
 
 
 def _plot(fit, path: Path) -> None:
@@ -95,20 +133,26 @@ def run(args) -> int:
     fit = fit_weighting(params, ur=args.ur, fpcsa_slow_grid=args.fpcsa_slow,
                         units_per_type=args.units)
     fitted_params, fields = fit.params, list(W_FIELDS)
+    if args.drive_law is not None:
+        fitted_params = with_drive_law(fitted_params, args.drive_law)
     filter_rows = None
     if args.drive_filter:
-        print("fitting the drive filter (T_rise, T_fall) against step responses ...")
+        law = fitted_params.lumped.drive_law
+        print(f"fitting the drive filter ({law}) against natural units through steps and "
+              "sinusoids ...")
         dyn = fit_drive_filter(fitted_params, ur=args.ur, fpcsa_slow_grid=args.fpcsa_slow)
-        fitted_params, filter_rows = dyn.params, dyn
-        fields += list(FILTER_FIELDS)
-
+        for name in dyn.fields:
+            print(f"  {name}: {getattr(fitted_params.lumped, name)} -> "
+                  f"{getattr(dyn.params.lumped, name)}")
+        start_params, fitted_params, filter_rows = fitted_params, dyn.params, dyn
+        fields += list(dyn.fields)
     header = ["fpcsa_slow", "published_max_error_percent", "refit_max_error_percent"]
     published, refit = fit.published.max_error_percent, fit.fitted.max_error_percent
     rows = [[fs, p, f] for fs, p, f in zip(fit.published.fpcsa_slow, published, refit,
                                            strict=True)]
     if filter_rows is not None:
-        header += ["published_step_rms_percent", "refit_step_rms_percent"]
-        rows = [r + [p, f] for r, p, f in zip(rows, filter_rows.rms_published_percent,
+        header += ["start_training_rms_percent", "refit_training_rms_percent"]
+        rows = [r + [p, f] for r, p, f in zip(rows, filter_rows.rms_start_percent,
                                               filter_rows.rms_fitted_percent, strict=True)]
     with open(args.out / "fit_w.csv", "w", newline="", encoding="utf-8") as handle:
         writer = csv.writer(handle)
@@ -122,6 +166,9 @@ def run(args) -> int:
     _write_params_yaml(Path(source), fitted_params.lumped, args.ur, args.units, fields,
                        args.out / "model_fit_w.yaml")
     written = [args.out / "fit_w.csv", args.out / "model_fit_w.yaml"]
+    if filter_rows is not None:
+        _held_out(fitted_params, start_params, args.ur, args.out / "drive_filter_steps.csv")
+        written.append(args.out / "drive_filter_steps.csv")
     if not args.no_plot:
         try:
             _plot(fit, args.out / "fit_w.png")

@@ -6,7 +6,9 @@ effective activation per type is A_nat(U) = sum_j p_j Af(f_env_j(U)); the lumped
 rF(U) W(U) Af(f_env(U)). W is therefore fixed by the natural-units model, which is how the paper
 derived it. :func:`fit_weighting` refits W's coefficients (polynomials in U2, the fast threshold)
 by least squares over a grid of fibre mixes, for any Ur; :func:`fit_drive_filter` refits the
-drive filter's T_rise and T_fall polynomials against step responses.
+constants of the drive filter's law against natural units through steps and sinusoids;
+:func:`compare_steps` and :func:`compare_sinusoidal` compare the two schemes, with the full model,
+on drives the fit did not see.
 
 Errors are reported in % of the natural ensemble's force at U = 1 (the paper's Fig. 9 measure).
 """
@@ -25,7 +27,22 @@ from vm_ros.model.recruitment import LumpedRecruitment
 
 W_FIELDS = ("w_slow_poly", "w_slow_a_poly", "w_slow_tau", "w_fast_b_poly", "w_fast_c_poly",
             "w_fast_offset", "w_fast_rise", "w_fast_tau_poly")
-FILTER_FIELDS = ("t_rise_poly", "t_fall_poly")
+# the constants of each drive-filter law (params.DRIVE_LAWS) that fit_drive_filter refits
+FILTER_FIELDS = {
+    "tsianos2012": ("t_rise_poly", "t_fall_poly"),
+    "relative_drive": ("relative_rise_poly", "relative_rise_power", "relative_fall_poly",
+                       "relative_fall_power"),
+}
+# Bounds of the fitted values (each coefficient of a polynomial), where the fit needs them: without
+# them the relative_drive fit can trade a smaller error for a law that holds Ueff for minutes after
+# a release (T_f ~ 1000 s with p ~ 150), where Ueff no longer means an effective drive. A time
+# constant coefficient stays within 2 s, p and q in 1-4 (p 1: linear in the fall's size; 4: only
+# large falls hold W).
+FILTER_BOUNDS = {
+    "relative_rise_poly": (-2.0, 2.0), "relative_rise_power": (1.0, 4.0),
+    "relative_fall_poly": (-2.0, 2.0),
+    "relative_fall_power": (1.0, 4.0),
+}
 DEFAULT_FPCSA_GRID = (0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8)
 
 
@@ -121,7 +138,8 @@ def fit_weighting(params: ModelParams, ur: float = 0.8, fpcsa_slow_grid=DEFAULT_
     scale = base.natural.sum(-1)[-1]  # natural force at U = 1, per mix
 
     def residual(vector):
-        trial = LumpedRecruitment(fpcsa, urs, _unpack(vector, params.lumped, W_FIELDS))
+        trial = LumpedRecruitment(fpcsa, urs, _unpack(vector, params.lumped, W_FIELDS),
+                                  lumped_bank.recruitment.slow_fall_s)
         weights = np.array([trial.pool_weights(np.full(len(specs), u)) for u in base.drive])
         return ((weights * af - base.natural) / scale[None, :, None]).ravel()
 
@@ -139,6 +157,24 @@ def step_drive_series(dt: float, hold_s: float = 0.5,
     return np.repeat(np.asarray(levels, dtype=float), int(round(hold_s / dt)))
 
 
+# Training drive of the drive-filter fit: the staircase, then sinusoids (mean, amplitude, Hz),
+# each 2 s. The held-out conditions (compare_steps: steps 0->0.2 ... 0.6->0.3 with the full
+# model; compare_sinusoidal: the paper's Fig. 10 means, amplitudes and frequencies) are other
+# drives.
+TRAINING_SINUSOIDS = ((0.4, 0.15, 3.0), (0.6, 0.25, 1.5), (0.25, 0.1, 6.0), (0.35, 0.2, 4.5))
+# releases to rest and rises from it, from levels the held-out steps do not use
+TRAINING_RELEASES = (0.0, 0.6, 0.0, 0.3, 0.9, 0.0, 0.15, 0.4, 0.0)
+
+
+def training_drive_series(dt: float, sinusoid_s: float = 2.0) -> np.ndarray:
+    """The drive-filter fit's training drive (k,): :func:`step_drive_series`, TRAINING_RELEASES
+    (0.5 s each), then TRAINING_SINUSOIDS, ``sinusoid_s`` each."""
+    t = np.arange(int(round(sinusoid_s / dt))) * dt
+    sines = [m + a * np.sin(2 * np.pi * f * t) for m, a, f in TRAINING_SINUSOIDS]
+    return np.concatenate([step_drive_series(dt), step_drive_series(dt, levels=TRAINING_RELEASES),
+                           *sines])
+
+
 def _dynamic_banks(params, specs, units_per_type):
     natural_params = dataclasses.replace(params, natural=dataclasses.replace(
         params.natural, units_per_type=int(units_per_type)))
@@ -146,46 +182,164 @@ def _dynamic_banks(params, specs, units_per_type):
 
 
 def _trace(bank: MuscleBank, drive_series, dt):
+    """Isometric effective activation at L0 per fibre type, (k, n, 2), from rest."""
     bank.reset(np.full(bank.n, 1.0) * (bank.l0_m + bank.l0t_m), excitation=np.zeros(bank.n))
     series = np.repeat(drive_series[:, None], bank.n, axis=1)
-    return bank.activation_trace(dt, series).sum(-1)
+    return bank.activation_trace(dt, series)
+
+
+def with_drive_law(params: ModelParams, law: str) -> ModelParams:
+    """``params`` with the lumped drive filter's law set to ``law`` (params.DRIVE_LAWS)."""
+    return dataclasses.replace(params, lumped=dataclasses.replace(params.lumped, drive_law=law))
 
 
 @dataclass(frozen=True)
 class DriveFilterFit:
-    """Result of :func:`fit_drive_filter`: RMS errors (% of natural force at U = 1) per mix."""
+    """Result of :func:`fit_drive_filter` for one law: the refit params, the fitted fields, and
+    the RMS error of the isometric activation over the training drive (% of natural at U = 1)
+    per fibre mix, before and after."""
 
     params: ModelParams
-    rms_published_percent: np.ndarray
+    fields: tuple
+    rms_start_percent: np.ndarray
     rms_fitted_percent: np.ndarray
 
 
+class _DriveFilterProblem:
+    """The drive-filter fit's target (natural units through the training drive) and residual."""
+
+    def __init__(self, params, ur, fpcsa_slow_grid, units_per_type, dt):
+        self.params, self.dt = params, dt
+        self.specs = synthetic_muscles(fpcsa_slow_grid, ur)
+        natural_bank, _ = _dynamic_banks(params, self.specs, units_per_type)
+        self.drive = training_drive_series(dt)
+        self.target = _trace(natural_bank, self.drive, dt)
+        full = natural_bank.steady_effective_activation(np.ones(len(self.specs)))
+        # isometric tetanic initial energy per unit activation and dry mass (Barclay's fit at
+        # V = 0, e3/e4; the activation share scales both types alike): fast ~6x slow
+        e = params.energetics
+        self.energy_weight = np.asarray(e.e3, dtype=float) / np.asarray(e.e4, dtype=float)
+        self.scale = np.stack([full.sum(-1), full @ self.energy_weight], axis=-1)  # (mixes, 2)
+
+    def _measures(self, activation) -> np.ndarray:
+        """Force-like (activation summed over types) and energy-like (weighted by energy per
+        unit activation) measures, (k, mixes, 2), each / its natural value at U = 1."""
+        return np.stack([activation.sum(-1), activation @ self.energy_weight], axis=-1) / self.scale
+
+    def error(self, params) -> np.ndarray:
+        """(lumped - natural), force and energy measures, (k, mixes, 2): what the lumped units
+        stand in for, so that a fast-fibre error (six times the energy of a slow one for the same
+        force) counts as much as it costs."""
+        lumped = _trace(MuscleBank(self.specs, params, "lumped"), self.drive, self.dt)
+        return self._measures(lumped) - self._measures(self.target)
+
+    def rms_percent(self, params) -> np.ndarray:
+        """RMS over time and both measures, per mix (% of natural at U = 1)."""
+        return 100.0 * np.sqrt(np.mean(self.error(params) ** 2, axis=(0, 2)))
+
+
+def drive_filter_rms_percent(params: ModelParams, ur: float = 0.8,
+                             fpcsa_slow_grid=DEFAULT_FPCSA_GRID, units_per_type: int = 20,
+                             dt: float = 0.002) -> np.ndarray:
+    """RMS error (% of natural at U = 1) of the lumped isometric activation against natural units
+    over the training drive, per fibre mix: what :func:`fit_drive_filter` minimises."""
+    return _DriveFilterProblem(params, ur, fpcsa_slow_grid, units_per_type, dt).rms_percent(params)
+
+
 def fit_drive_filter(params: ModelParams, ur: float = 0.8, fpcsa_slow_grid=DEFAULT_FPCSA_GRID,
-                     units_per_type: int = 20, dt: float = 0.002, hold_s: float = 0.5,
-                     max_nfev: int = 60) -> DriveFilterFit:
-    """Refit T_rise(U2) and T_fall(U2) so the lumped units' isometric activation follows the
-    natural units' through a staircase of drive steps (least squares over all mixes)."""
-    specs = synthetic_muscles(fpcsa_slow_grid, ur)
-    natural_bank, lumped_bank = _dynamic_banks(params, specs, units_per_type)
-    drive = step_drive_series(dt, hold_s)
-    target = _trace(natural_bank, drive, dt)
-    scale = natural_bank.steady_effective_activation(np.ones(len(specs))).sum(-1)
+                     units_per_type: int = 20, dt: float = 0.002,
+                     max_nfev: int = 200) -> DriveFilterFit:
+    """Refit the constants of the drive filter's law (``params.lumped.drive_law``, fields in
+    FILTER_FIELDS) so that the lumped units' isometric activation at L0 follows the natural
+    units' through :func:`training_drive_series` (least squares over every fibre mix at once; the
+    polynomials in U2 make the constants depend on the mix, as W's do)."""
+    fields = FILTER_FIELDS[params.lumped.drive_law]
+    problem = _DriveFilterProblem(params, ur, fpcsa_slow_grid, units_per_type, dt)
 
-    def simulate(vector):
-        trial = dataclasses.replace(params, lumped=_unpack(vector, params.lumped, FILTER_FIELDS))
-        return _trace(MuscleBank(specs, trial, "lumped"), drive, dt)
+    def trial(vector):
+        return dataclasses.replace(params, lumped=_unpack(vector, params.lumped, fields))
 
-    def residual(vector):
-        return ((simulate(vector) - target) / scale).ravel()
+    x0 = _pack(params.lumped, fields)
+    sizes = [np.size(getattr(params.lumped, f)) for f in fields]
+    low, high = (np.repeat([FILTER_BOUNDS.get(f, (-np.inf, np.inf))[side] for f in fields], sizes)
+                 for side in (0, 1))
+    result = least_squares(lambda x: problem.error(trial(x)).ravel(), np.clip(x0, low, high),
+                           bounds=(low, high), max_nfev=max_nfev, x_scale="jac")
+    fitted = trial(result.x)
+    return DriveFilterFit(fitted, fields, problem.rms_percent(params),
+                          problem.rms_percent(fitted))
 
-    x0 = _pack(params.lumped, FILTER_FIELDS)
-    result = least_squares(residual, x0, max_nfev=max_nfev, x_scale="jac")
 
-    def rms(vector):
-        return 100.0 * np.sqrt(np.mean(((simulate(vector) - target) / scale) ** 2, axis=0))
+STEP_CASES = ((0.0, 0.2), (0.0, 0.5), (0.0, 0.8), (0.0, 1.0), (0.3, 0.6), (0.5, 0.8), (0.8, 0.0),
+              (0.5, 0.0), (0.6, 0.3))
+STEP_FPCSA_SLOW = (0.2, 0.36, 0.5, 0.8)
 
-    fitted = dataclasses.replace(params, lumped=_unpack(result.x, params.lumped, FILTER_FIELDS))
-    return DriveFilterFit(fitted, rms(x0), rms(result.x))
+
+@dataclass(frozen=True)
+class StepComparison:
+    """Lumped against natural units after drive steps, through the full model.
+
+    Every (fibre mix, step) is a muscle of one bank, held at a fixed path length at which the
+    fascicle is at ``length_l0`` under half F0, started at steady state for the first drive and
+    stepped to the second at t = 0.
+
+    | field | shape | meaning |
+    | cases | (c, 3) | fpcsa_slow, drive before, drive after |
+    | energy_ratio | (c,) | lumped / natural initial energy (E_a + E_xb) over the window |
+    | impulse_ratio | (c,) | lumped / natural tendon-force impulse over the window |
+    | time_s | (k,) | time after the step |
+    | natural_force, lumped_force | (k, c) | tendon force / F0 |
+    | natural_energy_rate, lumped_energy_rate | (k, c) | initial energy rate (W) |
+    | steady_energy_ratio, steady_force_ratio | (c,) | lumped / natural at steady state for the |
+    |  |  | drive after the step, same path (NaN for a step to rest) |
+    """
+
+    length_l0: float
+    window_s: float
+    cases: np.ndarray
+    energy_ratio: np.ndarray
+    impulse_ratio: np.ndarray
+    time_s: np.ndarray
+    natural_force: np.ndarray
+    lumped_force: np.ndarray
+    natural_energy_rate: np.ndarray
+    lumped_energy_rate: np.ndarray
+    steady_energy_ratio: np.ndarray
+    steady_force_ratio: np.ndarray
+
+
+def compare_steps(params: ModelParams, length_l0: float = 1.0, fpcsa_slow_grid=STEP_FPCSA_SLOW,
+                  steps=STEP_CASES, ur: float = 0.8, units_per_type: int = 20,
+                  window_s: float = 0.25, dt: float = 1e-3) -> StepComparison:
+    """Lumped against natural units after drive steps (see :class:`StepComparison`)."""
+    from vm_ros.model.curves import tendon_length_at_force
+
+    cases = np.array([(fs, a, b) for fs in fpcsa_slow_grid for a, b in steps], dtype=float)
+    specs = [dataclasses.replace(spec, name=f"case{i}")
+             for i, spec in enumerate(synthetic_muscles(cases[:, 0], ur))]
+    k = int(round(window_s / dt))
+    traces, steady = [], []
+    for bank in _dynamic_banks(params, specs, units_per_type):
+        g = bank.params.generic
+        lp = bank.l0_m * length_l0 + bank.l0t_m * tendon_length_at_force(0.5, g.ct, g.kt, g.lrt)
+        after = bank.reset(lp, excitation=cases[:, 2])
+        rate = after.energy_rate
+        steady.append((after.force, rate.activation + rate.cross_bridge))
+        bank.reset(lp, excitation=cases[:, 1])
+        run = bank.run(dt, np.tile(cases[:, 2], (k, 1)), np.tile(lp, (k, 1)))
+        rate = run.energy_rate
+        traces.append((run.force / bank.f0, rate.activation + rate.cross_bridge))
+    (nat_f, nat_e), (lum_f, lum_e) = traces
+    to_rest = cases[:, 2] == 0.0
+    (nat_sf, nat_se), (lum_sf, lum_se) = steady
+    return StepComparison(
+        length_l0=float(length_l0), window_s=float(window_s), cases=cases,
+        energy_ratio=lum_e.sum(0) / nat_e.sum(0), impulse_ratio=lum_f.sum(0) / nat_f.sum(0),
+        time_s=np.arange(1, k + 1) * dt, natural_force=nat_f, lumped_force=lum_f,
+        natural_energy_rate=nat_e, lumped_energy_rate=lum_e,
+        steady_energy_ratio=np.where(to_rest, np.nan, lum_se / np.where(to_rest, 1.0, nat_se)),
+        steady_force_ratio=np.where(to_rest, np.nan, lum_sf / np.where(to_rest, 1.0, nat_sf)),
+    )
 
 
 @dataclass(frozen=True)
