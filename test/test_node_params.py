@@ -51,6 +51,7 @@ def test_shipped_params_file_is_valid():
         ({"publish_rate_hz": 2000.0}, "publish_rate_hz"),
         ({"recruitment": "nope"}, "recruitment"),
         ({"recovery_mode": "fast"}, "recovery_mode"),
+        ({"drive_law": "song2008"}, "drive_law"),
         ({"stale_input_policy": "ignore"}, "stale_input_policy"),
         ({"max_catch_up_steps": 0}, "max_catch_up_steps"),
         ({"qos_depth": 0}, "qos_depth"),

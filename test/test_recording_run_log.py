@@ -35,7 +35,7 @@ def sine_run(tmp_path_factory):
     """A 0.3 s sinusoidal-drive run on two muscles, logged, and the bank outputs it logged."""
     scenario = load_scenario("sinusoidal_drive")
     config = RunConfig(("vastus_lateralis", "soleus"), recovery_mode="dynamic",
-                       overrides={"soleus": {"fpcsa_slow": 0.7}})
+                       overrides={"soleus": {"fpcsa_slow": 0.7}}, drive_law="tsianos2012")
     timing = RunTiming(dt_s=0.001, publish_rate_hz=100.0, telemetry_rate_hz=50.0)
     path = tmp_path_factory.mktemp("runlog") / "sine.mcap"
     bank = config.make_bank()
@@ -90,6 +90,8 @@ def test_metadata_and_attachments_rebuild_the_run(sine_run, tmp_path):
     assert run.info.config.muscles == config.muscles
     assert run.info.config.overrides == {"soleus": {"fpcsa_slow": 0.7}}
     assert run.info.config.recovery_mode == "dynamic"
+    assert run.info.config.drive_law == "tsianos2012"
+    assert run.config(tmp_path).make_bank().params.lumped.drive_law == "tsianos2012"
     assert run.info.timing == RunTiming(0.001, 100.0, 50.0, 0)
     assert run.info.extra["scenario"] == "sinusoidal_drive"
     assert run.attachments[ATTACHMENT_MODEL] == config.params_path.read_bytes()

@@ -7,16 +7,20 @@ import time
 from pathlib import Path
 
 from vm_ros.model import SCHEMES
-from vm_ros.model.params import RECOVERY_MODES
+from vm_ros.model.params import DRIVE_LAWS, RECOVERY_MODES
 from vm_ros.recording.run_config import RunConfig, parse_overrides
 
 
 def add_model_options(parser, defaults_from: str) -> None:
-    """--recruitment, --recovery-mode, --override, --params, --library, --units-per-type."""
+    """--recruitment, --recovery-mode, --drive-law, --override, --params, --library,
+    --units-per-type."""
     group = parser.add_argument_group(f"model (default: {defaults_from})")
     group.add_argument("--recruitment", choices=SCHEMES, help="recruitment scheme")
     group.add_argument("--recovery-mode", choices=RECOVERY_MODES,
                        help="recovery energy: static ratio or dynamic (filtered)")
+    group.add_argument("--drive-law", choices=DRIVE_LAWS,
+                       help="drive filter of lumped units: relative_drive (follows natural "
+                            "units) or tsianos2012 (the paper's, as reconstructed)")
     group.add_argument("--override", action="append", default=[], metavar="MUSCLE.FIELD=VALUE",
                        help="change one muscle-library field, e.g. vasti.fpcsa_slow=0.5 "
                             "(repeatable)")
@@ -46,7 +50,8 @@ def add_output_options(parser, default_out: str) -> None:
 def apply_model_options(config: RunConfig, args) -> RunConfig:
     """``config`` with the command line's model options applied on top."""
     changes = {key: getattr(args, key) for key in
-               ("recruitment", "recovery_mode", "params", "library", "units_per_type")
+               ("recruitment", "recovery_mode", "drive_law", "params", "library",
+                "units_per_type")
                if getattr(args, key) is not None}
     return config.replace(**changes).with_overrides(parse_overrides(args.override))
 

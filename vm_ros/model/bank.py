@@ -34,6 +34,7 @@ from vm_ros.model.layout import BankState
 from vm_ros.model.mechanics import MuscleGeometry, equilibrium_fascicle_length
 from vm_ros.model.numpy_step import NumpyStep
 from vm_ros.model.params import (
+    DRIVE_LAWS,
     FAST,
     RECOVERY_MODES,
     SLOW,
@@ -121,15 +122,22 @@ class MuscleBank:
         recovery_mode: str | None = None,
         units_per_type: int | None = None,
         backend: str = "auto",
+        drive_law: str | None = None,
     ):
         """Build a bank from the muscle library (default: the shipped ``config/muscles.yaml``).
 
         muscles: names from the library; overrides: ``{name: {field: value}}``; params: a
         ModelParams or a path to a model YAML; units_per_type: natural units per fibre type;
-        backend: "auto" (the compiled step when Numba is importable), "numba" or "numpy".
+        backend: "auto" (the compiled step when Numba is importable), "numba" or "numpy";
+        drive_law: the lumped drive filter's law (DRIVE_LAWS; None: the model file's).
         """
         if not isinstance(params, ModelParams):
             params = load_model_params(params)
+        if drive_law is not None:
+            if drive_law not in DRIVE_LAWS:
+                raise ValueError(f"drive_law must be one of {DRIVE_LAWS}, got {drive_law!r}")
+            params = dataclasses.replace(
+                params, lumped=dataclasses.replace(params.lumped, drive_law=drive_law))
         if units_per_type is not None:
             params = dataclasses.replace(
                 params,

@@ -21,7 +21,7 @@ import yaml
 
 from vm_ros.errors import ConfigError
 from vm_ros.joint_space import parse_joint_map
-from vm_ros.model.params import RECOVERY_MODES
+from vm_ros.model.params import DRIVE_LAWS, RECOVERY_MODES
 from vm_ros.model.recruitment import SCHEMES
 
 PARAMS_SOURCE = "<parameters>"  # ConfigError.path for a bad parameter value
@@ -96,6 +96,10 @@ PARAMS = (
     ParamSpec("recovery_mode", "static", "string", "-",
               "Recovery heat: static (R x initial) or dynamic (filtered, Tsianos 2012 App. B)",
               choices=tuple(RECOVERY_MODES)),
+    ParamSpec("drive_law", "", "string", "-",
+              "Drive filter of lumped units ('' = the model file's): relative_drive (follows "
+              "natural units through steps) or tsianos2012 (the paper's law, as reconstructed)",
+              choices=("", *DRIVE_LAWS)),
     ParamSpec("model_rate_hz", 1000.0, "double", "Hz",
               "Model step rate; the model advances in fixed steps of 1/model_rate_hz by elapsed "
               "ROS time", low=10.0, high=20000.0),
@@ -165,6 +169,7 @@ class NodeConfig:
     recruitment: str
     units_per_type: int
     recovery_mode: str
+    drive_law: str
     model_rate_hz: float
     publish_rate_hz: float
     max_catch_up_steps: int

@@ -30,6 +30,7 @@ class RunConfig:
     | muscles | muscle names, bank order |
     | recruitment | "lumped", "natural" or "continuous" |
     | recovery_mode | "static", "dynamic" or None (the model file's default) |
+    | drive_law | the lumped drive filter's law (params.DRIVE_LAWS) or None (the model file's) |
     | overrides | ``{muscle: {field: value}}`` applied to the library entries |
     | library | muscle-library YAML path, or None for the shipped one |
     | params | model-parameter YAML path, or None for the shipped one |
@@ -49,6 +50,7 @@ class RunConfig:
     geometry: Path | None = None
     joint_map: str = ""
     joints: tuple = ()
+    drive_law: str | None = None
 
     @property
     def library_path(self) -> Path:
@@ -62,7 +64,8 @@ class RunConfig:
         return MuscleBank.from_config(
             list(self.muscles), recruitment=self.recruitment, overrides=dict(self.overrides),
             library=self.library_path, params=self.params_path,
-            recovery_mode=self.recovery_mode, units_per_type=self.units_per_type)
+            recovery_mode=self.recovery_mode, units_per_type=self.units_per_type,
+            drive_law=self.drive_law)
 
     def replace(self, **changes) -> RunConfig:
         return dataclasses.replace(self, **changes)

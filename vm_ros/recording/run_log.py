@@ -46,7 +46,7 @@ from vm_ros import telemetry as tm
 from vm_ros.errors import ConfigError, VmRosError
 from vm_ros.geometry.file import plain_data
 from vm_ros.model import MuscleBank
-from vm_ros.model.params import RECOVERY_MODES
+from vm_ros.model.params import DRIVE_LAWS, RECOVERY_MODES
 from vm_ros.recording.messages import TOPIC_TELEMETRY, TYPE_MUSCLE_TELEMETRY
 from vm_ros.recording.reader import LogReader
 from vm_ros.recording.run_config import RunConfig
@@ -150,6 +150,7 @@ class RunInfo:
             "muscles": json.dumps(list(c.muscles)),
             "recruitment": c.recruitment,
             "recovery_mode": c.recovery_mode or "",
+            "drive_law": c.drive_law or "",
             "units_per_type": "" if c.units_per_type is None else str(c.units_per_type),
             "overrides": json.dumps(plain_data(c.overrides), sort_keys=True),
             "model_params_file": str(c.params_path),
@@ -180,7 +181,8 @@ class RunInfo:
         Raises ConfigError naming ``source`` and the key when a value is missing (muscles, dt_s)
         or cannot be used (not a number, dt_s <= 0, a rate < 0, overrides not a JSON object...).
         """
-        known = {"format", "source", "muscles", "recruitment", "recovery_mode", "units_per_type",
+        known = {"format", "source", "muscles", "recruitment", "recovery_mode", "drive_law",
+                 "units_per_type",
                  "overrides", "model_params_file", "muscle_library_file", "dt_s",
                  "model_rate_hz", "publish_rate_hz", "telemetry_rate_hz", "start_time_ns",
                  "initial_state", "input_hold", "namespace", "time_base", "topics",
@@ -194,6 +196,7 @@ class RunInfo:
             recruitment=record.get("recruitment", "lumped"),
             recovery_mode=record.get("recovery_mode") if record.get("recovery_mode") in
             RECOVERY_MODES else None,
+            drive_law=record.get("drive_law") if record.get("drive_law") in DRIVE_LAWS else None,
             overrides=value("overrides", _json_object_of(dict), {}),
             units_per_type=value("units_per_type", _positive_int, None),
             geometry=value("geometry_file", Path, None),
@@ -306,7 +309,8 @@ def open_run_log(path, info: RunInfo, bank: MuscleBank | None = None,
                  **recorder_options) -> McapRecorder:
     """A McapRecorder with the run's metadata and attachments, its channels declared.
 
-    info: the run (RunInfo; ``info.config.recovery_mode`` None is filled from ``bank``);
+    info: the run (RunInfo; ``info.config.recovery_mode`` and ``drive_law`` None are filled
+    from ``bank``);
     topics: base names to declare (default: all of LOG_TOPIC_TYPES but /diagnostics, telemetry
     when telemetry_rate_hz is 0 and the JOINT_TOPICS without a geometry); qos: ``{base name:
     offered_qos_profiles YAML}``.
@@ -315,6 +319,9 @@ def open_run_log(path, info: RunInfo, bank: MuscleBank | None = None,
     if bank is not None and info.config.recovery_mode is None:
         info = dataclasses.replace(info, config=info.config.replace(
             recovery_mode=bank.recovery_mode))
+    if bank is not None and info.config.drive_law is None:
+        info = dataclasses.replace(info, config=info.config.replace(
+            drive_law=bank.params.lumped.drive_law))
     if topics is None:
         topics = [t for t in LOG_TOPIC_TYPES if t != tm.TOPIC_DIAGNOSTICS
                   and (t != TOPIC_TELEMETRY or info.timing.telemetry_rate_hz > 0)
