@@ -130,11 +130,8 @@ def test_fig7_table_180s_kernels_as_predicted_and_lumped_against_natural():
                                                                                  rel=0.01)
 
 
-# Measured with the hand-set relative_drive constants (before the drive-filter fit): 0.80 over
-# 30 s and over 180 s; the lumped drive filter builds less activation than natural units in the
-# 0.25 s on-phase. strict: once a fit brings the ratio into the band, this marker must go.
-@pytest.mark.xfail(strict=True, reason="lumped (relative_drive) / natural total energy 0.80 in "
-                   "the knee task until the drive-filter constants are fitted")
+# Measured with the shipped relative_drive constants: 0.963 over 180 s (18.73 / 19.45 kJ); with
+# the paper's law (tsianos2012) 0.60 (11.64 kJ).
 def test_lumped_total_energy_within_10_percent_of_natural_units_30s():
     """The check's lumped/natural criterion (0.9-1.1), over 30 s rather than 180 s: the initial
     energy repeats cycle to cycle from the first cycles in both schemes and the recovery is the

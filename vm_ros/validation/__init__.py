@@ -15,6 +15,7 @@ from vm_ros.validation.joint_torque import (
     published_ratio,
 )
 from vm_ros.validation.knee_extension import FIG7_EXPERIMENT_BAND_J, check_fig7_knee_extension
+from vm_ros.validation.lumped_steps import check_lumped_steps
 from vm_ros.validation.paper import (
     check_fig2_energy_velocity,
     check_fig3_fibre_type_energy,
@@ -36,6 +37,7 @@ CHECKS: dict[str, Callable[..., CheckResult]] = {
     "fig7": check_fig7_knee_extension,
     "fig9": check_fig9_lumped_steady,
     "fig10": check_fig10_lumped_sinusoidal,
+    "steps": check_lumped_steps,
     "cost": check_lumped_cost,
     "joint_torque": check_joint_torque,
 }

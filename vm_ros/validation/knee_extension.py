@@ -214,12 +214,13 @@ def check_fig7_knee_extension(params=None, duration_s=None, progress=None,
         Criterion("net fascicle work / total energy (measured 0.32-0.56)",
                   work / float(out.total_energy), 0.25, 0.60),
         # The gap, pinned: with the relative_drive law and the fitted_fig7 kernel the model gives
-        # 0.445 of the paper's 35 000 J (15.6 kJ; tsianos2012 law: 11.6 kJ, 0.333; the experiment's
-        # band is 30 000-40 000 J). Any change of the model or the scenario that moves this by more
-        # than about 10 % must update this band and test/validation/REPORT.md.
+        # 0.535 of the paper's 35 000 J (18.7 kJ; natural units 19.5 kJ; tsianos2012 law 11.6 kJ,
+        # 0.333; the experiment's band is 30 000-40 000 J). Any change of the model or the scenario
+        # that moves this by more than about 10 % must update this band and
+        # test/validation/REPORT.md.
         Criterion("total energy / paper's 35 000 J (GAP: experiment 30-40 kJ; see "
                   "test/validation/REPORT.md)",
-                  float(out.total_energy) / FIG7_PAPER_TOTAL_J, 0.40, 0.49),
+                  float(out.total_energy) / FIG7_PAPER_TOTAL_J, 0.48, 0.59),
     ]
     rows = []
     if table:

@@ -196,6 +196,55 @@ def plot_fig10(result: CheckResult, path: Path) -> None:
     finish(fig, result, path)
 
 
+def _step_ratios(ax, comparison, paper_law=None) -> None:
+    """Lumped / natural energy (o) and impulse (s) per case, coloured by fibre mix."""
+    cases = comparison.cases
+    mixes = np.unique(cases[:, 0])
+    colours = plt.cm.viridis(np.linspace(0, 0.9, len(mixes)))
+    steps = [f"{a:g}->{b:g}" for a, b in cases[cases[:, 0] == mixes[0], 1:]]
+    x = np.arange(len(steps))
+    for colour, fs in zip(colours, mixes, strict=True):
+        rows = cases[:, 0] == fs
+        ax.plot(x, comparison.energy_ratio[rows], "o", color=colour, label=f"energy, {fs:.0%} slow")
+        ax.plot(x, comparison.impulse_ratio[rows], "s", mfc="none", color=colour,
+                label=f"impulse, {fs:.0%} slow")
+    if paper_law is not None:
+        ax.plot(np.tile(x, len(mixes)), paper_law.energy_ratio, "x", color="grey",
+                label="energy, the paper's law")
+    ax.axhspan(0.8, 1.25, color="grey", alpha=0.12, label="target 0.8-1.25")
+    ax.axhline(1, color="grey", lw=0.5)
+    ax.set_xticks(x, steps, fontsize=7)
+    ax.set(xlabel="drive step", ylabel="lumped / natural over the first 0.25 s")
+    ax.legend(fontsize=6, ncol=3, framealpha=0.5, loc="lower left")
+
+
+def plot_lumped_steps(result: CheckResult, path: Path) -> None:
+    d = result.data
+    fig, axes = plt.subplots(2, 2, figsize=(13, 8.5))
+    c = d["at_l0"]
+    shown = c.cases[:, 0] == 0.36
+    t = 1e3 * c.time_s
+    colours = plt.cm.tab10(np.arange(shown.sum()))
+    for colour, i in zip(colours, np.flatnonzero(shown), strict=True):
+        a, b = c.cases[i, 1:]
+        axes[0, 0].plot(t, c.natural_force[:, i], color=colour, lw=2, alpha=0.5,
+                        label=f"{a:g}->{b:g}")
+        axes[0, 0].plot(t, c.lumped_force[:, i], "--", color=colour, lw=1)
+        axes[0, 1].plot(t, c.natural_energy_rate[:, i], color=colour, lw=2, alpha=0.5)
+        axes[0, 1].plot(t, c.lumped_energy_rate[:, i], "--", color=colour, lw=1)
+    axes[0, 0].set(xlabel="time after the step (ms)", ylabel="tendon force / F0")
+    axes[0, 0].set_title(f"36 % slow, L0: natural (thick) vs lumped, {d['law']} (dashed)",
+                         fontsize=9)
+    axes[0, 0].legend(fontsize=7, ncol=3)
+    axes[0, 1].set(xlabel="time after the step (ms)", ylabel="initial energy rate E_a + E_xb (W)")
+    axes[0, 1].set_title("the same steps: initial energy rate", fontsize=9)
+    _step_ratios(axes[1, 0], c, d.get("paper_law"))
+    axes[1, 0].set_title("at L0 (grey x: the paper's law, tsianos2012)", fontsize=9)
+    _step_ratios(axes[1, 1], d["at_long"])
+    axes[1, 1].set_title("at 1.3 L0 (reported; W was fitted at L0)", fontsize=9)
+    finish(fig, result, path, top=0.93)
+
+
 def plot_cost(result: CheckResult, path: Path) -> None:
     s, sizes = result.data["seconds_per_step"], result.data["sizes"]
     fig, ax = plt.subplots(figsize=(6, 4))
@@ -293,4 +342,4 @@ def plot_joint_torque(result: CheckResult, path: Path) -> None:
 
 PLOTS = {"fig2": plot_fig2, "fig3": plot_fig3, "fig4": plot_fig4, "fig5": plot_fig5,
          "fig6": plot_fig6, "fig7": plot_fig7, "fig9": plot_fig9, "fig10": plot_fig10,
-         "cost": plot_cost, "joint_torque": plot_joint_torque}
+         "cost": plot_cost, "joint_torque": plot_joint_torque, "steps": plot_lumped_steps}
