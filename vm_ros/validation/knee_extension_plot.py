@@ -89,7 +89,7 @@ def plot_fig7(result: CheckResult, path: Path) -> None:
     ax_act.plot(t, c["effective_drive"][:, 1], "k:", lw=1, label="Ueff (lumped filter, vasti)")
     ax_act.set(xlabel="time in the last cycle (s)", ylabel="fraction",
                ylim=(0, 1.05))
-    ax_act.set_title("one cycle: drive on for 0.25 s, activation builds slowly", fontsize=9)
+    ax_act.set_title("one cycle: drive on for 0.25 s; activation and force", fontsize=9)
     ax_act.legend(fontsize=7)
     ax_v.axhline(0, color="grey", lw=0.5)
     ax_v.set(xlabel="time in the last cycle (s)", ylabel="fascicle velocity (L0/s, < 0 shortening)")
