@@ -48,6 +48,13 @@ def net_efficiency(work_j: float, energy_j: float) -> float:
     return work_j / energy_j if work_j > 0 and energy_j > 0 else float("nan")
 
 
+def run_totals(rows: list[MuscleSummary]) -> tuple[np.ndarray, float, float]:
+    """All muscles: (energy per component (4,) J, mechanical work J, net efficiency 1)."""
+    energy = sum(row.energy[-1] for row in rows) if rows else np.zeros(4)
+    work = float(sum(row.mechanical_work for row in rows))
+    return np.asarray(energy, dtype=float), work, net_efficiency(work, float(energy[-1]))
+
+
 def _efficiency_cell(efficiency: float, width: int) -> str:
     """Percent, or "n/a" when undefined."""
     return f"{100 * efficiency:>{width}.1f}" if np.isfinite(efficiency) else f"{'n/a':>{width}}"
