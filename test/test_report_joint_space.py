@@ -31,7 +31,8 @@ def test_report_writes_joint_torques_beside_forces_and_energy(leg_log, tmp_path)
     out = tmp_path / "report"
     printed = _run(["report", str(leg_log), "--out", str(out)])
     for name in JOINT_FILES + ("force.png", "forces.csv", "energy_rate.csv", "totals.png",
-                               "energy_partition.png", "summary.csv"):
+                               "energy_partition.png", "summary.csv", "summary.png",
+                               "energy_rate.png"):
         assert (out / name).is_file(), name
     run = read_run(leg_log)
     efforts = run.get("joint_efforts")

@@ -26,6 +26,7 @@ plots).
 from __future__ import annotations
 
 import math
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -157,7 +158,8 @@ def _panel_grid(plt, rows: int, detail: bool, title: str, bin_reason: str):
         ax.grid(alpha=0.3)
     for ax in axes[-1]:
         ax.set_xlabel("time (s)")
-    axes[0, 0].set_title(f"whole run: {_bin_words(bin_reason)}", fontsize=9)
+    axes[0, 0].set_title(textwrap.fill(f"whole run: {_bin_words(bin_reason)}",
+                                       90 if detail else 110), fontsize=9)
     # (panels with several series show the bin means only: overlapping bands hide each other)
     if detail:
         axes[0, 1].set_title(f"last {DETAIL_S:g} s, as published", fontsize=9)
@@ -241,8 +243,8 @@ def muscle_energy_figure(plt, rates: Table, muscle: str, bin_s: float, bin_reaso
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="upper left")
     axes[-1].set_xlabel("time (s)")
-    axes[0].set_title(_bin_words(bin_reason).replace("bin mean (line) and range (band)",
-                                                     "bin means"), fontsize=9)
+    axes[0].set_title(textwrap.fill(_bin_words(bin_reason).replace(
+        "bin mean (line) and range (band)", "bin means"), 110), fontsize=9)
     fig.suptitle(f"{muscle}: energy rate by component")
     return fig
 
@@ -271,7 +273,8 @@ def energy_rate_figure(plt, rates: Table, names, bin_s: float, bin_reason: str):
     _energy_rate_axes(ax, rates, names, bin_s)
     ax.set_xlabel("time (s)")
     what = "mean energy rate per bin" if bin_s > 0 else "energy rate"
-    ax.set_title(f"all muscles ({', '.join(names)}): {what}; bins: {bin_reason}", fontsize=9)
+    ax.set_title(textwrap.fill(f"all muscles ({', '.join(names)}): {what}; bins: {bin_reason}",
+                               110), fontsize=9)
     fig.suptitle("energy rate by component (Tsianos 2012 Fig. 7 style)")
     return fig
 
@@ -346,14 +349,16 @@ def summary_figure(plt, run: RunLog, tables: dict, bin_s: float, bin_reason: str
     grid = fig.add_gridspec(5, 2, height_ratios=[0.55, 1, 1.1, 1, 1])
     header = fig.add_subplot(grid[0, :])
     header.axis("off")
-    header.text(0, 1, "\n".join(_header_lines(run, force, summary, bin_reason)), va="top",
+    lines = [wrapped for line in _header_lines(run, force, summary, bin_reason)
+             for wrapped in textwrap.wrap(line, 96, subsequent_indent="    ")]
+    header.text(0, 1, "\n".join(lines), va="top",
                 ha="left", family="monospace", fontsize=8, transform=header.transAxes)
     ax = fig.add_subplot(grid[1, :])
     if force is not None:
         t = force.column("time_s")
         for n, m in enumerate(names):
             centres, mean, _, high = bin_stats(t, force.column(f"{m}.force_N"), bin_s)
-            ax.plot(centres, mean, color=f"C{n}", label=f"{m} mean")
+            ax.plot(centres, mean, color=f"C{n}", label=f"{m} mean" if bin_s > 0 else m)
             if bin_s > 0:
                 ax.plot(centres, high, "--", color=f"C{n}", label=f"{m} peak")
         ax.legend(fontsize=7, loc="upper right", ncol=2)
