@@ -1,4 +1,4 @@
-"""Why the Fig. 7 energy is a third of the paper's: the numbers behind test/validation/REPORT.md,
+"""Why the Fig. 7 energy is below the paper's: the numbers behind test/validation/REPORT.md,
 item 9.
 
     PYTHONPATH=. python test/validation/fig7_gap.py          # about 3 minutes
@@ -24,7 +24,8 @@ import numpy as np
 from vm_ros.model import MuscleBank, load_model_params
 from vm_ros.model.energetics import initial_energy_rates_tsianos2012
 from vm_ros.scenarios import Scenario, load_scenario
-from vm_ros.validation import _isometric_at, _path_for
+from vm_ros.validation.paper import _path_for
+from vm_ros.validation.paper import isometric_at as _isometric_at
 
 T = 180.0
 DT = 1e-3

@@ -2,8 +2,8 @@
 compared with explicit criteria, drawn (one PNG per figure) and tabulated (validation.csv).
 Exits 1 when any criterion fails. Fig. 7 simulates 180 s of knee extension under each recruitment
 scheme, lumped drive law and recovery kernel (a table, printed and written as fig7_table.csv);
-`--quick` shortens every run to 30 s (the table too; its energy and rise criteria then do not
-apply). A check that cannot
+`--quick` shortens every run to 30 s (the table too) and keeps only Fig. 7's first two criteria
+(its energy, rise, efficiency and lumped/natural criteria need the whole run). A check that cannot
 run here (joint_torque without the mujoco extra) is reported as skipped, with the reason, and is
 not a failure.
 """
