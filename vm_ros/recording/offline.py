@@ -18,10 +18,19 @@ Inputs with a ``joint_efforts(force)`` method (joint space: NodeReplayInputs, Mo
 give joint_efforts and joint_effort_commands with every output, the step's tendon forces through
 the moment arms of the joint sample the step used; the joint work is summed step by step
 (tau . qdot dt, robot convention, with the joint velocities of that sample).
+
+Without joint efforts the run goes by blocks: the inputs of a few thousand steps are taken at
+once (SampledInputs.block samples them and builds their messages in bulk; other inputs are
+advanced step by step with their messages held back), MuscleBank.run steps the bank from one
+publish or telemetry tick to the next, and the messages of the block are built in bulk from
+arrays (vm_ros.recording.bulk) and written in the order the step-by-step loop writes them. The
+log is the same message for message (``block_steps=0`` runs the step-by-step loop, the
+reference kept for joint space and for the tests).
 """
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -30,6 +39,7 @@ import numpy as np
 
 from vm_ros import telemetry as tm
 from vm_ros.model import MuscleBank, StepOutput
+from vm_ros.recording import bulk
 from vm_ros.recording import messages as msgs
 from vm_ros.recording.cdr import serialize
 from vm_ros.recording.run_log import (
@@ -43,29 +53,107 @@ from vm_ros.recording.writer import McapRecorder
 
 _RETRY_S = 0.001
 _RETRIES = 5000  # an offline run waits up to 5 s for room in the recorder queue, then drops
+# messages handed to the recorder and not yet written, at most (its queue holds 20 000 by
+# default): waiting below that keeps every write accepted, so none is counted as dropped
+_IN_FLIGHT = 12000
+_BATCH = 2000
+BLOCK_STEPS = 5000  # steps whose inputs are taken, and messages built, at once
+# order of the messages written at one step (stepwise loop): inputs after outputs
+_INPUT_RANK, _OUTPUT_RANK = 8, 0
+_OUTPUT_ORDER = {tm.TOPIC_FORCE: 0, tm.TOPIC_ENERGY_RATE: 1, tm.TOPIC_ENERGY_RATE_TOTAL: 2,
+                 tm.TOPIC_ENERGY_TOTAL: 3, msgs.TOPIC_TELEMETRY: 4}
 
 
 class LogSink:
     """Serialises field dicts and hands them (or recorded bytes) to a recorder. Offline nothing
-    is real time, so a full queue is waited for instead of dropping."""
+    is real time, so a full queue is waited for instead of dropping. While ``pending`` is set
+    (OfflineRun's blocks) messages are held there, at the current ``slot``, instead."""
 
     def __init__(self, recorder: McapRecorder | None,
                  log_topic: Callable[[str], str] = resolve_topic):
         self.recorder = recorder
         self.log_topic = log_topic
+        self.pending: _Pending | None = None
+        self.slot = 0
+        self._topics: dict[str, str] = {}
+        self._sent = 0
 
     def write_fields(self, topic: str, type_name: str, fields: dict, time_ns: int) -> None:
         if self.recorder is not None:
             self.write_bytes(topic, serialize(type_name, fields), time_ns)
 
     def write_bytes(self, topic: str, data: bytes, time_ns: int) -> None:
+        if self.pending is not None:
+            self.pending.add_one(self.slot * 16 + _INPUT_RANK, topic, data, time_ns)
+            return
         if self.recorder is None:
             return
-        full = self.log_topic(topic)
+        self._write(self._full(topic), data, time_ns)
+
+    def write_many(self, topics, data, times_ns) -> None:
+        """Write messages in the given order (topics: base names), keeping the recorder's queue
+        below _IN_FLIGHT."""
+        if self.recorder is None:
+            return
+        full = [self._full(topic) for topic in topics]
+        for begin in range(0, len(full), _BATCH):
+            self._wait_for_room()
+            for i in range(begin, min(begin + _BATCH, len(full))):
+                self._write(full[i], data[i], int(times_ns[i]))
+
+    def _full(self, topic: str) -> str:
+        name = self._topics.get(topic)
+        if name is None:
+            name = self._topics[topic] = self.log_topic(topic)
+        return name
+
+    def _wait_for_room(self) -> None:
         for _ in range(_RETRIES):
-            if self.recorder.write(full, data, time_ns) or not self.recorder.status.ok:
+            status = self.recorder.status
+            if not status.ok or self._sent - status.written <= _IN_FLIGHT:
                 return
             time.sleep(_RETRY_S)
+
+    def _write(self, full: str, data: bytes, time_ns: int) -> None:
+        for _ in range(_RETRIES):
+            if self.recorder.write(full, data, time_ns):
+                self._sent += 1
+                return
+            if not self.recorder.status.ok:
+                return
+            time.sleep(_RETRY_S)
+
+
+class _Pending:
+    """Messages of one block with their sort keys (slot * 16 + rank + order in the slot)."""
+
+    def __init__(self):
+        self.keys: list = []
+        self.topics: list = []
+        self.data: list = []
+        self.times: list = []
+
+    def add_one(self, key: int, topic: str, data: bytes, time_ns: int) -> None:
+        self.keys.append(key)
+        self.topics.append(topic)
+        self.data.append(data)
+        self.times.append(time_ns)
+
+    def add(self, keys, topic: str, data: list, times_ns) -> None:
+        self.keys.extend(np.asarray(keys, dtype=np.int64).tolist())
+        self.topics.extend([topic] * len(data))
+        self.data.extend(data)
+        self.times.extend(np.asarray(times_ns, dtype=np.int64).tolist())
+
+    def flush(self, sink: LogSink, steps: int) -> None:
+        """Write in key order (stable) what the stepwise loop writes in ``steps`` steps (the
+        outputs at the end of the last one, not the inputs of the next), drop the rest."""
+        keys = np.asarray(self.keys, dtype=np.int64)
+        order = np.argsort(keys, kind="stable")
+        order = order[keys[order] < steps * 16 + _INPUT_RANK]
+        sink.write_many([self.topics[i] for i in order], [self.data[i] for i in order],
+                        [self.times[i] for i in order])
+        self.__init__()
 
 
 class SampledInputs:
@@ -82,12 +170,15 @@ class SampledInputs:
         self._sink = sink
         self._held = None
 
+    def _sample(self, time_ns: int):
+        t_s = (time_ns - self._start_ns) * 1e-9
+        return tuple(np.asarray(f(t_s), dtype=float) * np.ones(len(self.names))
+                     for f in self._functions)
+
     def advance_to(self, time_ns: int):
         """(U, path length, path velocity) held at ``time_ns``; logs the samples taken."""
         while self._next_ns <= time_ns:
-            t_s = (self._next_ns - self._start_ns) * 1e-9
-            u, lp, vp = (np.asarray(f(t_s), dtype=float) * np.ones(len(self.names))
-                         for f in self._functions)
+            u, lp, vp = self._sample(self._next_ns)
             self._sink.write_fields(tm.TOPIC_EXCITATION, tm.TYPE_JOINT_STATE,
                                     msgs.excitation_fields(self.names, u, self._next_ns),
                                     self._next_ns)
@@ -97,6 +188,34 @@ class SampledInputs:
             self._held = (u, lp, vp)
             self._next_ns += self.period_ns
         return self._held
+
+    def block(self, step_starts_ns: np.ndarray, first_step: int, pending: _Pending):
+        """advance_to for every step start of ``step_starts_ns`` (increasing), at once: the
+        inputs held over each step, (k, n) each; the samples' messages go to ``pending`` at the
+        step that takes them (``first_step`` + index)."""
+        samples = np.zeros(0, dtype=np.int64)
+        rows = [np.array([held]) for held in self._held]
+        last = int(step_starts_ns[-1])
+        if self._next_ns <= last:
+            count = (last - self._next_ns) // self.period_ns + 1
+            samples = self._next_ns + self.period_ns * np.arange(count, dtype=np.int64)
+            values = [self._sample(int(t)) for t in samples]
+            taken = [np.array([v[i] for v in values]) for i in range(3)]
+            slots = first_step + np.searchsorted(step_starts_ns, samples, side="left")
+            n = len(self.names)
+            excitation = bulk.joint_state_layout(self.names, position=n)
+            kinematics = bulk.joint_state_layout(self.names, position=n, velocity=n)
+            pending.add(slots * 16 + _INPUT_RANK, tm.TOPIC_EXCITATION,
+                        excitation.encode(samples, position=taken[0]), samples)
+            pending.add(slots * 16 + _INPUT_RANK + 1, tm.TOPIC_KINEMATICS,
+                        kinematics.encode(samples, position=taken[1], velocity=taken[2]),
+                        samples)
+            rows = [np.concatenate([row, array]) for row, array in zip(rows, taken,
+                                                                       strict=True)]
+            self._held = tuple(array[-1] for array in taken)
+            self._next_ns += count * self.period_ns
+        index = np.searchsorted(samples, step_starts_ns, side="right")  # 0: held before
+        return tuple(row[index] for row in rows)
 
 
 class RecordedInputs:
@@ -212,27 +331,43 @@ class OfflineRun:
 
     def run(self, inputs, n_steps: int, should_stop: Callable[[], bool] = lambda: False,
             progress: Callable[[int, int], None] | None = None,
-            publish_start: bool = False) -> OfflineResult:
+            publish_start: bool = False, block_steps: int = BLOCK_STEPS) -> OfflineResult:
+        """Step ``n_steps`` from the timing's start; ``block_steps`` 0 runs the step-by-step
+        loop (always used with joint efforts), else blocks of about that many steps."""
         t = self.timing
-        dt_ns, start = t.dt_ns, int(t.start_time_ns or 0)
-        per_publish, per_telemetry = t.steps_per(t.publish_rate_hz), t.steps_per(
-            t.telemetry_rate_hz)
+        start = int(t.start_time_ns or 0)
         _, lp, _ = inputs.advance_to(start)
         initial = self.bank.reset(path_length=lp, time_s=start * 1e-9)
         joint_efforts = getattr(inputs, "joint_efforts", None)
         joints = _JointRecord(t.dt_s)
-        forces, times, out, k = [], [], None, 0
-        if publish_start and per_publish:
+        forces, times = [], []
+        if publish_start and t.steps_per(t.publish_rate_hz):
             efforts = joint_efforts(initial.force) if joint_efforts is not None else None
             self._publish(initial, start, efforts)
             joints.sample(efforts)
             forces.append(initial.force.copy())
             times.append(start)
-        interrupted = False
+        if joint_efforts is None and block_steps > 0:
+            steps, out, interrupted = self._run_blocks(inputs, n_steps, should_stop, progress,
+                                                       block_steps, forces, times)
+        else:
+            steps, out, interrupted = self._run_stepwise(inputs, n_steps, should_stop, progress,
+                                                         joint_efforts, joints, forces, times)
+        force_samples = np.array(forces) if forces else np.zeros((0, self.bank.n))
+        return OfflineResult(steps, start + steps * t.dt_ns, out,
+                             np.array(times, dtype=np.int64), force_samples, interrupted,
+                             *joints.result())
+
+    def _run_stepwise(self, inputs, n_steps, should_stop, progress, joint_efforts, joints,
+                      forces, times):
+        t = self.timing
+        dt_ns, start = t.dt_ns, int(t.start_time_ns or 0)
+        per_publish, per_telemetry = t.steps_per(t.publish_rate_hz), t.steps_per(
+            t.telemetry_rate_hz)
+        out, k = None, 0
         for k in range(n_steps):
             if should_stop():
-                interrupted = True
-                break
+                return k, out, True
             u, lp, vp = inputs.advance_to(start + k * dt_ns)
             out = self.bank.step(t.dt_s, u, lp, vp)
             end_ns = start + (k + 1) * dt_ns
@@ -249,12 +384,145 @@ class OfflineRun:
                                                              vp), end_ns)
             if progress is not None and k % 500 == 0:
                 progress(k, n_steps)
-        else:
-            k = n_steps
-        steps = k
-        force_samples = np.array(forces) if forces else np.zeros((0, self.bank.n))
-        return OfflineResult(steps, start + steps * dt_ns, out, np.array(times, dtype=np.int64),
-                             force_samples, interrupted, *joints.result())
+        return n_steps, out, False
+
+    def _block_inputs(self, inputs, step_starts_ns, first_step: int, pending: _Pending):
+        """(U, path length, path velocity) of each step, (k, n) each; the inputs' messages go
+        to ``pending``."""
+        block = getattr(inputs, "block", None)
+        if block is not None:
+            return block(step_starts_ns, first_step, pending)
+        rows = []
+        self.sink.pending = pending
+        try:
+            for j, time_ns in enumerate(step_starts_ns.tolist()):
+                self.sink.slot = first_step + j
+                u, lp, vp = inputs.advance_to(time_ns)
+                rows.append((u, lp, np.zeros(self.bank.n) if vp is None else vp))
+        finally:
+            self.sink.pending = None
+        return tuple(np.array([row[i] for row in rows], dtype=float) for i in range(3))
+
+    def _run_blocks(self, inputs, n_steps, should_stop, progress, block_steps, forces, times):
+        """The run by blocks (module docstring): MuscleBank.run from tick to tick."""
+        t = self.timing
+        dt_ns, start = t.dt_ns, int(t.start_time_ns or 0)
+        per_publish, per_telemetry = t.steps_per(t.publish_rate_hz), t.steps_per(
+            t.telemetry_rate_hz)
+        every = [p for p in (per_publish, per_telemetry) if p]
+        tick = math.gcd(*every) if every else block_steps
+        chunk = max(tick, block_steps // tick * tick)
+        ticks = _Ticks(self.bank.names)
+        pending = _Pending()
+        out, k = None, 0
+        while k < n_steps:
+            count = min(chunk, n_steps - k)
+            step_starts = start + (k + np.arange(count, dtype=np.int64)) * dt_ns
+            u, lp, vp = self._block_inputs(inputs, step_starts, k, pending)
+            j = 0
+            while j < count:
+                if should_stop():  # the messages of the steps taken
+                    ticks.flush(pending, self.sink)
+                    pending.flush(self.sink, k + j)
+                    return k + j, out, True
+                end = min(j + tick, count)
+                out = self.bank.run(t.dt_s, u[j:end], lp[j:end], vp[j:end]).last
+                steps = k + end
+                end_ns = start + steps * dt_ns
+                if per_publish and steps % per_publish == 0:
+                    ticks.publish(out, end_ns, steps)
+                    forces.append(out.force.copy())
+                    times.append(end_ns)
+                if per_telemetry and steps % per_telemetry == 0:
+                    ticks.telemetry(out, end_ns, steps, lp[end - 1], vp[end - 1])
+                j = end
+            k += count
+            ticks.flush(pending, self.sink)
+            pending.flush(self.sink, k)
+            if progress is not None:
+                progress(k, n_steps)
+        return n_steps, out, False
+
+
+class _Ticks:
+    """The outputs and telemetry of a block's ticks, as arrays, encoded in bulk by ``flush``."""
+
+    def __init__(self, names):
+        n = len(names)
+        self.force = bulk.joint_state_layout(names, n, n, n)
+        self.energy_rate = bulk.multi_array_layout(tm.energy_rate_layout(n),
+                                                   n * len(tm.FIBRE_LABELS)
+                                                   * len(tm.COMPONENT_LABELS))
+        self.float64 = bulk.float64_layout()
+        self.record = bulk.telemetry_layout(names)
+        self._clear()
+
+    def _clear(self) -> None:
+        self.published: dict[str, list] = {key: [] for key in (
+            "time", "slot", "position", "velocity", "effort", "energy_rate", "rate_total",
+            "energy_total")}
+        self.recorded: dict[str, list] = {key: [] for key in (
+            "time", "slot", "total_energy_rate", "total_energy",
+            *(name for name, _ in bulk.TELEMETRY_ARRAYS))}
+
+    def publish(self, out: StepOutput, time_ns: int, slot: int) -> None:
+        """What OfflineRun._publish writes for ``out`` (without joints)."""
+        p = self.published
+        p["time"].append(time_ns)
+        p["slot"].append(slot)
+        p["position"].append(out.fascicle_length)
+        p["velocity"].append(out.fascicle_velocity)
+        p["effort"].append(out.force)
+        p["energy_rate"].append(tm.energy_rate_array(out))
+        p["rate_total"].append(out.total_energy_rate)
+        p["energy_total"].append(out.total_energy)
+
+    def telemetry(self, out: StepOutput, time_ns: int, slot: int, path_length,
+                  path_velocity) -> None:
+        """The fields of messages.telemetry_fields, as arrays."""
+        r = self.recorded
+        r["time"].append(time_ns)
+        r["slot"].append(slot)
+        values = {
+            "excitation": out.excitation, "path_length": path_length,
+            "path_velocity": path_velocity, "effective_drive": out.effective_drive,
+            "force": out.force, "contractile_force": out.contractile_force,
+            "fascicle_length": out.fascicle_length, "fascicle_velocity": out.fascicle_velocity,
+            "mechanical_power": out.mechanical_power, "mechanical_work": out.mechanical_work,
+            "firing_rate": out.firing_rate_f05, "recruited_fraction": out.recruited_fraction,
+            "effective_activation": out.effective_activation,
+            "energy_rate": tm.energy_partition(out.energy_rate_by_fibre, out.energy_rate),
+            "energy": tm.energy_partition(out.energy_by_fibre, out.energy),
+            "total_energy_rate": out.total_energy_rate, "total_energy": out.total_energy,
+        }
+        for name, value in values.items():
+            r[name].append(np.asarray(value, dtype=float).ravel())
+
+    def flush(self, pending: _Pending, sink: LogSink) -> None:
+        if sink.recorder is None:
+            self._clear()
+            return
+        p, r = self.published, self.recorded
+        if p["time"]:
+            keys = np.asarray(p["slot"], dtype=np.int64) * 16 + _OUTPUT_RANK
+            stamps = np.asarray(p["time"], dtype=np.int64)
+            pending.add(keys + _OUTPUT_ORDER[tm.TOPIC_FORCE], tm.TOPIC_FORCE,
+                        self.force.encode(stamps, position=np.array(p["position"]),
+                                          velocity=np.array(p["velocity"]),
+                                          effort=np.array(p["effort"])), stamps)
+            pending.add(keys + _OUTPUT_ORDER[tm.TOPIC_ENERGY_RATE], tm.TOPIC_ENERGY_RATE,
+                        self.energy_rate.encode(data=np.array(p["energy_rate"])), stamps)
+            for topic, key in ((tm.TOPIC_ENERGY_RATE_TOTAL, "rate_total"),
+                               (tm.TOPIC_ENERGY_TOTAL, "energy_total")):
+                pending.add(keys + _OUTPUT_ORDER[topic], topic,
+                            self.float64.encode(data=np.array(p[key])), stamps)
+        if r["time"]:
+            keys = (np.asarray(r["slot"], dtype=np.int64) * 16 + _OUTPUT_RANK
+                    + _OUTPUT_ORDER[msgs.TOPIC_TELEMETRY])
+            stamps = np.asarray(r["time"], dtype=np.int64)
+            arrays = {name: np.array(r[name]) for name in r if name not in ("time", "slot")}
+            pending.add(keys, msgs.TOPIC_TELEMETRY, self.record.encode(stamps, **arrays), stamps)
+        self._clear()
 
 
 class _JointRecord:
