@@ -1,0 +1,194 @@
+"""Bulk message building (vm_ros.recording.bulk) and the offline run by blocks: the same bytes as
+the per-message serialiser, the same log as the step-by-step loop, and decoded values equal to
+the bank's own outputs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+
+from vm_ros import telemetry as tm
+from vm_ros.recording import bulk
+from vm_ros.recording import messages as msgs
+from vm_ros.recording.cdr import serialize
+from vm_ros.recording.offline import OfflineRun, RecordedInputs, SampledInputs
+from vm_ros.recording.run_config import RunConfig
+from vm_ros.recording.run_log import RunInfo, RunTiming, open_run_log, read_run
+from vm_ros.scenarios import load_scenario
+
+NAMES = ("rectus_femoris", "vasti")
+# stamps at 0, just below and at a second boundary, and past 2^32 ns
+STAMPS = np.array([0, 999_999_999, 1_000_000_000, 4_294_967_297_123], dtype=np.int64)
+
+
+@pytest.fixture(scope="module")
+def steps():
+    """Four step outputs of a knee-extension bank (changing drive and path)."""
+    scenario = load_scenario("knee_extension")
+    bank = scenario.make_bank()
+    inputs = scenario.inputs(bank)
+    bank.reset(inputs.path_length(0.0))
+    outs, held = [], []
+    for k in range(400):
+        t = k * 1e-3
+        u, lp, vp = inputs.excitation(t), inputs.path_length(t), inputs.path_velocity(t)
+        out = bank.step(1e-3, u, lp, vp)
+        if k % 100 == 99:
+            outs.append(out)
+            held.append((u, lp, vp))
+    return bank.names, outs, held
+
+
+def test_input_messages_equal_the_serializer_byte_for_byte():
+    rng = np.random.default_rng(1)
+    u, lp, vp = rng.random((3, len(STAMPS), 2))
+    excitation = bulk.joint_state_layout(NAMES, position=2).encode(STAMPS, position=u)
+    kinematics = bulk.joint_state_layout(NAMES, position=2, velocity=2).encode(
+        STAMPS, position=lp, velocity=vp)
+    for i, stamp in enumerate(STAMPS.tolist()):
+        assert excitation[i] == serialize(tm.TYPE_JOINT_STATE,
+                                          msgs.excitation_fields(NAMES, u[i], stamp))
+        assert kinematics[i] == serialize(tm.TYPE_JOINT_STATE,
+                                          msgs.kinematics_fields(NAMES, lp[i], vp[i], stamp))
+
+
+@pytest.mark.parametrize("names", [("a",), ("ab", "abc", "abcd"), ("muscle_é",)])
+def test_names_of_any_length_pad_as_the_serializer(names):
+    values = np.arange(2 * len(names), dtype=float).reshape(2, len(names)) - 0.5
+    encoded = bulk.joint_state_layout(names, position=len(names)).encode(STAMPS[:2],
+                                                                         position=values)
+    for i in range(2):
+        assert encoded[i] == serialize(tm.TYPE_JOINT_STATE, msgs.excitation_fields(
+            names, values[i], int(STAMPS[i])))
+
+
+def test_output_messages_equal_the_serializer_byte_for_byte(steps):
+    names, outs, held = steps
+    n = len(names)
+    stamps = STAMPS[:len(outs)]
+    force = bulk.joint_state_layout(names, n, n, n).encode(
+        stamps, position=[o.fascicle_length for o in outs],
+        velocity=[o.fascicle_velocity for o in outs], effort=[o.force for o in outs])
+    rate = bulk.multi_array_layout(tm.energy_rate_layout(n), 12 * n).encode(
+        data=[tm.energy_rate_array(o) for o in outs])
+    totals = bulk.float64_layout().encode(data=[o.total_energy for o in outs])
+    for i, (out, stamp) in enumerate(zip(outs, stamps.tolist(), strict=True)):
+        assert force[i] == serialize(tm.TYPE_JOINT_STATE, tm.force_fields(out, names, stamp))
+        assert rate[i] == serialize(tm.TYPE_FLOAT64_MULTI_ARRAY, tm.energy_rate_fields(out))
+        assert totals[i] == serialize(tm.TYPE_FLOAT64, msgs.float64_fields(out.total_energy))
+
+
+def test_telemetry_equals_the_serializer_byte_for_byte(steps):
+    names, outs, held = steps
+    reference = [msgs.telemetry_fields(o, names, int(s), h[1], h[2])
+                 for o, s, h in zip(outs, STAMPS.tolist(), held, strict=True)]
+    arrays = {name: [r[name] for r in reference] for name, _ in bulk.TELEMETRY_ARRAYS}
+    arrays.update({key: [r[key] for r in reference]
+                   for key in ("total_energy_rate", "total_energy")})
+    encoded = bulk.telemetry_layout(names).encode(STAMPS[:len(outs)], **arrays)
+    for data, fields in zip(encoded, reference, strict=True):
+        assert data == serialize(msgs.TYPE_MUSCLE_TELEMETRY, fields)
+
+
+def _simulate(path, block_steps, stop_after_s=None, telemetry_rate_hz=100.0,
+              duration_s=2.0):
+    scenario = load_scenario("knee_extension")
+    config = RunConfig(scenario.muscles, recovery_mode=scenario.recovery_mode)
+    timing = RunTiming(dt_s=0.001, publish_rate_hz=100.0, telemetry_rate_hz=telemetry_rate_hz)
+    bank = config.make_bank()
+    inputs = scenario.inputs(bank)
+    stop = (lambda: False) if stop_after_s is None else (lambda: bank.time_s > stop_after_s)
+    info = RunInfo(config, timing, "simulate", extra={"scenario": scenario.name})
+    with open_run_log(path, info, bank, chunk_size=8192) as recorder:
+        offline = OfflineRun(bank, timing, recorder)
+        sampled = SampledInputs(bank.names, inputs.excitation, inputs.path_length,
+                                inputs.path_velocity, timing.dt_ns, 0, offline.sink)
+        result = offline.run(sampled, round(duration_s / timing.dt_s), should_stop=stop,
+                             block_steps=block_steps)
+    return result, recorder.status
+
+
+def _messages(path):
+    with open(path, "rb") as stream:
+        return [(channel.topic, m.log_time, m.publish_time, m.sequence, m.data)
+                for _, channel, m in make_reader(stream).iter_messages(log_time_order=False)]
+
+
+@pytest.mark.parametrize("case", [
+    {},  # publish and telemetry at 100 Hz
+    {"telemetry_rate_hz": 40.0, "duration_s": 1.013},  # ticks every 10 and 25 steps, a rest
+    {"stop_after_s": 1.2295},  # stopped between two steps (at 1.230 s)
+])
+def test_blocks_write_the_stepwise_log_message_for_message(tmp_path, case):
+    stepwise, status_a = _simulate(tmp_path / "stepwise.mcap", 0, **case)
+    blocks, status_b = _simulate(tmp_path / "blocks.mcap", 700, **case)
+    assert blocks.steps == stepwise.steps
+    assert blocks.interrupted == stepwise.interrupted == ("stop_after_s" in case)
+    np.testing.assert_array_equal(blocks.force_samples, stepwise.force_samples)
+    assert status_a.dropped == status_b.dropped == 0
+    assert _messages(tmp_path / "blocks.mcap") == _messages(tmp_path / "stepwise.mcap")
+
+
+def test_recompute_inputs_by_blocks_write_the_stepwise_log(tmp_path):
+    _simulate(tmp_path / "run.mcap", 700, duration_s=0.5)
+    recorded = read_run(tmp_path / "run.mcap", raw=(tm.TOPIC_EXCITATION, tm.TOPIC_KINEMATICS))
+    for name, block_steps in (("stepwise", 0), ("blocks", 128)):
+        bank = recorded.config(tmp_path).make_bank()
+        with open_run_log(tmp_path / f"{name}.mcap", recorded.info, bank) as recorder:
+            offline = OfflineRun(bank, recorded.info.timing, recorder)
+            inputs = RecordedInputs(recorded, bank.n, offline.sink)
+            offline.run(inputs, 500, block_steps=block_steps)
+    assert _messages(tmp_path / "blocks.mcap") == _messages(tmp_path / "stepwise.mcap")
+
+
+def test_decoded_log_equals_the_banks_own_outputs(tmp_path):
+    """Decoded with mcap_ros2: every logged field against MuscleBank.run over the whole run
+    (inputs sampled at the same times)."""
+    path = tmp_path / "run.mcap"
+    result, _ = _simulate(path, 700, duration_s=1.0)
+    scenario = load_scenario("knee_extension")
+    bank = scenario.make_bank()
+    inputs = scenario.inputs(bank)
+    times = [k * 1_000_000 * 1e-9 for k in range(1000)]
+    u, lp, vp = (np.array([np.asarray(f(t), dtype=float) * np.ones(bank.n) for t in times])
+                 for f in (inputs.excitation, inputs.path_length, inputs.path_velocity))
+    bank.reset(lp[0])
+    run = bank.run(1e-3, u, lp, vp)
+    ticks = np.arange(9, 1000, 10)  # steps whose end is published
+    decoded: dict = {}
+    with open(path, "rb") as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        for _, channel, message, msg in reader.iter_decoded_messages():
+            decoded.setdefault(channel.topic, []).append((message.log_time, msg))
+    stamp = [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec
+             for _, m in decoded["/muscle_force"]]
+    assert stamp == ((ticks + 1) * 1_000_000).tolist()
+    force = decoded["/muscle_force"]
+    np.testing.assert_array_equal([m.effort for _, m in force], run.force[ticks])
+    np.testing.assert_array_equal([m.position for _, m in force], run.fascicle_length[ticks])
+    np.testing.assert_array_equal([m.velocity for _, m in force], run.fascicle_velocity[ticks])
+    rates = np.array([m.data for _, m in decoded["/energy_rate"]]).reshape(-1, bank.n, 3, 4)
+    np.testing.assert_array_equal(rates[:, :, :2, :], run.energy_rate_by_fibre.as_array()[ticks])
+    np.testing.assert_allclose(rates[:, :, 2, :], run.energy_rate.as_array()[ticks],
+                               rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose([m.data for _, m in decoded["/energy_rate_total"]],
+                               run.energy_rate.total[ticks].sum(axis=1), rtol=1e-12)
+    assert decoded["/energy_total"][-1][1].data == run.last.total_energy
+    np.testing.assert_array_equal([m.position for _, m in decoded["/excitation"]], u)
+    np.testing.assert_array_equal([m.position for _, m in decoded["/muscle_kinematics"]], lp)
+    np.testing.assert_array_equal([m.velocity for _, m in decoded["/muscle_kinematics"]], vp)
+    record = [m for _, m in decoded["/muscle_telemetry"]]
+    assert len(record) == len(ticks)
+    for field, series in (("excitation", run.excitation), ("force", run.force),
+                          ("contractile_force", run.contractile_force),
+                          ("fascicle_length", run.fascicle_length),
+                          ("mechanical_power", run.mechanical_power),
+                          ("path_length", lp), ("path_velocity", vp)):
+        np.testing.assert_array_equal([getattr(m, field) for m in record], series[ticks])
+    np.testing.assert_array_equal([m.effective_activation for m in record],
+                                  run.effective_activation[ticks].reshape(len(ticks), -1))
+    assert record[-1].total_energy == run.last.total_energy
+    np.testing.assert_array_equal(record[-1].mechanical_work, run.last.mechanical_work)
+    np.testing.assert_array_equal(result.force_samples, run.force[ticks])
