@@ -142,9 +142,10 @@ def knee_extension_offline(duration_s: float | None = None, backend: str = "auto
             "total_energy_j": trajectory.last.total_energy}
 
 
-def bench_knee_offline(repeats: int = 3, progress=None) -> dict:
+def bench_knee_offline(repeats: int = 3, progress=None, logged: bool = True) -> dict:
     """Median over repeats of :func:`knee_extension_offline` (the first run, which may compile,
-    is reported separately)."""
+    is reported separately); with ``logged``, under "logged" the same scenario as `vm-ros
+    simulate` writes it against the model alone (vm_ros.bench.offline_bench)."""
     first = knee_extension_offline()
     runs = [knee_extension_offline() for _ in range(repeats)]
     result = {key: statistics.median(r[key] for r in runs)
@@ -154,6 +155,10 @@ def bench_knee_offline(repeats: int = 3, progress=None) -> dict:
                     "total_energy_j")})
     result["first_run_wall_s"] = first["wall_s"]
     result["repeats"] = repeats
+    if logged:
+        from vm_ros.bench.offline_bench import bench_offline_logged
+
+        result["logged"] = bench_offline_logged(repeats=repeats, progress=progress)
     if progress:
         progress(f"knee extension 180 s offline: {result['wall_s']:.2f} s wall")
     return result

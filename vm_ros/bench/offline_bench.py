@@ -1,0 +1,103 @@
+"""The 180 s knee extension logged as `vm-ros simulate` logs it, against the model alone, measured
+in one run (issue: performance, "wall time and ratio to the model alone").
+
+Each repeat times, back to back on the same machine state:
+
+| key | what |
+| model_s | MuscleBank.run over every step, inputs sampled beforehand (the model alone) |
+| simulate_s | vm_ros.cli.simulate.run in this process: bank, inputs, every message of the default
+  channels (inputs at 1 kHz, outputs and telemetry at 100 Hz) written to an MCAP file, closed |
+| cli_s | ``python -m vm_ros.cli simulate`` as a child process (adds start-up and imports) |
+
+Medians over the repeats; the ratios are of the medians.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import statistics
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from vm_ros.child_process import module_command, module_environment
+
+SCENARIO = "knee_extension"
+DT = 1e-3
+
+
+def _model_alone(duration_s: float | None) -> float:
+    """Wall time (s) of MuscleBank.run over the scenario, inputs sampled beforehand."""
+    from vm_ros.scenarios import load_scenario
+
+    scenario = load_scenario(SCENARIO)
+    bank = scenario.make_bank()
+    steps = int(round((duration_s or scenario.duration_s) / DT))
+    u, lp, vp = scenario.inputs(bank).sample(DT * np.arange(steps))
+    bank.reset(lp[0])
+    start = time.perf_counter()
+    bank.run(DT, u, lp, vp)
+    return time.perf_counter() - start
+
+
+def _simulate_args(out: Path, duration_s: float | None) -> list[str]:
+    args = ["--scenario", SCENARIO, "--out", str(out)]
+    return args + (["--duration", repr(duration_s)] if duration_s else [])
+
+
+def _simulate_in_process(out: Path, duration_s: float | None) -> tuple[float, str]:
+    """Wall time (s) of vm_ros.cli.simulate.run and its last output line."""
+    from vm_ros.cli import simulate
+
+    parser = argparse.ArgumentParser()
+    simulate.add_arguments(parser)
+    args = parser.parse_args(_simulate_args(out, duration_s))
+    text = io.StringIO()
+    start = time.perf_counter()
+    with contextlib.redirect_stdout(text):
+        code = simulate.run(args)
+    wall = time.perf_counter() - start
+    if code != 0:
+        raise RuntimeError(f"vm-ros simulate exited with {code}: {text.getvalue()[-300:]}")
+    return wall, text.getvalue().strip().splitlines()[-1]
+
+
+def _simulate_cli(out: Path, duration_s: float | None) -> float:
+    command = module_command("vm_ros.cli", "simulate", *_simulate_args(out, duration_s))
+    start = time.perf_counter()
+    subprocess.run(command, env=module_environment(), check=True, capture_output=True,
+                   timeout=600)
+    return time.perf_counter() - start
+
+
+def bench_offline_logged(repeats: int = 3, duration_s: float | None = None, cli: bool = True,
+                         progress=None) -> dict:
+    """Medians over ``repeats`` of the model alone, simulate in process and (``cli``) as a
+    child process; see the module docstring."""
+    model, logged, child, log_line = [], [], [], ""
+    with tempfile.TemporaryDirectory(prefix="vm_ros-bench-offline-") as tmp:
+        out = Path(tmp) / "knee.mcap"
+        _model_alone(1.0)  # warm-up: compilation and caches
+        for _ in range(repeats):
+            model.append(_model_alone(duration_s))
+            wall, log_line = _simulate_in_process(out, duration_s)
+            logged.append(wall)
+            if cli:
+                child.append(_simulate_cli(out, duration_s))
+    result = {"scenario": SCENARIO, "duration_s": duration_s or 180.0, "repeats": repeats,
+              "model_s": statistics.median(model), "simulate_s": statistics.median(logged),
+              "model_s_all": model, "simulate_s_all": logged, "log": log_line}
+    result["simulate_over_model"] = result["simulate_s"] / result["model_s"]
+    if child:
+        result["cli_s"] = statistics.median(child)
+        result["cli_s_all"] = child
+        result["cli_over_model"] = result["cli_s"] / result["model_s"]
+    if progress:
+        progress(f"knee extension logged: simulate {result['simulate_s']:.2f} s, model alone "
+                 f"{result['model_s']:.2f} s, ratio {result['simulate_over_model']:.1f}")
+    return result
