@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import argparse
+import math
 import signal
 import time
 from pathlib import Path
@@ -9,6 +11,7 @@ from pathlib import Path
 from vm_ros.model import SCHEMES
 from vm_ros.model.params import DRIVE_LAWS, RECOVERY_MODES
 from vm_ros.recording.run_config import RunConfig, parse_overrides
+from vm_ros.recording.writer import FLUSH_INTERVAL_S
 
 
 def add_model_options(parser, defaults_from: str) -> None:
@@ -32,8 +35,19 @@ def add_model_options(parser, defaults_from: str) -> None:
                        help="motor units per fibre type (natural recruitment)")
 
 
+def flush_interval_s(text: str) -> float:
+    """argparse type of --flush-interval: a finite number of seconds > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seconds, got {text!r}") from None
+    if not (0 < value < math.inf):
+        raise argparse.ArgumentTypeError(f"must be a finite number of seconds > 0, got {text!r}")
+    return value
+
+
 def add_output_options(parser, default_out: str) -> None:
-    """--out, --publish-rate, --telemetry-rate, --chunk-size, --progress."""
+    """--out, --publish-rate, --telemetry-rate, --chunk-size, --flush-interval, --progress."""
     group = parser.add_argument_group("output")
     group.add_argument("--out", type=Path, metavar="FILE.mcap", help=f"log file ({default_out})")
     group.add_argument("--publish-rate", type=float, metavar="HZ",
@@ -43,8 +57,18 @@ def add_output_options(parser, default_out: str) -> None:
     group.add_argument("--chunk-size", type=int, default=1 << 20, metavar="BYTES",
                        help="MCAP chunk size before compression (default 1 MiB); a crash loses "
                             "at most the open chunk, smaller chunks compress less")
+    group.add_argument("--flush-interval", type=flush_interval_s, default=FLUSH_INTERVAL_S,
+                       metavar="S",
+                       help=f"longest wall time (s) a message waits before its chunk is written "
+                            f"to the file: what a crash can lose (default {FLUSH_INTERVAL_S:g})")
     group.add_argument("--progress", action="store_true",
                        help="show progress on stderr even when it is not a terminal")
+
+
+def recorder_options(args) -> dict:
+    """McapRecorder options of the output options:
+    ``open_run_log(path, info, bank, **recorder_options(args))``."""
+    return {"chunk_size": args.chunk_size, "flush_interval_s": args.flush_interval}
 
 
 def apply_model_options(config: RunConfig, args) -> RunConfig:

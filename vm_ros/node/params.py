@@ -153,6 +153,9 @@ PARAMS = (
     ParamSpec("mcap.path", "", "string", "path",
               "MCAP file to write ('' = muscle_node-<YYYYmmdd-HHMMSS>.mcap in the working "
               "directory)"),
+    ParamSpec("mcap.flush_interval_s", 1.0, "double", "s",
+              "Longest wall time a logged message waits in memory before its chunk is written "
+              "to the file: what a crash (SIGKILL) can lose", low=1e-3, high=3600.0),
 )
 
 PARAMS_BY_NAME = {p.name: p for p in PARAMS}
@@ -187,6 +190,7 @@ class NodeConfig:
     executor: str
     mcap_enabled: bool
     mcap_path: str
+    mcap_flush_interval_s: float
 
     @classmethod
     def defaults(cls) -> NodeConfig:

@@ -37,6 +37,7 @@ from vm_ros.recording.run_log import (
 )
 from vm_ros.recording.writer import McapRecorder, RecorderError, RecorderStatus
 
+FLUSH_INTERVAL_PARAMETER = "mcap.flush_interval_s"
 LOG_TOPICS = (*INPUT_TOPICS, *OUTPUT_TOPICS, tm.TOPIC_DIAGNOSTICS)  # JOINT_TOPICS: geometry only
 INPUT_RULE = ("muscle_node: inputs conditioned by vm_ros.node.inputs.NodeInputs with the "
               "node_parameters (bad messages dropped, drive clipped, kinematics extrapolated for "
@@ -51,13 +52,26 @@ def node_run_extra(node_name: str, parameters: dict) -> dict:
             "input_hold": INPUT_RULE, "started": "true"}
 
 
+def recorded_flush_interval_s(info: RunInfo) -> float | None:
+    """The ``mcap.flush_interval_s`` node parameter of the run info's ``node_parameters``, or
+    None when it is not there."""
+    try:
+        value = json.loads(info.extra.get("node_parameters", "{}"))[FLUSH_INTERVAL_PARAMETER]
+    except (ValueError, TypeError, KeyError):
+        return None
+    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) \
+        else None
+
+
 class NodeRunLog:
     """A run log opened at the model start; writes before it are buffered (at most
     ``buffer_size`` messages, the oldest dropped first).
 
     run_info(start_time_ns or None) -> RunInfo; qos: ``{base topic: offered_qos_profiles YAML}``;
     on_error(text): called once when recording fails (also settable as an attribute);
-    recorder_options: passed to McapRecorder (chunk_size, opener...).
+    recorder_options: passed to McapRecorder (chunk_size, opener, flush_interval_s...). Without
+    ``flush_interval_s``, the node's ``mcap.flush_interval_s`` parameter as recorded in the run
+    info's ``node_parameters`` applies (else McapRecorder's default).
     Raises RecorderError naming the path when the file cannot be created; never after that.
     """
 
@@ -119,8 +133,12 @@ class NodeRunLog:
             info = self._run_info(start_time_ns)
             topics = [t for t in LOG_TOPICS
                       if t not in JOINT_TOPICS or info.config.geometry is not None]
+            options = dict(self._recorder_options)
+            interval = recorded_flush_interval_s(info)
+            if interval is not None:
+                options.setdefault("flush_interval_s", interval)
             self.recorder = open_run_log(self.path, info, topics=topics, qos=self._qos,
-                                         **self._recorder_options)
+                                         **options)
         except (VmRosError, OSError) as exc:
             self._open_error = str(exc)
             self._dropped += len(self._buffer)

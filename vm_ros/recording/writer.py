@@ -22,8 +22,10 @@ written are lost with it, unless the chunk itself was written whole and the erro
 Crash safety: messages are written in zstd chunks of ``chunk_size`` bytes (uncompressed); each
 closed chunk goes straight to the OS (the sink is unbuffered), so a process killed with SIGKILL
 leaves a file readable up to its last complete chunk (vm_ros.recording.reader). A chunk is also
-closed when it has been open for ``flush_interval_s`` of wall time, bounding what a crash loses.
-Metadata and attachments are written at start-up, before any message.
+closed when its first message has waited ``flush_interval_s`` of wall time (default
+FLUSH_INTERVAL_S, 1 s), the first chunk included: a SIGKILL loses at most the messages of the
+last ``flush_interval_s`` (plus the writer thread's latency). Metadata and attachments are written
+at start-up, before any message.
 """
 
 from __future__ import annotations
@@ -51,6 +53,9 @@ COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
 _MEDIA_TYPES = {".yaml": "application/yaml", ".yml": "application/yaml",
                 ".json": "application/json", ".csv": "text/csv", ".txt": "text/plain"}
 _CLOSE = object()
+# Longest wall time (s) a message waits in an open chunk before the chunk goes to the file: what
+# a SIGKILL can lose; its cost in bytes and CPU: docs/log_format.md section 1.
+FLUSH_INTERVAL_S = 1.0
 # The writer thread gives up the GIL after this many messages, so that a caller waiting for it
 # (a 1 kHz loop) waits about one batch (~0.3 ms), not CPython's 5 ms switch interval; it stops
 # doing so while the queue is more than a quarter full, to catch up.
@@ -146,8 +151,9 @@ class McapRecorder:
     path: the file (parent folders are created); metadata: MCAP metadata records
     ``{name: {key: value}}``; attachments: ``{name: bytes}`` (media type from the extension);
     compression: "zstd", "lz4" or "none"; chunk_size: uncompressed bytes per chunk; queue_size:
-    messages that may wait for the writer thread; flush_interval_s: longest wall time a chunk
-    stays open; opener: ``opener(path) -> binary file`` (tests inject failing files).
+    messages that may wait for the writer thread; flush_interval_s: longest wall time (s) a
+    chunk stays open, counted from its first message; opener: ``opener(path) -> binary file``
+    (tests inject failing files).
     Raises RecorderError naming the path when the file cannot be created or started.
     """
 
@@ -160,15 +166,18 @@ class McapRecorder:
         compression: str = "zstd",
         chunk_size: int = 1 << 20,
         queue_size: int = 20000,
-        flush_interval_s: float = 5.0,
+        flush_interval_s: float = FLUSH_INTERVAL_S,
         opener: Callable[[Path], BinaryIO] = open_unbuffered,
     ):
         self._path = Path(path)
         if compression not in COMPRESSIONS:
             raise RecorderError(path, f"compression {compression!r} is not one of "
                                       f"{', '.join(COMPRESSIONS)}")
-        if chunk_size <= 0 or queue_size <= 0 or flush_interval_s <= 0:
-            raise RecorderError(path, "chunk_size, queue_size and flush_interval_s must be > 0")
+        if chunk_size <= 0 or queue_size <= 0:
+            raise RecorderError(path, "chunk_size and queue_size must be > 0")
+        if not flush_interval_s > 0 or flush_interval_s == float("inf"):
+            raise RecorderError(path, f"flush_interval_s must be a finite number of seconds > 0, "
+                                      f"not {flush_interval_s!r}")
         self._flush_interval_s = float(flush_interval_s)
         self._queue: queue.Queue = queue.Queue(maxsize=queue_size)
         self._catch_up_size = max(1, queue_size // 4)
