@@ -192,3 +192,68 @@ def test_decoded_log_equals_the_banks_own_outputs(tmp_path):
     assert record[-1].total_energy == run.last.total_energy
     np.testing.assert_array_equal(record[-1].mechanical_work, run.last.mechanical_work)
     np.testing.assert_array_equal(result.force_samples, run.force[ticks])
+
+
+def _read_both(path, monkeypatch, **kwargs):
+    """read_run with JointState messages decoded at once, and one by one."""
+    from vm_ros.recording import series
+
+    fast = read_run(path, **kwargs)
+    monkeypatch.setattr(series.SeriesBuilder, "_learn_fixed", lambda self, msg: None)
+    slow = read_run(path, **kwargs)
+    return fast, slow
+
+
+def _assert_same_series(fast, slow):
+    assert fast.series.keys() == slow.series.keys()
+    for topic, a in fast.series.items():
+        b = slow.series[topic]
+        np.testing.assert_array_equal(a.time_ns, b.time_ns)
+        assert a.names == b.names and a.raw == b.raw
+        assert a.fields.keys() == b.fields.keys(), topic
+        for key in a.fields:
+            assert a.fields[key].dtype == b.fields[key].dtype, (topic, key)
+            np.testing.assert_array_equal(a.fields[key], b.fields[key])
+    assert {t: s.count for t, s in fast.skipped.items()} == \
+        {t: s.count for t, s in slow.skipped.items()}
+
+
+def test_joint_states_decoded_at_once_equal_one_by_one(tmp_path, monkeypatch):
+    """Messages like the first and others (names reordered, a muscle missing, a frame_id, an
+    empty velocity, malformed bytes) read the same either way."""
+    config = RunConfig(NAMES)
+    timing = RunTiming(dt_s=0.001, publish_rate_hz=100.0, telemetry_rate_hz=0.0)
+    bank = config.make_bank()
+    path = tmp_path / "mixed.mcap"
+    first = msgs.kinematics_fields(NAMES, [0.4, 0.3], [0.0, -0.1], 0)
+    odd = [
+        msgs.kinematics_fields(NAMES[::-1], [0.5, 0.6], [0.1, 0.2], 3),
+        msgs.kinematics_fields(NAMES[:1], [0.45], [0.01], 4),
+        {**msgs.kinematics_fields(NAMES, [0.41, 0.31], [1.0, 2.0], 5),
+         "header": {"stamp": tm.stamp_fields(5), "frame_id": "knee"}},
+        msgs.kinematics_fields(NAMES, [0.42, 0.32], None, 6),
+        msgs.kinematics_fields(("vasti", "other", "rectus_femoris"), [1.0, 2.0, 3.0],
+                               [4.0, 5.0, 6.0], 7),
+    ]
+    with open_run_log(path, RunInfo(config, timing, "simulate"), bank) as recorder:
+        topic = "/" + tm.TOPIC_KINEMATICS
+        write = recorder.write
+        write(topic, serialize(tm.TYPE_JOINT_STATE, first), 0)
+        write(topic, serialize(tm.TYPE_JOINT_STATE, msgs.kinematics_fields(
+            NAMES, [np.nan, -0.0], [np.inf, 1e300], 1)), 1)
+        write(topic, b"\x00\x01\x00\x00\x01", 2)  # malformed
+        for i, fields in enumerate(odd):
+            write(topic, serialize(tm.TYPE_JOINT_STATE, fields), 3 + i)
+        for k in range(8, 40):
+            write(topic, serialize(tm.TYPE_JOINT_STATE, msgs.kinematics_fields(
+                NAMES, [0.4 + k, 0.3], [k, -k], 1_000_000_000 * k + 7)), k)
+    fast, slow = _read_both(path, monkeypatch, raw=(tm.TOPIC_KINEMATICS,))
+    _assert_same_series(fast, slow)
+    assert len(fast.get(tm.TOPIC_KINEMATICS)) == 39
+
+
+def test_simulated_log_reads_the_same_decoded_at_once(tmp_path, monkeypatch):
+    path = tmp_path / "run.mcap"
+    _simulate(path, 700, duration_s=0.3)
+    fast, slow = _read_both(path, monkeypatch)
+    _assert_same_series(fast, slow)

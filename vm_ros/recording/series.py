@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vm_ros import telemetry as tm
+from vm_ros.recording import bulk
 from vm_ros.recording.cdr import decoder
 from vm_ros.recording.message_types import UnknownMessageTypeError
 from vm_ros.recording.messages import TYPE_MUSCLE_TELEMETRY
@@ -127,6 +128,11 @@ class SeriesBuilder:
         self.names = None
         self.skipped = SkippedMessages(raw=[] if keep_raw else None)
         self._decode, self._problem = _type_problem(type_name, encoding)
+        # JointState messages laid out as the first one (same names and array lengths) are
+        # decoded at once in build(); (layout, constant byte ranges, column of each name)
+        self._fixed = None
+        self._fixed_rows: list[int] = []
+        self._fixed_data: list[bytes] = []
 
     def __len__(self) -> int:
         """Messages decoded so far."""
@@ -136,6 +142,15 @@ class SeriesBuilder:
         """Decode one message into the series; False (and counted in ``skipped``) when its
         bytes do not decode."""
         problem = self._problem
+        if self._fixed is not None and self._matches_fixed(data):
+            self._fixed_rows.append(len(self.times))
+            self._fixed_data.append(data)
+            for values in self.rows.values():
+                values.append(None)  # filled in build()
+            self.times.append(log_time_ns)
+            if self.raw is not None:
+                self.raw.append(data)
+            return True
         if problem is None:
             try:
                 msg = self._decode(data)
@@ -189,6 +204,8 @@ class SeriesBuilder:
                    **{key: self._by_name(msg.name, getattr(msg, key))
                       for key in ("position", "velocity", "effort")}}
             self.names = tuple(self.columns or msg.name)
+            if self._fixed is None:
+                self._learn_fixed(msg)
             return row
         if self.type_name == tm.TYPE_FLOAT64_MULTI_ARRAY:
             if self.layout is None:
@@ -209,12 +226,76 @@ class SeriesBuilder:
             return row
         return None
 
+    def _learn_fixed(self, msg) -> None:
+        """The layout of JointState messages like ``msg`` (unique names, each array empty or
+        one value per name, empty frame_id), when their names all have columns (or there are
+        none)."""
+        names = list(msg.name)
+        counts = [len(getattr(msg, key)) for key in _JOINT_ARRAYS]
+        if (not names or len(set(names)) != len(names) or msg.header.frame_id
+                or any(c not in (0, len(names)) for c in counts)):
+            return
+        if self.columns and not all(name in self.index for name in names):
+            return
+        layout = bulk.joint_state_layout(names, *counts)
+        constant, begin = [], 0
+        for _, _, offset, size in sorted((*_offsets(layout), ("", 0, layout.size, 0)),
+                                         key=lambda f: f[2]):
+            if offset > begin:
+                constant.append((begin, offset, layout.template[begin:offset].tobytes()))
+            begin = offset + size
+        columns = [self.index[name] for name in names] if self.columns else None
+        self._fixed = (layout, constant, columns)
+
+    def _matches_fixed(self, data: bytes) -> bool:
+        layout, constant, _ = self._fixed
+        return len(data) == layout.size and all(data[a:b] == part for a, b, part in constant)
+
+    def _fill_fixed(self) -> None:
+        """Decode the messages put aside by add() at once, as _row would."""
+        if not self._fixed_rows:
+            return
+        layout, _, columns = self._fixed
+        records = np.frombuffer(b"".join(self._fixed_data), dtype=layout.dtype)
+        stamps = (records["sec"].astype(np.int64) * 1_000_000_000
+                  + records["nanosec"].astype(np.int64)).tolist()
+        width = len(self.columns) if self.columns else None
+        values = {}
+        for key in _JOINT_ARRAYS:
+            array = records[key] if key in layout.fields else None
+            if width is None:
+                values[key] = array if array is not None else np.zeros((len(records), 0))
+                continue
+            full = np.full((len(records), width), np.nan)
+            if array is not None:
+                full[:, columns] = array
+            values[key] = full
+        rows = self.rows
+        for j, i in enumerate(self._fixed_rows):
+            rows["stamp_ns"][i] = stamps[j]
+            for key in _JOINT_ARRAYS:
+                rows[key][i] = values[key][j]
+        self._fixed_rows, self._fixed_data = [], []
+
     def build(self) -> TopicSeries:
+        self._fill_fixed()
         count = len(self.times)
         fields = {key: _stack(values + [None] * (count - len(values)))
                   for key, values in self.rows.items()}
         return TopicSeries(self.topic, self.type_name, np.asarray(self.times, dtype=np.int64),
                            fields, self.names, self.layout, self.raw, self.messages)
+
+
+_JOINT_ARRAYS = ("position", "velocity", "effort")
+
+
+def _offsets(layout) -> list:
+    """(name, dtype, offset, size in bytes) of each variable field of a bulk layout."""
+    found = []
+    for name, (dtype, shape, offset) in layout.fields.items():
+        size = np.dtype(dtype).itemsize * (shape[0] if shape else 1)
+        found.append((name, dtype, offset, size))
+    return found
 
 
 def _stamp_ns(header) -> int:
