@@ -19,6 +19,10 @@ from vm_ros.recording.run_log import RunInfo, RunTiming, open_run_log, read_run
 from vm_ros.scenarios import load_scenario
 
 NAMES = ("rectus_femoris", "vasti")
+LIBRARY_12 = ("biceps_long_head", "biceps_short_head", "triceps_long_head", "brachialis",
+              "first_dorsal_interosseous", "soleus", "gastrocnemius_medialis",
+              "tibialis_anterior", "vastus_lateralis", "rectus_femoris", "vasti",
+              "gluteus_maximus")
 # stamps at 0, just below and at a second boundary, and past 2^32 ns
 STAMPS = np.array([0, 999_999_999, 1_000_000_000, 4_294_967_297_123], dtype=np.int64)
 
@@ -93,9 +97,10 @@ def test_telemetry_equals_the_serializer_byte_for_byte(steps):
 
 
 def _simulate(path, block_steps, stop_after_s=None, telemetry_rate_hz=100.0,
-              duration_s=2.0):
+              duration_s=2.0, recruitment="lumped", muscles=None):
     scenario = load_scenario("knee_extension")
-    config = RunConfig(scenario.muscles, recovery_mode=scenario.recovery_mode)
+    config = RunConfig(muscles or scenario.muscles, recovery_mode=scenario.recovery_mode,
+                       recruitment=recruitment, units_per_type=5)
     timing = RunTiming(dt_s=0.001, publish_rate_hz=100.0, telemetry_rate_hz=telemetry_rate_hz)
     bank = config.make_bank()
     inputs = scenario.inputs(bank)
@@ -120,6 +125,8 @@ def _messages(path):
     {},  # publish and telemetry at 100 Hz
     {"telemetry_rate_hz": 40.0, "duration_s": 1.013},  # ticks every 10 and 25 steps, a rest
     {"stop_after_s": 1.2295},  # stopped between two steps (at 1.230 s)
+    {"recruitment": "natural", "duration_s": 0.5},
+    {"muscles": LIBRARY_12, "duration_s": 0.3},  # sums over more than 8 values
 ])
 def test_blocks_write_the_stepwise_log_message_for_message(tmp_path, case):
     stepwise, status_a = _simulate(tmp_path / "stepwise.mcap", 0, **case)

@@ -175,6 +175,22 @@ class SampledInputs:
         return tuple(np.asarray(f(t_s), dtype=float) * np.ones(len(self.names))
                      for f in self._functions)
 
+    def _sample_many(self, times_ns) -> list:
+        """_sample at each of ``times_ns``: [U, path length, path velocity], (k, n) each."""
+        n, arrays = len(self.names), []
+        times_s = [(int(t) - self._start_ns) * 1e-9 for t in times_ns]
+        for function in self._functions:
+            values = [function(t) for t in times_s]
+            try:
+                stacked = np.array(values, dtype=float)
+            except ValueError:  # values of different shapes: each as _sample takes it
+                stacked = np.array([np.asarray(v, dtype=float) * np.ones(n) for v in values])
+            if stacked.ndim == 1:
+                stacked = stacked[:, None]
+            # as _sample: times ones (exact), broadcast to the muscles
+            arrays.append(np.ascontiguousarray(np.broadcast_to(stacked, (len(values), n))))
+        return arrays
+
     def advance_to(self, time_ns: int):
         """(U, path length, path velocity) held at ``time_ns``; logs the samples taken."""
         while self._next_ns <= time_ns:
@@ -199,8 +215,7 @@ class SampledInputs:
         if self._next_ns <= last:
             count = (last - self._next_ns) // self.period_ns + 1
             samples = self._next_ns + self.period_ns * np.arange(count, dtype=np.int64)
-            values = [self._sample(int(t)) for t in samples]
-            taken = [np.array([v[i] for v in values]) for i in range(3)]
+            taken = self._sample_many(samples)
             slots = first_step + np.searchsorted(step_starts_ns, samples, side="left")
             n = len(self.names)
             excitation = bulk.joint_state_layout(self.names, position=n)
@@ -473,7 +488,7 @@ class _Ticks:
         p["position"].append(out.fascicle_length)
         p["velocity"].append(out.fascicle_velocity)
         p["effort"].append(out.force)
-        p["energy_rate"].append(tm.energy_rate_array(out))
+        p["energy_rate"].append(out.record)
         p["rate_total"].append(out.total_energy_rate)
         p["energy_total"].append(out.total_energy)
 
@@ -483,6 +498,7 @@ class _Ticks:
         r = self.recorded
         r["time"].append(time_ns)
         r["slot"].append(slot)
+        energy = out.energy_by_fibre
         values = {
             "excitation": out.excitation, "path_length": path_length,
             "path_velocity": path_velocity, "effective_drive": out.effective_drive,
@@ -491,12 +507,12 @@ class _Ticks:
             "mechanical_power": out.mechanical_power, "mechanical_work": out.mechanical_work,
             "firing_rate": out.firing_rate_f05, "recruited_fraction": out.recruited_fraction,
             "effective_activation": out.effective_activation,
-            "energy_rate": tm.energy_partition(out.energy_rate_by_fibre, out.energy_rate),
-            "energy": tm.energy_partition(out.energy_by_fibre, out.energy),
+            "energy": np.stack([energy.activation, energy.cross_bridge, energy.recovery], -1),
             "total_energy_rate": out.total_energy_rate, "total_energy": out.total_energy,
+            "energy_rate": out.record,
         }
         for name, value in values.items():
-            r[name].append(np.asarray(value, dtype=float).ravel())
+            r[name].append(value)
 
     def flush(self, pending: _Pending, sink: LogSink) -> None:
         if sink.recorder is None:
@@ -511,7 +527,7 @@ class _Ticks:
                                           velocity=np.array(p["velocity"]),
                                           effort=np.array(p["effort"])), stamps)
             pending.add(keys + _OUTPUT_ORDER[tm.TOPIC_ENERGY_RATE], tm.TOPIC_ENERGY_RATE,
-                        self.energy_rate.encode(data=np.array(p["energy_rate"])), stamps)
+                        self.energy_rate.encode(data=_energy_rates(p["energy_rate"])), stamps)
             for topic, key in ((tm.TOPIC_ENERGY_RATE_TOTAL, "rate_total"),
                                (tm.TOPIC_ENERGY_TOTAL, "energy_total")):
                 pending.add(keys + _OUTPUT_ORDER[topic], topic,
@@ -520,9 +536,30 @@ class _Ticks:
             keys = (np.asarray(r["slot"], dtype=np.int64) * 16 + _OUTPUT_RANK
                     + _OUTPUT_ORDER[msgs.TOPIC_TELEMETRY])
             stamps = np.asarray(r["time"], dtype=np.int64)
-            arrays = {name: np.array(r[name]) for name in r if name not in ("time", "slot")}
+            arrays = {name: np.array(r[name], dtype=float) for name in r
+                      if name not in ("time", "slot", "energy_rate", "energy")}
+            arrays["energy_rate"] = _energy_rates(r["energy_rate"])
+            arrays["energy"] = _energies(np.array(r["energy"]))
             pending.add(keys, msgs.TOPIC_TELEMETRY, self.record.encode(stamps, **arrays), stamps)
         self._clear()
+
+
+def _energy_rates(records) -> np.ndarray:
+    """telemetry.energy_rate_array of each step record, (k, n, 3, 4), computed at once as
+    StepOutput computes it for one step (the per-fibre total sums the three components)."""
+    components = np.array([record.energy_components for record in records])  # (k, n, 2, 3)
+    by_fibre = np.concatenate([components, components.sum(axis=-1)[..., None]], axis=-1)
+    per_muscle = np.array([record.energy_rates for record in records])[:, :, None, :]
+    return np.concatenate([by_fibre, per_muscle], axis=2)
+
+
+def _energies(by_fibre) -> np.ndarray:
+    """telemetry.energy_partition(out.energy_by_fibre, out.energy) of each step, (k, n, 3, 4),
+    from the energies per fibre type and component (k, n, 2, 3), computed as StepOutput
+    computes them for one step (per muscle: the two fibre types summed)."""
+    per_muscle = by_fibre.sum(axis=2)[:, :, None, :]
+    parts = np.concatenate([by_fibre, per_muscle], axis=2)
+    return np.concatenate([parts, parts.sum(axis=-1)[..., None]], axis=-1)
 
 
 class _JointRecord:
