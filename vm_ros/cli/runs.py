@@ -49,7 +49,10 @@ def flush_interval_s(text: str) -> float:
 def add_output_options(parser, default_out: str) -> None:
     """--out, --publish-rate, --telemetry-rate, --chunk-size, --flush-interval, --progress."""
     group = parser.add_argument_group("output")
-    group.add_argument("--out", type=Path, metavar="FILE.mcap", help=f"log file ({default_out})")
+    group.add_argument("--out", type=Path, metavar="FILE.mcap|NAME",
+                       help=f"log file ({default_out}); a path without .mcap is a rosbag2 bag "
+                            f"directory NAME/ (NAME_0.mcap and metadata.yaml), as `ros2 bag "
+                            f"record -o NAME` makes")
     group.add_argument("--publish-rate", type=float, metavar="HZ",
                        help="rate of the output channels (default 100 Hz)")
     group.add_argument("--telemetry-rate", type=float, metavar="HZ",

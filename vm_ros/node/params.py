@@ -152,7 +152,8 @@ PARAMS = (
               "Record inputs as received and outputs as published to an MCAP file"),
     ParamSpec("mcap.path", "", "string", "path",
               "MCAP file to write ('' = muscle_node-<YYYYmmdd-HHMMSS>.mcap in the working "
-              "directory)"),
+              "directory); a path without .mcap is a rosbag2 bag directory NAME/ with "
+              "NAME_0.mcap and metadata.yaml"),
     ParamSpec("mcap.flush_interval_s", 1.0, "double", "s",
               "Longest wall time a logged message waits in memory before its chunk is written "
               "to the file: what a crash (SIGKILL) can lose", low=1e-3, high=3600.0),

@@ -27,6 +27,7 @@ from pathlib import Path
 
 from vm_ros import telemetry as tm
 from vm_ros.errors import VmRosError
+from vm_ros.recording.bag import BagError, is_bag_path, prepare_bag_directory
 from vm_ros.recording.run_log import (
     INPUT_TOPICS,
     JOINT_TOPICS,
@@ -67,6 +68,9 @@ class NodeRunLog:
     """A run log opened at the model start; writes before it are buffered (at most
     ``buffer_size`` messages, the oldest dropped first).
 
+    path: the MCAP file, or without the ``.mcap`` suffix a rosbag2 bag directory
+    (vm_ros.recording.bag; its MCAP file is ``file_path``).
+
     run_info(start_time_ns or None) -> RunInfo; qos: ``{base topic: offered_qos_profiles YAML}``;
     on_error(text): called once when recording fails (also settable as an attribute);
     recorder_options: passed to McapRecorder (chunk_size, opener, flush_interval_s...). Without
@@ -91,9 +95,14 @@ class NodeRunLog:
         self._bytes_before_error = 0
         self._failure_reported = False
         self._closed = False
+        self.file_path = self.path  # the MCAP file (NAME/NAME_0.mcap for a bag directory)
         try:  # fail at start-up, not at the model start
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            self.path.open("wb").close()
+            if is_bag_path(self.path):
+                self.file_path = prepare_bag_directory(self.path)
+            self.file_path.parent.mkdir(parents=True, exist_ok=True)
+            self.file_path.open("wb").close()
+        except BagError as exc:
+            raise RecorderError(self.path, exc.reason) from exc
         except OSError as exc:
             raise RecorderError(self.path, f"cannot create the file: {exc.strerror or exc}") \
                 from exc
@@ -144,7 +153,7 @@ class NodeRunLog:
             self._dropped += len(self._buffer)
             self._buffer.clear()
             with contextlib.suppress(OSError):  # what reached the file before the error
-                self._bytes_before_error = self.path.stat().st_size
+                self._bytes_before_error = self.file_path.stat().st_size
             self._report_failure()
             return
         while self._buffer:

@@ -5,7 +5,8 @@
         msg.topic, msg.type_name, msg.data, msg.log_time_ns
     log.metadata, log.attachments, log.complete, log.stop_reason
 
-The file is read front to back with mcap's StreamReader (no summary or index needed), with chunk
+``path`` is an MCAP file or a rosbag2 bag directory holding one (vm_ros.recording.bag). The file
+is read front to back with mcap's StreamReader (no summary or index needed), with chunk
 CRCs checked: a chunk cut short by a crash fails its check, so everything up to the last complete
 chunk is returned and ``complete`` is False with the reason in ``stop_reason``. A message whose
 channel was never declared cannot be attributed to a topic: it is skipped and counted in
@@ -23,6 +24,7 @@ from mcap.records import Attachment, Channel, Footer, Header, Message, Metadata,
 from mcap.stream_reader import StreamReader
 
 from vm_ros.errors import VmRosError
+from vm_ros.recording.bag import BagError, bag_log_files
 from vm_ros.recording.schema import MESSAGE_ENCODING
 
 
@@ -55,9 +57,7 @@ class LogReader:
     now and then while reading."""
 
     def __init__(self, path, progress: Callable[[int, int], None] | None = None):
-        self.path = Path(path)
-        if not self.path.is_file():
-            raise LogReadError(path, "no such file")
+        self.path = log_file(path)
         self.size = self.path.stat().st_size
         self._progress = progress
         self.profile: str | None = None
@@ -123,9 +123,27 @@ class LogReader:
             self.complete = True
 
 
+def log_file(path) -> Path:
+    """The MCAP file of a log path: the file itself, or a bag directory's file
+    (vm_ros.recording.bag). Raises LogReadError when there is none."""
+    path = Path(path)
+    if path.is_dir():
+        try:
+            files = bag_log_files(path)
+        except BagError as exc:
+            raise LogReadError(path, exc.reason) from exc
+        if len(files) > 1:
+            raise LogReadError(path, f"a bag of {len(files)} files: split bags are not read yet")
+        return files[0]
+    if not path.is_file():
+        raise LogReadError(path, "no such file")
+    return path
+
+
 def log_channels(path) -> dict[str, ChannelInfo]:
     """``{topic: ChannelInfo}``: from the summary section when the file has one, else (a file
     cut short) from a pass over the whole file. Raises LogReadError when it is not MCAP."""
+    path = log_file(path)
     try:
         with open(path, "rb") as stream:
             summary = make_reader(stream).get_summary()

@@ -309,6 +309,8 @@ def open_run_log(path, info: RunInfo, bank: MuscleBank | None = None,
                  **recorder_options) -> McapRecorder:
     """A McapRecorder with the run's metadata and attachments, its channels declared.
 
+    path: an MCAP file, or without the ``.mcap`` suffix a rosbag2 bag directory.
+
     info: the run (RunInfo; ``info.config.recovery_mode`` and ``drive_law`` None are filled
     from ``bank``);
     topics: base names to declare (default: all of LOG_TOPIC_TYPES but /diagnostics, telemetry
@@ -437,7 +439,8 @@ class RunLog:
 
 def read_run(path, topics: Iterable[str] | None = None, raw: Iterable[str] = (),
              progress: Callable[[int, int], None] | None = None) -> RunLog:
-    """Read a run log (any ROS 2 MCAP works; vm_ros logs get muscle-aligned arrays).
+    """Read a run log (any ROS 2 MCAP works; vm_ros logs get muscle-aligned arrays): an MCAP
+    file or a rosbag2 bag directory holding one (vm_ros.recording.bag).
 
     topics: base or full names to decode (default all); raw: base names whose CDR bytes to keep
     (recompute copies inputs verbatim); progress(bytes_read, size) for long files. Messages that

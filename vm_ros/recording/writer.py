@@ -26,6 +26,10 @@ closed when its first message has waited ``flush_interval_s`` of wall time (defa
 FLUSH_INTERVAL_S, 1 s), the first chunk included: a SIGKILL loses at most the messages of the
 last ``flush_interval_s`` (plus the writer thread's latency). Metadata and attachments are written
 at start-up, before any message.
+
+Bag directories: a path without the ``.mcap`` suffix is a rosbag2 bag directory ``NAME/`` holding
+``NAME_0.mcap`` and, once the log is finished, rosbag2's ``metadata.yaml``
+(vm_ros.recording.bag).
 """
 
 from __future__ import annotations
@@ -42,6 +46,7 @@ from mcap.opcode import Opcode
 from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
 
 from vm_ros.errors import VmRosError
+from vm_ros.recording.bag import BagError, is_bag_path, prepare_bag_directory, write_bag_metadata
 from vm_ros.recording.message_types import UnknownMessageTypeError, schema_text, type_hash
 from vm_ros.recording.qos import offered_qos_profiles_yaml
 from vm_ros.recording.schema import MESSAGE_ENCODING, SCHEMA_ENCODING, full_type_name
@@ -148,7 +153,8 @@ def _media_type(name: str) -> str:
 class McapRecorder:
     """Writes a ROS 2 MCAP log from a background thread (see the module docstring).
 
-    path: the file (parent folders are created); metadata: MCAP metadata records
+    path: the file, or without the ``.mcap`` suffix a bag directory (parent folders are
+    created); metadata: MCAP metadata records
     ``{name: {key: value}}``; attachments: ``{name: bytes}`` (media type from the extension);
     compression: "zstd", "lz4" or "none"; chunk_size: uncompressed bytes per chunk; queue_size:
     messages that may wait for the writer thread; flush_interval_s: longest wall time (s) a
@@ -179,6 +185,12 @@ class McapRecorder:
             raise RecorderError(path, f"flush_interval_s must be a finite number of seconds > 0, "
                                       f"not {flush_interval_s!r}")
         self._flush_interval_s = float(flush_interval_s)
+        self._bag_directory: Path | None = None
+        if is_bag_path(self._path):  # a rosbag2 bag directory NAME/ with NAME_0.mcap
+            try:
+                self._bag_directory, self._path = self._path, prepare_bag_directory(self._path)
+            except BagError as exc:
+                raise RecorderError(path, exc.reason) from exc
         self._queue: queue.Queue = queue.Queue(maxsize=queue_size)
         self._catch_up_size = max(1, queue_size // 4)
         self._channel_lock = threading.Lock()
@@ -229,7 +241,13 @@ class McapRecorder:
 
     @property
     def path(self) -> Path:
+        """The MCAP file (in a bag directory: ``NAME/NAME_0.mcap``)."""
         return self._path
+
+    @property
+    def bag_directory(self) -> Path | None:
+        """The bag directory, when the recorder was given a path without ``.mcap``."""
+        return self._bag_directory
 
     def add_channel(self, topic: str, type_name: str, qos_profiles_yaml: str | None = None) -> None:
         """Declare a channel (idempotent). type_name: ``pkg/msg/Type``, a bundled type;
@@ -394,6 +412,11 @@ class McapRecorder:
         except OSError as exc:
             if self._error is None:
                 self._fail(exc)
+        if self._bag_directory is not None and self._error is None:
+            try:
+                write_bag_metadata(self._bag_directory, self._path)
+            except BagError as exc:
+                self._error = f"writing {self._bag_directory} failed: {exc}"
 
     def _fail(self, exc: Exception) -> None:
         """Record the first failure; the open chunk's messages are lost with it unless the
