@@ -264,3 +264,67 @@ def test_simulated_log_reads_the_same_decoded_at_once(tmp_path, monkeypatch):
     _simulate(path, 700, duration_s=0.3)
     fast, slow = _read_both(path, monkeypatch)
     _assert_same_series(fast, slow)
+
+
+def test_recorded_inputs_block_equals_advance_to_step_by_step(tmp_path):
+    """Names mapped, non-finite or non-positive values ignored, excitation_array by position,
+    a message that does not decode copied but not applied: the same held inputs and the same
+    copied messages at the same steps either way."""
+    from vm_ros.recording import cdr
+    from vm_ros.recording.offline import LogSink, _Pending
+    from vm_ros.recording.run_log import METADATA_NAME
+    from vm_ros.recording.writer import McapRecorder
+
+    names = ("a", "b")
+    path = tmp_path / "inputs.mcap"
+    info = RunInfo(RunConfig(names), RunTiming(), "test")
+    js, arr = tm.TYPE_JOINT_STATE, tm.TYPE_FLOAT64_MULTI_ARRAY
+    with McapRecorder(path, metadata={METADATA_NAME: info.to_metadata()}) as rec:
+        for topic, type_name in ((tm.TOPIC_EXCITATION, js), (tm.TOPIC_EXCITATION_ARRAY, arr),
+                                 (tm.TOPIC_KINEMATICS, js)):
+            rec.add_channel("/" + topic, type_name)
+
+        def send(topic, type_name, fields, t):
+            rec.write("/" + topic, cdr.serialize(type_name, fields), t)
+
+        send(tm.TOPIC_KINEMATICS, js, {"name": ["b", "a"], "position": [0.2, 0.1],
+                                       "velocity": [0.5, -0.5]}, 0)
+        send(tm.TOPIC_EXCITATION, js, {"name": ["b"], "position": [0.7]}, 10)
+        send(tm.TOPIC_EXCITATION, js, {"name": ["a", "b"], "position": [float("nan"), 0.9]}, 20)
+        rec.write("/" + tm.TOPIC_EXCITATION, b"\x00\x01\x00\x00\x07", 21)  # does not decode
+        send(tm.TOPIC_EXCITATION_ARRAY, arr, {"data": [0.3, 0.4]}, 30)
+        send(tm.TOPIC_EXCITATION, js, {"name": ["a"], "position": [float("inf")]}, 30)
+        send(tm.TOPIC_KINEMATICS, js, {"name": ["a", "x"], "position": [-1.0, 5.0]}, 40)
+        send(tm.TOPIC_KINEMATICS, js, {"name": ["a"], "position": [0.15],
+                                       "velocity": [float("nan")]}, 50)
+        send(tm.TOPIC_KINEMATICS, js, {"name": ["b"], "position": [0.25]}, 50)
+        send(tm.TOPIC_EXCITATION_ARRAY, arr, {"data": [0.1]}, 55)  # too short: ignored
+        send(tm.TOPIC_EXCITATION, js, {"name": ["a", "b"], "position": [1.5, -0.0]}, 61)
+    run = read_run(path, raw=(tm.TOPIC_EXCITATION, tm.TOPIC_EXCITATION_ARRAY,
+                              tm.TOPIC_KINEMATICS))
+    starts = np.array([0, 5, 10, 20, 21, 29, 30, 44, 50, 55, 60, 61, 62, 70], dtype=np.int64)
+
+    stepwise_sink = LogSink(None)
+    stepwise_sink.pending = _Pending()
+    stepwise = RecordedInputs(run, 2, stepwise_sink)
+    stepwise.advance_to(0)
+    rows = []
+    for j, t in enumerate(starts.tolist()):
+        stepwise_sink.slot = j
+        rows.append(stepwise.advance_to(t))
+    expected = [np.array([r[i] for r in rows]) for i in range(3)]
+
+    block_sink = LogSink(None)
+    blocks = RecordedInputs(run, 2, block_sink)
+    block_sink.pending = _Pending()
+    blocks.advance_to(0)
+    block_sink.pending = pending = _Pending()
+    got = [np.concatenate(parts) for parts in zip(
+        blocks.block(starts[:6], 0, pending), blocks.block(starts[6:], 6, pending),
+        strict=True)]
+    for a, b in zip(got, expected, strict=True):
+        np.testing.assert_array_equal(a, b)
+    step = stepwise_sink.pending
+    first = len(step.keys) - len(pending.keys)  # the messages at time 0 went before the loop
+    assert (pending.keys, pending.topics, pending.data, pending.times) == (
+        step.keys[first:], step.topics[first:], step.data[first:], step.times[first:])

@@ -256,6 +256,7 @@ class RecordedInputs:
             raise RunLogError(run.path, f"{tm.TOPIC_JOINT_STATES} without node_parameters: the "
                                         "joint conditioning of this log is not known")
         self._events = run.events(INPUT_TOPICS)
+        self._event_times = np.array([e.time_ns for e in self._events], dtype=np.int64)
         self._next = 0
         kinematics = run.get(tm.TOPIC_KINEMATICS)
         if kinematics is None or len(kinematics) == 0:
@@ -291,6 +292,64 @@ class RecordedInputs:
             first = self._first_kinematics.fields["position"][0]
             self.lp = np.where(np.isnan(self.lp), first, self.lp)
         return self.u.copy(), self.lp.copy(), self.vp.copy()
+
+
+    def block(self, step_starts_ns: np.ndarray, first_step: int, pending: _Pending):
+        """advance_to for every step start of ``step_starts_ns`` (increasing), at once: the
+        inputs held over each step, (k, n) each; the messages applied by each step go to
+        ``pending`` at that step (``first_step`` + index), in event order. The updates of
+        each muscle are carried forward over the events (the latest one that applies wins)."""
+        begin = self._next
+        end = int(np.searchsorted(self._event_times, step_starts_ns[-1], side="right"))
+        events = self._events[begin:end]
+        times = self._event_times[begin:end]
+        slots = first_step + np.searchsorted(step_starts_ns, times, side="left")
+        for event, slot in zip(events, slots.tolist(), strict=True):
+            if event.data is not None:
+                pending.add_one(slot * 16 + _INPUT_RANK, event.topic, event.data, event.time_ns)
+        applied = np.searchsorted(times, step_starts_ns, side="right")  # events per step
+        n, count = len(self.u), len(events)
+        u_new, lp_new, vp_new = (np.full((count, n), np.nan) for _ in range(3))
+        for topic, key in ((tm.TOPIC_KINEMATICS, "position"), (tm.TOPIC_EXCITATION, "position"),
+                           (tm.TOPIC_EXCITATION_ARRAY, "data")):
+            chosen = [i for i, e in enumerate(events) if e.topic == topic and e.series is not None]
+            if not chosen:
+                continue
+            series = events[chosen[0]].series
+            rows = [events[i].index for i in chosen]
+            values = series.fields[key][rows]
+            if topic != tm.TOPIC_KINEMATICS:
+                if values.shape[1:] == (n,):  # else ignored, as _apply ignores them
+                    u_new[chosen] = np.where(np.isfinite(values), values, np.nan)
+                continue
+            velocity = series.fields["velocity"][rows]
+            ok = np.isfinite(values) & (values > 0)
+            lp_new[chosen] = np.where(ok, values, np.nan)
+            vp_new[chosen] = np.where(ok, np.where(np.isfinite(velocity), velocity, 0.0),
+                                      np.nan)
+        u = _carried(u_new, ~np.isnan(u_new), applied, self.u)
+        updated = ~np.isnan(lp_new)
+        lp = _carried(lp_new, updated, applied, self.lp)
+        vp = _carried(vp_new, updated, applied, self.vp)
+        if np.any(np.isnan(lp)):
+            lp = np.where(np.isnan(lp), self._first_kinematics.fields["position"][0], lp)
+        self._next = end
+        self.u, self.lp, self.vp = u[-1].copy(), lp[-1].copy(), vp[-1].copy()
+        return u, lp, vp
+
+
+def _carried(new, updated, applied, held) -> np.ndarray:
+    """Per step (k, n): the latest of the first ``applied[j]`` rows of ``new`` where
+    ``updated``, per column, else ``held``."""
+    count, n = new.shape
+    if count == 0:
+        return np.tile(held, (len(applied), 1))
+    latest = np.where(updated, np.arange(count)[:, None], -1)
+    latest = np.maximum.accumulate(latest, axis=0)
+    rows = latest[np.maximum(applied - 1, 0)]  # (k, n)
+    rows[applied == 0] = -1
+    values = new[np.maximum(rows, 0), np.arange(n)[None, :]]
+    return np.where(rows >= 0, values, held[None, :])
 
 
 @dataclass

@@ -306,8 +306,11 @@ def _stack(values: list) -> np.ndarray:
     """Rows (scalars or 1-D arrays, possibly of different lengths or missing) as one array.
     Integers present in every row (header stamps in ns) stay int64: as float64 they would be
     rounded to about 256 ns at today's epoch."""
-    if values and all(isinstance(v, int) and not isinstance(v, bool) for v in values):
+    kinds = set(map(type, values))
+    if kinds == {int}:
         return np.array(values, dtype=np.int64)
+    if kinds == {np.ndarray} and len({v.shape for v in values}) == 1 and values[0].ndim == 1:
+        return np.array(values, dtype=float)  # rows of one width (the common case)
     if all(np.ndim(v) == 0 for v in values if v is not None):
         return np.array([np.nan if v is None else v for v in values], dtype=float)
     width = max(np.size(v) for v in values if v is not None)
