@@ -151,3 +151,102 @@ def test_bad_bag_paths(tmp_path):
     empty.mkdir()
     with pytest.raises(LogReadError, match="no .mcap file"):
         read_run(empty)
+
+
+# --- split bags ------------------------------------------------------------------------------
+
+
+def write_split(out, count, **options):
+    from vm_ros.recording.cdr import serialize
+    from vm_ros.recording.messages import float64_fields
+    from vm_ros.recording.writer import McapRecorder
+
+    with McapRecorder(out, metadata={"note": {"k": "v"}}, attachments={"a.txt": b"x"},
+                      chunk_size=4096, **options) as rec:
+        rec.add_channel("/energy_total", "std_msgs/msg/Float64")
+        for k in range(count):
+            rec.write("/energy_total", serialize(tm.TYPE_FLOAT64, float64_fields(float(k))),
+                      k * 1_000_000)
+    return rec
+
+
+@pytest.mark.parametrize("options", [{"max_file_duration_s": 0.1},
+                                     {"max_file_size": 1500}], ids=["duration", "size"])
+def test_split_bag(tmp_path, options):
+    out = tmp_path / "split"
+    rec = write_split(out, 1000, **options)
+    assert rec.status.ok and rec.status.written == 1000
+    info = yaml.safe_load((out / METADATA_FILE).read_text())["rosbag2_bagfile_information"]
+    names = info["relative_file_paths"]
+    assert len(names) >= 3 and names == [f"split_{k}.mcap" for k in range(len(names))]
+    assert sorted(p.name for p in out.glob("*.mcap")) == sorted(names)
+    assert sum(f["message_count"] for f in info["files"]) == info["message_count"] == 1000
+    assert info["topics_with_message_count"][0]["message_count"] == 1000
+    assert info["duration"]["nanoseconds"] == 999_000_000
+    if "max_file_duration_s" in options:  # 0.1 s of log time per file: 100 messages each
+        assert [f["message_count"] for f in info["files"]] == [100] * 10
+    else:
+        sizes = [(out / name).stat().st_size for name in names]
+        # past the limit by at most one chunk (4 kB before compression) and the summary
+        assert all(size < 1500 + 4096 + 2048 for size in sizes)
+    run = read_run(out)  # chained: every message once, in order
+    assert run.complete and run.metadata["note"] == {"k": "v"}
+    np.testing.assert_array_equal(run.get("/energy_total").fields["data"], np.arange(1000.0))
+    assert len(read_run(out / names[1]).get("/energy_total")) > 0  # each file is a log
+    assert bytes(read_run(out / names[1]).attachments["a.txt"]) == b"x"
+    with rosbags_rosbag2.Reader(out) as reader:
+        times = [t for _, t, _ in reader.messages()]
+    assert times == [k * 1_000_000 for k in range(1000)]
+    assert rec.status.bytes_written == sum((out / n).stat().st_size for n in names)
+
+
+def test_split_needs_a_bag_directory_and_sane_limits(tmp_path):
+    from vm_ros.errors import ConfigError
+    from vm_ros.node.params import NodeConfig
+    from vm_ros.recording import RecorderError
+    from vm_ros.recording.writer import McapRecorder
+
+    with pytest.raises(RecorderError, match="needs a bag directory"):
+        McapRecorder(tmp_path / "one.mcap", max_file_size=1000)
+    with pytest.raises(RecorderError, match=">= 0"):
+        McapRecorder(tmp_path / "bag", max_file_duration_s=-1.0)
+    with pytest.raises(ConfigError, match="bag directory"):
+        NodeConfig.from_values({"mcap.max_bag_size": 1000, "mcap.path": "run.mcap"})
+    config = NodeConfig.from_values({"mcap.max_bag_duration_s": 60, "mcap.path": "runs/x"})
+    assert config.mcap_max_bag_duration_s == 60.0
+
+
+def test_reused_directory_drops_the_former_files(tmp_path):
+    out = tmp_path / "again"
+    write_split(out, 1000, max_file_duration_s=0.1)
+    write_split(out, 100)
+    assert sorted(p.name for p in out.iterdir()) == ["again_0.mcap", METADATA_FILE]
+    assert len(read_run(out).get("/energy_total")) == 100
+
+
+def test_node_log_splits_by_its_recorded_parameters(tmp_path):
+    import dataclasses
+
+    from test_node_recording import T0, run_info
+
+    from vm_ros.node.recording import NodeRunLog
+    from vm_ros.recording.cdr import serialize
+    from vm_ros.recording.messages import float64_fields
+
+    def info(start_ns):
+        base = run_info(start_ns)
+        return dataclasses.replace(base, extra=dict(
+            base.extra, node_parameters='{"mcap.max_bag_duration_s": 0.25}'))
+
+    out = tmp_path / "node_split"
+    log = NodeRunLog(out, info)
+    log.start(T0)
+    for k in range(100):
+        log.write(tm.TOPIC_ENERGY_TOTAL, serialize(tm.TYPE_FLOAT64, float64_fields(float(k))),
+                  T0 + k * 10_000_000)
+    log.close()
+    assert log.status.ok
+    assert sorted(p.name for p in out.glob("*.mcap")) == [f"node_split_{k}.mcap"
+                                                          for k in range(4)]
+    np.testing.assert_array_equal(read_run(out).get(tm.TOPIC_ENERGY_TOTAL).fields["data"],
+                                  np.arange(100.0))

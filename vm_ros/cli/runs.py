@@ -47,7 +47,8 @@ def flush_interval_s(text: str) -> float:
 
 
 def add_output_options(parser, default_out: str) -> None:
-    """--out, --publish-rate, --telemetry-rate, --chunk-size, --flush-interval, --progress."""
+    """--out, --publish-rate, --telemetry-rate, --chunk-size, --flush-interval, --max-bag-size,
+    --max-bag-duration, --progress."""
     group = parser.add_argument_group("output")
     group.add_argument("--out", type=Path, metavar="FILE.mcap|NAME",
                        help=f"log file ({default_out}); a path without .mcap is a rosbag2 bag "
@@ -64,6 +65,12 @@ def add_output_options(parser, default_out: str) -> None:
                        metavar="S",
                        help=f"longest wall time (s) a message waits before its chunk is written "
                             f"to the file: what a crash can lose (default {FLUSH_INTERVAL_S:g})")
+    group.add_argument("--max-bag-size", type=int, default=0, metavar="BYTES",
+                       help="with a bag directory --out NAME: start a new file NAME_<k>.mcap once "
+                            "the current one holds this many bytes (default 0: one file)")
+    group.add_argument("--max-bag-duration", type=float, default=0.0, metavar="S",
+                       help="with a bag directory: start a new file once the current one spans "
+                            "this much log time (default 0: one file)")
     group.add_argument("--progress", action="store_true",
                        help="show progress on stderr even when it is not a terminal")
 
@@ -71,7 +78,8 @@ def add_output_options(parser, default_out: str) -> None:
 def recorder_options(args) -> dict:
     """McapRecorder options of the output options:
     ``open_run_log(path, info, bank, **recorder_options(args))``."""
-    return {"chunk_size": args.chunk_size, "flush_interval_s": args.flush_interval}
+    return {"chunk_size": args.chunk_size, "flush_interval_s": args.flush_interval,
+            "max_file_size": args.max_bag_size, "max_file_duration_s": args.max_bag_duration}
 
 
 def apply_model_options(config: RunConfig, args) -> RunConfig:

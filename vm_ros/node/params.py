@@ -157,6 +157,13 @@ PARAMS = (
     ParamSpec("mcap.flush_interval_s", 1.0, "double", "s",
               "Longest wall time a logged message waits in memory before its chunk is written "
               "to the file: what a crash (SIGKILL) can lose", low=1e-3, high=3600.0),
+    ParamSpec("mcap.max_bag_size", 0, "integer", "bytes",
+              "With a bag directory (mcap.path without .mcap): start a new file NAME_<k>.mcap "
+              "once the current one holds this many bytes, as ros2 bag record --max-bag-size "
+              "(0 = one file)", low=0, high=2**62),
+    ParamSpec("mcap.max_bag_duration_s", 0.0, "double", "s",
+              "With a bag directory: start a new file once the current one spans this much log "
+              "time, as ros2 bag record --max-bag-duration (0 = one file)", low=0.0, high=1e9),
 )
 
 PARAMS_BY_NAME = {p.name: p for p in PARAMS}
@@ -192,6 +199,8 @@ class NodeConfig:
     mcap_enabled: bool
     mcap_path: str
     mcap_flush_interval_s: float
+    mcap_max_bag_size: int
+    mcap_max_bag_duration_s: float
 
     @classmethod
     def defaults(cls) -> NodeConfig:
@@ -226,6 +235,11 @@ class NodeConfig:
         if self.publish_rate_hz > self.model_rate_hz:
             raise ConfigError(PARAMS_SOURCE, "publish_rate_hz", self.publish_rate_hz,
                               f"must not exceed model_rate_hz ({self.model_rate_hz:g} Hz)")
+        splits = self.mcap_max_bag_size or self.mcap_max_bag_duration_s
+        if splits and (not self.mcap_path or self.mcap_path.lower().endswith(".mcap")):
+            name = "mcap.max_bag_size" if self.mcap_max_bag_size else "mcap.max_bag_duration_s"
+            raise ConfigError(PARAMS_SOURCE, name, getattr(self, name.replace(".", "_")),
+                              "splitting needs mcap.path to name a bag directory (no .mcap)")
         lengths = self.initial_path_length_m
         if lengths and len(lengths) != len(self.muscles):
             raise ConfigError(PARAMS_SOURCE, "initial_path_length_m", list(lengths),

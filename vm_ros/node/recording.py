@@ -38,7 +38,10 @@ from vm_ros.recording.run_log import (
 )
 from vm_ros.recording.writer import McapRecorder, RecorderError, RecorderStatus
 
-FLUSH_INTERVAL_PARAMETER = "mcap.flush_interval_s"
+# node parameter -> McapRecorder option
+RECORDER_PARAMETERS = {"mcap.flush_interval_s": "flush_interval_s",
+                       "mcap.max_bag_size": "max_file_size",
+                       "mcap.max_bag_duration_s": "max_file_duration_s"}
 LOG_TOPICS = (*INPUT_TOPICS, *OUTPUT_TOPICS, tm.TOPIC_DIAGNOSTICS)  # JOINT_TOPICS: geometry only
 INPUT_RULE = ("muscle_node: inputs conditioned by vm_ros.node.inputs.NodeInputs with the "
               "node_parameters (bad messages dropped, drive clipped, kinematics extrapolated for "
@@ -53,15 +56,18 @@ def node_run_extra(node_name: str, parameters: dict) -> dict:
             "input_hold": INPUT_RULE, "started": "true"}
 
 
-def recorded_flush_interval_s(info: RunInfo) -> float | None:
-    """The ``mcap.flush_interval_s`` node parameter of the run info's ``node_parameters``, or
-    None when it is not there."""
+def recorded_recorder_options(info: RunInfo) -> dict:
+    """McapRecorder options from the ``mcap.*`` node parameters of the run info's
+    ``node_parameters`` (RECORDER_PARAMETERS; those not there are left out)."""
     try:
-        value = json.loads(info.extra.get("node_parameters", "{}"))[FLUSH_INTERVAL_PARAMETER]
-    except (ValueError, TypeError, KeyError):
-        return None
-    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) \
-        else None
+        parameters = json.loads(info.extra.get("node_parameters", "{}"))
+    except (ValueError, TypeError):
+        return {}
+    if not isinstance(parameters, dict):
+        return {}
+    return {option: parameters[name] for name, option in RECORDER_PARAMETERS.items()
+            if isinstance(parameters.get(name), (int, float))
+            and not isinstance(parameters.get(name), bool)}
 
 
 class NodeRunLog:
@@ -73,9 +79,9 @@ class NodeRunLog:
 
     run_info(start_time_ns or None) -> RunInfo; qos: ``{base topic: offered_qos_profiles YAML}``;
     on_error(text): called once when recording fails (also settable as an attribute);
-    recorder_options: passed to McapRecorder (chunk_size, opener, flush_interval_s...). Without
-    ``flush_interval_s``, the node's ``mcap.flush_interval_s`` parameter as recorded in the run
-    info's ``node_parameters`` applies (else McapRecorder's default).
+    recorder_options: passed to McapRecorder (chunk_size, opener, flush_interval_s...). Those
+    not given come from the node's ``mcap.*`` parameters as recorded in the run info's
+    ``node_parameters`` (RECORDER_PARAMETERS), else McapRecorder's defaults.
     Raises RecorderError naming the path when the file cannot be created; never after that.
     """
 
@@ -142,10 +148,7 @@ class NodeRunLog:
             info = self._run_info(start_time_ns)
             topics = [t for t in LOG_TOPICS
                       if t not in JOINT_TOPICS or info.config.geometry is not None]
-            options = dict(self._recorder_options)
-            interval = recorded_flush_interval_s(info)
-            if interval is not None:
-                options.setdefault("flush_interval_s", interval)
+            options = {**recorded_recorder_options(info), **self._recorder_options}
             self.recorder = open_run_log(self.path, info, topics=topics, qos=self._qos,
                                          **options)
         except (VmRosError, OSError) as exc:

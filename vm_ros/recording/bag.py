@@ -11,8 +11,12 @@ serialization_format ``cdr``, offered_qos_profiles as a YAML list, type_descript
 compression_format and compression_mode (empty: MCAP compresses its chunks itself), files (per
 file: path, starting_time, duration, message_count), custom_data and ros_distro.
 
+Split logs (McapRecorder's max_file_size, max_file_duration_s, as rosbag2's --max-bag-size and
+--max-bag-duration) continue in NAME_1.mcap, NAME_2.mcap...: each file has the run's metadata and
+attachments and its own channels, so each one is a readable run log; readers chain them.
+
 A process killed before the log is finished leaves the directory without metadata.yaml: the vm_ros
-readers then read the directory's ``.mcap`` file; ``ros2 bag reindex NAME`` rebuilds the
+readers then read the directory's ``.mcap`` files; ``ros2 bag reindex NAME`` rebuilds the
 metadata for rosbag2.
 """
 
@@ -63,9 +67,18 @@ def prepare_bag_directory(directory) -> Path:
     try:
         directory.mkdir(parents=True, exist_ok=True)
         (directory / METADATA_FILE).unlink(missing_ok=True)
+        for old in directory.glob(f"{directory.name}_*{SUFFIX}"):  # a former split log's
+            if old.stem.rsplit("_", 1)[-1].isdigit():
+                old.unlink()
     except OSError as exc:
         raise BagError(directory, f"cannot create the directory: {exc.strerror or exc}") from exc
     return bag_file_path(directory)
+
+
+def _file_order(path: Path):
+    """NAME_2.mcap before NAME_10.mcap."""
+    stem, _, index = path.stem.rpartition("_")
+    return (stem, int(index), "") if index.isdigit() else (path.stem, -1, path.name)
 
 
 def bag_log_files(directory) -> list[Path]:
@@ -83,16 +96,13 @@ def bag_log_files(directory) -> list[Path]:
             raise BagError(directory, f"cannot read {METADATA_FILE}: {exc}") from exc
         if files and all(f.is_file() for f in files):
             return files
-    files = sorted(directory.glob(f"*{SUFFIX}"))
+    files = sorted(directory.glob(f"*{SUFFIX}"), key=_file_order)
     if not files:
         raise BagError(directory, f"no {SUFFIX} file in the bag directory")
     return files
 
 
-def bag_metadata(mcap_path, ros_distro: str = ROS_DISTRO) -> dict:
-    """rosbag2's metadata (version 9) of one finished MCAP file, as the dict that
-    metadata.yaml holds. Raises BagError when the file has no summary."""
-    mcap_path = Path(mcap_path)
+def _file_summary(mcap_path: Path):
     try:
         with open(mcap_path, "rb") as stream:
             summary = make_reader(stream).get_summary()
@@ -101,49 +111,67 @@ def bag_metadata(mcap_path, ros_distro: str = ROS_DISTRO) -> dict:
                                          f"{exc}") from exc
     if summary is None:
         raise BagError(mcap_path.parent, f"{mcap_path.name} has no summary (not finished)")
-    stats = summary.statistics
-    count = stats.message_count if stats else 0
-    start = stats.message_start_time if stats and count else 0
-    duration = (stats.message_end_time - stats.message_start_time) if stats and count else 0
-    topics = []
-    for channel_id, channel in sorted(summary.channels.items()):
-        schema = summary.schemas.get(channel.schema_id)
-        qos_text = channel.metadata.get("offered_qos_profiles", "")
-        topics.append({
-            "topic_metadata": {
-                "name": channel.topic,
-                "type": schema.name if schema is not None else "",
-                "serialization_format": channel.message_encoding,
-                "offered_qos_profiles": yaml.safe_load(qos_text) or [] if qos_text else [],
-                "type_description_hash": channel.metadata.get("topic_type_hash", ""),
-            },
-            "message_count": stats.channel_message_counts.get(channel_id, 0) if stats else 0,
-        })
+    return summary
+
+
+def _span(start: int, end: int) -> dict:
+    return {"starting_time": {"nanoseconds_since_epoch": start},
+            "duration": {"nanoseconds": end - start}}
+
+
+def bag_metadata(mcap_paths, ros_distro: str = ROS_DISTRO) -> dict:
+    """rosbag2's metadata (version 9) of finished MCAP files (one path or a list, in order), as
+    the dict that metadata.yaml holds. Raises BagError when a file has no summary."""
+    paths = [Path(mcap_paths)] if isinstance(mcap_paths, (str, Path)) else \
+        [Path(p) for p in mcap_paths]
+    topics: dict[str, dict] = {}
+    files, starts, ends = [], [], []
+    for path in paths:
+        summary = _file_summary(path)
+        stats = summary.statistics
+        count = stats.message_count if stats else 0
+        start = stats.message_start_time if count else 0
+        end = stats.message_end_time if count else 0
+        if count:
+            starts.append(start)
+            ends.append(end)
+        files.append({"path": path.name, **_span(start, end), "message_count": count})
+        for channel_id, channel in sorted(summary.channels.items()):
+            schema = summary.schemas.get(channel.schema_id)
+            qos_text = channel.metadata.get("offered_qos_profiles", "")
+            entry = topics.setdefault(channel.topic, {
+                "topic_metadata": {
+                    "name": channel.topic,
+                    "type": schema.name if schema is not None else "",
+                    "serialization_format": channel.message_encoding,
+                    "offered_qos_profiles": yaml.safe_load(qos_text) or [] if qos_text else [],
+                    "type_description_hash": channel.metadata.get("topic_type_hash", ""),
+                },
+                "message_count": 0})
+            entry["message_count"] += stats.channel_message_counts.get(channel_id, 0) \
+                if stats else 0
+    start, end = (min(starts), max(ends)) if starts else (0, 0)
     return {"rosbag2_bagfile_information": {
         "version": METADATA_VERSION,
         "storage_identifier": STORAGE_IDENTIFIER,
-        "relative_file_paths": [mcap_path.name],
-        "duration": {"nanoseconds": duration},
-        "starting_time": {"nanoseconds_since_epoch": start},
-        "message_count": count,
-        "topics_with_message_count": topics,
+        "relative_file_paths": [path.name for path in paths],
+        **_span(start, end),
+        "message_count": sum(f["message_count"] for f in files),
+        "topics_with_message_count": list(topics.values()),
         "compression_format": "",
         "compression_mode": "",
-        "files": [{"path": mcap_path.name,
-                   "starting_time": {"nanoseconds_since_epoch": start},
-                   "duration": {"nanoseconds": duration},
-                   "message_count": count}],
+        "files": files,
         "custom_data": {},
         "ros_distro": ros_distro,
     }}
 
 
-def write_bag_metadata(directory, mcap_path) -> Path:
-    """Write ``directory/metadata.yaml`` for a finished MCAP file (through a temporary file, so
+def write_bag_metadata(directory, mcap_paths) -> Path:
+    """Write ``directory/metadata.yaml`` for finished MCAP files (through a temporary file, so
     that a reader never sees half of it). Raises BagError."""
     directory = Path(directory)
     target = directory / METADATA_FILE
-    text = yaml.safe_dump(bag_metadata(mcap_path), sort_keys=False, default_flow_style=False)
+    text = yaml.safe_dump(bag_metadata(mcap_paths), sort_keys=False, default_flow_style=False)
     temporary = target.with_suffix(".yaml.tmp")
     try:
         temporary.write_text(text, encoding="utf-8")

@@ -57,8 +57,9 @@ class LogReader:
     now and then while reading."""
 
     def __init__(self, path, progress: Callable[[int, int], None] | None = None):
-        self.path = log_file(path)
-        self.size = self.path.stat().st_size
+        self.files = log_files(path)
+        self.path = self.files[0] if len(self.files) == 1 else Path(path)
+        self.size = sum(f.stat().st_size for f in self.files)
         self._progress = progress
         self.profile: str | None = None
         self.schemas: dict[int, Schema] = {}
@@ -68,10 +69,12 @@ class LogReader:
         self.unknown_channels: dict[int, int] = {}  # channel id -> messages skipped
         self.complete = False
         self.stop_reason: str | None = None
+        self._topic_types: dict[str, str] = {}  # over every file of a split bag
 
     def topic_types(self) -> dict[str, str]:
         """``{topic: pkg/msg/Type}`` of the channels seen so far."""
-        return {c.topic: self._type_name(c) for c in self.channels.values()}
+        return {**self._topic_types,
+                **{c.topic: self._type_name(c) for c in self.channels.values()}}
 
     def _type_name(self, channel: Channel) -> str:
         schema = self.schemas.get(channel.schema_id)
@@ -79,8 +82,25 @@ class LogReader:
 
     def messages(self, topics: Container[str] | None = None) -> Iterator[RecordedMessage]:
         """Messages in file order (topics: full topic names to keep; None keeps all). Metadata,
-        attachments, schemas and channels are collected on the way."""
-        with open(self.path, "rb") as stream:
+        attachments, schemas and channels are collected on the way. The files of a split bag are
+        read one after the other (each has its own schemas and channels); the log is complete
+        when every file is."""
+        done = 0
+        for index, path in enumerate(self.files):
+            if index:
+                self._topic_types.update(self.topic_types())
+                self.schemas, self.channels = {}, {}
+                if not self.complete:  # an earlier file was cut short: stop there
+                    return
+                self.complete = False
+                if path.stat().st_size == 0:  # killed as it was created
+                    self.stop_reason = f"{path.name} is empty"
+                    return
+            yield from self._file_messages(path, topics, done)
+            done += path.stat().st_size
+
+    def _file_messages(self, path: Path, topics, done: int) -> Iterator[RecordedMessage]:
+        with open(path, "rb") as stream:
             records = StreamReader(stream, validate_crcs=True).records
             count = 0
             while True:
@@ -90,7 +110,7 @@ class LogReader:
                     break
                 except Exception as exc:  # truncated or corrupt: keep what was read
                     if count == 0:
-                        raise LogReadError(self.path, f"not an MCAP file ({exc})") from exc
+                        raise LogReadError(path, f"not an MCAP file ({exc})") from exc
                     self.stop_reason = f"{type(exc).__name__}: {exc}".rstrip(": ")
                     return
                 count += 1
@@ -104,7 +124,7 @@ class LogReader:
                                               record.data, record.log_time, record.publish_time,
                                               channel.message_encoding)
                     if self._progress is not None and count % 2000 == 0:
-                        self._progress(stream.tell(), self.size)
+                        self._progress(done + stream.tell(), self.size)
                 else:
                     self._collect(record)
 
@@ -123,27 +143,31 @@ class LogReader:
             self.complete = True
 
 
-def log_file(path) -> Path:
-    """The MCAP file of a log path: the file itself, or a bag directory's file
+def log_files(path) -> list[Path]:
+    """The MCAP files of a log path, in order: the file itself, or a bag directory's files
     (vm_ros.recording.bag). Raises LogReadError when there is none."""
     path = Path(path)
     if path.is_dir():
         try:
-            files = bag_log_files(path)
+            return bag_log_files(path)
         except BagError as exc:
             raise LogReadError(path, exc.reason) from exc
-        if len(files) > 1:
-            raise LogReadError(path, f"a bag of {len(files)} files: split bags are not read yet")
-        return files[0]
     if not path.is_file():
         raise LogReadError(path, "no such file")
-    return path
+    return [path]
 
 
 def log_channels(path) -> dict[str, ChannelInfo]:
     """``{topic: ChannelInfo}``: from the summary section when the file has one, else (a file
     cut short) from a pass over the whole file. Raises LogReadError when it is not MCAP."""
-    path = log_file(path)
+    channels: dict[str, ChannelInfo] = {}
+    for file in log_files(path):
+        channels.update({topic: info for topic, info in _file_channels(file).items()
+                         if topic not in channels})
+    return channels
+
+
+def _file_channels(path: Path) -> dict[str, ChannelInfo]:
     try:
         with open(path, "rb") as stream:
             summary = make_reader(stream).get_summary()

@@ -158,8 +158,10 @@ class McapRecorder:
     ``{name: {key: value}}``; attachments: ``{name: bytes}`` (media type from the extension);
     compression: "zstd", "lz4" or "none"; chunk_size: uncompressed bytes per chunk; queue_size:
     messages that may wait for the writer thread; flush_interval_s: longest wall time (s) a
-    chunk stays open, counted from its first message; opener: ``opener(path) -> binary file``
-    (tests inject failing files).
+    chunk stays open, counted from its first message; max_file_size (bytes),
+    max_file_duration_s (s of log time): with a bag directory, start a new file NAME_<k>.mcap
+    when the current one reaches either (0: one file; vm_ros.recording.bag); opener:
+    ``opener(path) -> binary file`` (tests inject failing files).
     Raises RecorderError naming the path when the file cannot be created or started.
     """
 
@@ -173,6 +175,8 @@ class McapRecorder:
         chunk_size: int = 1 << 20,
         queue_size: int = 20000,
         flush_interval_s: float = FLUSH_INTERVAL_S,
+        max_file_size: int = 0,
+        max_file_duration_s: float = 0.0,
         opener: Callable[[Path], BinaryIO] = open_unbuffered,
     ):
         self._path = Path(path)
@@ -185,12 +189,28 @@ class McapRecorder:
             raise RecorderError(path, f"flush_interval_s must be a finite number of seconds > 0, "
                                       f"not {flush_interval_s!r}")
         self._flush_interval_s = float(flush_interval_s)
+        if not (max_file_size >= 0 and 0 <= max_file_duration_s < float("inf")):
+            raise RecorderError(path, "max_file_size and max_file_duration_s must be >= 0 "
+                                      "(0: one file)")
+        self._max_file_size = int(max_file_size)
+        self._max_file_duration_ns = int(round(max_file_duration_s * 1e9))
         self._bag_directory: Path | None = None
         if is_bag_path(self._path):  # a rosbag2 bag directory NAME/ with NAME_0.mcap
             try:
                 self._bag_directory, self._path = self._path, prepare_bag_directory(self._path)
             except BagError as exc:
                 raise RecorderError(path, exc.reason) from exc
+        elif self._max_file_size or self._max_file_duration_ns:
+            raise RecorderError(path, "splitting into several files needs a bag directory "
+                                      "(a path without .mcap)")
+        self._files: list[Path] = [self._path]  # in a bag directory, the files written so far
+        self._bytes_in_closed_files = 0
+        self._file_start_log_time: int | None = None
+        self._opener = opener
+        self._chunk_size, self._compression = chunk_size, COMPRESSIONS[compression]
+        self._metadata = {name: {str(k): str(v) for k, v in record.items()}
+                          for name, record in (metadata or {}).items()}
+        self._attachments = {name: bytes(data) for name, data in (attachments or {}).items()}
         self._queue: queue.Queue = queue.Queue(maxsize=queue_size)
         self._catch_up_size = max(1, queue_size // 4)
         self._channel_lock = threading.Lock()
@@ -205,15 +225,7 @@ class McapRecorder:
         self._close_lock = threading.Lock()
         self._sink = self._open(opener)
         try:
-            self._writer = Writer(self._sink, chunk_size=chunk_size,
-                                  compression=COMPRESSIONS[compression])
-            self._writer.start(profile=PROFILE,
-                               library=f"vm_ros/{VM_ROS_VERSION} {LIBRARY_IDENTIFIER}")
-            now = time.time_ns()
-            for name, record in (metadata or {}).items():
-                self._writer.add_metadata(name, {str(k): str(v) for k, v in record.items()})
-            for name, data in (attachments or {}).items():
-                self._writer.add_attachment(now, now, name, _media_type(name), bytes(data))
+            self._writer = self._start_file()
         except Exception as exc:
             self._sink.close()
             raise RecorderError(path, f"cannot start the log: {exc}") from exc
@@ -228,6 +240,18 @@ class McapRecorder:
         self._thread = threading.Thread(target=self._run, name=f"mcap-recorder {self._path.name}",
                                         daemon=True)
         self._thread.start()
+
+    def _start_file(self) -> Writer:
+        """An mcap Writer on the current sink, started, with the metadata and attachments (every
+        file of a split bag has them, so that each one is a complete run log header)."""
+        writer = Writer(self._sink, chunk_size=self._chunk_size, compression=self._compression)
+        writer.start(profile=PROFILE, library=f"vm_ros/{VM_ROS_VERSION} {LIBRARY_IDENTIFIER}")
+        now = time.time_ns()
+        for name, record in self._metadata.items():
+            writer.add_metadata(name, record)
+        for name, data in self._attachments.items():
+            writer.add_attachment(now, now, name, _media_type(name), data)
+        return writer
 
     def _open(self, opener) -> _FileSink:
         try:
@@ -294,7 +318,8 @@ class McapRecorder:
     @property
     def status(self) -> RecorderStatus:
         return RecorderStatus(ok=self._error is None, error=self._error, written=self._written,
-                              dropped=self._dropped, bytes_written=self._sink.position,
+                              dropped=self._dropped,
+                              bytes_written=self._bytes_in_closed_files + self._sink.position,
                               path=str(self._path))
 
     def close(self) -> None:
@@ -358,6 +383,10 @@ class McapRecorder:
             return None
 
     def _add_message(self, topic: str, data: bytes, log_time: int, publish_time: int) -> None:
+        if self._split_due(log_time):
+            self._next_file()
+        if self._file_start_log_time is None:
+            self._file_start_log_time = log_time
         if topic not in self._channel_ids:
             try:
                 self._register_pending()  # may close the open chunk
@@ -374,6 +403,33 @@ class McapRecorder:
         self._writer.add_message(self._channel_ids[topic], log_time, data, publish_time,
                                  sequence)
         self._note_written_chunks()
+
+    def _split_due(self, log_time: int) -> bool:
+        """A new file before this message: the current one has reached max_file_size bytes, or
+        spans max_file_duration_s of log time (rosbag2's --max-bag-size, --max-bag-duration)."""
+        if self._file_start_log_time is None:
+            return False
+        return bool(self._max_file_size and self._sink.position >= self._max_file_size
+                    or self._max_file_duration_ns
+                    and log_time - self._file_start_log_time >= self._max_file_duration_ns)
+
+    def _next_file(self) -> None:
+        """Finish the current file and start NAME_<k+1>.mcap (channels registered again)."""
+        self._writer.finish()
+        self._note_written_chunks()
+        self._sink.close()
+        self._bytes_in_closed_files += self._sink.position
+        directory = self._bag_directory
+        self._path = directory / f"{directory.name}_{len(self._files)}.mcap"
+        self._files.append(self._path)
+        self._sink = self._open(self._opener)
+        self._chunks_seen = self._sink.chunks
+        self._chunk_opened_at, self._open_chunk_count = None, 0
+        self._file_start_log_time = None
+        self._writer = self._start_file()
+        with self._channel_lock:
+            self._pending = list(self._channels.values())
+        self._schema_ids, self._channel_ids = {}, {}
 
     def _note_written_chunks(self) -> None:
         """A new chunk in the file holds every message of the open chunk: start a new one."""
@@ -398,7 +454,7 @@ class McapRecorder:
                 self._schema_ids[spec.type_name] = schema_id
             self._channel_ids[spec.topic] = self._writer.register_channel(
                 spec.topic, MESSAGE_ENCODING, schema_id, spec.metadata)
-            self._sequence[spec.topic] = 0
+            self._sequence.setdefault(spec.topic, 0)  # numbering goes on in a new file
 
     def _finish(self) -> None:
         if self._error is None:
@@ -414,7 +470,7 @@ class McapRecorder:
                 self._fail(exc)
         if self._bag_directory is not None and self._error is None:
             try:
-                write_bag_metadata(self._bag_directory, self._path)
+                write_bag_metadata(self._bag_directory, self._files)
             except BagError as exc:
                 self._error = f"writing {self._bag_directory} failed: {exc}"
 
