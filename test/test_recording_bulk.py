@@ -275,31 +275,30 @@ def test_recorded_inputs_block_equals_advance_to_step_by_step(tmp_path):
     from vm_ros.recording.run_log import METADATA_NAME
     from vm_ros.recording.writer import McapRecorder
 
-    names = ("a", "b")
+    nan, inf = float("nan"), float("inf")
+    ex, arr, kin = tm.TOPIC_EXCITATION, tm.TOPIC_EXCITATION_ARRAY, tm.TOPIC_KINEMATICS
+    sent = [  # (topic, fields or raw bytes, log time ns)
+        (kin, {"name": ["b", "a"], "position": [0.2, 0.1], "velocity": [0.5, -0.5]}, 0),
+        (ex, {"name": ["b"], "position": [0.7]}, 10),
+        (ex, {"name": ["a", "b"], "position": [nan, 0.9]}, 20),
+        (ex, b"\x00\x01\x00\x00\x07", 21),  # does not decode
+        (arr, {"data": [0.3, 0.4]}, 30),
+        (ex, {"name": ["a"], "position": [inf]}, 30),
+        (kin, {"name": ["a", "x"], "position": [-1.0, 5.0]}, 40),
+        (kin, {"name": ["a"], "position": [0.15], "velocity": [nan]}, 50),
+        (kin, {"name": ["b"], "position": [0.25]}, 50),
+        (arr, {"data": [0.1]}, 55),  # too short: ignored
+        (ex, {"name": ["a", "b"], "position": [1.5, -0.0]}, 61),
+    ]
     path = tmp_path / "inputs.mcap"
-    info = RunInfo(RunConfig(names), RunTiming(), "test")
-    js, arr = tm.TYPE_JOINT_STATE, tm.TYPE_FLOAT64_MULTI_ARRAY
-    with McapRecorder(path, metadata={METADATA_NAME: info.to_metadata()}) as rec:
-        for topic, type_name in ((tm.TOPIC_EXCITATION, js), (tm.TOPIC_EXCITATION_ARRAY, arr),
-                                 (tm.TOPIC_KINEMATICS, js)):
-            rec.add_channel("/" + topic, type_name)
-
-        def send(topic, type_name, fields, t):
-            rec.write("/" + topic, cdr.serialize(type_name, fields), t)
-
-        send(tm.TOPIC_KINEMATICS, js, {"name": ["b", "a"], "position": [0.2, 0.1],
-                                       "velocity": [0.5, -0.5]}, 0)
-        send(tm.TOPIC_EXCITATION, js, {"name": ["b"], "position": [0.7]}, 10)
-        send(tm.TOPIC_EXCITATION, js, {"name": ["a", "b"], "position": [float("nan"), 0.9]}, 20)
-        rec.write("/" + tm.TOPIC_EXCITATION, b"\x00\x01\x00\x00\x07", 21)  # does not decode
-        send(tm.TOPIC_EXCITATION_ARRAY, arr, {"data": [0.3, 0.4]}, 30)
-        send(tm.TOPIC_EXCITATION, js, {"name": ["a"], "position": [float("inf")]}, 30)
-        send(tm.TOPIC_KINEMATICS, js, {"name": ["a", "x"], "position": [-1.0, 5.0]}, 40)
-        send(tm.TOPIC_KINEMATICS, js, {"name": ["a"], "position": [0.15],
-                                       "velocity": [float("nan")]}, 50)
-        send(tm.TOPIC_KINEMATICS, js, {"name": ["b"], "position": [0.25]}, 50)
-        send(tm.TOPIC_EXCITATION_ARRAY, arr, {"data": [0.1]}, 55)  # too short: ignored
-        send(tm.TOPIC_EXCITATION, js, {"name": ["a", "b"], "position": [1.5, -0.0]}, 61)
+    info = RunInfo(RunConfig(("a", "b")), RunTiming(), "test")
+    with McapRecorder(path, metadata={METADATA_NAME: info.to_metadata()}) as recorder:
+        for topic in (ex, arr, kin):
+            recorder.add_channel("/" + topic, tm.TOPIC_TYPES[topic])
+        for topic, fields, t in sent:
+            data = fields if isinstance(fields, bytes) else cdr.serialize(tm.TOPIC_TYPES[topic],
+                                                                          fields)
+            recorder.write("/" + topic, data, t)
     run = read_run(path, raw=(tm.TOPIC_EXCITATION, tm.TOPIC_EXCITATION_ARRAY,
                               tm.TOPIC_KINEMATICS))
     starts = np.array([0, 5, 10, 20, 21, 29, 30, 44, 50, 55, 60, 61, 62, 70], dtype=np.int64)
