@@ -110,3 +110,28 @@ def test_recompute_writes_the_original_messages_byte_for_byte(knee_log, tmp_path
     original, again = messages(knee_log), messages(out)
     assert len(original) == 400 * 2 + 40 * 5  # inputs every step, outputs every 10 steps
     assert again == original
+
+
+def test_log_with_an_older_model_file_says_how_to_recompute(tmp_path, capsys):
+    """A model file attached by an older vm_ros lacks fields added since (here the drive law):
+    one line naming the log and the field, and the way out (--params with today's file)."""
+    import yaml
+
+    from vm_ros.cli.recompute import _bank_of
+    from vm_ros.errors import ConfigError
+    from vm_ros.recording.run_config import RunConfig
+    from vm_ros.resources import config_dir
+
+    model = yaml.safe_load((config_dir() / "model.yaml").read_text(encoding="utf-8"))
+    del model["recruitment"]["lumped"]["drive_law"]
+    attached = tmp_path / "attached"
+    attached.mkdir()
+    (attached / "model.yaml").write_text(yaml.safe_dump(model), encoding="utf-8")
+    config = RunConfig(("vasti",), params=attached / "model.yaml")
+    with pytest.raises(ConfigError) as caught:
+        _bank_of(config, tmp_path / "old.mcap", attached)
+    message = str(caught.value)
+    assert message.startswith(f"{tmp_path / 'old.mcap'}: field 'recruitment.lumped.drive_law'")
+    assert "--params config/model.yaml" in message and "\n" not in message
+    # today's file, as the message says, builds the bank
+    assert _bank_of(RunConfig(("vasti",)), tmp_path / "old.mcap", attached).n == 1

@@ -196,6 +196,17 @@ def _csv_rows(results: dict) -> list[dict]:
         r = results["offline"]
         add("offline", f"knee extension {r['simulated_s']:g} s, {r['backend']}", "wall",
             r["wall_s"], "s", "< 5 s", r["wall_s"] < 5.0)
+        logged = r.get("logged")
+        if logged:
+            case = "knee extension logged as vm-ros simulate logs it, in process"
+            add("offline", case, "simulate wall", logged["simulate_s"], "s", "< 3 s",
+                logged["simulate_s"] < 3.0)
+            add("offline", case, "model alone (MuscleBank.run)", logged["model_s"], "s")
+            add("offline", case, "simulate / model alone", logged["simulate_over_model"], "ratio",
+                "<= 5", logged["simulate_over_model"] <= 5.0)
+            if "cli_s" in logged:
+                add("offline", "the same as a vm-ros simulate process", "wall", logged["cli_s"],
+                    "s")
     if "opensim" in results:
         r = results["opensim"]
         add("opensim", f"1 muscle ({r['muscle']}), OpenSim {r['opensim_version']}",

@@ -43,8 +43,9 @@ from vm_ros.cli.runs import (
     add_output_options,
     apply_model_options,
     default_log_path,
+    recorder_options,
 )
-from vm_ros.errors import VmRosError
+from vm_ros.errors import ConfigError, VmRosError
 from vm_ros.node.recording import INPUT_RULE as NODE_INPUT_RULE
 from vm_ros.node.replay import (
     NodeReplayInputs,
@@ -173,6 +174,22 @@ def _joint_geometry(recorded: RunLog, config, node, bank, tmp: Path):
     return config, space
 
 
+def _bank_of(config, log_path, attached_dir):
+    """The bank of ``config``; a model file attached by an older vm_ros that lacks a field this
+    one needs gives a ConfigError that says how to recompute with today's file."""
+    try:
+        return config.make_bank()
+    except ConfigError as error:
+        if error.reason != "missing" or not error.path.startswith(str(attached_dir)):
+            raise
+        raise ConfigError(
+            log_path, error.field, None,
+            "missing from the model file this log attached (written by an older vm_ros); "
+            "--params config/model.yaml recomputes with today's file (add --drive-law "
+            "tsianos2012 for a log from before the drive laws, to keep the law it ran with)",
+        ) from None
+
+
 def run(args) -> int:
     log_path = args.log
     with Progress(f"read {log_path.name}", 1.0, enabled=True if args.progress else None) as p:
@@ -206,12 +223,12 @@ def run(args) -> int:
     out_path = args.out or default_log_path(f"{log_path.stem}-recomputed")
     with tempfile.TemporaryDirectory(prefix="vm_ros-recompute-") as tmp:
         config = apply_model_options(recorded.config(tmp), args)
-        bank = config.make_bank()
+        bank = _bank_of(config, log_path, tmp)
         config, space = _joint_geometry(recorded, config, node, bank, Path(tmp))
         new_info = RunInfo(config, timing, "recompute", info.namespace, info.time_base, extra,
                            info.topics)
         # open while the attached files exist: the new log attaches them again
-        recorder = open_run_log(out_path, new_info, bank, chunk_size=args.chunk_size)
+        recorder = open_run_log(out_path, new_info, bank, **recorder_options(args))
     with StopOnSignal() as stop, recorder, Progress(
             f"recompute {log_path.name}", n_steps, enabled=True if args.progress else None) \
             as progress:

@@ -60,6 +60,7 @@ from vm_ros.cli.runs import (
     add_output_options,
     apply_model_options,
     default_log_path,
+    recorder_options,
 )
 from vm_ros.errors import VmRosError
 from vm_ros.geometry import load_geometry
@@ -294,7 +295,7 @@ def run(args) -> int:
     n_steps = round(duration / timing.dt_s)
     # signals stay caught until the log is closed, so that SIGTERM cannot cut the file short
     with StopOnSignal() as stop, open_run_log(
-            out_path, info, bank, chunk_size=args.chunk_size) as recorder, Progress(
+            out_path, info, bank, **recorder_options(args)) as recorder, Progress(
             f"simulate {source.name}", n_steps, enabled=True if args.progress else None) \
             as progress:
         offline = OfflineRun(bank, timing, recorder)
