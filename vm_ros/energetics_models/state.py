@@ -1,0 +1,50 @@
+"""The muscle state the energetics models take, and the rates they give (SI, arrays over muscles).
+
+| MuscleState field | unit | meaning |
+| excitation | 1 | neural drive u, 0-1 |
+| activation | 1 | activation a, 0-1: the factor that scales the active force |
+| fibre_length | m | fibre (fascicle) length |
+| optimal_fibre_length | m | fibre length at which the isometric force peaks |
+| fibre_velocity | m/s | fibre lengthening velocity (negative shortening) |
+| active_fibre_force | N | active fibre force (no passive) |
+| isometric_force | N | active force at the current length and activation with V = 0 |
+| max_isometric_force | N | maximal isometric force F0 |
+| mass | kg | muscle (wet) mass |
+| slow_fraction | 1 | fraction of slow-twitch fibres |
+
+How these are read from Virtual Muscle's state is docs/energetics_models.md.
+
+HeatRates: per muscle, W (positive: heat or work done by the muscle), components a model has and
+NaN for those it has not: ``activation_maintenance``, ``shortening_lengthening``, ``basal``,
+``mechanical_work`` (the muscle's mechanical power, -F V, positive when shortening) and ``total``
+(what the model reports as the muscle's metabolic rate, with its own options applied).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class MuscleState:
+    excitation: np.ndarray
+    activation: np.ndarray
+    fibre_length: np.ndarray
+    optimal_fibre_length: np.ndarray
+    fibre_velocity: np.ndarray
+    active_fibre_force: np.ndarray
+    isometric_force: np.ndarray
+    max_isometric_force: np.ndarray
+    mass: np.ndarray
+    slow_fraction: np.ndarray
+
+
+@dataclass(frozen=True)
+class HeatRates:
+    activation_maintenance: np.ndarray
+    shortening_lengthening: np.ndarray
+    basal: np.ndarray
+    mechanical_work: np.ndarray
+    total: np.ndarray
