@@ -13,6 +13,27 @@ read from Virtual Muscle's state, is :class:`MuscleState` (docs/energetics_model
 
 from __future__ import annotations
 
+from vm_ros.energetics_models.bhargava import bhargava2004
+from vm_ros.energetics_models.constants import (
+    BhargavaConstants,
+    UmbergerConstants,
+    basal_rate,
+    load_bhargava_constants,
+    load_umberger_constants,
+    muscle_mass,
+)
 from vm_ros.energetics_models.state import HeatRates, MuscleState
+from vm_ros.energetics_models.umberger import umberger
 
-__all__ = ["HeatRates", "MuscleState"]
+__all__ = [
+    "BhargavaConstants",
+    "HeatRates",
+    "MuscleState",
+    "UmbergerConstants",
+    "basal_rate",
+    "bhargava2004",
+    "load_bhargava_constants",
+    "load_umberger_constants",
+    "muscle_mass",
+    "umberger",
+]

@@ -1,0 +1,115 @@
+"""Bhargava et al. 2004 heat rates, as OpenSim 4.6's Bhargava2004MuscleMetabolicsProbe computes
+them.
+
+Per muscle (W), with velocity V > 0 lengthening, k the muscle_effort_scaling_factor, u = k U and
+a = k A the scaled excitation and activation, r the slow fraction, m the mass:
+
+    u_slow = r sin(pi u / 2)             u_fast = (1 - r) (1 - cos(pi u / 2))
+    Adot = m * decay * (A_slow u_slow + A_fast u_fast)
+    Mdot = m * g(L / L0) * (M_slow u_slow + M_fast u_fast)     g piecewise linear
+    Sdot = -alpha V,  alpha = 0.25 F_total (V <= 0), 0 (V > 0); or, with
+           use_force_dependent_shortening_prop_constant, 0.16 F_iso + 0.18 F_total (V <= 0),
+           0.157 F_total (V > 0)
+    Wdot = -F_active V  (V > 0 only with include_negative_mechanical_work; else 0)
+    forbid_negative_total_power: where Adot + Mdot + Sdot + Wdot < 0, Sdot is raised to make it 0
+    heat = Adot + Mdot + Sdot, not below minimum_heat_rate * m when
+           enforce_minimum_heat_rate_per_muscle and all three heat rates are on
+    total = heat (or the heat rates that are on) + Wdot (if on)
+
+F_active = k * active fibre force, F_total = F_active + passive fibre force, F_iso = k *
+isometric_force (= a * force-length multiplier * F0 in OpenSim). Constants and their sources:
+config/energetics_models.yaml (section bhargava); equations and mapping from Virtual Muscle's
+state: docs/energetics_models.md.
+
+Reference: Bhargava LJ, Pandy MG, Anderson FC (2004) J Biomech 37:81-88, as implemented in
+OpenSim 4.6 (OpenSim/Simulation/Model/Bhargava2004MuscleMetabolicsProbe.cpp).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from vm_ros.energetics_models.constants import BhargavaConstants
+from vm_ros.energetics_models.state import HeatRates, MuscleState
+
+
+def recruited_excitations(excitation, slow_fraction):
+    """Bhargava 2004's recruitment: the slow- and fast-twitch excitations (1),
+    r sin(pi u / 2) and (1 - r) (1 - cos(pi u / 2))."""
+    half_pi_u = 0.5 * np.pi * excitation
+    return (slow_fraction * np.sin(half_pi_u),
+            (1.0 - slow_fraction) * (1.0 - np.cos(half_pi_u)))
+
+
+def piecewise_linear(x, xp, fp):
+    """OpenSim's PiecewiseLinearFunction: linear between the points, extended beyond the ends
+    with the slope of the end segments."""
+    xp = np.asarray(xp, dtype=float)
+    fp = np.asarray(fp, dtype=float)
+    x = np.asarray(x, dtype=float)
+    slopes = np.diff(fp) / np.diff(xp)
+    k = np.clip(np.searchsorted(xp, x, side="right") - 1, 0, len(xp) - 2)
+    inside = fp[k] + (x - xp[k]) * slopes[k]
+    below = fp[0] + (x - xp[0]) * slopes[0]
+    above = fp[-1] + (x - xp[-1]) * slopes[-1]
+    return np.where(x < xp[0], below, np.where(x > xp[-1], above, inside))
+
+
+def bhargava2004(state: MuscleState, constants: BhargavaConstants,
+                 passive_fibre_force=None) -> HeatRates:
+    """Heat and work rates (W per muscle) of Bhargava et al. 2004 (equations in the module
+    docstring). ``passive_fibre_force`` (N, OpenSim's getPassiveFiberForce) enters F_total; it is
+    not in MuscleState, and without it F_total is the active force alone (docs/energetics_models.md
+    section 3). ``basal`` is 0: the basal rate is whole-body (constants.basal_rate)."""
+    c = constants
+    k = c.muscle_effort_scaling_factor
+    u = k * np.asarray(state.excitation, dtype=float)
+    mass = np.asarray(state.mass, dtype=float)
+    velocity = np.asarray(state.fibre_velocity, dtype=float)
+    f_active = k * np.asarray(state.active_fibre_force, dtype=float)
+    passive = 0.0 if passive_fibre_force is None else np.asarray(passive_fibre_force, dtype=float)
+    f_total = f_active + passive
+    f_iso = k * np.asarray(state.isometric_force, dtype=float)
+    length_norm = np.asarray(state.fibre_length, dtype=float) / state.optimal_fibre_length
+
+    u_slow, u_fast = recruited_excitations(u, np.asarray(state.slow_fraction, dtype=float))
+    activation_heat = mass * c.decay_function_value * (
+        c.activation_constant_slow_twitch * u_slow + c.activation_constant_fast_twitch * u_fast)
+    length_dependence = piecewise_linear(length_norm, c.maintenance_length_dependence_x,
+                                         c.maintenance_length_dependence_y)
+    maintenance_heat = mass * length_dependence * (
+        c.maintenance_constant_slow_twitch * u_slow + c.maintenance_constant_fast_twitch * u_fast)
+
+    shortening = velocity <= 0.0
+    if c.use_force_dependent_shortening_prop_constant:
+        alpha = np.where(shortening,
+                         c.shortening_isometric_coefficient * f_iso
+                         + c.shortening_total_force_coefficient * f_total,
+                         c.lengthening_total_force_coefficient * f_total)
+    else:
+        alpha = np.where(shortening, c.shortening_coefficient * f_total, 0.0)
+    shortening_heat = -alpha * velocity
+
+    work = np.where(c.include_negative_mechanical_work | shortening, -f_active * velocity, 0.0)
+
+    if c.forbid_negative_total_power:
+        before = activation_heat + maintenance_heat + shortening_heat + work
+        shortening_heat = np.where(before < 0.0, shortening_heat - before, shortening_heat)
+
+    all_heat_on = c.activation_rate_on and c.maintenance_rate_on and c.shortening_rate_on
+    if all_heat_on:
+        heat = activation_heat + maintenance_heat + shortening_heat
+        if c.enforce_minimum_heat_rate_per_muscle:
+            floor = c.minimum_heat_rate * mass
+            heat = np.where(heat < floor, floor, heat)
+    else:
+        heat = (c.activation_rate_on * activation_heat + c.maintenance_rate_on * maintenance_heat
+                + c.shortening_rate_on * shortening_heat)
+    total = heat + c.mechanical_work_rate_on * work
+    return HeatRates(
+        activation_maintenance=activation_heat + maintenance_heat,
+        shortening_lengthening=shortening_heat,
+        basal=np.zeros_like(total),
+        mechanical_work=work,
+        total=total,
+    )

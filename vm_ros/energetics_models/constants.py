@@ -1,0 +1,178 @@
+"""Constants and options of the energetics models, loaded from ``config/energetics_models.yaml``.
+
+Each entry of the file is ``{value, unit, source}``; the unit must measure what the field holds
+(vm_ros.model.units), options hold ``bool``. A bad entry is a one-line ConfigError naming file,
+field and value. The loaded containers are frozen; ``dataclasses.replace`` makes variants.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+
+from vm_ros.errors import ConfigError
+from vm_ros.model.params import _finite_number, _holds, _load_yaml  # model.yaml's loader
+from vm_ros.model.units import unit_for_field
+from vm_ros.resources import config_dir
+
+FILE_NAME = "energetics_models.yaml"
+UMBERGER_VARIANTS = ("uchida2016", "umberger2003", "umberger2010")
+
+
+@dataclass(frozen=True)
+class UmbergerConstants:
+    """Umberger et al. 2003 / Umberger 2010 as OpenSim 4.6's Umberger2010MuscleMetabolicsProbe
+    computes it (option names are OpenSim's); see config/energetics_models.yaml."""
+
+    activation_maintenance_rate_on: bool = _holds("bool")
+    shortening_rate_on: bool = _holds("bool")
+    basal_rate_on: bool = _holds("bool")
+    mechanical_work_rate_on: bool = _holds("bool")
+    enforce_minimum_heat_rate_per_muscle: bool = _holds("bool")
+    use_Bhargava_recruitment_model: bool = _holds("bool")  # noqa: N815 (OpenSim's name)
+    include_negative_mechanical_work: bool = _holds("bool")
+    forbid_negative_total_power: bool = _holds("bool")
+    aerobic_factor: float = _holds("1")
+    basal_coefficient: float = _holds("W/kg")
+    basal_exponent: float = _holds("1")
+    muscle_effort_scaling_factor: float = _holds("1")
+    max_contraction_velocity: float = _holds("L0/s")
+    specific_tension: float = _holds("Pa")
+    density: float = _holds("kg/m^3")
+    activation_maintenance_fast_rate: float = _holds("W/kg")
+    activation_maintenance_base_rate: float = _holds("W/kg")
+    activation_maintenance_exponent: float = _holds("1")
+    lengthened_activation_maintenance_fraction: float = _holds("1")
+    shortening_heat_fast_at_vmax: float = _holds("W/kg")
+    shortening_heat_slow_at_vmax: float = _holds("W/kg")
+    fast_to_slow_vmax_ratio: float = _holds("1")
+    max_slow_shortening_heat_rate: float = _holds("W/kg")
+    shortening_exponent: float = _holds("1")
+    lengthening_coefficient_with_negative_work: float = _holds("1")
+    lengthening_coefficient: float = _holds("1")
+    minimum_heat_rate: float = _holds("W/kg")
+
+
+@dataclass(frozen=True)
+class BhargavaConstants:
+    """Bhargava et al. 2004 as OpenSim 4.6's Bhargava2004MuscleMetabolicsProbe computes it
+    (option names are OpenSim's); see config/energetics_models.yaml."""
+
+    activation_rate_on: bool = _holds("bool")
+    maintenance_rate_on: bool = _holds("bool")
+    shortening_rate_on: bool = _holds("bool")
+    basal_rate_on: bool = _holds("bool")
+    mechanical_work_rate_on: bool = _holds("bool")
+    enforce_minimum_heat_rate_per_muscle: bool = _holds("bool")
+    use_force_dependent_shortening_prop_constant: bool = _holds("bool")
+    include_negative_mechanical_work: bool = _holds("bool")
+    forbid_negative_total_power: bool = _holds("bool")
+    basal_coefficient: float = _holds("W/kg")
+    basal_exponent: float = _holds("1")
+    muscle_effort_scaling_factor: float = _holds("1")
+    specific_tension: float = _holds("Pa")
+    density: float = _holds("kg/m^3")
+    activation_constant_slow_twitch: float = _holds("W/kg")
+    activation_constant_fast_twitch: float = _holds("W/kg")
+    maintenance_constant_slow_twitch: float = _holds("W/kg")
+    maintenance_constant_fast_twitch: float = _holds("W/kg")
+    decay_function_value: float = _holds("1")
+    maintenance_length_dependence_x: tuple[float, ...] = _holds("L0")
+    maintenance_length_dependence_y: tuple[float, ...] = _holds("1")
+    shortening_coefficient: float = _holds("1")
+    shortening_isometric_coefficient: float = _holds("1")
+    shortening_total_force_coefficient: float = _holds("1")
+    lengthening_total_force_coefficient: float = _holds("1")
+    minimum_heat_rate: float = _holds("W/kg")
+
+
+def _value(path, name: str, entry, holds: str, kind):
+    """One entry ``{value, unit, source}`` as the field's type, in the unit it holds."""
+    if not isinstance(entry, dict) or not {"value", "unit", "source"} <= set(entry):
+        raise ConfigError(path, name, entry, "must be a mapping {value, unit, source}")
+    if not isinstance(entry["source"], str) or not entry["source"].strip():
+        raise ConfigError(path, f"{name}.source", entry["source"], "must be a non-empty text")
+    value = entry["value"]
+    if holds == "bool":
+        if entry["unit"] != "bool":
+            raise ConfigError(path, f"{name}.unit", entry["unit"], "an option's unit is bool")
+        if not isinstance(value, bool):
+            raise ConfigError(path, name, value, "must be true or false")
+        return value
+    factor = unit_for_field(path, f"{name}.unit", entry["unit"], holds).factor
+    if kind is float:
+        return _finite_number(path, name, value) * factor
+    if not isinstance(value, list) or len(value) < 2:
+        raise ConfigError(path, name, value, "must be a list of at least 2 numbers")
+    return tuple(_finite_number(path, f"{name}[{i}]", v) * factor for i, v in enumerate(value))
+
+
+def _constants(path: Path, data: dict, section: str, cls):
+    entries = data.get(section)
+    if not isinstance(entries, dict):
+        raise ConfigError(path, section, entries, "must be a mapping of constants")
+    names = [f.name for f in dataclasses.fields(cls)]
+    unknown = sorted(set(entries) - set(names))
+    if unknown:
+        raise ConfigError(path, f"{section}.{unknown[0]}", entries[unknown[0]],
+                          f"unknown constant; known: {', '.join(names)}")
+    values = {}
+    for f in dataclasses.fields(cls):
+        if f.name not in entries:
+            raise ConfigError(path, f"{section}.{f.name}", None, "missing")
+        kind = tuple if f.type.startswith("tuple") else float
+        values[f.name] = _value(path, f"{section}.{f.name}", entries[f.name],
+                                f.metadata["unit"], kind)
+    return cls(**values)
+
+
+def _path(path) -> Path:
+    return Path(path) if path is not None else config_dir() / FILE_NAME
+
+
+def load_umberger_constants(variant: str = "uchida2016", path=None) -> UmbergerConstants:
+    """The umberger section with the options of ``variant`` (one of UMBERGER_VARIANTS:
+    uchida2016 is OpenSim 4.6's default set) applied."""
+    path = _path(path)
+    data = _load_yaml(path)
+    constants = _constants(path, data, "umberger", UmbergerConstants)
+    variants = data.get("umberger_variants")
+    if not isinstance(variants, dict) or variant not in variants:
+        known = ", ".join(variants) if isinstance(variants, dict) else "none"
+        raise ConfigError(path, "umberger_variants", variant, f"unknown variant; known: {known}")
+    options = variants[variant]
+    flags = {f.name for f in dataclasses.fields(UmbergerConstants) if f.metadata["unit"] == "bool"}
+    if not isinstance(options, dict) or not set(options) <= flags or not all(
+            isinstance(v, bool) for v in options.values()):
+        raise ConfigError(path, f"umberger_variants.{variant}", options,
+                          "must map option names to true or false")
+    return dataclasses.replace(constants, **options)
+
+
+def load_bhargava_constants(path=None) -> BhargavaConstants:
+    """The bhargava section of the file."""
+    path = _path(path)
+    constants = _constants(path, _load_yaml(path), "bhargava", BhargavaConstants)
+    x = constants.maintenance_length_dependence_x
+    if len(x) != len(constants.maintenance_length_dependence_y) or any(
+            b <= a for a, b in zip(x[:-1], x[1:], strict=True)):
+        raise ConfigError(path, "bhargava.maintenance_length_dependence_x", list(x),
+                          "must rise strictly and have as many points as the ordinates")
+    return constants
+
+
+def muscle_mass(max_isometric_force, optimal_fibre_length, specific_tension: float,
+                density: float):
+    """Muscle mass (kg) as OpenSim 4.6's metabolic probes compute it when no mass is provided:
+    m = F0 / sigma * rho * L0 (F0 in N, L0 in m, specific tension sigma in Pa, density rho in
+    kg/m^3; OpenSim's defaults 0.25e6 Pa and 1059.7 kg/m^3)."""
+    return max_isometric_force / specific_tension * density * optimal_fibre_length
+
+
+def basal_rate(body_mass: float, constants) -> float:
+    """Whole-body basal rate (W), once per body, never per muscle: basal_coefficient *
+    body_mass ** basal_exponent when ``constants.basal_rate_on``, else 0 (OpenSim 4.6 probes)."""
+    if not constants.basal_rate_on:
+        return 0.0
+    return constants.basal_coefficient * body_mass ** constants.basal_exponent

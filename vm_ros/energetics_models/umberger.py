@@ -1,0 +1,129 @@
+"""Umberger et al. 2003 and Umberger 2010 heat rates, as OpenSim 4.6's
+Umberger2010MuscleMetabolicsProbe computes them (with Uchida et al. 2016's revisions as options).
+
+Per kg of muscle (W/kg), with velocity V > 0 lengthening, V_n = V / L0 (L0/s), k the
+muscle_effort_scaling_factor, u = k U and a = k A, S the aerobic_factor, F_iso the active
+force-length multiplier at the current length, Vmax the max_contraction_velocity (L0/s):
+
+    A_eff = u (u > a), (u + a) / 2 (u <= a)
+    r' = r, or with use_Bhargava_recruitment_model u_slow / (u_slow + u_fast) (1 at u = 0),
+         u_slow = r sin(pi u / 2), u_fast = (1 - r) (1 - cos(pi u / 2))
+    h = 128 (1 - r') + 25
+    AMdot = S A_eff^0.6 h (L <= L0);  S A_eff^0.6 (0.4 h + 0.6 h F_iso) (L > L0)
+    alpha_fast = 153 / Vmax, alpha_slow = 100 / (Vmax / 2.5)
+    Sdot = S A_eff^2 (min(-alpha_slow V_n, 100) r' + alpha_fast |V_n| (1 - r'))   (V <= 0)
+    Sdot = S A_eff alpha_L alpha_slow V_n,  alpha_L = 4.0 with
+           include_negative_mechanical_work, 0.3 without (Umberger 2010)          (V > 0)
+    Sdot *= F_iso where L > L0
+    Wdot = -max(F_active, 0) V / m  (V > 0 only with include_negative_mechanical_work; else 0)
+    forbid_negative_total_power: where AMdot + Sdot + Wdot < 0, Sdot is raised to make it 0
+    heat = AMdot + Sdot, not below minimum_heat_rate when enforce_minimum_heat_rate_per_muscle
+           and both heat rates are on
+    total = m (heat (or the heat rates that are on) + Wdot (if on))
+
+F_active = k * active fibre force. Variants (config umberger_variants, from OpenSim's property
+descriptions): umberger2003 (alpha_L 4.0 with negative work), umberger2010 (alpha_L 0.3, no
+negative work), uchida2016 (OpenSim's defaults: Bhargava recruitment and no negative total power
+added to umberger2003). Constants and sources: config/energetics_models.yaml (section umberger);
+mapping from Virtual Muscle's state: docs/energetics_models.md.
+
+References: Umberger BR, Gerritsen KG, Martin PE (2003) Comput Methods Biomech Biomed Engin
+6:99-111; Umberger BR (2010) J R Soc Interface 7:1329-1340; Uchida TK et al. (2016) PLOS ONE
+11(3):e0150378; all as implemented in OpenSim 4.6
+(OpenSim/Simulation/Model/Umberger2010MuscleMetabolicsProbe.cpp).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from vm_ros.energetics_models.bhargava import recruited_excitations
+from vm_ros.energetics_models.constants import UmbergerConstants
+from vm_ros.energetics_models.state import HeatRates, MuscleState
+
+
+def force_length_multiplier_from_state(state: MuscleState):
+    """F_iso = isometric_force / (activation * F0) (1), where activation * F0 > 0; 1 elsewhere
+    (where the state does not determine it: the lengthened-fibre heat rates then equal those at
+    L <= L0). Exact for a force proportional to activation (OpenSim's muscles); for Virtual
+    Muscle, whose active force is not, pass the force-length factor itself
+    (docs/energetics_models.md section 3)."""
+    denominator = np.asarray(state.activation, dtype=float) * state.max_isometric_force
+    isometric = np.asarray(state.isometric_force, dtype=float)
+    return np.divide(isometric, denominator, out=np.ones(np.broadcast(isometric,
+                     denominator).shape), where=denominator > 0.0)
+
+
+def recruited_slow_fraction(excitation, slow_fraction):
+    """Bhargava 2004's recruitment as OpenSim's Umberger probe uses it: the slow fraction of the
+    recruited fibres, u_slow / (u_slow + u_fast), 1 at zero excitation."""
+    u_slow, u_fast = recruited_excitations(excitation, slow_fraction)
+    both = u_slow + u_fast
+    return np.divide(u_slow, both, out=np.ones(np.shape(both)),
+                     where=(np.asarray(excitation) != 0.0) & (both != 0.0))
+
+
+def umberger(state: MuscleState, constants: UmbergerConstants,
+             force_length_multiplier=None) -> HeatRates:
+    """Heat and work rates (W per muscle) of Umberger 2003/2010 (equations in the module
+    docstring; the variant is in ``constants``). ``force_length_multiplier`` (1) is F_iso; when
+    None it is derived from the state (:func:`force_length_multiplier_from_state`). ``basal`` is
+    0: the basal rate is whole-body (constants.basal_rate)."""
+    c = constants
+    k = c.muscle_effort_scaling_factor
+    a = k * np.asarray(state.activation, dtype=float)
+    u = k * np.asarray(state.excitation, dtype=float)
+    mass = np.asarray(state.mass, dtype=float)
+    velocity = np.asarray(state.fibre_velocity, dtype=float)
+    velocity_norm = velocity / state.optimal_fibre_length
+    length_norm = np.asarray(state.fibre_length, dtype=float) / state.optimal_fibre_length
+    f_active = np.maximum(k * np.asarray(state.active_fibre_force, dtype=float), 0.0)
+    f_iso = (force_length_multiplier_from_state(state) if force_length_multiplier is None
+             else np.asarray(force_length_multiplier, dtype=float))
+    effective = np.where(u > a, u, (u + a) / 2.0)
+    slow = np.asarray(state.slow_fraction, dtype=float)
+    if c.use_Bhargava_recruitment_model:
+        slow = recruited_slow_fraction(u, slow)
+    lengthened = length_norm > 1.0
+
+    h = c.activation_maintenance_fast_rate * (1.0 - slow) + c.activation_maintenance_base_rate
+    fraction = c.lengthened_activation_maintenance_fraction
+    activation_maintenance = c.aerobic_factor * effective ** c.activation_maintenance_exponent * (
+        np.where(lengthened, fraction * h + (1.0 - fraction) * h * f_iso, h))
+
+    alpha_fast = c.shortening_heat_fast_at_vmax / c.max_contraction_velocity
+    alpha_slow = c.shortening_heat_slow_at_vmax / (c.max_contraction_velocity
+                                                   / c.fast_to_slow_vmax_ratio)
+    slow_term = np.minimum(-alpha_slow * velocity_norm, c.max_slow_shortening_heat_rate)
+    fast_term = alpha_fast * velocity_norm * (1.0 - slow)
+    shortening_rate = c.aerobic_factor * effective ** c.shortening_exponent * (
+        slow_term * slow - fast_term)
+    coefficient = (c.lengthening_coefficient_with_negative_work
+                   if c.include_negative_mechanical_work else c.lengthening_coefficient)
+    lengthening_rate = c.aerobic_factor * effective * (coefficient * alpha_slow * velocity_norm)
+    shortening = np.where(velocity_norm <= 0.0, shortening_rate, lengthening_rate)
+    shortening = np.where(lengthened, shortening * f_iso, shortening)
+
+    work = np.where(c.include_negative_mechanical_work | (velocity <= 0.0),
+                    -f_active * velocity, 0.0) / mass
+
+    if c.forbid_negative_total_power:
+        before = activation_maintenance + shortening + work
+        shortening = np.where(before < 0.0, shortening - before, shortening)
+
+    both_heat_on = c.activation_maintenance_rate_on and c.shortening_rate_on
+    if both_heat_on:
+        heat = activation_maintenance + shortening
+        if c.enforce_minimum_heat_rate_per_muscle:
+            heat = np.where(heat < c.minimum_heat_rate, c.minimum_heat_rate, heat)
+    else:
+        heat = (c.activation_maintenance_rate_on * activation_maintenance
+                + c.shortening_rate_on * shortening)
+    total = (heat + c.mechanical_work_rate_on * work) * mass
+    return HeatRates(
+        activation_maintenance=activation_maintenance * mass,
+        shortening_lengthening=shortening * mass,
+        basal=np.zeros_like(total),
+        mechanical_work=work * mass,
+        total=total,
+    )
