@@ -34,6 +34,8 @@ def test_recompute_reproduces_the_run(knee_log, tmp_path, capsys):
     original, again = read_run(knee_log), read_run(out)
     assert again.info.source == "recompute"
     assert again.info.extra["recomputed_from"] == str(knee_log)
+    assert again.info.extra["scenario"] == "knee_extension"  # the report's bins
+    assert again.info.timing.start_time_ns == original.info.timing.start_time_ns > 0
     assert again.info.config.muscles == original.info.config.muscles
     assert again.info.config.recovery_mode == "dynamic"
     assert set(again.topic_types) == set(original.topic_types)
@@ -95,7 +97,8 @@ def test_not_a_run_log(tmp_path, capsys):
 
 def test_recompute_writes_the_original_messages_byte_for_byte(knee_log, tmp_path, capsys):
     """Inputs copied and outputs recomputed by blocks: the same messages, in the same order,
-    with the same times and bytes as the simulated log."""
+    with the same times and bytes as the simulated log, whose times start at the wall clock of
+    its run (header stamps included: the bytes hold them)."""
     from mcap.reader import make_reader
 
     out = tmp_path / "same.mcap"
@@ -109,6 +112,9 @@ def test_recompute_writes_the_original_messages_byte_for_byte(knee_log, tmp_path
 
     original, again = messages(knee_log), messages(out)
     assert len(original) == 400 * 2 + 40 * 5  # inputs every step, outputs every 10 steps
+    start = read_run(knee_log, topics=()).info.timing.start_time_ns
+    assert start > 1_600_000_000 * 10**9  # a wall-clock date (2020 or later), not 0
+    assert min(m[1] for m in original) == start  # the first inputs, at model time 0
     assert again == original
 
 

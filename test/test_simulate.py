@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -20,6 +21,7 @@ LOG_TOPICS = {"/excitation", "/excitation_array", "/muscle_kinematics", "/muscle
 
 def test_scenario_run_writes_the_node_channels_on_model_time(tmp_path, capsys):
     out = tmp_path / "ramp.mcap"
+    before = time.time_ns()
     code = main(["simulate", "--scenario", "isometric_ramp", "--duration", "0.2", "--out",
                  str(out), "--telemetry-rate", "50", "--muscles", "vastus_lateralis,soleus"])
     printed = capsys.readouterr().out
@@ -33,7 +35,10 @@ def test_scenario_run_writes_the_node_channels_on_model_time(tmp_path, capsys):
     assert len(force) == 20 and len(run.get("excitation")) == 200
     assert len(run.get(TOPIC_TELEMETRY)) == 10 and run.get("excitation_array") is None
     np.testing.assert_array_equal(force.time_ns, force.fields["stamp_ns"])  # log time = stamp
-    np.testing.assert_array_equal(force.time_ns, np.arange(1, 21) * 10_000_000)
+    start = run.info.timing.start_time_ns
+    assert before <= start <= time.time_ns()  # the wall clock when the run started
+    np.testing.assert_array_equal(force.time_ns - start, np.arange(1, 21) * 10_000_000)
+    np.testing.assert_array_equal(run.model_time_ns(force.time_ns), np.arange(1, 21) * 10_000_000)
     for name in ("vastus_lateralis", "soleus"):
         assert name in printed
     rows = run_summary(run)
@@ -48,13 +53,14 @@ def test_csv_inputs_are_sampled_and_recorded(tmp_path, capsys):
                    "0.0,0.0,0.30,0.2,0.50\n0.1,1.0,0.30,0.2,0.51\n0.2,1.0,0.29,0.0,0.52\n")
     out = tmp_path / "csv.mcap"
     assert main(["simulate", "--inputs", str(csv), "--out", str(out), "--input-rate", "100",
-                 "--telemetry-rate", "0"]) == 0
+                 "--telemetry-rate", "0", "--start-time", "1700000000123456789"]) == 0
     run = read_run(out)
     assert run.info.config.muscles == ("vasti", "rectus_femoris")
     assert TOPIC_TELEMETRY not in {t.strip("/") for t in run.topic_types}
     excitation, kinematics = run.get("excitation"), run.get("muscle_kinematics")
-    np.testing.assert_array_equal(excitation.time_ns, np.arange(20) * 10_000_000)
-    t = excitation.time_ns * 1e-9
+    np.testing.assert_array_equal(excitation.time_ns,
+                                  1700000000123456789 + np.arange(20) * 10_000_000)
+    t = run.model_time_ns(excitation.time_ns) * 1e-9  # the CSV's time axis
     np.testing.assert_allclose(excitation.fields["position"][:, 0], np.interp(t, [0, .1, .2],
                                                                               [0, 1, 1]))
     np.testing.assert_allclose(kinematics.fields["position"][:, 1],

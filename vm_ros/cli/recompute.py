@@ -25,6 +25,16 @@ result is approximate and why.
 
 At the end the recomputed tendon forces (and joint efforts) are compared with the recorded ones
 at equal model time (header stamps); "exact" when they are equal at every common stamp.
+
+Times: the new log keeps the original's start time (start_time_ns) and time line: inputs are
+copied at their recorded log times, outputs logged and stamped at start + model time, so the two
+logs line up in a timeline tool and model time = log time - start_time_ns in both. The
+original's metadata entries that vm_ros does not interpret (scenario, inputs_file, ...) are
+carried over, so that `vm-ros report` of the new log bins it as the original.
+
+Output: by default beside the input log, <log folder>/<log name>-recomputed-<date>-<time>.mcap
+(runs/knee.mcap -> runs/knee-recomputed-20250101-120000.mcap), as `vm-ros report` writes
+<log name>-report/ beside it; --out elsewhere.
 """
 
 from __future__ import annotations
@@ -42,6 +52,7 @@ from vm_ros.cli.runs import (
     add_model_options,
     add_output_options,
     apply_model_options,
+    beside,
     default_log_path,
     recorder_options,
 )
@@ -79,7 +90,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", type=Path, metavar="FILE.mcap", help="run log to recompute")
     parser.add_argument("--dt", type=float, metavar="S", help="model step (default: recorded)")
     add_model_options(parser, "as recorded, with the attached model files")
-    add_output_options(parser, "default out/<log name>-recomputed-<date>-<time>.mcap")
+    add_output_options(parser, "default beside the input log: <log folder>/<log name>-"
+                               "recomputed-<date>-<time>.mcap")
 
 
 def _start_and_end_ns(run: RunLog, timing: RunTiming) -> tuple[int, int]:
@@ -214,13 +226,16 @@ def run(args) -> int:
     timing = RunTiming(timing.dt_s, timing.publish_rate_hz, timing.telemetry_rate_hz, start_ns)
     n_steps = max(0, (end_ns - start_ns) // timing.dt_ns)
     node = node_config(recorded)
-    extra = {**info.extra, "recomputed_from": str(log_path)}
+    # the original's other entries (scenario...), but the versions of this run (RunInfo)
+    extra = {**{k: v for k, v in info.extra.items() if k != "versions"},
+             "recomputed_from": str(log_path)}
     irregular: list = []
     if node is not None:
         extra["input_hold"] = NODE_INPUT_RULE
         irregular = model_time_irregularities(recorded, info.timing.dt_ns,
                                               info.timing.steps_per(info.timing.publish_rate_hz))
-    out_path = args.out or default_log_path(f"{log_path.stem}-recomputed")
+    folder, stem = beside(log_path)
+    out_path = args.out or default_log_path(f"{stem}-recomputed", folder)
     with tempfile.TemporaryDirectory(prefix="vm_ros-recompute-") as tmp:
         config = apply_model_options(recorded.config(tmp), args)
         bank = _bank_of(config, log_path, tmp)

@@ -91,8 +91,19 @@ def apply_model_options(config: RunConfig, args) -> RunConfig:
     return config.replace(**changes).with_overrides(parse_overrides(args.override))
 
 
-def default_log_path(stem: str) -> Path:
-    return Path("out") / f"{stem}-{time.strftime('%Y%m%d-%H%M%S')}.mcap"
+def default_log_path(stem: str, directory=Path("out")) -> Path:
+    """``directory/<stem>-<date>-<time>.mcap`` (local time): ``out/`` for a run with no input
+    log (simulate), the input log's folder for a run made from one (recompute)."""
+    return Path(directory) / f"{stem}-{time.strftime('%Y%m%d-%H%M%S')}.mcap"
+
+
+def beside(log_path) -> tuple[Path, str]:
+    """(folder, name stem) of an input log, file or bag directory, for the files written
+    beside it: ``runs/knee.mcap`` and ``runs/knee`` (a bag directory) -> (runs, knee)."""
+    path = Path(log_path)
+    if not path.name:  # ".", "/": name the folder itself
+        path = path.resolve()
+    return path.parent, path.stem
 
 
 class StopOnSignal:

@@ -8,8 +8,12 @@ The log holds the inputs (excitation, muscle_kinematics or joint_states, sampled
 --input-rate), the outputs (muscle_force, energy_rate, energy_rate_total, energy_total, and
 joint_efforts, joint_effort_commands with --motion, at --publish-rate), the muscle_telemetry record
 (--telemetry-rate), the run's metadata and the model, muscle and geometry files used; `vm-ros
-recompute` reruns it, `vm-ros report` plots it, `vm-ros replay` republishes it. Offline, every
-log time and header stamp is the model time in ns, starting at 0.
+recompute` reruns it, `vm-ros report` plots it, `vm-ros replay` republishes it. Every log time
+and header stamp is the start time plus the model time, in ns: the start time is the wall clock
+when the run starts (--start-time NS sets it; 0 puts the log on model time from 0), recorded as
+start_time_ns in the log's metadata, so that timeline tools (Foxglove) show the date of the run
+and model time = log time - start_time_ns. With no input log to sit beside, the log goes to
+out/ under the current directory unless --out says otherwise.
 
 Input CSV (--inputs): a header row, then one row per sample:
   time_s                  time (s), strictly increasing
@@ -38,7 +42,7 @@ Inputs are conditioned as muscle_node conditions them (vm_ros.node.joint_inputs.
 vm_ros.node.inputs.NodeInputs with the node's default input parameters, recorded in the log's
 node_parameters): coordinates outside the geometry's box are clamped (counted per coordinate in
 the summary), joint_states giving non-physical path lengths are dropped (counted); the initial
-state is published at t = 0 as the node does. The summary adds per joint the peak and mean
+state is published at model time 0 as the node does. The summary adds per joint the peak and mean
 generalized force (N m or N), the joint work (sum of tau qdot dt over the steps) and the clamping.
 
 SIGINT or SIGTERM stops the run between two steps; the log is finished cleanly and the summary
@@ -50,6 +54,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -84,12 +89,14 @@ from vm_ros.recording.summary import (
     summary_table,
 )
 from vm_ros.scenarios import load_scenario, scenario_names
-from vm_ros.telemetry import energy_partition
+from vm_ros.telemetry import energy_partition, stamp_fields
 
 HELP = ("run the model offline on a scenario, CSV inputs or an OpenSim motion (joint space); "
         "write MCAP and print a summary")
 JOINT_OPTIONS = ("geometry", "excitations", "excitation", "joint_map", "hold")
 DEFAULT_SCENARIO = "knee_extension"  # the paper's headline run (Fig. 7), also the demo's
+# metadata time_base of a simulate log
+OFFLINE_TIME_BASE = "start_time_ns (wall clock at the start) + model time (offline)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -109,6 +116,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="model step (default 0.001 s)")
     parser.add_argument("--input-rate", type=float, metavar="HZ",
                         help="input sampling rate (default: the model rate, 1/dt)")
+    parser.add_argument("--start-time", type=start_time_ns, metavar="NS",
+                        help="log time of model time 0, integer ns since the Unix epoch "
+                             "(default: the wall clock when the run starts; 0: the log on model "
+                             "time from 0)")
     joint = parser.add_argument_group("joint space (with --motion)")
     joint.add_argument("--geometry", type=Path, metavar="GEOMETRY.yaml",
                        help="vm_ros.geometry file (e.g. from vm-ros import-osim); required")
@@ -123,7 +134,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                        help="hold a coordinate at VALUE (rad or m) instead of the motion "
                             "(repeatable)")
     add_model_options(parser, "the scenario's settings, lumped recruitment")
-    add_output_options(parser, "default out/<scenario or file>-<date>-<time>.mcap")
+    add_output_options(parser, "default out/<scenario or file>-<date>-<time>.mcap under the "
+                               "current directory: there is no input log to write beside")
 
 
 @dataclass
@@ -142,6 +154,18 @@ class _Source:
     report: Callable = field(default=lambda inputs, result: [])
 
 
+def start_time_ns(text: str) -> int:
+    """argparse type of --start-time: an integer number of ns >= 0."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer number of ns, got {text!r}") \
+            from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {text!r}")
+    return value
+
+
 def _muscle_list(args) -> tuple:
     return tuple(m.strip() for m in (args.muscles or "").split(",") if m.strip())
 
@@ -152,7 +176,8 @@ def _sampled(functions):
     def make(bank, offline, period_ns):
         inputs = functions(bank)
         return SampledInputs(bank.names, inputs.excitation, inputs.path_length,
-                             inputs.path_velocity, period_ns, 0, offline.sink)
+                             inputs.path_velocity, period_ns, offline.timing.start_time_ns,
+                             offline.sink)
 
     return make
 
@@ -240,8 +265,10 @@ def _motion_source(args) -> _Source:
 
     def make_inputs(bank, offline, period_ns):
         space = JointSpace(geometry, joint_map, bank.names, joints, "--geometry")
-        return MotionInputs(bank.names, excitations, joint_motion, joint_map,
-                            NodeConditioning(bank, node, space), period_ns, offline.sink)
+        start = offline.timing.start_time_ns
+        return _OnLogTime(MotionInputs(bank.names, excitations, joint_motion, joint_map,
+                                       NodeConditioning(bank, node, space), period_ns,
+                                       _ShiftedSink(offline.sink, start)), start)
 
     def report(inputs: MotionInputs, result: OfflineResult) -> list[str]:
         conditioning = inputs.conditioning
@@ -270,6 +297,36 @@ def _motion_source(args) -> _Source:
                    publish_start=True, report=report)
 
 
+class _ShiftedSink:
+    """A LogSink for inputs that count time from the run's start: their messages are written
+    at start + their time, header stamps included."""
+
+    def __init__(self, sink, start_ns: int):
+        self.sink, self.start_ns = sink, int(start_ns)
+
+    def write_fields(self, topic: str, type_name: str, fields: dict, time_ns: int) -> None:
+        time_ns += self.start_ns
+        header = fields.get("header")
+        if header is not None:
+            fields = {**fields, "header": {**header, "stamp": stamp_fields(time_ns)}}
+        self.sink.write_fields(topic, type_name, fields, time_ns)
+
+
+class _OnLogTime:
+    """MotionInputs (time from the motion's first frame) on the run's log time, which starts at
+    ``start_ns``; its messages go through a _ShiftedSink of the same start."""
+
+    def __init__(self, inputs: MotionInputs, start_ns: int):
+        self.inputs, self.start_ns = inputs, int(start_ns)
+        self.conditioning = inputs.conditioning
+
+    def advance_to(self, time_ns: int):
+        return self.inputs.advance_to(time_ns - self.start_ns)
+
+    def joint_efforts(self, force):
+        return self.inputs.joint_efforts(force)
+
+
 def _positive(name: str, value: float) -> float:
     if not value > 0:
         raise VmRosError(f"{name} must be > 0 (got {value})")
@@ -285,12 +342,13 @@ def run(args) -> int:
         dt_s=_positive("--dt", args.dt),
         publish_rate_hz=_positive("--publish-rate", args.publish_rate or 100.0),
         telemetry_rate_hz=100.0 if args.telemetry_rate is None else max(args.telemetry_rate, 0),
+        start_time_ns=time.time_ns() if args.start_time is None else args.start_time,
     )
     config = apply_model_options(source.config, args)
     bank = config.make_bank()
     input_period_ns = timing.dt_ns * timing.steps_per(args.input_rate or timing.model_rate_hz)
     out_path = args.out or default_log_path(source.name)
-    info = RunInfo(config, timing, "simulate", time_base="model time from 0 (offline)",
+    info = RunInfo(config, timing, "simulate", time_base=OFFLINE_TIME_BASE,
                    extra={**source.extra, "duration_s": repr(duration)})
     n_steps = round(duration / timing.dt_s)
     # signals stay caught until the log is closed, so that SIGTERM cannot cut the file short

@@ -20,9 +20,11 @@ bytes of the files used), ``overrides.yaml`` and, with a geometry, ``geometry.ya
 bytes): with the recorded inputs, enough to recompute the run (vm_ros.recording.offline). A log
 without a geometry has none of the joint channels, keys or attachment.
 
-Times: log_time is the model time in integer ns (offline runs start at 0; muscle_node uses the
-ROS clock). Inputs follow a zero-order hold: the model step [t, t + dt) uses the latest input
-with log_time <= t.
+Times: log_time is in integer ns on one timeline per log: the start time (``start_time_ns`` of the
+metadata: the wall clock when an offline run started, the ROS time of the node's model start)
+plus the model time, so model time = log_time - start_time_ns (RunTiming.model_time_ns; logs of
+older offline runs start at 0). Header stamps of the outputs equal their log time. Inputs follow
+a zero-order hold: the model step [t, t + dt) uses the latest input with log_time <= t.
 
 Reading back (read_run) never fails on a message: one that does not decode (muscle_node records
 inputs as received, and any DDS peer can send malformed bytes) is left out of its series and
@@ -100,9 +102,10 @@ def resolve_topic(name: str, namespace: str = "/") -> str:
 @dataclass(frozen=True)
 class RunTiming:
     """Model step and output rates. Outputs every ``steps_per(publish_rate_hz)`` steps;
-    telemetry_rate_hz 0 records no telemetry. start_time_ns: model time of the reset (None when
-    not known when the log was opened, as for muscle_node, which starts on the first
-    kinematics)."""
+    telemetry_rate_hz 0 records no telemetry. start_time_ns: log time (ns) of the reset, model
+    time 0: the wall clock when an offline run started (0 in logs of older offline runs), the
+    ROS time of muscle_node's model start (None when not known when the log was opened, as for
+    a node that never started its model)."""
 
     dt_s: float = 0.001
     publish_rate_hz: float = 100.0
@@ -116,6 +119,11 @@ class RunTiming:
     @property
     def model_rate_hz(self) -> float:
         return 1.0 / self.dt_s
+
+    def model_time_ns(self, log_time_ns):
+        """Model time (ns from the reset) of log times (an int or an integer array): log time -
+        start_time_ns, exact in integers; the log time itself when the start is not known."""
+        return log_time_ns - int(self.start_time_ns or 0)
 
     def steps_per(self, rate_hz: float) -> int:
         """Model steps between two samples at ``rate_hz`` (at least 1; 0 for rate 0)."""
@@ -390,6 +398,11 @@ class RunLog:
 
     def get(self, name: str) -> TopicSeries | None:
         return self.series.get(self.log_topic(name))
+
+    def model_time_ns(self, log_time_ns):
+        """Model time (ns from the reset) of log times or header stamps of this log
+        (RunTiming.model_time_ns); unchanged for a log without a ``vm_ros.run`` record."""
+        return log_time_ns if self.info is None else self.info.timing.model_time_ns(log_time_ns)
 
     def skipped_note(self) -> str | None:
         """``skipped 1 undecodable message on /excitation (UnicodeDecodeError)``, or None."""
