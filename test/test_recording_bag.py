@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -29,11 +30,13 @@ def simulate(out, *extra):
 
 @pytest.fixture(scope="module")
 def bag(tmp_path_factory):
-    """A simulate run written to a bag directory, and the same run to a single file."""
+    """A simulate run written to a bag directory, and the same run to a single file (the same
+    start time, so that their log times are equal)."""
     root = tmp_path_factory.mktemp("bags")
     out, single = root / "ramp", root / "ramp.mcap"
+    start = str(time.time_ns())
     for path in (out, single):
-        proc = simulate(path)
+        proc = simulate(path, "--start-time", start)
         assert proc.returncode == 0, proc.stderr
     return out, single
 

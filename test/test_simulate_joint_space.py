@@ -113,13 +113,16 @@ def test_motion_run_logs_the_joint_channels_and_the_geometry(leg_run):
     assert run.info.extra["motion_file"] == str(motion)
     states = run.get("joint_states")
     assert states.names == ("hip_flexion", "knee_angle")  # pelvis_tx: not a coordinate
-    np.testing.assert_array_equal(states.time_ns, np.arange(200) * MS)  # input rate 1 kHz
-    t = states.time_ns * 1e-9
+    model_ns = run.model_time_ns(states.time_ns)  # log time - start_time_ns
+    np.testing.assert_array_equal(model_ns, np.arange(200) * MS)  # input rate 1 kHz
+    t = model_ns * 1e-9
     knee = np.interp(t, np.linspace(0, 0.2, 9), -5.0 + 300.0 * np.linspace(0, 0.2, 9))
     np.testing.assert_allclose(states.fields["position"][:, 1], np.radians(knee), atol=1e-12)
     np.testing.assert_allclose(states.fields["velocity"][:, 1], np.radians(300.0), rtol=1e-9)
     efforts, commands = run.get("joint_efforts"), run.get("joint_effort_commands")
-    np.testing.assert_array_equal(efforts.time_ns, np.arange(21) * 10 * MS)  # start + 100 Hz
+    np.testing.assert_array_equal(run.model_time_ns(efforts.time_ns),
+                                  np.arange(21) * 10 * MS)  # start + 100 Hz
+    np.testing.assert_array_equal(efforts.fields["stamp_ns"], efforts.time_ns)  # stamp = log
     np.testing.assert_array_equal(commands.fields["data"], efforts.fields["effort"])
     np.testing.assert_array_equal(run.get("excitation").fields["position"], 0.2)
 
@@ -137,7 +140,8 @@ def test_torques_equal_r_transpose_f_at_the_logged_positions(leg_run):
     rows = [geometry.muscle_names.index(m) for m in force.names]
     for k, stamp in enumerate(efforts.fields["stamp_ns"]):
         q = efforts.fields["position"][k]
-        used_at = max(int(stamp) - MS, 0)  # the step [stamp - dt, stamp); the start: t = 0
+        start = run.info.timing.start_time_ns
+        used_at = max(int(stamp) - MS, start)  # the step [stamp - dt, stamp); the start itself
         received = states.fields["position"][np.searchsorted(states.time_ns, used_at)]
         np.testing.assert_array_equal(q, np.clip(received, geometry.lower, geometry.upper))
         _, gradient = geometry.lengths_and_gradients(q)
@@ -191,8 +195,9 @@ def test_excitations_from_an_opensim_storage_file(tmp_path):
     printed = _run(["simulate", "--motion", str(motion), "--geometry", str(geometry),
                     "--excitations", str(controls), "--duration", "0.1", "--telemetry-rate",
                     "0", "--out", str(out)])
-    excitation = read_run(out).get("excitation")
-    t = excitation.time_ns * 1e-9
+    run = read_run(out)
+    excitation = run.get("excitation")
+    t = run.model_time_ns(excitation.time_ns) * 1e-9
     np.testing.assert_allclose(excitation.fields["position"][:, 0], t / 0.1, atol=1e-12)
     np.testing.assert_array_equal(excitation.fields["position"][:, 1], 0.5)
     assert "columns not used: knee_reserve" in printed
