@@ -67,7 +67,9 @@ def knee_with_malformed(tmp_path_factory):
     message added among the recorded ones."""
     folder = tmp_path_factory.mktemp("undecodable")
     original, spoiled = folder / "knee.mcap", folder / "knee-malformed.mcap"
-    vm_ros("simulate", "--scenario", "knee_extension", "--duration", "0.2", "--out", original)
+    # logged from time 0 (--start-time 0), so that the inserted messages' times are model times
+    vm_ros("simulate", "--scenario", "knee_extension", "--duration", "0.2", "--start-time", "0",
+           "--out", original)
     reader = LogReader(original)
     messages = [(m.topic, m.data, m.log_time_ns) for m in reader.messages()]
     messages += [("/excitation", MALFORMED, 50_000_000),
