@@ -44,7 +44,7 @@ def add_arguments(parser) -> None:
                         help="natural units per fibre type in the reference ensemble (default 50)")
     parser.add_argument("--drive-filter", action="store_true",
                         help="also refit the drive filter's law against natural units through "
-                             "steps and sinusoids, and check it on held-out drives (~3 min)")
+                             "steps and sinusoids, and check it on the validation drives (~3 min)")
     parser.add_argument("--drive-law", choices=DRIVE_LAWS, default=None,
                         help="the drive filter's law to fit and write (default: the parameter "
                              "file's recruitment.lumped.drive_law)")
@@ -87,8 +87,8 @@ def _held_out(params, start_params, ur: float, path: Path) -> None:
         writer.writerow(["law_constants", "fpcsa_slow", "drive_before", "drive_after",
                          "energy_ratio", "impulse_ratio"])
         writer.writerows([[r[0]] + [f"{v:.4f}" for v in r[1:]] for r in rows])
-    print("\nheld-out drives, lumped / natural over the first 0.25 s after a step (full model, L0)"
-          " and the paper's Fig. 10 sinusoids (worst |error|, % F(U=1))")
+    print("\nvalidation drives, lumped / natural over the first 0.25 s after a step (full model, "
+          "L0) and the paper's Fig. 10 sinusoids (worst |error|, % F(U=1))")
     for label, steps, worst in summary:
         e, f = steps.energy_ratio, steps.impulse_ratio
         print(f"  {label:6}  initial energy {e.min():.2f}-{e.max():.2f} (median "
