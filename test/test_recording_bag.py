@@ -253,3 +253,15 @@ def test_node_log_splits_by_its_recorded_parameters(tmp_path):
                                                           for k in range(4)]
     np.testing.assert_array_equal(read_run(out).get(tm.TOPIC_ENERGY_TOTAL).fields["data"],
                                   np.arange(100.0))
+
+
+def test_simulate_names_the_bag_directory_it_wrote(tmp_path):
+    """The verb's last line names the bag directory and its file count, not the last file."""
+    out = tmp_path / "split"
+    proc = simulate(out, "--max-bag-duration", "0.2")
+    assert proc.returncode == 0, proc.stderr
+    files = sorted(out.glob("split_*.mcap"))
+    assert len(files) >= 2
+    assert f"log: {out}/ (rosbag2 bag, {len(files)} files)" in proc.stdout
+    single = simulate(tmp_path / "one.mcap")
+    assert f"log: {tmp_path / 'one.mcap'} (" in single.stdout

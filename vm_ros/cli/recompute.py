@@ -65,6 +65,7 @@ from vm_ros.node.replay import (
     node_joint_space,
 )
 from vm_ros.progress import Progress
+from vm_ros.recording.bag import shown_log_path
 from vm_ros.recording.offline import OfflineRun, RecordedInputs
 from vm_ros.recording.run_log import (
     ATTACHMENT_GEOMETRY,
@@ -283,7 +284,8 @@ def run(args) -> int:
                        _verdict(recorded, result, irregular)):
         if comparison:
             print(comparison)
-    print(f"log: {status.path} ({status.written} messages, {status.bytes_written / 1e6:.2f} MB)")
+    print(f"log: {shown_log_path(out_path, status.path)} ({status.written} messages, "
+          f"{status.bytes_written / 1e6:.2f} MB)")
     if stop.signum:
         print(f"vm-ros recompute: stopped by signal {stop.signum}", file=sys.stderr)
         return stop.exit_code

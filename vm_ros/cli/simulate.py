@@ -77,6 +77,7 @@ from vm_ros.node.params import NodeConfig
 from vm_ros.node.recording import INPUT_RULE as NODE_INPUT_RULE
 from vm_ros.node.replay import NODE_PARAMETERS_KEY, NodeConditioning
 from vm_ros.progress import Progress
+from vm_ros.recording.bag import shown_log_path
 from vm_ros.recording.excitations import constant_excitation, load_excitations
 from vm_ros.recording.input_series import load_input_series
 from vm_ros.recording.offline import OfflineResult, OfflineRun, SampledInputs
@@ -372,7 +373,8 @@ def run(args) -> int:
         print(summary_table(rows))
     for line in source.report(inputs, result):
         print(line)
-    print(f"log: {status.path} ({status.written} messages, {status.bytes_written / 1e6:.2f} MB"
+    print(f"log: {shown_log_path(out_path, status.path)} ({status.written} messages, "
+          f"{status.bytes_written / 1e6:.2f} MB"
           f"{f', {status.dropped} dropped' if status.dropped else ''})")
     if stop.signum:
         print(f"vm-ros simulate: stopped by signal {stop.signum} at t = "

@@ -51,6 +51,15 @@ def is_bag_path(path) -> bool:
     return Path(path).suffix.lower() != SUFFIX
 
 
+def shown_log_path(out_path, recorder_path) -> str:
+    """What a verb prints as the log it wrote: a bag directory (with its file count) when
+    ``out_path`` names one, else the file."""
+    if not is_bag_path(out_path):
+        return str(recorder_path)
+    files = sorted(Path(out_path).glob(f"{Path(out_path).name}_*{SUFFIX}"))
+    return f"{out_path}/ (rosbag2 bag, {len(files)} file{'s' if len(files) != 1 else ''})"
+
+
 def bag_file_path(directory) -> Path:
     """The MCAP file of a bag directory: ``NAME/NAME_0.mcap``."""
     directory = Path(directory)
