@@ -259,19 +259,19 @@ def _write_bad(tmp_path, edit):
 
 
 @pytest.mark.parametrize(("edit", "field", "words"), [
-    (lambda d: d["umberger"]["aerobic_factor"].update(value="high"), "umberger.aerobic_factor",
-     "finite number"),
+    (lambda d: d["umberger"]["aerobic_factor"].update(value="high"),
+     "umberger.aerobic_factor.value", "finite number"),
     (lambda d: d["umberger"]["max_contraction_velocity"].update(unit="m/s"),
      "umberger.max_contraction_velocity.unit", "not an accepted unit"),
     (lambda d: d["umberger"]["density"].update(unit="W/kg"), "umberger.density.unit",
      "power per mass"),
-    (lambda d: d["umberger"]["basal_rate_on"].update(value=1), "umberger.basal_rate_on",
+    (lambda d: d["umberger"]["basal_rate_on"].update(value=1), "umberger.basal_rate_on.value",
      "true or false"),
     (lambda d: d["umberger"].pop("minimum_heat_rate"), "umberger.minimum_heat_rate", "missing"),
-    (lambda d: d["umberger"].update(extra={"value": 1, "unit": "1", "source": "x"}),
-     "umberger.extra", "unknown constant"),
-    (lambda d: d["umberger"]["aerobic_factor"].pop("source"), "umberger.aerobic_factor",
-     "{value, unit, source}"),
+    (lambda d: d["umberger"].update(extra={"value": 1, "unit": "1", "tag": "L", "source": "x"}),
+     "umberger.extra", "unknown parameter"),
+    (lambda d: d["umberger"]["aerobic_factor"].pop("source"), "umberger.aerobic_factor.source",
+     "missing"),
     (lambda d: d["umberger_variants"]["uchida2016"].update(aerobic_factor=True),
      "umberger_variants.uchida2016", "option names"),
 ])

@@ -1,7 +1,8 @@
 """Constants and options of the energetics models, loaded from ``config/energetics_models.yaml``.
 
-Each entry of the file is ``{value, unit, source}``; the unit must measure what the field holds
-(vm_ros.model.units), options hold ``bool``. A bad entry is a one-line ConfigError naming file,
+Each entry of the file is ``{value, unit, tag, source}`` and is read by model.yaml's reader
+(vm_ros.model.params): the unit must measure what the field holds (vm_ros.model.units), options
+hold ``bool``. A bad entry is a one-line ConfigError naming file,
 field and value. The loaded containers are frozen; ``dataclasses.replace`` makes variants.
 """
 
@@ -12,8 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from vm_ros.errors import ConfigError
-from vm_ros.model.params import _finite_number, _holds, _load_yaml  # model.yaml's loader
-from vm_ros.model.units import unit_for_field
+from vm_ros.model.params import _holds, _load_yaml, _read_section, _section  # model.yaml's
 from vm_ros.resources import config_dir
 
 FILE_NAME = "energetics_models.yaml"
@@ -78,8 +78,8 @@ class BhargavaConstants:
     maintenance_constant_slow_twitch: float = _holds("W/kg")
     maintenance_constant_fast_twitch: float = _holds("W/kg")
     decay_function_value: float = _holds("1")
-    maintenance_length_dependence_x: tuple[float, ...] = _holds("L0")
-    maintenance_length_dependence_y: tuple[float, ...] = _holds("1")
+    maintenance_length_dependence_x: tuple = _holds("L0")
+    maintenance_length_dependence_y: tuple = _holds("1")
     shortening_coefficient: float = _holds("1")
     shortening_isometric_coefficient: float = _holds("1")
     shortening_total_force_coefficient: float = _holds("1")
@@ -87,44 +87,10 @@ class BhargavaConstants:
     minimum_heat_rate: float = _holds("W/kg")
 
 
-def _value(path, name: str, entry, holds: str, kind):
-    """One entry ``{value, unit, source}`` as the field's type, in the unit it holds."""
-    if not isinstance(entry, dict) or not {"value", "unit", "source"} <= set(entry):
-        raise ConfigError(path, name, entry, "must be a mapping {value, unit, source}")
-    if not isinstance(entry["source"], str) or not entry["source"].strip():
-        raise ConfigError(path, f"{name}.source", entry["source"], "must be a non-empty text")
-    value = entry["value"]
-    if holds == "bool":
-        if entry["unit"] != "bool":
-            raise ConfigError(path, f"{name}.unit", entry["unit"], "an option's unit is bool")
-        if not isinstance(value, bool):
-            raise ConfigError(path, name, value, "must be true or false")
-        return value
-    factor = unit_for_field(path, f"{name}.unit", entry["unit"], holds).factor
-    if kind is float:
-        return _finite_number(path, name, value) * factor
-    if not isinstance(value, list) or len(value) < 2:
-        raise ConfigError(path, name, value, "must be a list of at least 2 numbers")
-    return tuple(_finite_number(path, f"{name}[{i}]", v) * factor for i, v in enumerate(value))
-
-
 def _constants(path: Path, data: dict, section: str, cls):
-    entries = data.get(section)
-    if not isinstance(entries, dict):
-        raise ConfigError(path, section, entries, "must be a mapping of constants")
-    names = [f.name for f in dataclasses.fields(cls)]
-    unknown = sorted(set(entries) - set(names))
-    if unknown:
-        raise ConfigError(path, f"{section}.{unknown[0]}", entries[unknown[0]],
-                          f"unknown constant; known: {', '.join(names)}")
-    values = {}
-    for f in dataclasses.fields(cls):
-        if f.name not in entries:
-            raise ConfigError(path, f"{section}.{f.name}", None, "missing")
-        kind = tuple if f.type.startswith("tuple") else float
-        values[f.name] = _value(path, f"{section}.{f.name}", entries[f.name],
-                                f.metadata["unit"], kind)
-    return cls(**values)
+    """One section of the file as ``cls``, read as model.yaml's sections are (each entry
+    {value, unit, tag, source}; unit checked against what the field holds)."""
+    return cls(**_read_section(cls, path, _section(path, data, section), section, {}))
 
 
 def _path(path) -> Path:
@@ -155,10 +121,10 @@ def load_bhargava_constants(path=None) -> BhargavaConstants:
     path = _path(path)
     constants = _constants(path, _load_yaml(path), "bhargava", BhargavaConstants)
     x = constants.maintenance_length_dependence_x
-    if len(x) != len(constants.maintenance_length_dependence_y) or any(
+    if len(x) < 2 or len(x) != len(constants.maintenance_length_dependence_y) or any(
             b <= a for a, b in zip(x[:-1], x[1:], strict=True)):
         raise ConfigError(path, "bhargava.maintenance_length_dependence_x", list(x),
-                          "must rise strictly and have as many points as the ordinates")
+                          "must rise strictly, have at least 2 points and as many as the ordinates")
     return constants
 
 
