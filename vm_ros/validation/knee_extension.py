@@ -67,7 +67,7 @@ def run_knee_extension(duration_s=None, dt=DT, progress=None, params=None, recru
     cycle_steps = int(round(1.0 / (scenario.values["frequency"] * dt)))
     first_traced = max((steps // cycle_steps - 1) * cycle_steps, 0) if trace else steps
     rates = np.zeros((steps, 4))
-    trace = {key: [] for key in ("time_s", "drive", "effective_drive", "activation",
+    cycle = {key: [] for key in ("time_s", "drive", "effective_drive", "activation",
                                  "force_f0", "velocity_l0_per_s", "energy_rate_w")}
     out = None
     chunk = 2000
@@ -89,13 +89,13 @@ def run_knee_extension(duration_s=None, dt=DT, progress=None, params=None, recru
                                ("force_f0", out.force / bank.f0),
                                ("velocity_l0_per_s", out.velocity_l0_per_s),
                                ("energy_rate_w", out.energy_rate.total)):
-                trace[key].append(np.copy(value))
+                cycle[key].append(np.copy(value))
         if progress is not None and k % 2000 == 0:
             progress(k, steps)
     n_bins = steps // bin_steps
     bins = rates[: n_bins * bin_steps].reshape(n_bins, bin_steps, 4).mean(axis=1)
     times = (np.arange(n_bins) + 0.5) * scenario.values["energy_bin"]
-    return KneeExtensionRun(times, bins, {k: np.array(v) for k, v in trace.items()}, out, bank)
+    return KneeExtensionRun(times, bins, {k: np.array(v) for k, v in cycle.items()}, out, bank)
 
 
 def _first_and_last_bins(n_bins: int) -> tuple[slice, slice]:
