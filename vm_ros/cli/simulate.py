@@ -90,7 +90,7 @@ from vm_ros.recording.summary import (
     summary_table,
 )
 from vm_ros.scenarios import load_scenario, scenario_names
-from vm_ros.telemetry import energy_partition, stamp_fields
+from vm_ros.telemetry import energy_partition
 
 HELP = ("run the model offline on a scenario, CSV inputs or an OpenSim motion (joint space); "
         "write MCAP and print a summary")
@@ -266,10 +266,9 @@ def _motion_source(args) -> _Source:
 
     def make_inputs(bank, offline, period_ns):
         space = JointSpace(geometry, joint_map, bank.names, joints, "--geometry")
-        start = offline.timing.start_time_ns
-        return _OnLogTime(MotionInputs(bank.names, excitations, joint_motion, joint_map,
-                                       NodeConditioning(bank, node, space), period_ns,
-                                       _ShiftedSink(offline.sink, start)), start)
+        return MotionInputs(bank.names, excitations, joint_motion, joint_map,
+                            NodeConditioning(bank, node, space), period_ns, offline.sink,
+                            start_ns=offline.timing.start_time_ns)
 
     def report(inputs: MotionInputs, result: OfflineResult) -> list[str]:
         conditioning = inputs.conditioning
@@ -296,36 +295,6 @@ def _motion_source(args) -> _Source:
              "input_hold": NODE_INPUT_RULE}
     return _Source(args.motion.stem, config, joint_motion.duration_s, extra, make_inputs,
                    publish_start=True, report=report)
-
-
-class _ShiftedSink:
-    """A LogSink for inputs that count time from the run's start: their messages are written
-    at start + their time, header stamps included."""
-
-    def __init__(self, sink, start_ns: int):
-        self.sink, self.start_ns = sink, int(start_ns)
-
-    def write_fields(self, topic: str, type_name: str, fields: dict, time_ns: int) -> None:
-        time_ns += self.start_ns
-        header = fields.get("header")
-        if header is not None:
-            fields = {**fields, "header": {**header, "stamp": stamp_fields(time_ns)}}
-        self.sink.write_fields(topic, type_name, fields, time_ns)
-
-
-class _OnLogTime:
-    """MotionInputs (time from the motion's first frame) on the run's log time, which starts at
-    ``start_ns``; its messages go through a _ShiftedSink of the same start."""
-
-    def __init__(self, inputs: MotionInputs, start_ns: int):
-        self.inputs, self.start_ns = inputs, int(start_ns)
-        self.conditioning = inputs.conditioning
-
-    def advance_to(self, time_ns: int):
-        return self.inputs.advance_to(time_ns - self.start_ns)
-
-    def joint_efforts(self, force):
-        return self.inputs.joint_efforts(force)
 
 
 def _positive(name: str, value: float) -> float:

@@ -13,10 +13,10 @@ coordinates); ``hold`` gives a constant value (rad or m) to a coordinate instead
 motion lacks, or to freeze one). A coordinate the run needs (crossed by a muscle of the run) that
 is neither is an error. Between frames positions are interpolated linearly and velocities are the
 frame-wise derivative (numpy.gradient) interpolated linearly, as for `simulate --inputs`; both are
-held outside the motion. Run time 0 is the motion's first frame; the excitation files share the
-motion's time axis.
+held outside the motion. The motion's first frame is at log time ``start_ns`` (the run's start,
+vm_ros.recording.run_log); the excitation files share the motion's time axis.
 
-Every ``period_ns`` from 0 an excitation message (the drives) and a joint_states message (every
+Every ``period_ns`` from ``start_ns`` an excitation message (the drives) and a joint_states message (every
 geometry coordinate the motion or ``hold`` gives, under its robot name, robot convention through
 the joint map) are logged and handed to a replay.NodeConditioning at that time, in the order
 a recompute replays them (excitation first), so that `vm-ros recompute` reproduces the run.
@@ -119,7 +119,8 @@ class MotionInputs:
     """Samples, logs and conditions the inputs of a joint-space run (module docstring)."""
 
     def __init__(self, muscles, excitations: ExcitationSeries, motion: JointMotion,
-                 joint_map: JointMap, conditioning: NodeConditioning, period_ns: int, sink):
+                 joint_map: JointMap, conditioning: NodeConditioning, period_ns: int, sink,
+                 start_ns: int = 0):
         self.muscles = tuple(muscles)
         self.excitations = excitations
         self.motion = motion
@@ -130,10 +131,11 @@ class MotionInputs:
         self._index = np.array(index, dtype=int)
         self._map = joint_map
         self._robot_names = [joint_map.robot_names[j] for j in index]
-        self._next_ns = 0
+        self._start_ns = int(start_ns)  # log time of the motion's first frame
+        self._next_ns = self._start_ns
 
     def _log_and_apply(self, time_ns: int) -> None:
-        t_s = time_ns * 1e-9
+        t_s = (time_ns - self._start_ns) * 1e-9
         drive = self.excitations.at(self.motion.start_s + t_s)
         excitation = msgs.excitation_fields(self.muscles, drive, time_ns)
         q, qdot = self.motion.at(t_s)
