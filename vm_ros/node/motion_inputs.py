@@ -16,10 +16,11 @@ frame-wise derivative (numpy.gradient) interpolated linearly, as for `simulate -
 held outside the motion. The motion's first frame is at log time ``start_ns`` (the run's start,
 vm_ros.recording.run_log); the excitation files share the motion's time axis.
 
-Every ``period_ns`` from ``start_ns`` an excitation message (the drives) and a joint_states message (every
-geometry coordinate the motion or ``hold`` gives, under its robot name, robot convention through
-the joint map) are logged and handed to a replay.NodeConditioning at that time, in the order
-a recompute replays them (excitation first), so that `vm-ros recompute` reproduces the run.
+Every ``period_ns`` from ``start_ns`` an excitation message (the drives) and a joint_states
+message (every geometry coordinate the motion or ``hold`` gives, under its robot name, robot
+convention through the joint map) are logged and handed to a replay.NodeConditioning at that
+time, in the order a recompute replays them (excitation first), so that `vm-ros recompute`
+reproduces the run.
 """
 
 from __future__ import annotations
