@@ -3,11 +3,14 @@
     result = run_node_benchmark(100, workdir=Path("bench"))  # inside scripts/netns-run
     python -m vm_ros.bench.node_bench --muscles 100 --duration 60      # prints JSON
     python -m vm_ros.bench.node_bench --geometry geometry.yaml --library muscles.yaml  # joints
+    python -m vm_ros.bench.node_bench --duration 600 --warmup 30 --bag --max-bag-duration 60
 
 What runs: a library YAML in ``workdir`` with ``n_muscles`` uniquely named copies of the shipped
 muscles (every field and source kept), a params YAML, and ``python -P -m vm_ros.node`` (this
 process's vm_ros, never a source tree in the working folder: vm_ros.child_process) as a child
-process (MCAP to ``workdir/node_bench.mcap`` when ``mcap``). A driver node in this process
+process (MCAP to ``workdir/node_bench.mcap`` when ``mcap``; with ``bag`` to the rosbag2 bag
+directory ``workdir/node_bench/``, split by ``max_bag_size`` / ``max_bag_duration_s`` as the
+node's mcap.max_bag_size / mcap.max_bag_duration_s). A driver node in this process
 publishes ``muscle_kinematics`` (path lengths oscillating by 10 % of each muscle's anatomical
 range at 0.25 Hz, with their velocities) and ``excitation`` (JointState, every muscle the same
 drive, stepping between 0.2 and 0.7 every 0.5 s) at ``drive_rate_hz``, and subscribes to every
@@ -29,8 +32,14 @@ Definitions (keys of the returned dict; times are the benchmark's steady clock u
 | driver_cpu_percent_one_core | this process (the driver) likewise |
 | load_average_1min_start, _end | the machine's 1-minute load average around the window (other load
   competing with the node shows here) |
-| rss_window_start_mib, rss_final_mib | node VmRSS at the window's start and end |
+| rss_window_start_mib, rss_final_mib | node VmRSS at the window's start (after the warm-up)
+  and end |
 | rss_peak_mib | node VmHWM at the window's end (peak since the process started) |
+| rss_growth_mib, rss_max_growth_mib | rss_final_mib, and the largest sample, minus
+  rss_window_start_mib |
+| rss_slope_mib_per_hour | least-squares slope of the window's VmRSS samples (every
+  rss_sample_period_s, from /proc/<pid>/status), x 3600 s/h; rss_trace: the samples as
+  [seconds into the window, MiB] |
 | latency_p50_ms, _p99_ms, _max_ms | excitation-to-force latency, below (latency_samples) |
 | excitation_not_in_node_log | window excitations the node never logged: dropped from its
   subscription queue (depth qos_depth) while it was busy (MCAP only) |
@@ -40,7 +49,13 @@ Definitions (keys of the returned dict; times are the benchmark's steady clock u
 | model_lag_p50_ms, _p99_ms, _max_ms | ROS time a muscle_force arrived here - its stamp |
 | step_time_p50_ms, _p99_ms | median over the window's /diagnostics reports of the node's values |
 | rate_<topic>_hz | messages received here (outputs) or sent (inputs) per second of window |
-| mcap_file_mib | size of the finished MCAP file |
+| mcap_file_mib | size of the finished MCAP file (bag: of all its files) |
+| log_files, log_file_mib_max | MCAP files of the log (a single file: 1) and the largest one |
+| log_messages_summary | messages by the files' summaries (each file's statistics record) |
+| log_messages_read | messages read back through every file (vm_ros.recording.LogReader, chunk
+  CRCs checked) |
+| log_read_complete | every file read to its end and log_messages_read == log_messages_summary;
+  for a bag also metadata.yaml present and listing every file (log_metadata_files) |
 
 Excitation-to-force latency: for each excitation message published in the window, the time from
 just before ``publish()`` to the arrival here of the first ``muscle_force`` message whose stamp is
@@ -71,6 +86,7 @@ import fcntl
 import json
 import math
 import os
+import shutil
 import signal
 import socket
 import struct
@@ -101,6 +117,9 @@ LENGTH_SWING = 0.1  # amplitude, as a fraction of the anatomical path-length ran
 LENGTH_FREQUENCY_HZ = 0.25
 JOINT_SWING = 0.25  # amplitude, as a fraction of each coordinate's box (joint input)
 STAMP_MATCH_NS = 1000  # an excitation's stamp read back from the log (float64) vs as sent
+RSS_SAMPLE_PERIOD_S = 5.0  # node VmRSS sampled this often during the window
+SECONDS_PER_HOUR = 3600.0
+LOG_NAME = "node_bench"  # workdir/node_bench.mcap, or the bag directory workdir/node_bench/
 
 _SIOCGIFFLAGS = 0x8913  # linux/sockios.h
 _IFF_UP = 0x1
@@ -157,16 +176,18 @@ def write_library(path: Path, n_muscles: int) -> list[str]:
 def write_params(path: Path, names: list[str], library: Path, model_rate_hz: float,
                  publish_rate_hz: float, mcap_path: Path | None,
                  diagnostics_period_s: float, geometry: Path | None = None,
-                 node_parameters: dict | None = None) -> None:
+                 node_parameters: dict | None = None, mcap_options: dict | None = None) -> None:
     """muscle_node's params YAML (the model starts at the first muscle_kinematics, or with a
     ``geometry`` file at the first joint_states naming every coordinate); ``node_parameters``
-    adds or replaces parameters (e.g. ``{"executor": "single_threaded"}``)."""
+    adds or replaces parameters (e.g. ``{"executor": "single_threaded"}``); ``mcap_options``
+    adds mcap.* parameters (e.g. ``{"max_bag_duration_s": 60.0}``)."""
     params = {
         "muscles": list(names), "library": str(library), "model_rate_hz": float(model_rate_hz),
         "publish_rate_hz": float(publish_rate_hz),
         "diagnostics_period_s": float(diagnostics_period_s),
         "mcap": {"enabled": mcap_path is not None,
-                 "path": str(mcap_path) if mcap_path is not None else ""},
+                 "path": str(mcap_path) if mcap_path is not None else "",
+                 **(mcap_options or {})},
     }
     if geometry is not None:
         params["geometry"] = str(geometry)
@@ -507,9 +528,13 @@ def run_node_benchmark(n_muscles: int, model_rate_hz: float = 1000.0,
                        mcap: bool = True, workdir: Path | str | None = None,
                        progress: Callable[[float, float], None] | None = None, *,
                        warmup_s: float = 5.0, drive_rate_hz: float = 100.0,
-                       node_parameters: dict | None = None) -> dict:
+                       node_parameters: dict | None = None, bag: bool = False,
+                       max_bag_size: int = 0, max_bag_duration_s: float = 0.0,
+                       rss_sample_period_s: float = RSS_SAMPLE_PERIOD_S) -> dict:
     """Run muscle_node with ``n_muscles`` as a process and measure it (module docstring);
-    ``node_parameters`` are added to its params file.
+    ``node_parameters`` are added to its params file. ``bag``: log to a rosbag2 bag directory,
+    split at ``max_bag_size`` bytes / ``max_bag_duration_s`` seconds (0: no split; splitting
+    needs ``bag``). ValueError for inconsistent options.
 
     Call inside a loopback-only network namespace (scripts/netns-run); raises RuntimeError when
     another interface is up, and when the node does not start or dies. ``workdir`` receives the
@@ -525,11 +550,13 @@ def run_node_benchmark(n_muscles: int, model_rate_hz: float = 1000.0,
         return names, library, None, Sweep.around(tm.TOPIC_KINEMATICS, names, lo, hi,
                                                   LENGTH_SWING)
 
+    log = _log_options(mcap, bag, max_bag_size, max_bag_duration_s)
     result = _run(setup, model_rate_hz, publish_rate_hz, duration_s, mcap, workdir, progress,
-                  warmup_s, drive_rate_hz, None, node_parameters)
+                  warmup_s, drive_rate_hz, None, node_parameters, log=log,
+                  rss_sample_period_s=rss_sample_period_s)
     return {"n_muscles": n_muscles, "model_rate_hz": float(model_rate_hz),
             "publish_rate_hz": float(publish_rate_hz), "mcap": bool(mcap),
-            "node_parameters": dict(node_parameters or {}), **result}
+            "node_parameters": dict(node_parameters or {}), **log, **result}
 
 
 def run_joint_node_benchmark(geometry: Path | str, library: Path | str,
@@ -539,7 +566,9 @@ def run_joint_node_benchmark(geometry: Path | str, library: Path | str,
                              progress: Callable[[float, float], None] | None = None, *,
                              warmup_s: float = 5.0, drive_rate_hz: float = 100.0,
                              joint_rate_hz: float = 1000.0,
-                             node_parameters: dict | None = None) -> dict:
+                             node_parameters: dict | None = None, bag: bool = False,
+                             max_bag_size: int = 0, max_bag_duration_s: float = 0.0,
+                             rss_sample_period_s: float = RSS_SAMPLE_PERIOD_S) -> dict:
     """Run muscle_node from joint space (module docstring) and measure it as
     :func:`run_node_benchmark` does: the ``geometry`` file, the ``library`` muscles it covers
     (all joint-driven), joint_states for every coordinate at ``joint_rate_hz``."""
@@ -553,38 +582,98 @@ def run_joint_node_benchmark(geometry: Path | str, library: Path | str,
         raise RuntimeError(f"no muscle of {geometry} is in the library {library}")
     sweep = Sweep.around(tm.TOPIC_JOINT_STATES, paths.coordinate_names, paths.lower,
                          paths.upper, JOINT_SWING)
+    log = _log_options(mcap, bag, max_bag_size, max_bag_duration_s)
     result = _run(lambda _workdir: (names, library, geometry, sweep), model_rate_hz,
                   publish_rate_hz, duration_s, mcap, workdir, progress, warmup_s,
-                  drive_rate_hz, joint_rate_hz, node_parameters)
+                  drive_rate_hz, joint_rate_hz, node_parameters, log=log,
+                  rss_sample_period_s=rss_sample_period_s)
     return {"n_muscles": len(names), "n_geometry_muscles": len(paths.muscle_names),
             "n_coordinates": len(paths.coordinates), "input": tm.TOPIC_JOINT_STATES,
             "joint_rate_hz": float(joint_rate_hz), "model_rate_hz": float(model_rate_hz),
             "publish_rate_hz": float(publish_rate_hz), "mcap": bool(mcap),
-            "node_parameters": dict(node_parameters or {}), **result}
+            "node_parameters": dict(node_parameters or {}), **log, **result}
+
+
+def _log_options(mcap: bool, bag: bool, max_bag_size: int, max_bag_duration_s: float) -> dict:
+    """The log's result keys (bag, max_bag_size, max_bag_duration_s), checked."""
+    if max_bag_size < 0 or max_bag_duration_s < 0:
+        raise ValueError(f"max_bag_size and max_bag_duration_s must be >= 0, got "
+                         f"{max_bag_size} and {max_bag_duration_s}")
+    if (max_bag_size or max_bag_duration_s) and not bag:
+        raise ValueError("splitting (max_bag_size, max_bag_duration_s) needs bag=True")
+    if bag and not mcap:
+        raise ValueError("bag=True needs mcap=True")
+    return {"bag": bool(bag), "max_bag_size": int(max_bag_size),
+            "max_bag_duration_s": float(max_bag_duration_s)}
+
+
+def log_summary(path: Path) -> dict:
+    """Files, size and messages of a finished log (an MCAP file or a bag directory), read back
+    through every file (module docstring: log_* keys)."""
+    from mcap.reader import make_reader
+
+    from vm_ros.recording import LogReader
+    from vm_ros.recording.bag import METADATA_FILE, bag_log_files, is_bag_path
+
+    bag = is_bag_path(path)
+    files = bag_log_files(path) if bag else [path]
+    sizes = [f.stat().st_size for f in files]
+    summary_count = 0
+    for file in files:
+        with open(file, "rb") as stream:
+            summary = make_reader(stream).get_summary()
+        if summary is not None and summary.statistics is not None:
+            summary_count += summary.statistics.message_count
+    reader = LogReader(path)
+    read = sum(1 for _ in reader.messages())
+    out = {"log_files": len(files), "mcap_file_mib": sum(sizes) / MIB,
+           "log_file_mib_max": max(sizes) / MIB, "log_messages_summary": summary_count,
+           "log_messages_read": read}
+    complete = reader.complete and read == summary_count
+    if bag:
+        listed = []
+        metadata = path / METADATA_FILE
+        if metadata.is_file():
+            info = yaml.safe_load(metadata.read_text(encoding="utf-8"))
+            listed = info["rosbag2_bagfile_information"]["relative_file_paths"]
+        out["log_metadata_files"] = len(listed)
+        complete = complete and sorted(listed) == sorted(f.name for f in files)
+    out["log_read_complete"] = bool(complete)
+    if reader.stop_reason:
+        out["log_read_stop_reason"] = reader.stop_reason
+    return out
 
 
 def _run(setup, model_rate_hz, publish_rate_hz, duration_s, mcap, workdir, progress, warmup_s,
-         drive_rate_hz, sweep_rate_hz, node_parameters=None) -> dict:
+         drive_rate_hz, sweep_rate_hz, node_parameters=None, *, log: dict | None = None,
+         rss_sample_period_s: float = RSS_SAMPLE_PERIOD_S) -> dict:
     """The benchmark of either input: ``setup(workdir)`` gives (muscle names, library path,
-    geometry path or None, Sweep); ``sweep_rate_hz`` None publishes the sweep with the drive."""
+    geometry path or None, Sweep); ``sweep_rate_hz`` None publishes the sweep with the drive;
+    ``log`` from _log_options."""
     import rclpy
 
     check_loopback_only()
-    if duration_s <= 0 or warmup_s < 0:
-        raise ValueError("duration_s must be > 0 and warmup_s >= 0")
+    if duration_s <= 0 or warmup_s < 0 or rss_sample_period_s <= 0:
+        raise ValueError("duration_s and rss_sample_period_s must be > 0 and warmup_s >= 0")
+    log = log or _log_options(mcap, False, 0, 0.0)
     with contextlib.ExitStack() as stack:
         if workdir is None:
             workdir = stack.enter_context(tempfile.TemporaryDirectory(prefix="vm_ros-bench-"))
         workdir = Path(workdir).resolve()  # the node runs with workdir as its cwd
         workdir.mkdir(parents=True, exist_ok=True)
         names, library, geometry, sweep = setup(workdir)
-        mcap_path = workdir / "node_bench.mcap" if mcap else None
-        if mcap_path is not None and mcap_path.exists():
-            mcap_path.unlink()
+        mcap_path = None
+        if mcap:
+            mcap_path = workdir / (LOG_NAME if log["bag"] else f"{LOG_NAME}.mcap")
+            if mcap_path.is_dir():
+                shutil.rmtree(mcap_path)
+            elif mcap_path.exists():
+                mcap_path.unlink()
+        split = {key: log[key] for key in ("max_bag_size", "max_bag_duration_s") if log[key]}
         params_path = workdir / "node_bench_params.yaml"
         write_params(params_path, names, library, model_rate_hz, publish_rate_hz, mcap_path,
                      diagnostics_period_s=1.0 if duration_s >= 10.0 else 0.25,
-                     geometry=geometry, node_parameters=node_parameters)
+                     geometry=geometry, node_parameters=node_parameters, mcap_options=split)
         step_ns = int(round(1e9 / model_rate_hz))
         log_path = workdir / "muscle_node.log"
 
@@ -603,7 +692,7 @@ def _run(setup, model_rate_hz, publish_rate_hz, duration_s, mcap, workdir, progr
                                        stdin=subprocess.DEVNULL)
         try:
             result = _measure(process, driver, executor, duration_s, warmup_s, progress,
-                              log_path)
+                              log_path, rss_sample_period_s)
             driver.stop_driving()
             window = result.pop("_window")
         finally:
@@ -618,9 +707,9 @@ def _run(setup, model_rate_hz, publish_rate_hz, duration_s, mcap, workdir, progr
             excitation_not_in_node_log=lost if effective is not None else math.nan,
             latency_from_node_log=effective is not None,
             node_exit_code=exit_code, node_stop_s=stop_s,
-            forces_finite=_finite(last, len(names)),
-            mcap_file_mib=mcap_path.stat().st_size / MIB
-            if mcap_path is not None and mcap_path.exists() else math.nan)
+            forces_finite=_finite(last, len(names)), mcap_file_mib=math.nan)
+        if mcap_path is not None and mcap_path.exists():
+            result.update(log_summary(mcap_path))
         if geometry is not None:
             result["efforts_finite"] = _finite(driver.last_joint_efforts_message(),
                                                len(sweep.names))
@@ -634,7 +723,7 @@ def _finite(message, size: int) -> bool:
 
 
 def _measure(process, driver: BenchDriver, executor, duration_s: float, warmup_s: float,
-             progress, log_path: Path) -> dict:
+             progress, log_path: Path, rss_sample_period_s: float = RSS_SAMPLE_PERIOD_S) -> dict:
     """Wait for the model start, warm up, measure the window; the numbers known then."""
 
     def spin_until(end_mono: float, tick: Callable[[float], None] | None = None) -> None:
@@ -667,10 +756,19 @@ def _measure(process, driver: BenchDriver, executor, duration_s: float, warmup_s
     cpu0, self_cpu0, load0 = cpu_seconds(pid), cpu_seconds("self"), os.getloadavg()[0]
     rss0, _ = memory_mib(pid)
     mono0, ros0 = time.monotonic_ns(), time.time_ns()
-    spin_until(mono0 * 1e-9 + duration_s, report)
+    rss_trace = [(0.0, rss0)]
+
+    def report_and_sample(now: float) -> None:
+        report(now)
+        elapsed = now - mono0 * 1e-9
+        if elapsed >= rss_trace[-1][0] + rss_sample_period_s:
+            rss_trace.append((elapsed, memory_mib(pid)[0]))
+
+    spin_until(mono0 * 1e-9 + duration_s, report_and_sample)
     mono1, ros1 = time.monotonic_ns(), time.time_ns()
     cpu1, self_cpu1, load1 = cpu_seconds(pid), cpu_seconds("self"), os.getloadavg()[0]
     rss1, hwm = memory_mib(pid)
+    rss_trace.append(((mono1 - mono0) * 1e-9, rss1))
     report(time.monotonic())
     spin_until(time.monotonic() + TAIL_S)  # responses to the window's last excitations
 
@@ -693,6 +791,7 @@ def _measure(process, driver: BenchDriver, executor, duration_s: float, warmup_s
         "load_average_1min_start": load0, "load_average_1min_end": load1,
         "cpu_cores": os.cpu_count(),
         "rss_window_start_mib": rss0, "rss_final_mib": rss1, "rss_peak_mib": hwm,
+        **rss_growth(rss_trace),
         **_drift(driver.diagnostics, ros0, ros1),
         "model_lag_p50_ms": lag_p50, "model_lag_p99_ms": lag_p99, "model_lag_max_ms": lag_max,
         "rate_muscle_force_hz": len(in_window) / wall_s,
@@ -705,6 +804,19 @@ def _measure(process, driver: BenchDriver, executor, duration_s: float, warmup_s
         "_window": (mono0, mono1),
     }
     return result
+
+
+def rss_growth(trace) -> dict:
+    """rss_growth_mib, rss_max_growth_mib, rss_slope_mib_per_hour, rss_samples and rss_trace of
+    ``trace``, [(seconds into the window, VmRSS MiB)...] starting at the window's start."""
+    t = np.array([s for s, _ in trace], dtype=float)
+    rss = np.array([m for _, m in trace], dtype=float)
+    slope = (float(np.polyfit(t, rss, 1)[0]) * SECONDS_PER_HOUR
+             if len(t) >= 2 and np.ptp(t) > 0 else math.nan)
+    return {"rss_growth_mib": float(rss[-1] - rss[0]),
+            "rss_max_growth_mib": float(rss.max() - rss[0]),
+            "rss_slope_mib_per_hour": slope, "rss_samples": len(trace),
+            "rss_trace": [[round(float(a), 3), round(float(b), 3)] for a, b in trace]}
 
 
 # --- command line ------------------------------------------------------------------------------
@@ -730,6 +842,18 @@ def main(argv=None) -> int:
     parser.add_argument("--joint-rate", type=float, default=1000.0,
                         help="joint_states rate with --geometry (Hz)")
     parser.add_argument("--no-mcap", action="store_true", help="run the node without MCAP")
+    parser.add_argument("--bag", action="store_true",
+                        help=f"log to the rosbag2 bag directory WORKDIR/{LOG_NAME}/ instead of "
+                             f"WORKDIR/{LOG_NAME}.mcap")
+    parser.add_argument("--max-bag-duration", type=float, default=0.0, metavar="S",
+                        help="with --bag: a new file every S seconds of log time "
+                             "(mcap.max_bag_duration_s; default 0, no split)")
+    parser.add_argument("--max-bag-size", type=int, default=0, metavar="BYTES",
+                        help="with --bag: a new file once one holds BYTES "
+                             "(mcap.max_bag_size; default 0, no split)")
+    parser.add_argument("--rss-period", type=float, default=RSS_SAMPLE_PERIOD_S, metavar="S",
+                        help=f"sample the node's VmRSS every S seconds of the window "
+                             f"(default {RSS_SAMPLE_PERIOD_S:g})")
     parser.add_argument("--node-param", action="append", default=[], metavar="NAME=VALUE",
                         help="a muscle_node parameter for the run (VALUE read as YAML), e.g. "
                              "executor=single_threaded; repeatable")
@@ -738,6 +862,12 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if (args.geometry is None) != (args.library is None):
         parser.error("--geometry and --library go together")
+    if (args.max_bag_duration or args.max_bag_size) and not args.bag:
+        parser.error("--max-bag-duration and --max-bag-size need --bag")
+    if args.bag and args.no_mcap:
+        parser.error("--bag and --no-mcap exclude each other")
+    if args.max_bag_duration < 0 or args.max_bag_size < 0 or args.rss_period <= 0:
+        parser.error("--max-bag-duration and --max-bag-size must be >= 0, --rss-period > 0")
 
     def progress(done: float, total: float) -> None:
         if sys.stderr.isatty():
@@ -755,7 +885,9 @@ def main(argv=None) -> int:
             parser.error(f"--node-param {item!r}: VALUE is not YAML ({exc.problem})")
     common = dict(mcap=not args.no_mcap, workdir=args.workdir, progress=progress,
                   warmup_s=args.warmup, drive_rate_hz=args.drive_rate,
-                  node_parameters=node_parameters)
+                  node_parameters=node_parameters, bag=args.bag,
+                  max_bag_size=args.max_bag_size, max_bag_duration_s=args.max_bag_duration,
+                  rss_sample_period_s=args.rss_period)
     try:
         if args.geometry is not None:
             result = run_joint_node_benchmark(
