@@ -8,7 +8,10 @@ read from Virtual Muscle's state, is :class:`MuscleState` (docs/energetics_model
 | module | models |
 | umberger | Umberger et al. 2003, Umberger 2010 (with Uchida et al. 2016's revisions as options) |
 | bhargava | Bhargava et al. 2004 |
-| others | Lichtwark & Wilson 2005, Houdijk et al. 2006, Margaria 1968, Minetti & Alexander 1997 |
+| lichtwark | Lichtwark & Wilson 2005/2007 (as Koelewijn et al. 2019 formulate it) |
+| houdijk | Houdijk et al. 2006 (as Koelewijn et al. 2019 formulate it) |
+| margaria | Margaria 1968 |
+| minetti | Minetti & Alexander 1997 |
 """
 
 from __future__ import annotations
@@ -16,24 +19,48 @@ from __future__ import annotations
 from vm_ros.energetics_models.bhargava import bhargava2004
 from vm_ros.energetics_models.constants import (
     BhargavaConstants,
+    HoudijkConstants,
+    LichtwarkConstants,
+    MargariaConstants,
+    MinettiConstants,
     UmbergerConstants,
     basal_rate,
     load_bhargava_constants,
+    load_houdijk_constants,
+    load_lichtwark_constants,
+    load_margaria_constants,
+    load_minetti_constants,
     load_umberger_constants,
     muscle_mass,
 )
+from vm_ros.energetics_models.houdijk import houdijk2006
+from vm_ros.energetics_models.lichtwark import lichtwark_wilson
+from vm_ros.energetics_models.margaria import margaria1968
+from vm_ros.energetics_models.minetti import minetti_alexander
 from vm_ros.energetics_models.state import HeatRates, MuscleState
 from vm_ros.energetics_models.umberger import umberger
 
 __all__ = [
     "BhargavaConstants",
     "HeatRates",
+    "HoudijkConstants",
+    "LichtwarkConstants",
+    "MargariaConstants",
+    "MinettiConstants",
     "MuscleState",
     "UmbergerConstants",
     "basal_rate",
     "bhargava2004",
+    "houdijk2006",
+    "lichtwark_wilson",
     "load_bhargava_constants",
+    "load_houdijk_constants",
+    "load_lichtwark_constants",
+    "load_margaria_constants",
+    "load_minetti_constants",
     "load_umberger_constants",
+    "margaria1968",
+    "minetti_alexander",
     "muscle_mass",
     "umberger",
 ]

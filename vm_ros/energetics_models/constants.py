@@ -87,6 +87,64 @@ class BhargavaConstants:
     minimum_heat_rate: float = _holds("W/kg")
 
 
+@dataclass(frozen=True)
+class LichtwarkConstants:
+    """Lichtwark & Wilson 2005 (maintenance decay) / 2007 (supplement) heat rates as Koelewijn et
+    al. 2019 formulate them; see config/energetics_models.yaml (section lichtwark)."""
+
+    include_negative_mechanical_work: bool = _holds("bool")
+    max_contraction_velocity: float = _holds("L0/s")
+    force_velocity_curvature: float = _holds("1")
+    stable_maintenance_fraction: float = _holds("1")
+    maintenance_decay_fast_amplitude: float = _holds("1")
+    maintenance_decay_fast_rate: float = _holds("1/s")
+    maintenance_decay_slow_amplitude: float = _holds("1")
+    maintenance_decay_slow_rate: float = _holds("1/s")
+    lengthening_maintenance_floor: float = _holds("1")
+    lengthening_maintenance_decay: float = _holds("1")
+    lengthening_heat_coefficient: float = _holds("1")
+
+
+@dataclass(frozen=True)
+class HoudijkConstants:
+    """Houdijk et al. 2006 as Koelewijn et al. 2019 formulate it; see
+    config/energetics_models.yaml (section houdijk)."""
+
+    include_negative_mechanical_work: bool = _holds("bool")
+    forbid_negative_total_power: bool = _holds("bool")
+    total_heat_slow_twitch: float = _holds("W/kg")
+    total_heat_fast_twitch: float = _holds("W/kg")
+    activation_fraction_slow_twitch: float = _holds("1")
+    activation_fraction_fast_twitch: float = _holds("1")
+    shortening_coefficient_slow_twitch: float = _holds("F0")
+    shortening_coefficient_fast_twitch: float = _holds("F0")
+    max_frequency_base_slow_twitch: float = _holds("1")
+    max_frequency_base_fast_twitch: float = _holds("1")
+    max_frequency_slope_slow_twitch: float = _holds("1")
+    max_frequency_slope_fast_twitch: float = _holds("1")
+    activation_frequency_offset: float = _holds("1")
+    activation_frequency_constant: float = _holds("1")
+
+
+@dataclass(frozen=True)
+class MargariaConstants:
+    """Margaria 1968's efficiencies of positive and negative work; see
+    config/energetics_models.yaml (section margaria)."""
+
+    include_negative_mechanical_work: bool = _holds("bool")
+    positive_work_efficiency: float = _holds("1")
+    negative_work_efficiency: float = _holds("1")
+
+
+@dataclass(frozen=True)
+class MinettiConstants:
+    """Minetti & Alexander 1997's phi(v); see config/energetics_models.yaml (section minetti)."""
+
+    max_contraction_velocity: float = _holds("L0/s")
+    phi_numerator: tuple = _holds("1")
+    phi_denominator: tuple = _holds("1")
+
+
 def _constants(path: Path, data: dict, section: str, cls):
     """One section of the file as ``cls``, read as model.yaml's sections are (each entry
     {value, unit, tag, source}; unit checked against what the field holds)."""
@@ -125,6 +183,45 @@ def load_bhargava_constants(path=None) -> BhargavaConstants:
             b <= a for a, b in zip(x[:-1], x[1:], strict=True)):
         raise ConfigError(path, "bhargava.maintenance_length_dependence_x", list(x),
                           "must rise strictly, have at least 2 points and as many as the ordinates")
+    return constants
+
+
+def load_lichtwark_constants(path=None) -> LichtwarkConstants:
+    """The lichtwark section of the file."""
+    path = _path(path)
+    return _constants(path, _load_yaml(path), "lichtwark", LichtwarkConstants)
+
+
+def load_houdijk_constants(path=None) -> HoudijkConstants:
+    """The houdijk section of the file."""
+    path = _path(path)
+    return _constants(path, _load_yaml(path), "houdijk", HoudijkConstants)
+
+
+def load_margaria_constants(path=None) -> MargariaConstants:
+    """The margaria section of the file; the positive-work efficiency must be positive and the
+    negative-work efficiency negative (Margaria's sign convention)."""
+    path = _path(path)
+    constants = _constants(path, _load_yaml(path), "margaria", MargariaConstants)
+    if not constants.positive_work_efficiency > 0.0:
+        raise ConfigError(path, "margaria.positive_work_efficiency",
+                          constants.positive_work_efficiency, "must be positive")
+    if not constants.negative_work_efficiency < 0.0:
+        raise ConfigError(path, "margaria.negative_work_efficiency",
+                          constants.negative_work_efficiency,
+                          "must be negative (work absorbed, energy spent)")
+    return constants
+
+
+def load_minetti_constants(path=None) -> MinettiConstants:
+    """The minetti section of the file: phi's numerator has 3 coefficients, its denominator 4
+    (constant first)."""
+    path = _path(path)
+    constants = _constants(path, _load_yaml(path), "minetti", MinettiConstants)
+    for name, count in (("phi_numerator", 3), ("phi_denominator", 4)):
+        if len(getattr(constants, name)) != count:
+            raise ConfigError(path, f"minetti.{name}", list(getattr(constants, name)),
+                              f"must have {count} coefficients, constant first")
     return constants
 
 

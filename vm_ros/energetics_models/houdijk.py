@@ -1,0 +1,86 @@
+"""Houdijk et al. 2006 heat rates, as Koelewijn et al. 2019 formulate them for one Hill muscle.
+
+Per muscle (W), with V > 0 lengthening, a the activation, r the slow fraction, m the mass, F0 the
+maximal isometric force, F_iso the active force-length multiplier; each fibre-type constant is
+mixed as x = x_slow r + x_fast (1 - r):
+
+    g_bar = 0.45 * 24.4 (slow), 0.35 * 150 (fast)               activation heat at a = 1 (W/kg)
+    h_bar = 24.4 - g_bar_slow (slow), 150 - g_bar_fast (fast)   maintenance heat (W/kg)
+    a_bar = (0.16 (slow), 0.28 (fast)) F0                       shortening heat coefficient (N)
+    nu = a^2,  nu_max = k3 + k4 a,  k3 = 6, 12,  k4 = 8, 14
+    Adot = m g_bar nu (1 - exp(-0.25 - 18.2 / (nu nu_max))) / (1 - exp(-0.25 - 18.2 / nu_max))
+           (0 at a = 0)
+    Mdot = m (g_bar + h_bar) a (F_iso - g_bar / (g_bar + h_bar))
+    Sdot = a_bar a F_iso (-V)  (V <= 0),  0  (V > 0)
+    Wdot = -F_active V  (V > 0 only with include_negative_mechanical_work; else 0)
+    forbid_negative_total_power: where Adot + Mdot + Sdot + Wdot < 0, Sdot is raised to make it 0
+    total = Adot + Mdot + Sdot + Wdot
+
+At a = 1 and F_iso = 1, Adot + Mdot = m (24.4 r + 150 (1 - r)). Mdot is negative where F_iso is
+below g_bar / (g_bar + h_bar), as in Koelewijn's code. Constants and sources:
+config/energetics_models.yaml (section houdijk); mapping from Virtual Muscle's state:
+docs/energetics_models.md.
+
+References: Houdijk H, Bobbert MF, de Haan A (2006) J Biomech 39:536-543; as Koelewijn AD,
+Heinrich D, van den Bogert AJ (2019) PLoS ONE 14(9):e0222037 implement it (their code's nu and
+nu_max, which the paper leaves ambiguous, follow R. Miller's implementation).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from vm_ros.energetics_models.constants import HoudijkConstants
+from vm_ros.energetics_models.state import HeatRates, MuscleState
+from vm_ros.energetics_models.umberger import force_length_multiplier_from_state
+
+
+def houdijk2006(state: MuscleState, constants: HoudijkConstants,
+                force_length_multiplier=None) -> HeatRates:
+    """Heat and work rates (W per muscle) of Houdijk et al. 2006 (equations in the module
+    docstring). ``force_length_multiplier`` F_iso (1) defaults to what the state determines
+    (umberger.force_length_multiplier_from_state). ``basal`` is 0."""
+    c = constants
+    a = np.asarray(state.activation, dtype=float)
+    mass = np.asarray(state.mass, dtype=float)
+    velocity = np.asarray(state.fibre_velocity, dtype=float)
+    slow = np.asarray(state.slow_fraction, dtype=float)
+    fast = 1.0 - slow
+    f_iso = (force_length_multiplier_from_state(state) if force_length_multiplier is None
+             else np.asarray(force_length_multiplier, dtype=float))
+
+    g_slow = c.activation_fraction_slow_twitch * c.total_heat_slow_twitch
+    g_fast = c.activation_fraction_fast_twitch * c.total_heat_fast_twitch
+    g_bar = g_slow * slow + g_fast * fast
+    total_bar = c.total_heat_slow_twitch * slow + c.total_heat_fast_twitch * fast
+    k3 = c.max_frequency_base_slow_twitch * slow + c.max_frequency_base_fast_twitch * fast
+    k4 = c.max_frequency_slope_slow_twitch * slow + c.max_frequency_slope_fast_twitch * fast
+    a_bar = (c.shortening_coefficient_slow_twitch * slow
+             + c.shortening_coefficient_fast_twitch * fast) * state.max_isometric_force
+
+    nu = a * a
+    nu_max = k3 + k4 * a
+    product = nu * nu_max
+    shape = np.broadcast(product, g_bar).shape
+    exponent = np.divide(c.activation_frequency_constant, product, out=np.zeros(shape),
+                         where=product > 0.0)
+    recruited = np.where(product > 0.0, 1.0 - np.exp(-c.activation_frequency_offset - exponent),
+                         0.0)
+    at_max = 1.0 - np.exp(-c.activation_frequency_offset
+                          - c.activation_frequency_constant / nu_max)
+    activation_heat = mass * g_bar * nu * recruited / at_max
+    maintenance_heat = mass * a * (total_bar * f_iso - g_bar)
+    shortening_heat = np.where(velocity <= 0.0, -a_bar * a * f_iso * velocity, 0.0)
+    work = -np.asarray(state.active_fibre_force, dtype=float) * velocity
+    work = np.where(c.include_negative_mechanical_work | (velocity <= 0.0), work, 0.0)
+    if c.forbid_negative_total_power:
+        before = activation_heat + maintenance_heat + shortening_heat + work
+        shortening_heat = np.where(before < 0.0, shortening_heat - before, shortening_heat)
+    total = activation_heat + maintenance_heat + shortening_heat + work
+    return HeatRates(
+        activation_maintenance=activation_heat + maintenance_heat,
+        shortening_lengthening=shortening_heat,
+        basal=np.zeros_like(total),
+        mechanical_work=work,
+        total=total,
+    )

@@ -1,0 +1,92 @@
+"""Lichtwark & Wilson heat rates, as Koelewijn et al. 2019 formulate them for one Hill muscle.
+
+Per muscle (W), with V > 0 lengthening, v = -V / L0 the shortening velocity (L0/s), Vmax the
+max_contraction_velocity (L0/s), a the activation, F_iso the active force-length multiplier, g
+the force-velocity multiplier (active force over isometric force), t the time since stimulation
+onset (s), G the force_velocity_curvature:
+
+    gamma = 0.8 exp(-0.72 t) + 0.175 exp(-0.022 t)
+    H_m = gamma Vmax / G^2                                       (v > 0)
+    H_m = gamma Vmax / G^2 (0.3 + 0.7 exp(-7 Vmax (g - 1)))      (v <= 0)
+    H_s = v / G  (v > 0),   0.5 g |v|  (v <= 0)                  (F0 L0 units, per second)
+    AMdot = a H_m (0.3 + 0.7 F_iso) F0 L0
+    Sdot = a F_iso H_s F0 L0
+    Wdot = -F_active V  (V > 0 only with include_negative_mechanical_work; else 0)
+    total = AMdot + Sdot + Wdot
+
+Constants and sources: config/energetics_models.yaml (section lichtwark); mapping from Virtual
+Muscle's state: docs/energetics_models.md.
+
+References: Lichtwark GA, Wilson AM (2005) J Exp Biol 208:2831-2843 (gamma); Lichtwark GA,
+Wilson AM (2007) J Biomech 40:1768-1775, supplement (the heat rates, G = 4); as Koelewijn AD,
+Heinrich D, van den Bogert AJ (2019) PLoS ONE 14(9):e0222037 implement them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from vm_ros.energetics_models.constants import LichtwarkConstants
+from vm_ros.energetics_models.state import HeatRates, MuscleState
+from vm_ros.energetics_models.umberger import force_length_multiplier_from_state
+
+
+def force_velocity_multiplier_from_state(state: MuscleState):
+    """g = active_fibre_force / isometric_force (1) where the isometric force is positive; 1
+    elsewhere (there the activation, which scales every term g enters, is 0 for a Hill muscle)."""
+    active = np.asarray(state.active_fibre_force, dtype=float)
+    isometric = np.asarray(state.isometric_force, dtype=float)
+    return np.divide(active, isometric, out=np.ones(np.broadcast(active, isometric).shape),
+                     where=isometric > 0.0)
+
+
+def maintenance_decay(stimulation_duration, constants: LichtwarkConstants):
+    """Lichtwark & Wilson 2005's gamma (1): 0.8 exp(-0.72 t) + 0.175 exp(-0.022 t), t in s."""
+    c = constants
+    t = np.asarray(stimulation_duration, dtype=float)
+    return (c.maintenance_decay_fast_amplitude * np.exp(-c.maintenance_decay_fast_rate * t)
+            + c.maintenance_decay_slow_amplitude * np.exp(-c.maintenance_decay_slow_rate * t))
+
+
+def lichtwark_wilson(state: MuscleState, constants: LichtwarkConstants,
+                     force_length_multiplier=None, force_velocity_multiplier=None,
+                     stimulation_duration=0.0) -> HeatRates:
+    """Heat and work rates (W per muscle) of Lichtwark & Wilson (equations in the module
+    docstring). ``force_length_multiplier`` F_iso (1) and ``force_velocity_multiplier`` g (1)
+    default to what the state determines (umberger.force_length_multiplier_from_state,
+    :func:`force_velocity_multiplier_from_state`); ``stimulation_duration`` t (s, default 0: the
+    unfatigued gamma 0.975) is not in MuscleState. ``basal`` is 0."""
+    c = constants
+    a = np.asarray(state.activation, dtype=float)
+    l0 = np.asarray(state.optimal_fibre_length, dtype=float)
+    f0 = np.asarray(state.max_isometric_force, dtype=float)
+    velocity = np.asarray(state.fibre_velocity, dtype=float)
+    shortening_velocity = -velocity / l0
+    f_iso = (force_length_multiplier_from_state(state) if force_length_multiplier is None
+             else np.asarray(force_length_multiplier, dtype=float))
+    g = (force_velocity_multiplier_from_state(state) if force_velocity_multiplier is None
+         else np.asarray(force_velocity_multiplier, dtype=float))
+    vmax = c.max_contraction_velocity
+    curvature = c.force_velocity_curvature
+    shortening = shortening_velocity > 0.0
+
+    isometric_maintenance = maintenance_decay(stimulation_duration, c) * vmax / curvature ** 2
+    floor = c.lengthening_maintenance_floor
+    maintenance = np.where(shortening, isometric_maintenance, isometric_maintenance * (
+        floor + (1.0 - floor) * np.exp(-c.lengthening_maintenance_decay * vmax * (g - 1.0))))
+    shortening_heat = np.where(shortening, shortening_velocity / curvature,
+                               -c.lengthening_heat_coefficient * g * shortening_velocity)
+    scale = f0 * l0
+    stable = c.stable_maintenance_fraction
+    activation_maintenance = a * maintenance * (stable + (1.0 - stable) * f_iso) * scale
+    shortening_lengthening = a * f_iso * shortening_heat * scale
+    work = -np.asarray(state.active_fibre_force, dtype=float) * velocity
+    work = np.where(c.include_negative_mechanical_work | (velocity <= 0.0), work, 0.0)
+    total = activation_maintenance + shortening_lengthening + work
+    return HeatRates(
+        activation_maintenance=activation_maintenance,
+        shortening_lengthening=shortening_lengthening,
+        basal=np.zeros_like(total),
+        mechanical_work=work,
+        total=total,
+    )
