@@ -28,3 +28,39 @@ def test_short_run_gives_sane_numbers(tmp_path):
     assert math.isfinite(result["model_wall_drift_percent"])
     assert result["rate_muscle_force_hz"] > 10 and result["rate_excitation_sent_hz"] > 10
     assert result["mcap_file_mib"] > 0 and (tmp_path / "node_bench.mcap").is_file()
+
+
+def test_split_bag_run_reads_back_and_samples_memory(tmp_path):
+    """--bag with a 1 s split: a bag directory of >= 2 files whose messages all read back, and
+    the memory keys of the sampled window."""
+    require_ros()
+    duration_s, period_s = 4.0, 0.5
+    result = run_node_benchmark(3, duration_s=duration_s, warmup_s=1.0, workdir=tmp_path,
+                                bag=True, max_bag_duration_s=1.0, rss_sample_period_s=period_s)
+
+    assert result["node_exit_code"] == 0, (tmp_path / "muscle_node.log").read_text()
+    bag = tmp_path / "node_bench"
+    files = sorted(bag.glob("node_bench_*.mcap"))
+    assert (bag / "metadata.yaml").is_file() and len(files) >= 2
+    assert result["bag"] and result["max_bag_duration_s"] == 1.0
+    assert result["log_files"] == result["log_metadata_files"] == len(files)
+    assert result["log_read_complete"]
+    assert result["log_messages_read"] == result["log_messages_summary"] > 0
+    total = sum(f.stat().st_size for f in files)
+    assert result["mcap_file_mib"] * 1024 * 1024 == pytest.approx(total)
+    # about one sample per period over the window, plus its two ends
+    assert result["rss_samples"] >= duration_s / period_s - 1
+    trace = result["rss_trace"]
+    mib = 1e-3  # the trace is rounded to 1 kB
+    assert trace[0][1] == pytest.approx(result["rss_window_start_mib"], abs=mib)
+    assert trace[-1][1] == pytest.approx(result["rss_final_mib"], abs=mib)
+    assert result["rss_max_growth_mib"] == pytest.approx(max(m for _, m in trace) - trace[0][1],
+                                                         abs=2 * mib)
+    assert result["rss_growth_mib"] == pytest.approx(trace[-1][1] - trace[0][1], abs=2 * mib)
+    assert math.isfinite(result["rss_slope_mib_per_hour"])
+    assert result["latency_from_node_log"] and result["latency_samples"] > 100  # read the bag
+
+
+def test_splitting_needs_a_bag():
+    with pytest.raises(ValueError, match="needs bag"):
+        run_node_benchmark(3, duration_s=1.0, max_bag_duration_s=1.0)

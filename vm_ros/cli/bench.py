@@ -1,7 +1,7 @@
 """Measure the model, the offline runner and muscle_node against vm_ros's speed targets; write
 the results (JSON and CSV) and print a table.
 
-Sections (all by default; --only picks some):
+Sections (all but node-memory by default; --only picks some):
   model     MuscleBank.step for 1, 10, 100, 1000 muscles (lumped units, energetics on,
             dt 1 ms), compiled (Numba) and NumPy back ends
   natural   natural units (20 per fibre type) over lumped units, cost ratio per step
@@ -20,6 +20,13 @@ Sections (all by default; --only picks some):
             section; the closed loop in one process (myoelbow; myolegs with its root fixed
             and free), wall time per simulated second at 1 ms steps (vm_ros.bench.joint_bench).
             --quick imports at degree 3 over 100 poses (smaller polynomials: not comparable).
+  node-memory
+            runs only when named (--only node-memory; 10 minutes): muscle_node's resident
+            memory over a long run, 100 muscles at 1 kHz, publish 100 Hz, MCAP as a rosbag2
+            bag split every 60 s, 600 s after a 30 s warm-up (--node-duration S: S seconds,
+            split every min(60, S/10) s; --quick: 60 s after 5 s). VmRSS sampled every 5 s;
+            the largest growth over the RSS after the warm-up against +5 MiB, the slope
+            (MiB/h), the number of bag files and whether every file reads back.
 
 --compare opensim adds OpenSim's Millard 2012 muscle with the Umberger 2010 metabolics probe
 beside one vm_ros muscle, same drive and path, 1 ms steps from Python (vm_ros.bench.
@@ -28,7 +35,7 @@ opensim_compare; needs the opensim wheel).
 Timings are medians of repeated runs on a shared machine: compare ratios within one run rather
 than absolute numbers across runs. Targets (issue: performance): 1 muscle <= 30 us per step;
 1000 muscles <= 1 ms per step; knee extension offline < 5 s; node: model time within 1 % of
-wall time and CPU <= 50 % of one core.
+wall time and CPU <= 50 % of one core; node-memory: at most +5 MiB after the warm-up.
 """
 
 from __future__ import annotations
@@ -46,20 +53,30 @@ from vm_ros.child_process import module_command, module_environment
 from vm_ros.errors import VmRosError
 
 HELP = "benchmark the model, offline runs and muscle_node; write JSON/CSV and print a table"
-SECTIONS = ("model", "natural", "offline", "node", "joint")
+SECTIONS = ("model", "natural", "offline", "node", "joint", "node-memory")
+DEFAULT_SECTIONS = ("model", "natural", "offline", "node", "joint")  # node-memory: when named
+MEMORY_DURATION_S, MEMORY_QUICK_DURATION_S = 600.0, 60.0  # node-memory window
+MEMORY_WARMUP_S, MEMORY_QUICK_WARMUP_S = 30.0, 5.0
+MEMORY_SPLIT_S = 60.0  # bag split (log time); shorter windows: a tenth of the window
+MEMORY_FILES = 10  # files a window gives at least about, when shorter than 10 splits
+MEMORY_GROWTH_TARGET_MIB = 5.0  # issue: a 10-minute 100-muscle run stays within +5 MiB
+RSS_SAMPLE_PERIOD_S = 5.0
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("--out", metavar="DIR", default="bench-results",
                         help="folder for bench.json and bench.csv (default bench-results)")
     parser.add_argument("--only", choices=SECTIONS, action="append", metavar="SECTION",
-                        help=f"run only these sections ({', '.join(SECTIONS)}); repeatable")
+                        help=f"run only these sections ({', '.join(SECTIONS)}); repeatable; "
+                             "default all but node-memory (10 minutes), which runs only when "
+                             "named")
     parser.add_argument("--quick", action="store_true",
                         help="fewer repeats and 10 s node runs (a smoke run, not the targets)")
     parser.add_argument("--repeats", type=int, default=None, metavar="N",
                         help="repeats per timing (default 7, --quick 3)")
     parser.add_argument("--node-duration", type=float, default=None, metavar="S",
-                        help="seconds measured per node configuration (default 60, --quick 10)")
+                        help="seconds measured per node configuration (default 60, --quick "
+                             "10; node-memory 600, --quick 60)")
     parser.add_argument("--compare", choices=("opensim",), default=None,
                         help="also time OpenSim's Millard muscle with the Umberger 2010 probe "
                              "against one vm_ros muscle (needs the opensim wheel)")
@@ -111,6 +128,20 @@ def _node_rows(duration_s: float, workdir: Path) -> list[dict]:
                      "--workdir", str(workdir / f"node-{config['muscles']}"),
                      *([] if config["mcap"] else ["--no-mcap"])], duration_s))
     return rows
+
+
+def _node_memory_row(duration_s: float, warmup_s: float, workdir: Path) -> dict:
+    """The node-memory item (module docstring): one node_bench run logging to a split bag."""
+    split_s = min(MEMORY_SPLIT_S, duration_s / MEMORY_FILES)
+    config = {"muscles": 100, "model_rate_hz": 1000.0, "publish_rate_hz": 100.0, "mcap": True,
+              "bag": True, "max_bag_duration_s": split_s}
+    _say(f"node-memory: 100 muscles, publish 100 Hz, bag split every {split_s:g} s, "
+         f"{warmup_s:g} s warm-up + {duration_s:g} s ...")
+    return _node_process(config, [
+        "--muscles", "100", "--model-rate", "1000", "--publish-rate", "100",
+        "--duration", str(duration_s), "--warmup", str(warmup_s),
+        "--bag", "--max-bag-duration", str(split_s), "--rss-period", str(RSS_SAMPLE_PERIOD_S),
+        "--workdir", str(workdir)], duration_s + warmup_s)
 
 
 def _node_process(config: dict, arguments: list, duration_s: float) -> dict:
@@ -223,7 +254,8 @@ def _csv_rows(results: dict) -> list[dict]:
             continue
         main = r["muscles"] == 100
         for key, value in r.items():
-            if key in ("muscles", "model_rate_hz", "publish_rate_hz", "mcap"):
+            if key in ("muscles", "model_rate_hz", "publish_rate_hz", "mcap") or \
+                    isinstance(value, (list, dict)):
                 continue
             target = met = None
             if main and key == "cpu_percent_one_core":
@@ -233,7 +265,31 @@ def _csv_rows(results: dict) -> list[dict]:
             add("node", case, key, value, "", target, met)
     if "joint" in results:
         _joint_csv_rows(results["joint"], add)
+    if "node-memory" in results:
+        _memory_csv_rows(results["node-memory"], add)
     return rows
+
+
+def _memory_csv_rows(r: dict, add) -> None:
+    case = (f"{r['muscles']} muscles, bag split {r['max_bag_duration_s']:g} s, "
+            f"{r.get('duration_s', 0):.0f} s")
+    if "error" in r:
+        add("node-memory", case, "error", r["error"], "")
+        return
+    growth = r["rss_max_growth_mib"]
+    add("node-memory", case, "RSS growth after warm-up (max)", growth, "MiB",
+        f"<= {MEMORY_GROWTH_TARGET_MIB:g} MiB", growth <= MEMORY_GROWTH_TARGET_MIB)
+    add("node-memory", case, "RSS after warm-up", r["rss_window_start_mib"], "MiB")
+    add("node-memory", case, "RSS final", r["rss_final_mib"], "MiB")
+    add("node-memory", case, "RSS growth at the end", r["rss_growth_mib"], "MiB")
+    add("node-memory", case, "RSS slope", r["rss_slope_mib_per_hour"], "MiB/h")
+    add("node-memory", case, "bag files", r.get("log_files", 0), "files")
+    complete = bool(r.get("log_read_complete"))
+    add("node-memory", case, "all files read back", complete, "", "yes", complete)
+    add("node-memory", case, "messages read back", r.get("log_messages_read", 0), "messages")
+    add("node-memory", case, "bag size", r.get("mcap_file_mib", float("nan")), "MiB")
+    add("node-memory", case, "CPU of one core", r["cpu_percent_one_core"], "%")
+    add("node-memory", case, "model time vs wall time", r["model_wall_drift_percent"], "%")
 
 
 def _joint_csv_rows(joint: dict, add) -> None:
@@ -261,7 +317,8 @@ def _joint_csv_rows(joint: dict, add) -> None:
     else:
         for key, value in node.items():
             if key not in ("model", "n_muscles", "joint_rate_hz", "model_rate_hz",
-                           "publish_rate_hz", "mcap", "input"):
+                           "publish_rate_hz", "mcap", "input") and \
+                    not isinstance(value, (list, dict)):
                 add("joint", case, key, value, "")
     for r in joint["closed_loop"]:
         if "skipped" in r:
@@ -273,14 +330,14 @@ def _joint_csv_rows(joint: dict, add) -> None:
 
 
 def _table(rows: list[dict]) -> str:
-    lines = [f"{'section':8} {'case':52} {'metric':30} {'value':>12} {'min..max':>19} "
+    lines = [f"{'section':11} {'case':52} {'metric':30} {'value':>12} {'min..max':>19} "
              f"{'target':>12}  met"]
     for r in rows:
         value = r["value"]
         text = f"{value:12.4g}" if isinstance(value, float) else f"{str(value)[:12]:>12}"
         spread = f"{r['min']:.4g}..{r['max']:.4g}" if r["min"] != "" else ""
         met = {True: "yes", False: "NO", "": ""}[r["met"]]
-        lines.append(f"{r['section']:8} {r['case'][:52]:52} {r['metric'][:30]:30} {text} "
+        lines.append(f"{r['section']:11} {r['case'][:52]:52} {r['metric'][:30]:30} {text} "
                      f"{spread:>19} {r['target']:>12}  {met}")
     return "\n".join(lines)
 
@@ -288,7 +345,7 @@ def _table(rows: list[dict]) -> str:
 def run(args) -> int:
     from vm_ros.bench import model_bench
 
-    sections = args.only or list(SECTIONS)
+    sections = args.only or list(DEFAULT_SECTIONS)
     repeats = args.repeats or (3 if args.quick else 7)
     if repeats < 1:
         raise VmRosError("--repeats must be >= 1")
@@ -314,6 +371,10 @@ def run(args) -> int:
         results["node"] = _node_rows(node_duration, out)
     if "joint" in sections:
         results["joint"] = _joint_section(out, args.quick, repeats, min_seconds, node_duration)
+    if "node-memory" in sections:
+        results["node-memory"] = _node_memory_row(
+            args.node_duration or (MEMORY_QUICK_DURATION_S if args.quick else MEMORY_DURATION_S),
+            MEMORY_QUICK_WARMUP_S if args.quick else MEMORY_WARMUP_S, out / "node-memory")
     if args.compare == "opensim":
         from vm_ros.bench import opensim_compare
 
