@@ -288,3 +288,120 @@ def test_open_chunk_reaches_the_file_after_flush_interval(tmp_path):
         seen = list(LogReader(path).messages())  # the file is still open: no footer yet
     assert [cdr.deserialize(FLOAT64, m.data).data for m in seen] == [0.0, 1.0, 2.0]
     rec.close()
+
+
+def _two_topic_messages(count):
+    """Interleaved Float64 and JointState messages with varied sizes, in log-time order."""
+    topics, data, times = [], [], []
+    for k in range(count):
+        if k % 3:
+            topics.append("/f")
+            data.append(_float64(0.5 * k))
+        else:
+            topics.append("/j")
+            data.append(cdr.serialize(JOINT_STATE, {
+                "header": {"stamp": {"sec": k, "nanosec": 7}, "frame_id": ""},
+                "name": ["m"] * (k % 5), "position": [float(k)] * (k % 7),
+                "velocity": [], "effort": []}))
+        times.append(1_000_000_000 + 1_000_000 * k)
+    return topics, data, times
+
+
+def _record(path, topics, data, times, block, **options):
+    with McapRecorder(path, **options) as rec:
+        rec.add_channel("/f", FLOAT64)
+        rec.add_channel("/j", JOINT_STATE)
+        if block:
+            assert rec.write_block(topics, data, times)
+        else:
+            for topic, payload, time_ns in zip(topics, data, times, strict=True):
+                assert rec.write(topic, payload, time_ns)
+    return rec.status
+
+
+@pytest.mark.parametrize("compression", ["none", "zstd"])
+@pytest.mark.parametrize("bulk", [True, False], ids=["bulk", "fallback"])
+def test_write_block_writes_the_bytes_mcaps_writer_writes(tmp_path, monkeypatch, compression,
+                                                          bulk):
+    """One block through write_block gives the same file, byte for byte, as the same messages
+    through write, i.e. mcap's own Writer.add_message: records, chunk boundaries, message
+    indexes, statistics and summary (and so does the per-message fallback)."""
+    from vm_ros.recording import mcap_bulk
+
+    if not bulk:
+        monkeypatch.setattr(mcap_bulk, "bulk_available", lambda writer: False)
+    topics, data, times = _two_topic_messages(3000)
+    options = dict(chunk_size=4096, compression=compression)
+    one = _record(tmp_path / "one.mcap", topics, data, times, False, **options)
+    many = _record(tmp_path / "many.mcap", topics, data, times, True, **options)
+    assert one.ok and many.ok and one.written == many.written == 3000
+    assert many.dropped == 0
+    reference = (tmp_path / "one.mcap").read_bytes()
+    assert (tmp_path / "many.mcap").read_bytes() == reference
+    _, summary, decoded, _, _ = _read_all(tmp_path / "many.mcap")
+    assert summary.statistics.chunk_count > 10  # the block really was cut into chunks
+    assert [m[1] for m in decoded] == times
+
+
+def _messages_by_file(directory):
+    out = {}
+    for path in sorted(directory.glob("*.mcap")):
+        with open(path, "rb") as stream:
+            out[path.name.split("_")[-1]] = [
+                (channel.topic, message.log_time, message.sequence, message.data)
+                for _, channel, message in make_reader(stream).iter_messages()]
+    return out
+
+
+def test_write_block_splits_a_bag_where_write_does(tmp_path):
+    """Split by duration and by size: one block gives the same files, byte for byte, as write;
+    two blocks (the second starting inside a file; a block ends its last chunk) the same
+    messages, sequence numbers and times in each file."""
+    topics, data, times = _two_topic_messages(3000)
+    for options in (dict(max_file_duration_s=0.7), dict(max_file_size=20_000)):
+        options.update(chunk_size=2048, compression="none")
+        _record(tmp_path / "one", topics, data, times, False, **options)
+        _record(tmp_path / "block", topics, data, times, True, **options)
+        with McapRecorder(tmp_path / "two", **options) as rec:
+            rec.add_channel("/f", FLOAT64)
+            rec.add_channel("/j", JOINT_STATE)
+            assert rec.write_block(topics[:1234], data[:1234], times[:1234])
+            assert rec.write_block(topics[1234:], data[1234:], times[1234:])
+        files = sorted(p.name for p in (tmp_path / "one").glob("*.mcap"))
+        assert len(files) >= 3, options
+        for name in files:
+            block = tmp_path / "block" / name.replace("one", "block")
+            assert block.read_bytes() == (tmp_path / "one" / name).read_bytes(), (options, name)
+        if "max_file_duration_s" in options:  # a size split depends on the chunk boundaries
+            assert _messages_by_file(tmp_path / "two") == _messages_by_file(tmp_path / "one")
+        else:
+            assert sum(map(len, _messages_by_file(tmp_path / "two").values())) == 3000
+        for path in (tmp_path / "one", tmp_path / "block", tmp_path / "two"):
+            for child in path.iterdir():
+                child.unlink()
+            path.rmdir()
+
+
+def test_write_block_on_a_full_disk_counts_every_message(tmp_path):
+    """A block that meets a full disk: written + dropped = every message, written = what a
+    reader gets back, and nothing is raised."""
+    topics, data, times = _two_topic_messages(3000)
+    path = tmp_path / "full.mcap"
+    for room in (3000, 20_000, 45_000):
+        status = _record(path, topics, data, times, True, chunk_size=2048,
+                         compression="none", opener=lambda p, room=room: FullDisk(p, room))
+        assert not status.ok and "No space left on device" in status.error, room
+        in_file = sum(1 for _ in LogReader(path).messages())
+        assert (status.written, status.written + status.dropped) == (in_file, 3000), room
+
+
+def test_write_block_refuses_bad_blocks(tmp_path):
+    with McapRecorder(tmp_path / "b.mcap") as rec:
+        rec.add_channel("/f", FLOAT64)
+        with pytest.raises(RecorderError, match="undeclared channel '/g'"):
+            rec.write_block(["/f", "/g"], [b"", b""], [0, 1])
+        with pytest.raises(RecorderError, match="one topic and one time per message"):
+            rec.write_block(["/f"], [_float64(1.0)], [0, 1])
+        assert rec.write_block([], [], [])
+    assert not rec.write_block(["/f"], [_float64(1.0)], [0])  # closed: dropped, counted
+    assert rec.status.dropped == 1

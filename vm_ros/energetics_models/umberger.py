@@ -47,7 +47,7 @@ def force_length_multiplier_from_state(state: MuscleState):
     (where the state does not determine it: the lengthened-fibre heat rates then equal those at
     L <= L0). Exact for a force proportional to activation (OpenSim's muscles); for Virtual
     Muscle, whose active force is not, pass the force-length factor itself
-    (docs/energetics_models.md section 3)."""
+    (docs/energetics_models.md section 7)."""
     denominator = np.asarray(state.activation, dtype=float) * state.max_isometric_force
     isometric = np.asarray(state.isometric_force, dtype=float)
     return np.divide(isometric, denominator, out=np.ones(np.broadcast(isometric,

@@ -53,10 +53,10 @@ from vm_ros.recording.writer import McapRecorder
 
 _RETRY_S = 0.001
 _RETRIES = 5000  # an offline run waits up to 5 s for room in the recorder queue, then drops
-# messages handed to the recorder and not yet written, at most (its queue holds 20 000 by
-# default): waiting below that keeps every write accepted, so none is counted as dropped
-_IN_FLIGHT = 12000
-_BATCH = 2000
+# messages handed to the recorder and not yet written before another block is handed over (a
+# block of BLOCK_STEPS steps of the knee extension holds 12,500): the run steps on while the
+# writer thread compresses, and the queue (20 000 entries by default) never fills
+_IN_FLIGHT = 40000
 BLOCK_STEPS = 5000  # steps whose inputs are taken, and messages built, at once
 # order of the messages written at one step (stepwise loop): inputs after outputs
 _INPUT_RANK, _OUTPUT_RANK = 8, 0
@@ -91,15 +91,19 @@ class LogSink:
         self._write(self._full(topic), data, time_ns)
 
     def write_many(self, topics, data, times_ns) -> None:
-        """Write messages in the given order (topics: base names), keeping the recorder's queue
-        below _IN_FLIGHT."""
-        if self.recorder is None:
+        """Write messages in the given order (topics: base names) as one block of the recorder
+        (McapRecorder.write_block), once fewer than _IN_FLIGHT messages wait for it."""
+        if self.recorder is None or not len(data):
             return
         full = [self._full(topic) for topic in topics]
-        for begin in range(0, len(full), _BATCH):
-            self._wait_for_room()
-            for i in range(begin, min(begin + _BATCH, len(full))):
-                self._write(full[i], data[i], int(times_ns[i]))
+        self._wait_for_room()
+        for _ in range(_RETRIES):
+            if self.recorder.write_block(full, data, times_ns):
+                self._sent += len(data)
+                return
+            if not self.recorder.status.ok:
+                return
+            time.sleep(_RETRY_S)
 
     def _full(self, topic: str) -> str:
         name = self._topics.get(topic)

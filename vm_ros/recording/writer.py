@@ -3,6 +3,7 @@
     with McapRecorder("run.mcap", metadata={"vm_ros.run": {...}}) as rec:
         rec.add_channel("/muscle_force", "sensor_msgs/msg/JointState")
         rec.write("/muscle_force", cdr_bytes, log_time_ns)
+        rec.write_block(topics, cdr_bytes_list, log_times_ns)   # many at once (offline runs)
     rec.status      # RecorderStatus(ok, error, written, dropped, bytes_written, path)
 
 The file follows rosbag2's MCAP conventions (profile ``ros2``; schema ``pkg/msg/Type``,
@@ -37,15 +38,17 @@ from __future__ import annotations
 import queue
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
 
+import numpy as np
 from mcap.opcode import Opcode
 from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
 
 from vm_ros.errors import VmRosError
+from vm_ros.recording import mcap_bulk
 from vm_ros.recording.bag import BagError, is_bag_path, prepare_bag_directory, write_bag_metadata
 from vm_ros.recording.message_types import UnknownMessageTypeError, schema_text, type_hash
 from vm_ros.recording.qos import offered_qos_profiles_yaml
@@ -97,6 +100,23 @@ class RecorderStatus:
     dropped: int
     bytes_written: int
     path: str
+
+
+@dataclass(frozen=True)
+class _Block:
+    """Messages queued together by ``write_block``."""
+
+    topics: list
+    data: list
+    log_times_ns: np.ndarray
+
+
+class _BlockError(Exception):
+    """A block failed after ``handed`` of its messages went to the writer."""
+
+    def __init__(self, handed: int):
+        super().__init__(handed)
+        self.handed = handed
 
 
 @dataclass(frozen=True)
@@ -315,6 +335,32 @@ class McapRecorder:
             return False
         return True
 
+    def write_block(self, topics: Sequence[str], data: Sequence[bytes], log_times_ns) -> bool:
+        """Queue many serialised messages at once (``topics``, ``data`` and ``log_times_ns``
+        per message, in file order; publish time = log time): one queue entry, written as whole
+        chunks of about ``chunk_size`` bytes without a Python call per message
+        (vm_ros.recording.mcap_bulk). Otherwise as ``write``: never blocks; False, with every
+        message counted as dropped, when the queue is full, the writer failed or the recorder
+        is closed."""
+        unknown = set(topics) - self._channels.keys()
+        if unknown:
+            raise RecorderError(self._path, f"write to undeclared channel {sorted(unknown)[0]!r}")
+        if not len(data):
+            return True
+        if len(topics) != len(data) or len(log_times_ns) != len(data):
+            raise RecorderError(self._path, "write_block needs one topic and one time per "
+                                            "message")
+        if self._error is not None or self._closing:
+            self._count_dropped(len(data))
+            return False
+        block = _Block(list(topics), list(data), np.asarray(log_times_ns, dtype=np.int64))
+        try:
+            self._queue.put_nowait(block)
+        except queue.Full:
+            self._count_dropped(len(data))
+            return False
+        return True
+
     @property
     def status(self) -> RecorderStatus:
         return RecorderStatus(ok=self._error is None, error=self._error, written=self._written,
@@ -333,8 +379,8 @@ class McapRecorder:
             self._thread.join()
             late = 0
             while not self._queue.empty():  # written after close() began: never recorded
-                self._queue.get_nowait()
-                late += 1
+                item = self._queue.get_nowait()
+                late += len(item.data) if isinstance(item, _Block) else 1
             self._count_dropped(late)
             self._closed = True
 
@@ -362,10 +408,12 @@ class McapRecorder:
                 time.sleep(0)
             if self._error is not None:
                 if item is not None:
-                    self._count_dropped(1)
+                    self._count_dropped(len(item.data) if isinstance(item, _Block) else 1)
                 continue
             try:
-                if item is not None:
+                if isinstance(item, _Block):
+                    self._add_block(item)
+                elif item is not None:
                     self._add_message(*item)
                 self._flush_if_old()
             except Exception as exc:  # disk full, I/O error: record it, keep draining
@@ -403,6 +451,61 @@ class McapRecorder:
         self._writer.add_message(self._channel_ids[topic], log_time, data, publish_time,
                                  sequence)
         self._note_written_chunks()
+
+    def _add_block(self, block: _Block) -> None:
+        """The block's messages as whole chunks, cut where ``write`` would cut them (after the
+        message that takes a chunk past chunk_size bytes), the last one written at once; a file
+        split falls between chunks, before the first message due to start a new file. On a failure
+        the messages not yet handed to the writer count as dropped (those of the chunk being
+        written: _fail)."""
+        try:
+            self._write_block_chunks(block)
+        except _BlockError as failure:
+            self._count_dropped(len(block.data) - failure.handed)
+            raise failure.__cause__ from None
+
+    def _write_block_chunks(self, block: _Block) -> None:
+        topics, handed = set(block.topics), 0
+        try:
+            ids = self._block_channel_ids(block, topics)
+            sequences = np.empty(len(ids), dtype=np.int64)
+            for topic in topics:
+                mine = np.flatnonzero(ids == self._channel_ids[topic])
+                sequences[mine] = self._sequence[topic] + 1 + np.arange(len(mine))
+                self._sequence[topic] += len(mine)
+            sizes = np.fromiter((len(d) for d in block.data), dtype=np.int64, count=len(ids))
+            ends = np.cumsum(sizes + mcap_bulk.MESSAGE_RECORD_HEADER)  # record bytes to each
+            times = block.log_times_ns
+            while handed < len(ids):
+                begin = handed
+                if self._split_due(int(times[begin])):
+                    self._next_file()
+                    ids = self._block_channel_ids(block, topics)
+                if self._file_start_log_time is None:
+                    self._file_start_log_time = int(times[begin])
+                base = ends[begin - 1] if begin else 0
+                end = begin + mcap_bulk.chunk_length(self._writer, ends[begin:] - base,
+                                                     self._chunk_size)
+                if self._max_file_duration_ns:  # stop before the message that starts a file
+                    late = np.flatnonzero(times[begin + 1:end] - self._file_start_log_time
+                                          >= self._max_file_duration_ns)
+                    end = begin + 1 + int(late[0]) if len(late) else end
+                self._written += end - begin
+                self._open_chunk_count += end - begin
+                handed = end
+                mcap_bulk.add_chunk(self._writer, ids[begin:end], sequences[begin:end],
+                                    times[begin:end], times[begin:end], block.data[begin:end])
+                self._note_written_chunks()
+        except Exception as exc:
+            raise _BlockError(handed) from exc
+
+    def _block_channel_ids(self, block: _Block, topics: set) -> np.ndarray:
+        """The channel id of each message of ``block`` in the current file (channels registered
+        first where needed)."""
+        if any(topic not in self._channel_ids for topic in topics):
+            self._register_pending()
+            self._note_written_chunks()
+        return np.array([self._channel_ids[topic] for topic in block.topics], dtype=np.int64)
 
     def _split_due(self, log_time: int) -> bool:
         """A new file before this message: the current one has reached max_file_size bytes, or
