@@ -37,7 +37,8 @@ HOLDS = {
 
 @dataclass(frozen=True)
 class ScenarioInputs:
-    """Input functions of time (s) returning arrays of shape (n_muscles,)."""
+    """Input functions of time: t (s) a number gives an (n_muscles,) array, t an array of k
+    times gives (k, n_muscles) at once (the same values)."""
 
     excitation: Callable[[float], np.ndarray]
     path_length: Callable[[float], np.ndarray]
@@ -47,8 +48,15 @@ class ScenarioInputs:
     def sample(self, times) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Excitation, path length and path velocity at each of ``times`` (s), each (k, n): the
         inputs of ``MuscleBank.run``."""
-        return tuple(np.array([fn(t) for t in times], dtype=float)
+        times = np.asarray(times, dtype=float)
+        return tuple(np.array(fn(times), dtype=float)
                      for fn in (self.excitation, self.path_length, self.path_velocity))
+
+
+def _per_muscle(values, n: int) -> np.ndarray:
+    """A value per time (a number or (k,)) as the same value for every muscle: (n,) or (k, n)."""
+    values = np.asarray(values, dtype=float)
+    return np.broadcast_to(values[..., None], (*values.shape, n)).copy()
 
 
 @dataclass(frozen=True)
@@ -90,36 +98,42 @@ def _knee_extension(s: Scenario, bank: MuscleBank) -> ScenarioInputs:
     arm = v["moment_arm"]
 
     def angle(t):  # extension angle: starts flexed (angle_min), extends during the first half
-        return mid_angle - half_range * np.cos(w * t)
+        return mid_angle - half_range * np.cos(w * np.asarray(t, dtype=float))
 
     def excitation(t):
-        phase = (t * v["frequency"]) % 1.0
-        return np.full(bank.n, v["drive"] if phase < v["drive_fraction"] else 0.0)
+        phase = (np.asarray(t, dtype=float) * v["frequency"]) % 1.0
+        return _per_muscle(np.where(phase < v["drive_fraction"], v["drive"], 0.0), bank.n)
 
     def path_length(t):  # extension shortens the knee extensors
-        return mid - arm * (angle(t) - mid_angle)
+        return mid - arm * (np.asarray(angle(t))[..., None] - mid_angle)
 
     def path_velocity(t):
-        return np.full(bank.n, -arm * half_range * w * np.sin(w * t))
+        return _per_muscle(-arm * half_range * w * np.sin(w * np.asarray(t, dtype=float)),
+                           bank.n)
 
     return ScenarioInputs(excitation, path_length, path_velocity, angle)
 
 
+def _constant(values):
+    """A function of time that is ``values`` (n,) at every time (t an array: (k, n))."""
+    values = np.asarray(values, dtype=float)
+    return lambda t: np.broadcast_to(values, (*np.shape(t), *values.shape)).copy()
+
+
 def _isometric_ramp(s: Scenario, bank: MuscleBank) -> ScenarioInputs:
     peak, duration = s.values["drive"], s.duration_s
-    lp = s.mid_path_length(bank)
     return ScenarioInputs(
-        lambda t: np.full(bank.n, peak * max(0.0, 1.0 - abs(2.0 * t / duration - 1.0))),
-        lambda t: lp, lambda t: np.zeros(bank.n))
+        lambda t: _per_muscle(peak * np.maximum(
+            0.0, 1.0 - np.abs(2.0 * np.asarray(t, dtype=float) / duration - 1.0)), bank.n),
+        _constant(s.mid_path_length(bank)), _constant(np.zeros(bank.n)))
 
 
 def _sinusoidal_drive(s: Scenario, bank: MuscleBank) -> ScenarioInputs:
     v = s.values
-    lp = s.mid_path_length(bank)
     return ScenarioInputs(
-        lambda t: np.full(bank.n, v["drive"] + v["drive_amplitude"]
-                          * np.sin(2 * np.pi * v["frequency"] * t)),
-        lambda t: lp, lambda t: np.zeros(bank.n))
+        lambda t: _per_muscle(v["drive"] + v["drive_amplitude"] * np.sin(
+            2 * np.pi * v["frequency"] * np.asarray(t, dtype=float)), bank.n),
+        _constant(s.mid_path_length(bank)), _constant(np.zeros(bank.n)))
 
 
 def _isovelocity(s: Scenario, bank: MuscleBank) -> ScenarioInputs:
@@ -129,12 +143,12 @@ def _isovelocity(s: Scenario, bank: MuscleBank) -> ScenarioInputs:
     mid = s.mid_path_length(bank)
 
     def path_length(t):  # shorten for the first half, lengthen back in the second
-        return mid + speed * (abs(t - half) - 0.5 * half)
+        return mid + speed * (np.abs(np.asarray(t, dtype=float) - half)[..., None] - 0.5 * half)
 
     def path_velocity(t):
-        return speed * (1.0 if t >= half else -1.0)
+        return speed * np.where(np.asarray(t, dtype=float) >= half, 1.0, -1.0)[..., None]
 
-    return ScenarioInputs(lambda t: np.full(bank.n, v["drive"]), path_length, path_velocity)
+    return ScenarioInputs(_constant(np.full(bank.n, v["drive"])), path_length, path_velocity)
 
 
 _BUILDERS = {"knee_extension": _knee_extension, "isometric_ramp": _isometric_ramp,

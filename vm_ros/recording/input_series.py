@@ -33,9 +33,11 @@ class InputSeries:
     def duration_s(self) -> float:
         return float(self.time_s[-1] - self.time_s[0])
 
-    def _interpolate(self, quantity: str, t: float) -> np.ndarray:
+    def _interpolate(self, quantity: str, t) -> np.ndarray:
+        """At t (s from the table's start) a number: (n,); t an array (k,): (k, n)."""
         table = self.values[quantity]
-        return np.array([np.interp(t, self.time_s, table[:, i]) for i in range(table.shape[1])])
+        return np.stack([np.interp(t, self.time_s, table[:, i])
+                         for i in range(table.shape[1])], axis=-1)
 
     def excitation(self, t: float) -> np.ndarray:
         return self._interpolate("excitation", t + self.time_s[0])

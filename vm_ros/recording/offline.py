@@ -175,23 +175,32 @@ class SampledInputs:
         self._held = None
 
     def _sample(self, time_ns: int):
-        t_s = (time_ns - self._start_ns) * 1e-9
-        return tuple(np.asarray(f(t_s), dtype=float) * np.ones(len(self.names))
-                     for f in self._functions)
+        return tuple(array[0] for array in self._sample_many([time_ns]))
 
     def _sample_many(self, times_ns) -> list:
-        """_sample at each of ``times_ns``: [U, path length, path velocity], (k, n) each."""
-        n, arrays = len(self.names), []
-        times_s = [(int(t) - self._start_ns) * 1e-9 for t in times_ns]
+        """[U, path length, path velocity] at each of ``times_ns``, (k, n) each. A function
+        called with the array of times (s) that gives (k, n) is taken at once (the built-in
+        scenarios and input files do); otherwise it is called at each time, and a value of
+        shape () or (n,) is the same for every muscle."""
+        n = len(self.names)
+        times_s = (np.asarray(times_ns, dtype=np.int64) - self._start_ns) * 1e-9
+        arrays = []
         for function in self._functions:
-            values = [function(t) for t in times_s]
+            try:
+                at_once = np.asarray(function(times_s), dtype=float)
+            except (TypeError, ValueError):  # a function of one time only
+                at_once = None
+            if at_once is not None and at_once.shape == (len(times_s), n):
+                arrays.append(np.ascontiguousarray(at_once))
+                continue
+            values = [function(t) for t in times_s.tolist()]
             try:
                 stacked = np.array(values, dtype=float)
-            except ValueError:  # values of different shapes: each as _sample takes it
+            except ValueError:  # values of different shapes: each broadcast to the muscles
                 stacked = np.array([np.asarray(v, dtype=float) * np.ones(n) for v in values])
             if stacked.ndim == 1:
                 stacked = stacked[:, None]
-            # as _sample: times ones (exact), broadcast to the muscles
+            # times ones (exact), broadcast to the muscles
             arrays.append(np.ascontiguousarray(np.broadcast_to(stacked, (len(values), n))))
         return arrays
 
