@@ -55,7 +55,8 @@ Definitions (keys of the returned dict; times are the benchmark's steady clock u
 | log_messages_read | messages read back through every file (vm_ros.recording.LogReader, chunk
   CRCs checked) |
 | log_read_complete | every file read to its end and log_messages_read == log_messages_summary;
-  for a bag also metadata.yaml present and listing every file (log_metadata_files) |
+  for a bag also metadata.yaml present and listing every file (log_metadata_files); False with
+  log_read_error when the log cannot be read at all |
 
 Excitation-to-force latency: for each excitation message published in the window, the time from
 just before ``publish()`` to the arrival here of the first ``muscle_force`` message whose stamp is
@@ -709,7 +710,11 @@ def _run(setup, model_rate_hz, publish_rate_hz, duration_s, mcap, workdir, progr
             node_exit_code=exit_code, node_stop_s=stop_s,
             forces_finite=_finite(last, len(names)), mcap_file_mib=math.nan)
         if mcap_path is not None and mcap_path.exists():
-            result.update(log_summary(mcap_path))
+            try:
+                result.update(log_summary(mcap_path))
+            except Exception as exc:  # an unfinished or corrupt log: reported, not raised
+                result.update(log_read_complete=False,
+                              log_read_error=f"{type(exc).__name__}: {exc}")
         if geometry is not None:
             result["efforts_finite"] = _finite(driver.last_joint_efforts_message(),
                                                len(sweep.names))
