@@ -1,0 +1,290 @@
+"""Every published energetics model against Tsianos 2012 on the same Virtual Muscle runs.
+
+Each scenario is run once per fibre composition with ``MuscleBank.run`` (fixed step ``dt``); the
+published models are computed from every step's state (vm_ros.energetics_models.vm_state), and
+every model's rate, summed over the bank's muscles, is integrated on the step grid the bank
+integrates its own energy on: E = sum_k rate_k dt, rate_k at the end of step k (the bank's
+cumulative energy is exactly this sum for Tsianos 2012, which the tests check).
+
+| scenario | muscles | what | recovery |
+| isometric_u{U} | vasti | drive U from its steady state, fascicle held at L0 | static |
+| isovelocity_{V} | vasti | drive 0.5, fascicle from 1 -/+ 0.15 L0 through L0 at V L0/s | static |
+| knee_extension | rectus femoris, vasti | Tsianos 2012 Fig. 7 (vm_ros.scenarios) | dynamic |
+| gait_cycle | vasti | our gait-like cycle, below | static |
+
+The gait-like cycle (ours, not from a paper; a stretch-shortening pattern like a knee extensor's
+in walking): at 1 Hz, the drive is a sin^2 burst of peak 0.4 over the first 40 % of each cycle,
+and the path length is the mid-range path length plus 0.08 L0 sin(2 pi t): the muscle is
+stretched while the drive rises (phase 0-0.25) and shortens as it falls (0.25-0.4).
+
+Compositions override every muscle's fpcsa_slow: slow 0.85 (like soleus, 0.88 in the library),
+mixed 0.50, fast 0.15; ``library`` keeps the library's (vasti 0.47, rectus femoris 0.36).
+The constants of these scenarios are :class:`ComparisonSettings`' defaults (units in the names).
+"""
+
+from __future__ import annotations
+
+import csv
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from vm_ros.energetics_models.vm_state import MODEL_NAMES, published_rates
+from vm_ros.model import MuscleBank
+from vm_ros.model.curves import tendon_length_at_force
+from vm_ros.model.mechanics import contractile_force_normalised
+from vm_ros.scenarios import load_scenario
+
+TSIANOS = "tsianos2012"
+COMPOSITIONS = {"slow": 0.85, "mixed": 0.50, "fast": 0.15, "library": None}
+GROUPS = ("isometric", "isovelocity", "knee_extension", "gait_cycle")
+
+
+@dataclass(frozen=True)
+class ComparisonSettings:
+    """The comparison's scenario constants (ours; module docstring)."""
+
+    dt_s: float = 0.001
+    sweep_muscle: str = "vasti"
+    isometric_drives: tuple = (0.1, 0.25, 0.5, 0.75, 1.0)
+    isometric_duration_s: float = 2.0
+    isovelocity_drive: float = 0.5
+    isovelocity_speeds_l0_per_s: tuple = (-2.0, -1.0, -0.5, -0.25, 0.25, 0.5, 1.0, 2.0)
+    isovelocity_half_travel_l0: float = 0.15
+    knee_duration_s: float = 180.0
+    gait_frequency_hz: float = 1.0
+    gait_cycles: int = 20
+    gait_peak_drive: float = 0.4
+    gait_burst_fraction: float = 0.4
+    gait_length_amplitude_l0: float = 0.08
+    compositions: tuple = tuple(COMPOSITIONS)
+    groups: tuple = GROUPS
+    models: tuple = MODEL_NAMES
+
+
+@dataclass(frozen=True)
+class ScenarioRun:
+    """One scenario: its muscles, recovery mode and a builder of the run's inputs for a bank:
+    (excitation (k, n), path length (k, n), path velocity (k, n), reset drive or None)."""
+
+    name: str
+    group: str
+    muscles: tuple
+    recovery_mode: str
+    inputs: Callable = field(repr=False)
+
+
+@dataclass
+class ScenarioResult:
+    """Energies (J) per model of one scenario and composition, with the traces for figures."""
+
+    scenario: str
+    group: str
+    composition: str
+    fpcsa_slow: tuple
+    duration_s: float
+    energy_j: dict
+    bank_total_energy_j: float
+    time_s: np.ndarray | None = None
+    rates_w: dict | None = None  # model -> (k,) bank-summed rate, kept for knee_extension
+
+
+def path_length_at(bank: MuscleBank, drive: float, length_l0: float) -> np.ndarray:
+    """Path length (m) at which the fascicles sit at ``length_l0`` (L0) in the isometric steady
+    state for constant ``drive``: L0 L + L0T L_SE(F_CE(L, V = 0))."""
+    activity = bank.steady_effective_activation(np.full(bank.n, drive), length_l0)
+    l = np.full(bank.n, float(length_l0))
+    g = bank.params.generic
+    f_ce, _, _ = contractile_force_normalised(l, np.zeros(bank.n), activity, bank.lmax,
+                                              bank.params.fibre, g)
+    force = np.maximum(f_ce, 1e-6)  # a slack tendon: the length where it carries a trace
+    return bank.l0_m * l + bank.l0t_m * tendon_length_at_force(force, g.ct, g.kt, g.lrt)
+
+
+def _steps(duration_s: float, dt: float) -> int:
+    return max(1, int(round(duration_s / dt)))
+
+
+def _isometric(drive: float, s: ComparisonSettings) -> ScenarioRun:
+    def inputs(bank):
+        k = _steps(s.isometric_duration_s, s.dt_s)
+        lp = path_length_at(bank, drive, 1.0)
+        return (np.full((k, bank.n), drive), np.tile(lp, (k, 1)), np.zeros((k, bank.n)),
+                np.full(bank.n, drive))
+    return ScenarioRun(f"isometric_u{drive:.2f}", "isometric", (s.sweep_muscle,), "static",
+                       inputs)
+
+
+def _isovelocity(speed: float, s: ComparisonSettings) -> ScenarioRun:
+    def inputs(bank):
+        travel = 2.0 * s.isovelocity_half_travel_l0
+        k = _steps(travel / abs(speed), s.dt_s)
+        start = 1.0 - np.sign(speed) * s.isovelocity_half_travel_l0
+        lp0 = path_length_at(bank, s.isovelocity_drive, start)
+        t = np.arange(k)[:, None] * s.dt_s
+        velocity = speed * bank.l0_m
+        return (np.full((k, bank.n), s.isovelocity_drive), lp0 + velocity * t,
+                np.tile(velocity, (k, 1)), np.full(bank.n, s.isovelocity_drive))
+    return ScenarioRun(f"isovelocity_{speed:+.2f}", "isovelocity", (s.sweep_muscle,), "static",
+                       inputs)
+
+
+def _knee(s: ComparisonSettings) -> ScenarioRun:
+    scenario = load_scenario("knee_extension")
+
+    def inputs(bank):
+        k = _steps(s.knee_duration_s, s.dt_s)
+        u, lp, vp = scenario.inputs(bank).sample(np.arange(k) * s.dt_s)
+        return u, lp, vp, None
+    return ScenarioRun("knee_extension", "knee_extension", scenario.muscles,
+                       scenario.recovery_mode, inputs)
+
+
+def _gait(s: ComparisonSettings) -> ScenarioRun:
+    def inputs(bank):
+        k = _steps(s.gait_cycles / s.gait_frequency_hz, s.dt_s)
+        t = np.arange(k) * s.dt_s
+        phase = (t * s.gait_frequency_hz) % 1.0
+        burst = np.where(phase < s.gait_burst_fraction,
+                         np.sin(np.pi * phase / s.gait_burst_fraction) ** 2, 0.0)
+        w = 2.0 * np.pi * s.gait_frequency_hz
+        mid = path_length_at(bank, 0.0, 1.0)
+        amplitude = s.gait_length_amplitude_l0 * bank.l0_m
+        u = np.tile((s.gait_peak_drive * burst)[:, None], (1, bank.n))
+        return (u, mid + amplitude * np.sin(w * t)[:, None],
+                amplitude * w * np.cos(w * t)[:, None] * np.ones(bank.n), None)
+    return ScenarioRun("gait_cycle", "gait_cycle", (s.sweep_muscle,), "static", inputs)
+
+
+def scenario_set(settings: ComparisonSettings) -> list:
+    """The scenarios of ``settings.groups``, in the order of GROUPS."""
+    s = settings
+    runs = []
+    if "isometric" in s.groups:
+        runs += [_isometric(d, s) for d in s.isometric_drives]
+    if "isovelocity" in s.groups:
+        runs += [_isovelocity(v, s) for v in s.isovelocity_speeds_l0_per_s]
+    if "knee_extension" in s.groups:
+        runs.append(_knee(s))
+    if "gait_cycle" in s.groups:
+        runs.append(_gait(s))
+    return runs
+
+
+def make_bank(run: ScenarioRun, composition: str) -> MuscleBank:
+    """The scenario's bank with every muscle's fpcsa_slow set by ``composition``."""
+    slow = COMPOSITIONS[composition]
+    overrides = None if slow is None else {m: {"fpcsa_slow": slow} for m in run.muscles}
+    return MuscleBank.from_config(list(run.muscles), overrides=overrides,
+                                  recovery_mode=run.recovery_mode)
+
+
+def run_scenario(run: ScenarioRun, composition: str, settings: ComparisonSettings,
+                 keep_traces: bool = False) -> ScenarioResult:
+    """Run one scenario for one composition; energies of Tsianos 2012 and every model."""
+    bank = make_bank(run, composition)
+    u, lp, vp, reset_drive = run.inputs(bank)
+    bank.reset(lp[0], excitation=reset_drive)
+    trajectory = bank.run(settings.dt_s, u, lp, vp)
+    dt = settings.dt_s
+    rates = {TSIANOS: trajectory.record.energy_rates[..., 3].sum(axis=-1)}
+    for name, heat in published_rates(bank, trajectory, settings.models).items():
+        rates[name] = heat.total.sum(axis=-1)
+    energy = {name: float(rate.sum() * dt) for name, rate in rates.items()}
+    return ScenarioResult(
+        scenario=run.name, group=run.group, composition=composition,
+        fpcsa_slow=tuple(float(f) for f in bank.fpcsa[:, 0]),
+        duration_s=float(len(u) * dt),
+        energy_j=energy, bank_total_energy_j=trajectory.last.total_energy,
+        time_s=trajectory.time_s if keep_traces else None,
+        rates_w=rates if keep_traces else None,
+    )
+
+
+def run_comparison(settings: ComparisonSettings, progress=None) -> list:
+    """Every scenario x composition of ``settings``; ``progress(done, total, label)`` is called
+    before each run."""
+    runs = scenario_set(settings)
+    jobs = [(run, c) for c in settings.compositions for run in runs]
+    results = []
+    for i, (run, composition) in enumerate(jobs):
+        if progress is not None:
+            progress(i, len(jobs), f"{run.name} ({composition})")
+        results.append(run_scenario(run, composition, settings,
+                                    keep_traces=run.group == "knee_extension"))
+    if progress is not None:
+        progress(len(jobs), len(jobs), "done")
+    return results
+
+
+TABLE_COLUMNS = ("scenario", "group", "composition", "fpcsa_slow", "model", "energy_j",
+                 "ratio_to_tsianos2012", "mean_rate_w", "duration_s")
+
+
+def table_rows(results) -> list:
+    """One row per model (Tsianos 2012 first) x scenario x composition (TABLE_COLUMNS)."""
+    rows = []
+    for r in results:
+        reference = r.energy_j[TSIANOS]
+        for model, energy in r.energy_j.items():
+            ratio = energy / reference if reference != 0.0 else float("nan")
+            rows.append({
+                "scenario": r.scenario, "group": r.group, "composition": r.composition,
+                "fpcsa_slow": " ".join(f"{f:.2f}" for f in r.fpcsa_slow), "model": model,
+                "energy_j": energy, "ratio_to_tsianos2012": ratio,
+                "mean_rate_w": energy / r.duration_s, "duration_s": r.duration_s,
+            })
+    return rows
+
+
+def write_table(rows, path: Path) -> None:
+    with open(path, "w", newline="", encoding="utf-8") as handle:
+        writer = csv.DictWriter(handle, fieldnames=TABLE_COLUMNS)
+        writer.writeheader()
+        for row in rows:
+            writer.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v)
+                             for k, v in row.items()})
+
+
+def format_table(results, models) -> str:
+    """A printed table: per scenario and composition, Tsianos 2012's energy (J) and each model's
+    energy relative to it."""
+    short = [m[:10] for m in models]
+    header = f"{'scenario':<22}{'comp.':<8}{'tsianos J':>11}" + "".join(f"{s:>11}" for s in short)
+    lines = [header, "-" * len(header)]
+    for r in results:
+        reference = r.energy_j[TSIANOS]
+        cells = "".join(f"{r.energy_j[m] / reference:>11.3f}" if reference else f"{'nan':>11}"
+                        for m in models)
+        lines.append(f"{r.scenario:<22}{r.composition:<8}{reference:>11.2f}{cells}")
+    return "\n".join(lines)
+
+
+def timed_comparison(settings: ComparisonSettings, progress=None):
+    """:func:`run_comparison` and its wall time (s)."""
+    start = time.monotonic()
+    results = run_comparison(settings, progress)
+    return results, time.monotonic() - start
+
+
+__all__ = [
+    "COMPOSITIONS",
+    "GROUPS",
+    "TABLE_COLUMNS",
+    "TSIANOS",
+    "ComparisonSettings",
+    "ScenarioResult",
+    "ScenarioRun",
+    "format_table",
+    "make_bank",
+    "path_length_at",
+    "run_comparison",
+    "run_scenario",
+    "scenario_set",
+    "table_rows",
+    "timed_comparison",
+    "write_table",
+]
