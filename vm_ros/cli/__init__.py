@@ -27,6 +27,7 @@ VERBS = {
     "import-mjcf": "import_mjcf",
     "closed-loop": "closed_loop",
     "params": "params",
+    "compare-energetics": "compare_energetics",
 }
 
 

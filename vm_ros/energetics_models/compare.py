@@ -270,7 +270,96 @@ def timed_comparison(settings: ComparisonSettings, progress=None):
     return results, time.monotonic() - start
 
 
+MODEL_STYLE = {TSIANOS: ("black", "-", 2.2)}
+
+
+def _style(model: str, index: int):
+    """(colour, line style, width) of a model in every figure; Tsianos 2012 black and thick."""
+    if model in MODEL_STYLE:
+        return MODEL_STYLE[model]
+    return (f"C{index % 10}", "-" if index < 10 else "--", 1.2)
+
+
+def binned_rate(time_s, rate_w, bin_s: float):
+    """Mean rate (W) per bin of ``bin_s`` s (as Tsianos 2012 Fig. 7 averages over 1 s bins):
+    (bin centres (s), rates); a last partial bin is dropped unless it is the only one."""
+    dt = float(time_s[1] - time_s[0]) if len(time_s) > 1 else bin_s
+    per_bin = max(1, int(round(bin_s / dt)))
+    count = max(1, len(rate_w) // per_bin)
+    used = np.asarray(rate_w[:count * per_bin], dtype=float)
+    rates = used.reshape(count, -1).mean(axis=1)
+    return (np.arange(count) + 0.5) * per_bin * dt, rates
+
+
+def write_figures(results, settings: ComparisonSettings, out: Path) -> list:
+    """The knee-extension rate traces (1 s bins, one panel per composition) and a bar chart of
+    every model's energy relative to Tsianos 2012 per scenario group (one panel per composition).
+    Returns the PNG paths. Needs matplotlib (ImportError otherwise)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    models = (TSIANOS, *settings.models)
+    compositions = list(dict.fromkeys(r.composition for r in results))
+    written = []
+    knee = [r for r in results if r.group == "knee_extension" and r.rates_w is not None]
+    if knee:
+        fig, axes = plt.subplots(len(knee), 1, figsize=(10, 2.6 * len(knee) + 0.8),
+                                 sharex=True, squeeze=False)
+        for ax, r in zip(axes[:, 0], knee, strict=True):
+            for i, model in enumerate(models):
+                colour, style, width = _style(model, i - 1)
+                centres, rates = binned_rate(r.time_s, r.rates_w[model], 1.0)
+                ax.plot(centres, rates, color=colour, linestyle=style, linewidth=width,
+                        label=model)
+            ax.set_ylabel("rate (W)")
+            ax.set_title(f"knee extension, {r.composition} (fpcsa_slow "
+                         f"{', '.join(f'{f:.2f}' for f in r.fpcsa_slow)}), 1 s bins",
+                         fontsize=9)
+            ax.grid(alpha=0.3)
+        axes[-1, 0].set_xlabel("time (s)")
+        axes[0, 0].legend(fontsize=7, ncol=3, loc="upper right")
+        fig.tight_layout()
+        path = out / "knee_extension_rates.png"
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        written.append(path)
+    for group in GROUPS:
+        chosen = [r for r in results if r.group == group]
+        if not chosen:
+            continue
+        scenarios = list(dict.fromkeys(r.scenario for r in chosen))
+        fig, axes = plt.subplots(len(compositions), 1,
+                                 figsize=(max(6.0, 1.3 * len(scenarios) + 3), 2.8
+                                          * len(compositions) + 0.6), squeeze=False)
+        width = 0.8 / len(settings.models)
+        for ax, composition in zip(axes[:, 0], compositions, strict=True):
+            by_scenario = {r.scenario: r for r in chosen if r.composition == composition}
+            x = np.arange(len(scenarios))
+            for i, model in enumerate(settings.models):
+                ratios = [by_scenario[s].energy_j[model] / by_scenario[s].energy_j[TSIANOS]
+                          if s in by_scenario and by_scenario[s].energy_j[TSIANOS] else np.nan
+                          for s in scenarios]
+                ax.bar(x - 0.4 + (i + 0.5) * width, ratios, width, color=_style(model, i)[0],
+                       label=model)
+            ax.axhline(1.0, color="black", linewidth=1.5, label=f"{TSIANOS} (= 1)")
+            ax.set_xticks(x, [s.replace(f"{group}_", "") for s in scenarios], fontsize=8)
+            ax.set_ylabel("energy / Tsianos 2012")
+            ax.set_title(f"{group}, {composition}", fontsize=9)
+            ax.grid(alpha=0.3, axis="y")
+        axes[0, 0].legend(fontsize=7, ncol=3)
+        fig.tight_layout()
+        path = out / f"ratio_{group}.png"
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        written.append(path)
+    return written
+
+
 __all__ = [
+    "binned_rate",
+    "write_figures",
     "COMPOSITIONS",
     "GROUPS",
     "TABLE_COLUMNS",
