@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 from vm_ros.bench import model_bench
+from vm_ros.errors import InputError
 from vm_ros.model import SCHEMES, BankState, MuscleBank, Phase, StepRecord, kernel, layout
 from vm_ros.model.compiled_step import CompiledStep, KernelConstants
 from vm_ros.model.numpy_step import NumpyStep
@@ -142,14 +143,50 @@ def test_uncompiled_series_equals_uncompiled_steps():
     u = np.linspace(0.1, 0.9, k)[:, None] * np.ones(bank.n)
     lp = np.tile(lp0, (k, 1))
     vp = np.zeros((k, bank.n))
-    status, end, series, length, _ = _uncompiled(bank).series(bank.state, DT, u, lp, vp)
+    status, end, series, length, _, snapshots = _uncompiled(bank).series(
+        bank.state, DT, u, lp, vp, snapshot_every=6)
     assert status == 0
+    assert [len(a) for a in snapshots] == [3] * len(layout.STATE)  # steps 6, 12, 18 of 20
     stepper, state = _uncompiled(bank), bank.state
     for row in range(k):
         state, record = stepper.step(state, DT, u[row], lp[row], vp[row])
         np.testing.assert_array_equal(length[row], state.fascicle_length_m)
+        if (row + 1) % 6 == 0:
+            for declared, snapshot in zip(layout.STATE, snapshots, strict=True):
+                np.testing.assert_array_equal(snapshot[(row + 1) // 6 - 1],
+                                              getattr(state, declared.name), declared.name)
     np.testing.assert_array_equal(series.row(-1).force, record.force)
     np.testing.assert_array_equal(end.energy_j, state.energy_j)
+
+
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+def test_run_snapshots_are_the_states_step_reaches(backend):
+    """run(..., snapshot_every=m): the state at the end of steps m, 2m, ... is the state that
+    repeated step() reaches there, to the bit, and the snapshots' times are the steps' times."""
+    if backend == "numba" and not kernel.AVAILABLE:
+        pytest.skip("Numba is not installed: no compiled back end")
+    bank = model_bench.library_bank(3, "lumped", backend, recovery_mode="dynamic")
+    lp0 = bank.l0_m + bank.l0t_m
+    k = 50
+    u = 0.5 + 0.5 * np.sin(0.1 * np.arange(k))[:, None] * np.ones(bank.n)
+    lp = lp0 + 0.01 * np.sin(0.07 * np.arange(k))[:, None]
+    vp = np.gradient(lp, DT, axis=0)
+    bank.reset(lp0)
+    run = bank.run(DT, u, lp, vp, snapshot_every=7)
+    assert run.snapshots.energy_j.shape == (7, bank.n, 2, 3)  # k // 7
+    bank.reset(lp0)
+    for row in range(k):
+        bank.step(DT, u[row], lp[row], vp[row])
+        if (row + 1) % 7 == 0:
+            j = (row + 1) // 7 - 1
+            assert run.snapshots.time_s[j] == bank.time_s
+            for name in layout.STATE_NAMES:
+                np.testing.assert_array_equal(getattr(run.snapshots, name)[j],
+                                              getattr(bank.state, name), name)
+    assert bank.run(DT, u, lp, vp).snapshots is None
+    for bad in (-1, 1.5, True):
+        with pytest.raises(InputError, match="snapshot_every"):
+            bank.run(DT, u, lp, vp, snapshot_every=bad)
 
 
 def test_old_fiber_names_warn_and_return_the_fibre_fields():

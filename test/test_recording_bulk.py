@@ -124,13 +124,16 @@ def _messages(path):
 @pytest.mark.parametrize("case", [
     {},  # publish and telemetry at 100 Hz
     {"telemetry_rate_hz": 40.0, "duration_s": 1.013},  # ticks every 10 and 25 steps, a rest
-    {"stop_after_s": 1.2295},  # stopped between two steps (at 1.230 s)
+    {"stop_after_s": 1.2295},  # asked to stop inside the second block: stops at its end
     {"recruitment": "natural", "duration_s": 0.5},
     {"muscles": LIBRARY_12, "duration_s": 0.3},  # sums over more than 8 values
 ])
 def test_blocks_write_the_stepwise_log_message_for_message(tmp_path, case):
-    stepwise, status_a = _simulate(tmp_path / "stepwise.mcap", 0, **case)
     blocks, status_b = _simulate(tmp_path / "blocks.mcap", 700, **case)
+    if "stop_after_s" in case:  # a stop is seen between blocks (of 700 steps)
+        assert blocks.steps == 1400
+        case = {**case, "stop_after_s": 1.3995}  # the stepwise loop stopped there
+    stepwise, status_a = _simulate(tmp_path / "stepwise.mcap", 0, **case)
     assert blocks.steps == stepwise.steps
     assert blocks.interrupted == stepwise.interrupted == ("stop_after_s" in case)
     np.testing.assert_array_equal(blocks.force_samples, stepwise.force_samples)

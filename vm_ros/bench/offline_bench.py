@@ -6,7 +6,8 @@ Each repeat times, back to back on the same machine state:
 | key | what |
 | model_s | MuscleBank.run over every step, inputs sampled beforehand (the model alone) |
 | simulate_s | vm_ros.cli.simulate.run in this process: bank, inputs, every message of the default
-  channels (inputs at 1 kHz, outputs and telemetry at 100 Hz) written to an MCAP file, closed |
+  channels (inputs at 1 kHz, outputs and telemetry at 100 Hz) written to a rosbag2 bag
+  directory (one MCAP file and metadata.yaml), closed |
 | cli_s | ``python -m vm_ros.cli simulate`` as a child process (adds start-up and imports) |
 
 Medians over the repeats; the ratios are of the medians.
@@ -81,7 +82,7 @@ def bench_offline_logged(repeats: int = 3, duration_s: float | None = None, cli:
     child process; see the module docstring."""
     model, logged, child, log_line = [], [], [], ""
     with tempfile.TemporaryDirectory(prefix="vm_ros-bench-offline-") as tmp:
-        out = Path(tmp) / "knee.mcap"
+        out = Path(tmp) / "knee"  # a bag directory
         _model_alone(1.0)  # warm-up: compilation and caches
         for _ in range(repeats):
             model.append(_model_alone(duration_s))

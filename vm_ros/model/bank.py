@@ -320,16 +320,23 @@ class MuscleBank:
         self._state = new
         return StepOutput(self.equations, new, record)
 
-    def run(self, dt: float, excitation, path_length, path_velocity=None) -> Trajectory:
+    def run(self, dt: float, excitation, path_length, path_velocity=None,
+            snapshot_every: int = 0) -> Trajectory:
         """Advance k steps of ``dt`` s in one call, inputs given per step as (k, n) arrays (row j
         drives step j, as :meth:`step` takes them); returns every step's outputs as arrays.
 
-        With the compiled back end the whole loop runs in compiled code (for long offline runs
-        and sweeps). On a bad input InputError names the step, and the state is left as it was
-        before the call.
+        ``snapshot_every`` m > 0 also keeps the state at the end of steps m, 2m, ...
+        (``Trajectory.snapshots``: with ``Trajectory.record`` what :meth:`step` reports there,
+        cumulative energies included), so that a run with outputs every m steps is one call.
+        With the compiled back end the whole loop runs in compiled code (for long
+        offline runs and sweeps). On a bad input InputError names the step, and the state is
+        left as it was before the call.
         """
         if not _valid_dt(dt):
             raise InputError("dt", dt, "must be a finite number > 0 s")
+        if isinstance(snapshot_every, bool) or not isinstance(snapshot_every, (int, np.integer)) \
+                or snapshot_every < 0:
+            raise InputError("snapshot_every", snapshot_every, "must be an integer >= 0 steps")
         old = self._require_state()
         u = self._series("excitation", excitation)
         k, n = u.shape
@@ -337,8 +344,9 @@ class MuscleBank:
         vp = (np.zeros((k, n)) if path_velocity is None
               else self._series("path_velocity", path_velocity, rows=k))
         if self._compiled is None:
-            return self._run_stepwise(dt, u, lp, vp)
-        status, new, series, length, velocity = self._compiled.series(old, float(dt), u, lp, vp)
+            return self._run_stepwise(dt, u, lp, vp, int(snapshot_every))
+        status, new, series, length, velocity, snapshots = self._compiled.series(
+            old, float(dt), u, lp, vp, int(snapshot_every))
         if status != 0:
             row = (status - 1) // n
             try:
@@ -351,7 +359,15 @@ class MuscleBank:
         new.time_s = float(times[-1])
         self._state = new
         last = StepOutput(self.equations, new, series.row(-1))
-        return Trajectory.from_series(times, series, length, velocity, last)
+        return Trajectory.from_series(times, series, length, velocity, last,
+                                      self._snapshots(times, snapshot_every, snapshots), series)
+
+    def _snapshots(self, times, every: int, arrays) -> BankState | None:
+        """The snapshot states as one BankState whose fields carry a leading snapshot axis."""
+        if not every:
+            return None
+        return BankState(time_s=times[every - 1::every][:len(arrays[0])],
+                         **dict(zip(layout.STATE_NAMES, arrays, strict=True)))
 
     def _series(self, name, value, rows: int | None = None) -> np.ndarray:
         array = np.asarray(value, dtype=float)
@@ -362,23 +378,28 @@ class MuscleBank:
         writable = array.flags.c_contiguous and array.flags.writeable
         return array if writable else array.copy()
 
-    def _run_stepwise(self, dt, u, lp, vp) -> Trajectory:
+    def _run_stepwise(self, dt, u, lp, vp, snapshot_every: int = 0) -> Trajectory:
         """:meth:`run` by repeated :meth:`step` (the NumPy back end)."""
         saved = self._require_state()
-        outs = []
+        outs, states = [], []
         try:
             for row in range(u.shape[0]):
                 outs.append(self.step(dt, u[row], lp[row], vp[row]))
+                if snapshot_every and (row + 1) % snapshot_every == 0:
+                    states.append(self._state.copy())
         except InputError as error:
             self._state = saved
             raise InputError(f"{error.name} at step {len(outs)}", error.value,
                              error.reason) from None
+        times = np.array([o.time_s for o in outs])
+        series = StepRecord.stack([o.record for o in outs])
+        arrays = [np.array([getattr(state, name) for state in states]).reshape(
+            (len(states), *getattr(saved, name).shape)) for name in layout.STATE_NAMES]
         return Trajectory.from_series(
-            np.array([o.time_s for o in outs]),
-            StepRecord.stack([o.record for o in outs]),
+            times, series,
             np.array([o.fascicle_length for o in outs]),
             np.array([o.fascicle_velocity for o in outs]),
-            outs[-1],
+            outs[-1], self._snapshots(times, snapshot_every, arrays), series,
         )
 
 

@@ -124,19 +124,24 @@ class CompiledStep:
         new.time_s = old.time_s + dt
         return new, record
 
-    def series(self, old: BankState, dt: float, u, lp, vp):
+    def series(self, old: BankState, dt: float, u, lp, vp, snapshot_every: int = 0):
         """k steps in one kernel call, inputs (k, n) checked for shape: (status, new state,
-        series StepRecord, fascicle length (k, n), fascicle velocity (k, n)). Status 0, or 1 +
-        step * n + muscle of the first bad input; ``old`` is not modified. The new state's time
-        is left at ``old``'s."""
+        series StepRecord, fascicle length (k, n), fascicle velocity (k, n), snapshots). Status
+        0, or 1 + step * n + muscle of the first bad input; ``old`` is not modified. The new
+        state's time is left at ``old``'s. ``snapshots``: the state arrays (layout.STATE order)
+        at the end of every ``snapshot_every``-th step, (k // snapshot_every, ...) each."""
         k = u.shape[0]
         new = old.copy()
         record = StepRecord.empty(self.n, (k,))
         length, velocity = (a.empty({"n": self.n}, (k,))
                             for a in layout.SERIES_OUTPUTS[len(layout.OUTPUTS):])
+        sizes = layout.state_sizes(self.n, old.firing_rate_intermediate.shape[1])
+        count = k // snapshot_every if snapshot_every > 0 else 0
+        snapshots = [a.empty(sizes, (count,)) for a in layout.SNAPSHOTS]
         status = self._advance_series(dt, u, lp, vp, *self._constants, *_state_arrays(new),
-                                      self._terms_end, self._xv_end, *record, length, velocity)
-        return status, new, record, length, velocity
+                                      self._terms_end, self._xv_end, *record, length, velocity,
+                                      int(max(snapshot_every, 0)), *snapshots)
+        return status, new, record, length, velocity, snapshots
 
 
 __all__ = ["CompiledStep", "KernelConstants"]

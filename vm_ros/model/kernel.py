@@ -323,11 +323,15 @@ def _advance_series(
     effective_drive, f_int, f_eff, sag, yield_factor, x_state, xdot_state, recovery_filter,
     energy, work, terms_end, xv_end, out_excitation,
     out_f_se, out_f_ce, out_activity, out_stimulation, out_components, out_rates, out_power,
-    out_length, out_velocity,
+    out_length, out_velocity, snapshot_every, snap_effective_drive, snap_f_int, snap_f_eff,
+    snap_sag, snap_yield_factor, snap_x_state, snap_xdot_state, snap_recovery_filter,
+    snap_energy, snap_work,
 ):
     """:func:`_advance` for k steps: inputs and outputs carry a leading step axis (k, n, ...);
-    the state arrays end at the last step. Returns 0, or 1 + the flat index step * n + muscle
-    of the first bad input (the caller discards the state arrays)."""
+    the state arrays end at the last step, and with ``snapshot_every`` m > 0 the ``snap_``
+    arrays (k // m, ...) take the state at the end of steps m, 2m, ... Returns 0, or 1 + the
+    flat index step * n + muscle of the first bad input (the caller discards the state
+    arrays)."""
     n = excitation.shape[1]
     for k in range(excitation.shape[0]):
         status = _advance_step(
@@ -342,6 +346,18 @@ def _advance_series(
             return k * n + status
         out_length[k] = x_state
         out_velocity[k] = xdot_state
+        if snapshot_every > 0 and (k + 1) % snapshot_every == 0:
+            j = (k + 1) // snapshot_every - 1
+            snap_effective_drive[j] = effective_drive
+            snap_f_int[j] = f_int
+            snap_f_eff[j] = f_eff
+            snap_sag[j] = sag
+            snap_yield_factor[j] = yield_factor
+            snap_x_state[j] = x_state
+            snap_xdot_state[j] = xdot_state
+            snap_recovery_filter[j] = recovery_filter
+            snap_energy[j] = energy
+            snap_work[j] = work
     return 0
 
 

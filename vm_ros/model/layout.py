@@ -244,9 +244,16 @@ SERIES_OUTPUTS = OUTPUTS + (
 )
 
 
+# and, when asked (MuscleBank.run's snapshot_every m > 0), the state at the end of every m-th
+# step: each state array with a leading axis of k // m snapshots
+SNAPSHOT_EVERY = Array("snapshot_every", "snapshot_every", (), "1",
+                       "steps between state snapshots (0: none)", int)
+SNAPSHOTS = tuple(Array(a.name, f"snap_{a.kernel}", a.shape, a.unit, a.meaning) for a in STATE)
+
+
 def kernel_parameters(series: bool = False) -> tuple:
     """The kernel's parameter names, in order (kernel._advance; _advance_series if ``series``)."""
-    outputs = SERIES_OUTPUTS if series else OUTPUTS
+    outputs = (*SERIES_OUTPUTS, SNAPSHOT_EVERY, *SNAPSHOTS) if series else OUTPUTS
     return tuple(a.kernel for a in (*INPUTS, *CONSTANTS, *STATE, *CACHE, *outputs))
 
 
@@ -259,7 +266,8 @@ def dummy_arguments(scheme: int = 0) -> tuple:
 
 
 __all__ = [
-    "CACHE", "CONSTANTS", "INPUTS", "N_TERMS", "OUTPUTS", "SERIES_OUTPUTS", "STATE", "STATE_NAMES",
+    "CACHE", "CONSTANTS", "INPUTS", "N_TERMS", "OUTPUTS", "SERIES_OUTPUTS", "SNAPSHOTS",
+    "SNAPSHOT_EVERY", "STATE", "STATE_NAMES",
     "TIME", "Array", "BankState", "M", "MissingConstantError", "P", "S", "T",
     "checked_state", "dummy_arguments", "kernel_parameters", "table",
     "zero_state",

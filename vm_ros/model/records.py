@@ -222,6 +222,9 @@ class Trajectory:
     | energy_rate_by_fibre | EnergyRates (k, n, 2) | W |
     | mechanical_power | (k, n) | W |
     | last | StepOutput | the last step, with the cumulative energies and work |
+    | snapshots | BankState (m, ...) or None | with ``run(..., snapshot_every=s)``: the state at
+      the end of steps s, 2s, ... (rows s - 1, 2s - 1, ... of the arrays above), m = k // s |
+    | record | StepRecord (k, ...) | every step's record, as the kernel wrote it |
 
     ``energy_rate_by_fiber`` is a deprecated alias (DeprecationWarning).
     """
@@ -236,9 +239,12 @@ class Trajectory:
     energy_rate_by_fibre: EnergyRates
     mechanical_power: np.ndarray
     last: StepOutput
+    snapshots: object = None
+    record: StepRecord | None = None
 
     @classmethod
-    def from_series(cls, time_s, series, fascicle_length, fascicle_velocity, last) -> Trajectory:
+    def from_series(cls, time_s, series, fascicle_length, fascicle_velocity, last,
+                    snapshots=None, record: StepRecord | None = None) -> Trajectory:
         """From a series StepRecord (k, ...) and the fascicle state of every step."""
         return cls(
             time_s=time_s,
@@ -251,6 +257,8 @@ class Trajectory:
             energy_rate_by_fibre=EnergyRates.from_components(series.energy_components),
             mechanical_power=series.mechanical_power,
             last=last,
+            snapshots=snapshots,
+            record=record,
         )
 
     @property

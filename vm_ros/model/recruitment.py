@@ -309,7 +309,7 @@ class NaturalRecruitment:
         return None
 
     def recruited_fraction(self, u, ueff):
-        return np.where(u[:, None] >= self.thresholds, self.pool_pcsa, 0.0)
+        return np.where(u[..., None] >= self.thresholds, self.pool_pcsa, 0.0)
 
     def pool_weights(self, ueff):
         return self.pool_pcsa

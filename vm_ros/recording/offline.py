@@ -21,11 +21,13 @@ the moment arms of the joint sample the step used; the joint work is summed step
 
 Without joint efforts the run goes by blocks: the inputs of a few thousand steps are taken at
 once (SampledInputs.block samples them and builds their messages in bulk; other inputs are
-advanced step by step with their messages held back), MuscleBank.run steps the bank from one
-publish or telemetry tick to the next, and the messages of the block are built in bulk from
-arrays (vm_ros.recording.bulk) and written in the order the step-by-step loop writes them. The
-log is the same message for message (``block_steps=0`` runs the step-by-step loop, the
-reference kept for joint space and for the tests).
+advanced step by step with their messages held back), one MuscleBank.run steps the bank over
+the block keeping the state at every publish or telemetry tick (snapshot_every), the messages
+of the block are built in bulk from those arrays (vm_ros.recording.bulk) in the order the
+step-by-step loop writes them, and handed to the recorder as one block (write_block: whole
+chunks, no call per message). The log is the same message for message (``block_steps=0`` runs
+the step-by-step loop, the reference kept for joint space and for the tests); a stop request
+is seen between blocks (at most 1e6 muscle-steps), not between steps.
 """
 
 from __future__ import annotations
@@ -58,6 +60,9 @@ _RETRIES = 5000  # an offline run waits up to 5 s for room in the recorder queue
 # writer thread compresses, and the queue (20 000 entries by default) never fills
 _IN_FLIGHT = 40000
 BLOCK_STEPS = 5000  # steps whose inputs are taken, and messages built, at once
+# at most this many muscle-steps per block (one MuscleBank.run): a stop request (Ctrl-C) waits
+# for the block, about 1 s at 1000 muscles
+_BLOCK_MUSCLE_STEPS = 1_000_000
 # order of the messages written at one step (stepwise loop): inputs after outputs
 _INPUT_RANK, _OUTPUT_RANK = 8, 0
 _OUTPUT_ORDER = {tm.TOPIC_FORCE: 0, tm.TOPIC_ENERGY_RATE: 1, tm.TOPIC_ENERGY_RATE_TOTAL: 2,
@@ -491,38 +496,35 @@ class OfflineRun:
         return tuple(np.array([row[i] for row in rows], dtype=float) for i in range(3))
 
     def _run_blocks(self, inputs, n_steps, should_stop, progress, block_steps, forces, times):
-        """The run by blocks (module docstring): MuscleBank.run from tick to tick."""
+        """The run by blocks (module docstring): one MuscleBank.run per block, with the state
+        kept at every tick (snapshot_every)."""
         t = self.timing
         dt_ns, start = t.dt_ns, int(t.start_time_ns or 0)
         per_publish, per_telemetry = t.steps_per(t.publish_rate_hz), t.steps_per(
             t.telemetry_rate_hz)
         every = [p for p in (per_publish, per_telemetry) if p]
         tick = math.gcd(*every) if every else block_steps
-        chunk = max(tick, block_steps // tick * tick)
-        ticks = _Ticks(self.bank.names)
+        steps_per_block = min(block_steps, max(1, _BLOCK_MUSCLE_STEPS // self.bank.n))
+        chunk = max(tick, steps_per_block // tick * tick)
+        ticks = _Ticks(self.bank)
         pending = _Pending()
         out, k = None, 0
         while k < n_steps:
+            if should_stop():
+                return k, out, True
             count = min(chunk, n_steps - k)
             step_starts = start + (k + np.arange(count, dtype=np.int64)) * dt_ns
             u, lp, vp = self._block_inputs(inputs, step_starts, k, pending)
-            j = 0
-            while j < count:
-                if should_stop():  # the messages of the steps taken
-                    ticks.flush(pending, self.sink)
-                    pending.flush(self.sink, k + j)
-                    return k + j, out, True
-                end = min(j + tick, count)
-                out = self.bank.run(t.dt_s, u[j:end], lp[j:end], vp[j:end]).last
-                steps = k + end
-                end_ns = start + steps * dt_ns
-                if per_publish and steps % per_publish == 0:
-                    ticks.publish(out, end_ns, steps)
-                    forces.append(out.force.copy())
-                    times.append(end_ns)
-                if per_telemetry and steps % per_telemetry == 0:
-                    ticks.telemetry(out, end_ns, steps, lp[end - 1], vp[end - 1])
-                j = end
+            run = self.bank.run(t.dt_s, u, lp, vp, snapshot_every=tick)
+            out = run.last
+            steps = k + tick * (1 + np.arange(count // tick, dtype=np.int64))  # at each tick
+            published = steps % per_publish == 0 if per_publish else steps < 0
+            recorded = steps % per_telemetry == 0 if per_telemetry else steps < 0
+            ticks.add(run, steps - k - 1, start + steps * dt_ns, steps, published, recorded,
+                      lp, vp)
+            rows = steps[published] - k - 1
+            forces.extend(run.force[rows])
+            times.extend((start + steps[published] * dt_ns).tolist())
             k += count
             ticks.flush(pending, self.sink)
             pending.flush(self.sink, k)
@@ -532,10 +534,13 @@ class OfflineRun:
 
 
 class _Ticks:
-    """The outputs and telemetry of a block's ticks, as arrays, encoded in bulk by ``flush``."""
+    """The outputs and telemetry at a block's ticks, from the run's arrays and state snapshots,
+    encoded in bulk by ``flush``: the values StepOutput reports at those steps, computed as it
+    computes them (sums per message, over the same axes)."""
 
-    def __init__(self, names):
-        n = len(names)
+    def __init__(self, bank: MuscleBank):
+        names, n = bank.names, bank.n
+        self.equations = bank.equations
         self.force = bulk.joint_state_layout(names, n, n, n)
         self.energy_rate = bulk.multi_array_layout(tm.energy_rate_layout(n),
                                                    n * len(tm.FIBRE_LABELS)
@@ -545,84 +550,81 @@ class _Ticks:
         self._clear()
 
     def _clear(self) -> None:
-        self.published: dict[str, list] = {key: [] for key in (
-            "time", "slot", "position", "velocity", "effort", "energy_rate", "rate_total",
-            "energy_total")}
-        self.recorded: dict[str, list] = {key: [] for key in (
-            "time", "slot", "total_energy_rate", "total_energy",
-            *(name for name, _ in bulk.TELEMETRY_ARRAYS))}
+        self.published: list[dict] = []
+        self.recorded: list[dict] = []
 
-    def publish(self, out: StepOutput, time_ns: int, slot: int) -> None:
-        """What OfflineRun._publish writes for ``out`` (without joints)."""
-        p = self.published
-        p["time"].append(time_ns)
-        p["slot"].append(slot)
-        p["position"].append(out.fascicle_length)
-        p["velocity"].append(out.fascicle_velocity)
-        p["effort"].append(out.force)
-        p["energy_rate"].append(out.record)
-        p["rate_total"].append(out.total_energy_rate)
-        p["energy_total"].append(out.total_energy)
-
-    def telemetry(self, out: StepOutput, time_ns: int, slot: int, path_length,
-                  path_velocity) -> None:
-        """The fields of messages.telemetry_fields, as arrays."""
-        r = self.recorded
-        r["time"].append(time_ns)
-        r["slot"].append(slot)
-        energy = out.energy_by_fibre
-        values = {
-            "excitation": out.excitation, "path_length": path_length,
-            "path_velocity": path_velocity, "effective_drive": out.effective_drive,
-            "force": out.force, "contractile_force": out.contractile_force,
-            "fascicle_length": out.fascicle_length, "fascicle_velocity": out.fascicle_velocity,
-            "mechanical_power": out.mechanical_power, "mechanical_work": out.mechanical_work,
-            "firing_rate": out.firing_rate_f05, "recruited_fraction": out.recruited_fraction,
-            "effective_activation": out.effective_activation,
-            "energy": np.stack([energy.activation, energy.cross_bridge, energy.recovery], -1),
-            "total_energy_rate": out.total_energy_rate, "total_energy": out.total_energy,
-            "energy_rate": out.record,
-        }
-        for name, value in values.items():
-            r[name].append(value)
+    def add(self, run, rows, times_ns, slots, published, recorded, path_length,
+            path_velocity) -> None:
+        """The ticks of one MuscleBank.run: ``rows`` (m,) its rows at the ticks (one per
+        snapshot), their end times and slots (step counts), and which of them publish and
+        record telemetry; path_length, path_velocity: the run's inputs (k, n)."""
+        record, snap = run.record, run.snapshots
+        energy_totals = np.array([energy.sum() for energy in snap.energy_j])
+        rate_totals = np.array([rates[:, 3].sum() for rates in record.energy_rates[rows]])
+        if np.any(published):
+            at, j = rows[published], np.flatnonzero(published)
+            self.published.append({
+                "time": times_ns[published], "slot": slots[published],
+                "position": run.fascicle_length[at], "velocity": run.fascicle_velocity[at],
+                "effort": record.force[at],
+                "energy_rate": _energy_rates(record.energy_components[at],
+                                             record.energy_rates[at]),
+                "rate_total": rate_totals[j], "energy_total": energy_totals[j]})
+        if np.any(recorded):
+            at, j = rows[recorded], np.flatnonzero(recorded)
+            eq, excitation = self.equations, record.excitation[at]
+            effective_drive = snap.effective_drive[j]
+            recruited = eq.recruitment.recruited_fraction(excitation, effective_drive)
+            self.recorded.append({
+                "time": times_ns[recorded], "slot": slots[recorded],
+                "excitation": excitation, "path_length": path_length[at],
+                "path_velocity": path_velocity[at], "effective_drive": effective_drive,
+                "force": record.force[at], "contractile_force": record.contractile_force[at],
+                "fascicle_length": run.fascicle_length[at],
+                "fascicle_velocity": run.fascicle_velocity[at],
+                "mechanical_power": record.mechanical_power[at],
+                "mechanical_work": snap.mechanical_work_j[j],
+                "firing_rate": eq.per_type_mean(snap.firing_rate_effective[j]),
+                "recruited_fraction": recruited @ eq.membership,
+                "effective_activation": record.effective_activation[at],
+                "energy_rate": _energy_rates(record.energy_components[at],
+                                             record.energy_rates[at]),
+                "energy": _energies(snap.energy_j[j]),
+                "total_energy_rate": rate_totals[j], "total_energy": energy_totals[j]})
 
     def flush(self, pending: _Pending, sink: LogSink) -> None:
         if sink.recorder is None:
             self._clear()
             return
-        p, r = self.published, self.recorded
-        if p["time"]:
-            keys = np.asarray(p["slot"], dtype=np.int64) * 16 + _OUTPUT_RANK
-            stamps = np.asarray(p["time"], dtype=np.int64)
+        if self.published:
+            p = {key: np.concatenate([part[key] for part in self.published])
+                 for key in self.published[0]}
+            keys = p["slot"] * 16 + _OUTPUT_RANK
+            stamps = p["time"]
             pending.add(keys + _OUTPUT_ORDER[tm.TOPIC_FORCE], tm.TOPIC_FORCE,
-                        self.force.encode(stamps, position=np.array(p["position"]),
-                                          velocity=np.array(p["velocity"]),
-                                          effort=np.array(p["effort"])), stamps)
+                        self.force.encode(stamps, position=p["position"],
+                                          velocity=p["velocity"], effort=p["effort"]), stamps)
             pending.add(keys + _OUTPUT_ORDER[tm.TOPIC_ENERGY_RATE], tm.TOPIC_ENERGY_RATE,
-                        self.energy_rate.encode(data=_energy_rates(p["energy_rate"])), stamps)
+                        self.energy_rate.encode(data=p["energy_rate"]), stamps)
             for topic, key in ((tm.TOPIC_ENERGY_RATE_TOTAL, "rate_total"),
                                (tm.TOPIC_ENERGY_TOTAL, "energy_total")):
                 pending.add(keys + _OUTPUT_ORDER[topic], topic,
-                            self.float64.encode(data=np.array(p[key])), stamps)
-        if r["time"]:
-            keys = (np.asarray(r["slot"], dtype=np.int64) * 16 + _OUTPUT_RANK
-                    + _OUTPUT_ORDER[msgs.TOPIC_TELEMETRY])
-            stamps = np.asarray(r["time"], dtype=np.int64)
-            arrays = {name: np.array(r[name], dtype=float) for name in r
-                      if name not in ("time", "slot", "energy_rate", "energy")}
-            arrays["energy_rate"] = _energy_rates(r["energy_rate"])
-            arrays["energy"] = _energies(np.array(r["energy"]))
-            pending.add(keys, msgs.TOPIC_TELEMETRY, self.record.encode(stamps, **arrays), stamps)
+                            self.float64.encode(data=p[key]), stamps)
+        if self.recorded:
+            r = {key: np.concatenate([part[key] for part in self.recorded])
+                 for key in self.recorded[0]}
+            keys = r.pop("slot") * 16 + _OUTPUT_RANK + _OUTPUT_ORDER[msgs.TOPIC_TELEMETRY]
+            stamps = r.pop("time")
+            pending.add(keys, msgs.TOPIC_TELEMETRY, self.record.encode(stamps, **r), stamps)
         self._clear()
 
 
-def _energy_rates(records) -> np.ndarray:
-    """telemetry.energy_rate_array of each step record, (k, n, 3, 4), computed at once as
-    StepOutput computes it for one step (the per-fibre total sums the three components)."""
-    components = np.array([record.energy_components for record in records])  # (k, n, 2, 3)
+def _energy_rates(components, rates) -> np.ndarray:
+    """telemetry.energy_rate_array of each step, (k, n, 3, 4), from the record's energy
+    components (k, n, 2, 3) and rates (k, n, 4), computed at once as StepOutput computes it for
+    one step (the per-fibre total sums the three components)."""
     by_fibre = np.concatenate([components, components.sum(axis=-1)[..., None]], axis=-1)
-    per_muscle = np.array([record.energy_rates for record in records])[:, :, None, :]
-    return np.concatenate([by_fibre, per_muscle], axis=2)
+    return np.concatenate([by_fibre, rates[:, :, None, :]], axis=2)
 
 
 def _energies(by_fibre) -> np.ndarray:
