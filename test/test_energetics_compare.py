@@ -1,0 +1,162 @@
+"""The mapping from Virtual Muscle's state to the published energetics models' inputs
+(vm_ros.energetics_models.vm_state) and the ``vm-ros compare-energetics`` verb."""
+
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+
+from vm_ros.cli import main
+from vm_ros.energetics_models import compare
+from vm_ros.energetics_models.vm_state import (
+    MODEL_NAMES,
+    PUBLISHED_MODELS,
+    VmMuscleConstants,
+    published_model,
+    published_rates,
+    time_since_onset,
+    vm_model_inputs,
+    vm_model_inputs_from_outputs,
+)
+from vm_ros.errors import InputError
+from vm_ros.model import MuscleBank
+
+DT = 0.001
+
+
+def _moving_run(recruitment="lumped", k=1500):
+    """Two muscles, drive stepping 0 -> 0.6 / 1.0 and a 2 Hz path-length sine: shortening,
+    lengthening, rest and full drive in one run."""
+    bank = MuscleBank.from_config(["vasti", "soleus"], recruitment=recruitment)
+    lp = compare.path_length_at(bank, 0.0, 1.0)
+    bank.reset(lp)
+    t = np.arange(k) * DT
+    u = np.tile([0.6, 1.0], (k, 1))
+    u[: k // 4] = 0.0
+    amplitude = 0.1 * bank.l0_m
+    path = lp + amplitude * np.sin(4 * np.pi * t)[:, None]
+    velocity = amplitude * 4 * np.pi * np.cos(4 * np.pi * t)[:, None]
+    return bank, bank.run(DT, u, path, velocity)
+
+
+@pytest.mark.parametrize("recruitment", ["lumped", "natural", "continuous"])
+def test_active_plus_passive_is_the_contractile_force(recruitment):
+    bank, trajectory = _moving_run(recruitment)
+    inputs = vm_model_inputs_from_outputs(bank, trajectory)
+    state = inputs.state
+    total = state.active_fibre_force + inputs.passive_fibre_force
+    np.testing.assert_allclose(total, trajectory.contractile_force, rtol=0,
+                               atol=1e-9 * bank.f0.max())
+    assert np.all(trajectory.fascicle_velocity.min(axis=0) < 0)  # shortening and
+    assert np.all(trajectory.fascicle_velocity.max(axis=0) > 0)  # lengthening were covered
+    assert np.all((state.activation >= 0.0) & (state.activation <= 1.0))
+    assert state.activation.max() > 0.3
+
+
+def test_active_force_at_equilibrium_is_the_tendon_force():
+    """At static equilibrium (reset) F_CE = F_SE: the mapping's active + passive force equals the
+    tendon force, a number the mapping does not compute."""
+    bank = MuscleBank.from_config(["vasti", "rectus_femoris", "soleus"])
+    drive = np.array([0.3, 0.7, 1.0])
+    out = bank.reset(bank.l0_m + bank.l0t_m, excitation=drive)
+    inputs = vm_model_inputs_from_outputs(bank, out)
+    np.testing.assert_allclose(inputs.state.active_fibre_force + inputs.passive_fibre_force,
+                               out.force, rtol=1e-6)
+    activation = inputs.state.activation  # full drive: the largest activation, still <= 1
+    assert np.all((activation > 0.0) & (activation <= 1.0)) and activation[2] > 0.8
+
+
+def test_isometric_force_at_optimal_length():
+    """Fascicles held at L0 (FL = 1, V = 0): isometric force = active force = a F0, the
+    force-length and force-velocity multipliers are 1."""
+    bank = MuscleBank.from_config(["vasti", "soleus"])
+    drive = np.array([0.4, 0.9])
+    lp = compare.path_length_at(bank, 0.4, 1.0)[0], compare.path_length_at(bank, 0.9, 1.0)[1]
+    out = bank.reset(np.array(lp), excitation=drive)
+    np.testing.assert_allclose(out.length_l0, 1.0, atol=1e-9)
+    inputs = vm_model_inputs_from_outputs(bank, out)
+    s = inputs.state
+    np.testing.assert_allclose(s.isometric_force, s.activation * bank.f0, rtol=1e-9)
+    np.testing.assert_allclose(s.active_fibre_force, s.isometric_force, rtol=1e-12)
+    np.testing.assert_allclose(inputs.force_length_multiplier, 1.0, atol=1e-9)
+    np.testing.assert_allclose(inputs.force_velocity_multiplier, 1.0, atol=1e-12)
+    np.testing.assert_allclose(s.slow_fraction, bank.fpcsa[:, 0])
+    np.testing.assert_allclose(s.mass, bank.mass_kg)
+
+
+def test_isometric_force_is_active_force_at_zero_velocity():
+    bank, trajectory = _moving_run()
+    constants = VmMuscleConstants.from_bank(bank)
+    moving = vm_model_inputs_from_outputs(bank, trajectory).state
+    still = vm_model_inputs(constants, trajectory.excitation, trajectory.effective_activation,
+                            trajectory.fascicle_length, np.zeros_like(trajectory.fascicle_length))
+    np.testing.assert_allclose(still.state.active_fibre_force, moving.isometric_force,
+                               rtol=1e-12, atol=1e-12)
+    shortening = trajectory.fascicle_velocity < -1e-3
+    assert np.all(moving.active_fibre_force[shortening] <= moving.isometric_force[shortening])
+
+
+def test_time_since_onset():
+    t = np.arange(6) * 0.5
+    u = np.array([[0, 1], [1, 1], [1, 0], [0, 1], [1, 1], [1, 1]], dtype=float)
+    expected = np.array([[0, 0], [0, 0.5], [0.5, 0], [0, 0], [0, 0.5], [0.5, 1.0]])
+    np.testing.assert_allclose(time_since_onset(t, u), expected)
+
+
+def test_registry_and_published_rates():
+    assert len(set(MODEL_NAMES)) == len(PUBLISHED_MODELS) == 8
+    bank, trajectory = _moving_run(k=400)
+    rates = published_rates(bank, trajectory)
+    assert tuple(rates) == MODEL_NAMES
+    for heat in rates.values():
+        assert heat.total.shape == (400, 2) and np.all(np.isfinite(heat.total))
+    one = published_rates(bank, trajectory.last, models=("umberger2010",))
+    assert one["umberger2010"].total.shape == (2,)
+    with pytest.raises(InputError, match="unknown"):
+        published_model("nope")
+
+
+def _table(path):
+    with open(path, encoding="utf-8") as handle:
+        return list(csv.DictReader(handle))
+
+
+def test_verb_writes_one_row_per_model_scenario_composition(tmp_path, capsys):
+    out = tmp_path / "cmp"
+    code = main(["compare-energetics", "--duration", "2", "--no-plots", "--out", str(out),
+                 "--compositions", "slow", "fast"])
+    assert code == 0
+    rows = _table(out / "energetics_comparison.csv")
+    scenarios = {r["scenario"] for r in rows}
+    settings = compare.ComparisonSettings(knee_duration_s=2.0, gait_cycles=2,
+                                          compositions=("slow", "fast"))
+    assert scenarios == {run.name for run in compare.scenario_set(settings)}
+    keys = {(r["model"], r["scenario"], r["composition"]) for r in rows}
+    assert len(rows) == len(keys) == (len(MODEL_NAMES) + 1) * len(scenarios) * 2
+    for row in rows:
+        assert np.isfinite(float(row["energy_j"])) and np.isfinite(float(row["mean_rate_w"]))
+    assert "wall time" in capsys.readouterr().out
+
+    # Tsianos 2012's integrated energy equals the bank's own cumulative energy for the same run
+    knee = next(run for run in compare.scenario_set(settings) if run.name == "knee_extension")
+    bank = compare.make_bank(knee, "fast")
+    u, lp, vp, reset_drive = knee.inputs(bank)
+    bank.reset(lp[0], excitation=reset_drive)
+    expected = bank.run(DT, u, lp, vp).last.total_energy
+    tsianos = next(r for r in rows if r["model"] == "tsianos2012"
+                   and r["scenario"] == "knee_extension" and r["composition"] == "fast")
+    assert float(tsianos["energy_j"]) == pytest.approx(expected, rel=1e-5)
+    assert float(tsianos["ratio_to_tsianos2012"]) == 1.0
+    assert float(tsianos["duration_s"]) == pytest.approx(2.0)
+
+
+@pytest.mark.parametrize("argv", [["--duration", "-3"], ["--duration", "abc"],
+                                  ["--models", "umberger1999"], ["--compositions", "medium"],
+                                  ["--scenarios", "running"]])
+def test_bad_option_is_one_line_and_exit_2(tmp_path, capsys, argv):
+    code = main(["compare-energetics", "--out", str(tmp_path / "x"), *argv])
+    assert code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "compare-energetics: error" in err[0]
