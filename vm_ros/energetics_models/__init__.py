@@ -12,6 +12,8 @@ read from Virtual Muscle's state, is :class:`MuscleState` (docs/energetics_model
 | houdijk | Houdijk et al. 2006 (as Koelewijn et al. 2019 formulate it) |
 | margaria | Margaria 1968 |
 | minetti | Minetti & Alexander 1997 |
+| vm_state | Virtual Muscle's outputs as the models' inputs; PUBLISHED_MODELS; published_rates |
+| compare | the scenario set of ``vm-ros compare-energetics`` (imported on its own) |
 """
 
 from __future__ import annotations
@@ -39,8 +41,28 @@ from vm_ros.energetics_models.margaria import margaria1968
 from vm_ros.energetics_models.minetti import minetti_alexander
 from vm_ros.energetics_models.state import HeatRates, MuscleState
 from vm_ros.energetics_models.umberger import umberger
+from vm_ros.energetics_models.vm_state import (
+    MODEL_NAMES,
+    PUBLISHED_MODELS,
+    PublishedModel,
+    VmModelInputs,
+    VmMuscleConstants,
+    published_rates,
+    rates_from_inputs,
+    vm_model_inputs,
+    vm_model_inputs_from_outputs,
+)
 
 __all__ = [
+    "MODEL_NAMES",
+    "PUBLISHED_MODELS",
+    "PublishedModel",
+    "VmModelInputs",
+    "VmMuscleConstants",
+    "published_rates",
+    "rates_from_inputs",
+    "vm_model_inputs",
+    "vm_model_inputs_from_outputs",
     "BhargavaConstants",
     "HeatRates",
     "HoudijkConstants",

@@ -249,17 +249,26 @@ def write_table(rows, path: Path) -> None:
                              for k, v in row.items()})
 
 
+def column_label(model: str) -> str:
+    """A model's short, unique column label: its first three letters and its year, or its first
+    three letters of each author name (umb2003, lic_wil)."""
+    head, _, tail = model.partition("_")
+    year = "".join(ch for ch in model if ch.isdigit())
+    return f"{head[:3]}{year}" if year else f"{head[:3]}_{tail[:3]}"
+
+
 def format_table(results, models) -> str:
     """A printed table: per scenario and composition, Tsianos 2012's energy (J) and each model's
-    energy relative to it."""
-    short = [m[:10] for m in models]
-    header = f"{'scenario':<22}{'comp.':<8}{'tsianos J':>11}" + "".join(f"{s:>11}" for s in short)
+    energy relative to it (columns :func:`column_label`, named in a last line)."""
+    header = (f"{'scenario':<20}{'comp.':<8}{'tsianos J':>11}"
+              + "".join(f"{column_label(m):>9}" for m in models))
     lines = [header, "-" * len(header)]
     for r in results:
         reference = r.energy_j[TSIANOS]
-        cells = "".join(f"{r.energy_j[m] / reference:>11.3f}" if reference else f"{'nan':>11}"
+        cells = "".join(f"{r.energy_j[m] / reference:>9.3f}" if reference else f"{'nan':>9}"
                         for m in models)
-        lines.append(f"{r.scenario:<22}{r.composition:<8}{reference:>11.2f}{cells}")
+        lines.append(f"{r.scenario:<20}{r.composition:<8}{reference:>11.1f}{cells}")
+    lines.append("columns: " + ", ".join(f"{column_label(m)} = {m}" for m in models))
     return "\n".join(lines)
 
 
@@ -359,6 +368,7 @@ def write_figures(results, settings: ComparisonSettings, out: Path) -> list:
 
 __all__ = [
     "binned_rate",
+    "column_label",
     "write_figures",
     "COMPOSITIONS",
     "GROUPS",
