@@ -77,6 +77,7 @@ class MuscleBank:
         recruitment: str = "lumped",
         recovery_mode: str | None = None,
         backend: str = "auto",
+        energetics_models=(),
     ):
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
@@ -108,6 +109,21 @@ class MuscleBank:
         if self.backend == "numba":
             self._compiled = CompiledStep(KernelConstants.from_bank(self), self.n)
             kernel.warm_up()
+        self._models = None
+        if energetics_models:
+            # imported here: vm_ros.energetics_models reads vm_ros.model's curves and params
+            from vm_ros.energetics_models.in_bank import BankModels, model_names
+            from vm_ros.energetics_models.vm_state import VmMuscleConstants
+
+            names = model_names(energetics_models)
+            if names:
+                self._models = BankModels(names, VmMuscleConstants.from_bank(self))
+
+    @property
+    def energetics_models(self) -> tuple:
+        """Names of the published energetics models the bank runs (() for none), in the order
+        of the model axis of ``energy_rate_models`` and ``energy_models``."""
+        return self._models.names if self._models is not None else ()
 
     # --- construction ---------------------------------------------------------------------
 
@@ -123,13 +139,17 @@ class MuscleBank:
         units_per_type: int | None = None,
         backend: str = "auto",
         drive_law: str | None = None,
+        energetics_models=(),
     ):
         """Build a bank from the muscle library (default: the shipped ``config/muscles.yaml``).
 
         muscles: names from the library; overrides: ``{name: {field: value}}``; params: a
         ModelParams or a path to a model YAML; units_per_type: natural units per fibre type;
         backend: "auto" (the compiled step when Numba is importable), "numba" or "numpy";
-        drive_law: the lumped drive filter's law (DRIVE_LAWS; None: the model file's).
+        drive_law: the lumped drive filter's law (DRIVE_LAWS; None: the model file's);
+        energetics_models: published models to run beside Tsianos 2012 (names of
+        vm_ros.energetics_models.MODEL_NAMES, or "all"; an unknown name is an InputError that
+        lists the known ones).
         """
         if not isinstance(params, ModelParams):
             params = load_model_params(params)
@@ -145,7 +165,8 @@ class MuscleBank:
             )
         specs = resolve_muscles(muscles, library, overrides, params.generic.ur_default)
         return cls(
-            specs, params, recruitment=recruitment, recovery_mode=recovery_mode, backend=backend
+            specs, params, recruitment=recruitment, recovery_mode=recovery_mode, backend=backend,
+            energetics_models=energetics_models,
         )
 
     @property
@@ -255,7 +276,14 @@ class MuscleBank:
         )
         self._state = proto
         u = proto.effective_drive if excitation is not None else np.zeros(self.n)
-        return StepOutput(eq, proto, eq.evaluate(proto, u.copy(), lp)[0])
+        out = StepOutput(eq, proto, eq.evaluate(proto, u.copy(), lp)[0])
+        if self._models is not None:
+            self._models.reset()
+            out.set_models(self._models.at_rest(out.excitation, out.effective_activation,
+                                                proto.fascicle_length_m,
+                                                proto.fascicle_velocity_m_per_s),
+                           self._models.energy_j.copy())
+        return out
 
     # --- the equations at a state ---------------------------------------------------------
 
@@ -306,7 +334,21 @@ class MuscleBank:
         excitation: drive U (n,), clipped to [0, 1]; path_length: musculotendon path length (m) at
         the start of the step; path_velocity: its rate (m/s) over the step (None: held constant).
         Raises InputError (state untouched) for non-finite values, wrong shapes, dt <= 0.
+        With ``energetics_models`` the published models then run on the step's outputs
+        (vm_ros.energetics_models.in_bank; StepOutput.energy_rate_models, energy_models).
         """
+        out = self._step_model(dt, excitation, path_length, path_velocity)
+        if self._models is not None:
+            state = out._state
+            rates, energies = self._models.advance(
+                dt, np.array([state.time_s]), out.excitation[None],
+                out.effective_activation[None], state.fascicle_length_m[None],
+                state.fascicle_velocity_m_per_s[None])
+            out.set_models(rates[0], energies[0])
+        return out
+
+    def _step_model(self, dt, excitation, path_length, path_velocity) -> StepOutput:
+        """:meth:`step` without the published energetics models."""
         if not _valid_dt(dt):
             raise InputError("dt", dt, "must be a finite number > 0 s")
         old = self._require_state()
@@ -330,7 +372,9 @@ class MuscleBank:
         cumulative energies included), so that a run with outputs every m steps is one call.
         With the compiled back end the whole loop runs in compiled code (for long
         offline runs and sweeps). On a bad input InputError names the step, and the state is
-        left as it was before the call.
+        left as it was before the call. With ``energetics_models`` the published models run
+        once over the run's (k, n) outputs (Trajectory.energy_rate_models, energy_models),
+        giving what :meth:`step` gives step by step.
         """
         if not _valid_dt(dt):
             raise InputError("dt", dt, "must be a finite number > 0 s")
@@ -344,7 +388,7 @@ class MuscleBank:
         vp = (np.zeros((k, n)) if path_velocity is None
               else self._series("path_velocity", path_velocity, rows=k))
         if self._compiled is None:
-            return self._run_stepwise(dt, u, lp, vp, int(snapshot_every))
+            return self._with_models(dt, self._run_stepwise(dt, u, lp, vp, int(snapshot_every)))
         status, new, series, length, velocity, snapshots = self._compiled.series(
             old, float(dt), u, lp, vp, int(snapshot_every))
         if status != 0:
@@ -359,8 +403,20 @@ class MuscleBank:
         new.time_s = float(times[-1])
         self._state = new
         last = StepOutput(self.equations, new, series.row(-1))
-        return Trajectory.from_series(times, series, length, velocity, last,
-                                      self._snapshots(times, snapshot_every, snapshots), series)
+        return self._with_models(dt, Trajectory.from_series(
+            times, series, length, velocity, last,
+            self._snapshots(times, snapshot_every, snapshots), series))
+
+    def _with_models(self, dt, trajectory: Trajectory) -> Trajectory:
+        """The trajectory with the published models' rates and energies of every step (none
+        without models): computed at once over its (k, n) arrays."""
+        if self._models is None:
+            return trajectory
+        rates, energies = self._models.advance(
+            dt, trajectory.time_s, trajectory.excitation, trajectory.effective_activation,
+            trajectory.fascicle_length, trajectory.fascicle_velocity)
+        trajectory.last.set_models(rates[-1].copy(), energies[-1].copy())
+        return dataclasses.replace(trajectory, energy_rate_models=rates, energy_models=energies)
 
     def _snapshots(self, times, every: int, arrays) -> BankState | None:
         """The snapshot states as one BankState whose fields carry a leading snapshot axis."""
@@ -384,7 +440,7 @@ class MuscleBank:
         outs, states = [], []
         try:
             for row in range(u.shape[0]):
-                outs.append(self.step(dt, u[row], lp[row], vp[row]))
+                outs.append(self._step_model(dt, u[row], lp[row], vp[row]))
                 if snapshot_every and (row + 1) % snapshot_every == 0:
                     states.append(self._state.copy())
         except InputError as error:

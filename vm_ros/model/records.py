@@ -109,6 +109,10 @@ class StepOutput:
     | mechanical_work | (n,) | J | cumulative |
     | total_energy_rate | () | W | whole bank |
     | total_energy | () | J | whole bank, cumulative |
+    | energy_rate_models | (n, M, C) or None | W | with ``energetics_models``: each published
+      model's rate per muscle x model (bank order) x component (activation_maintenance,
+      shortening_lengthening, basal, mechanical_work, total; NaN where a model has none) |
+    | energy_models | (n, M) or None | J | each model's total, integrated since reset |
     | record | StepRecord | | the step's raw outputs |
 
     ``energy_rate_by_fiber`` and ``energy_by_fiber`` are deprecated aliases (DeprecationWarning).
@@ -133,6 +137,13 @@ class StepOutput:
         self.effective_activation = record.effective_activation
         self.mechanical_power = record.mechanical_power
         self.excitation = record.excitation
+        self.energy_rate_models: np.ndarray | None = None
+        self.energy_models: np.ndarray | None = None
+
+    def set_models(self, rates: np.ndarray, energies: np.ndarray) -> None:
+        """Attach the published models' rates (n, M, C) W and energies (n, M) J (the bank)."""
+        self.energy_rate_models = rates
+        self.energy_models = energies
 
     def __repr__(self) -> str:
         return f"StepOutput(time_s={self.time_s}, force={self.force!r})"
@@ -225,6 +236,8 @@ class Trajectory:
     | snapshots | BankState (m, ...) or None | with ``run(..., snapshot_every=s)``: the state at
       the end of steps s, 2s, ... (rows s - 1, 2s - 1, ... of the arrays above), m = k // s |
     | record | StepRecord (k, ...) | every step's record, as the kernel wrote it |
+    | energy_rate_models | (k, n, M, C) or None | W, with ``energetics_models`` (StepOutput) |
+    | energy_models | (k, n, M) or None | J, cumulative since reset, at the end of each step |
 
     ``energy_rate_by_fiber`` is a deprecated alias (DeprecationWarning).
     """
@@ -241,6 +254,8 @@ class Trajectory:
     last: StepOutput
     snapshots: object = None
     record: StepRecord | None = None
+    energy_rate_models: np.ndarray | None = None
+    energy_models: np.ndarray | None = None
 
     @classmethod
     def from_series(cls, time_s, series, fascicle_length, fascicle_velocity, last,
