@@ -52,6 +52,9 @@ def set_clock(ros, probe, node, time_ns: int, tick: bool = True) -> None:
 
 
 def sim_node(ros, lengths, **params):
+    """A node under /clock; a tick per step unless ``batch_steps`` is given (the tests step the
+    clock 1 ms at a time)."""
+    params.setdefault("batch_steps", 1)
     node = ros.muscle_node(use_sim_time=True, muscles=MUSCLES, stale_input_policy="hold",
                            input_timeout_s=1000.0, **params)
     probe = ros.probe()
@@ -106,10 +109,82 @@ def test_outputs_equal_the_bank_run_offline_under_sim_time(ros, lengths, tmp_pat
     assert_log_replays(path, lengths, [np.array(m.effort) for m in probe.forces])
 
 
+def test_batched_ticks_equal_the_bank_run_offline(ros, lengths, tmp_path):
+    """The default: a tick every publish period (10 steps) runs the steps due in MuscleBank.run
+    batches split at publish steps. Under /clock jumps of 10, 25, 30 and 40 ms (catch-up
+    across publish steps, batches that start between two), every published output equals
+    offline steps on the same inputs, and the log replays to the same forces."""
+    path = tmp_path / "run.mcap"
+    node, probe = sim_node(ros, lengths, batch_steps=0, mcap__enabled=True,
+                           mcap__path=str(path))
+    assert node.config.steps_per_tick == 10
+    u1, u2 = np.array([0.6, 0.2]), np.array([0.1, 0.9])
+    probe.send_excitation_array(u1)
+    assert ros.spin_until(lambda: np.array_equal(node.inputs.drive, u1))
+    start = SIM_T0 + 10 * MS  # the timer fires every 10 ms of ROS time
+    set_clock(ros, probe, node, start)
+    assert node.scheduler.started and node.scheduler.anchor_ns == start
+    jumps_ms = [10] * 5 + [25, 10, 30, 10, 40, 5 + 10, 10] + [10] * 5
+    now, switched = start, None
+    for k, jump in enumerate(jumps_ms):
+        if k == 9:
+            probe.send_excitation(MUSCLES[::-1], u2[::-1])
+            assert ros.spin_until(lambda: np.array_equal(node.inputs.drive, u2))
+            switched = (now - start) // MS
+        now += jump * MS
+        set_clock(ros, probe, node, now)
+    steps = (now - start) // MS
+    assert node.scheduler.total_steps == steps
+    assert ros.spin_until(lambda: len(probe.energy_totals) == steps // 10 + 1
+                          and len(probe.forces) == steps // 10 + 1)
+
+    bank = MuscleBank.from_config(MUSCLES)
+    offline = [bank.reset(path_length=lengths)]
+    offline += [bank.step(1e-3, u1 if i < switched else u2, lengths) for i in range(steps)]
+    for msg, rate, total in zip(probe.forces, probe.energy_rates, probe.energy_totals,
+                                strict=True):
+        published, rest = divmod(stamp_ns(msg) - start, MS)
+        assert rest == 0 and published % 10 == 0
+        out = offline[published]
+        np.testing.assert_allclose(msg.effort, out.force, rtol=1e-12)
+        np.testing.assert_allclose(msg.position, out.fascicle_length, rtol=1e-12)
+        np.testing.assert_allclose(rate.data, tm.energy_rate_array(out).ravel(), rtol=1e-12)
+        assert total.data == pytest.approx(out.total_energy, rel=1e-12)
+    assert [stamp_ns(m) for m in probe.forces] == [start + 10 * MS * i
+                                                  for i in range(steps // 10 + 1)]
+    node.close_run_log()
+    assert_log_replays(path, lengths, [np.array(m.effort) for m in probe.forces])
+
+
+@pytest.mark.parametrize("batch_steps", [0, 1])
+def test_a_non_finite_step_resets_the_model_at_that_step(ros, lengths, batch_steps):
+    """A state that gives a NaN (here planted): the model is reset to equilibrium at that step
+    (one model_reset issue), then runs on, also when the step is inside a batch."""
+    node, probe = sim_node(ros, lengths, batch_steps=batch_steps)
+    probe.send_excitation_array([0.6, 0.2])
+    assert ros.spin_until(lambda: np.array_equal(node.inputs.drive, [0.6, 0.2]))
+    start = SIM_T0 + 10 * MS
+    set_clock(ros, probe, node, start)
+    for k in range(1, 3):
+        set_clock(ros, probe, node, start + k * 10 * MS)
+    state = node.bank.state
+    state.fascicle_velocity_m_per_s[:] = np.nan  # as if a step had gone wrong
+    node.bank.set_state(state)
+    before = node.issues.counts.get("model_reset", 0)
+    energy = probe.energy_totals[-1].data
+    for k in range(3, 6):
+        set_clock(ros, probe, node, start + k * 10 * MS)
+    assert node.scheduler.total_steps == 50
+    assert node.issues.counts.get("model_reset", 0) == before + 1
+    assert ros.spin_until(lambda: len(probe.forces) == 6)
+    assert all(np.all(np.isfinite(m.effort)) for m in probe.forces)
+    assert probe.energy_totals[-1].data > energy  # the energy before the reset is kept
+
+
 def assert_log_replays(path, lengths, forces):
     """The log holds what recomputing needs: inputs at the time the node applied them,
     conditioned as the node did (vm_ros.node.replay), from the recorded start give the
-    same forces."""
+    same forces (one every 10 steps)."""
     from vm_ros.node.replay import NodeReplayInputs
     from vm_ros.recording import read_run
 
@@ -120,7 +195,7 @@ def assert_log_replays(path, lengths, forces):
     inputs = NodeReplayInputs(run, bank)
     start, dt_ns = run.info.timing.start_time_ns, run.info.timing.dt_ns
     replayed = [bank.reset(path_length=inputs.advance_to(start)[1]).force]
-    for k in range(300):
+    for k in range(10 * (len(forces) - 1)):
         out = bank.step(dt_ns * 1e-9, *inputs.advance_to(start + k * dt_ns))
         if (k + 1) % 10 == 0:
             replayed.append(out.force)
@@ -128,10 +203,10 @@ def assert_log_replays(path, lengths, forces):
     logged = run.get(tm.TOPIC_FORCE)
     np.testing.assert_allclose(logged.fields["effort"], np.array(forces), rtol=0)
     assert np.array_equal(logged.time_ns, logged.fields["stamp_ns"])  # outputs at model time
-    assert_recompute_reproduces(path)
+    assert_recompute_reproduces(path, len(forces))
 
 
-def assert_recompute_reproduces(path):
+def assert_recompute_reproduces(path, count: int):
     """`vm-ros recompute` of the node log gives the logged outputs, by node conditioning."""
     import contextlib
     import io
@@ -149,7 +224,7 @@ def assert_recompute_reproduces(path):
     assert again.info.source == "recompute"
     for topic, key in ((tm.TOPIC_FORCE, "effort"), (tm.TOPIC_ENERGY_RATE, "data")):
         logged, recomputed = original.get(topic), again.get(topic)
-        assert len(logged) == 31
+        assert len(logged) == count
         np.testing.assert_array_equal(recomputed.time_ns, logged.time_ns)
         np.testing.assert_allclose(recomputed.fields[key], logged.fields[key], rtol=1e-9,
                                    atol=0, err_msg=topic)

@@ -85,7 +85,9 @@ def set_clock(ros, probe: JointProbe, node, time_ns: int) -> None:
 
 
 def joint_node(ros, geometry_file, **params):
-    params = {"muscles": MUSCLES, "geometry": geometry_file, **params}
+    """A joint-space node; a tick per step unless ``batch_steps`` is given (set_clock steps the
+    clock 1 ms at a time)."""
+    params = {"muscles": MUSCLES, "geometry": geometry_file, "batch_steps": 1, **params}
     node = ros.muscle_node(**params)
     probe = JointProbe(ros)
     connected(ros, node, probe)

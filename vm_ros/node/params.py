@@ -106,6 +106,11 @@ PARAMS = (
     ParamSpec("publish_rate_hz", 100.0, "double", "Hz",
               "Output rate of muscle_force and the energy topics (published every "
               "round(model_rate_hz/publish_rate_hz) model steps)", low=0.1, high=20000.0),
+    ParamSpec("batch_steps", 0, "integer", "steps",
+              "Model steps per timer tick, run in one MuscleBank.run with each step's inputs "
+              "sampled at its own time (0 = one publish period, round(model_rate_hz / "
+              "publish_rate_hz); 1 = a tick per step); at most max_catch_up_steps",
+              low=0, high=100000),
     ParamSpec("max_catch_up_steps", 50, "integer", "steps",
               "Most model steps run in one timer tick after a stall; time beyond is skipped "
               "and counted", low=1, high=100000),
@@ -183,6 +188,7 @@ class NodeConfig:
     drive_law: str
     model_rate_hz: float
     publish_rate_hz: float
+    batch_steps: int
     max_catch_up_steps: int
     initial_path_length_m: tuple
     input_timeout_s: float
@@ -235,6 +241,10 @@ class NodeConfig:
         if self.publish_rate_hz > self.model_rate_hz:
             raise ConfigError(PARAMS_SOURCE, "publish_rate_hz", self.publish_rate_hz,
                               f"must not exceed model_rate_hz ({self.model_rate_hz:g} Hz)")
+        if self.steps_per_tick > self.max_catch_up_steps:
+            raise ConfigError(PARAMS_SOURCE, "batch_steps", self.batch_steps,
+                              f"{self.steps_per_tick} steps per tick exceed max_catch_up_steps "
+                              f"({self.max_catch_up_steps}): raise it or lower batch_steps")
         splits = self.mcap_max_bag_size or self.mcap_max_bag_duration_s
         if splits and (not self.mcap_path or self.mcap_path.lower().endswith(".mcap")):
             name = "mcap.max_bag_size" if self.mcap_max_bag_size else "mcap.max_bag_duration_s"
@@ -277,6 +287,11 @@ class NodeConfig:
     @property
     def publish_every_steps(self) -> int:
         return max(1, int(round(self.model_rate_hz / self.publish_rate_hz)))
+
+    @property
+    def steps_per_tick(self) -> int:
+        """Model steps per timer tick (batch_steps, 0: one publish period)."""
+        return self.batch_steps or self.publish_every_steps
 
     def as_parameters(self) -> dict:
         """Parameter name -> value (lists for arrays), e.g. for the run log."""

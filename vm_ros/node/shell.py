@@ -85,6 +85,7 @@ from vm_ros.node.recording import NodeRunLog, node_run_extra
 from vm_ros.node.signals import ShutdownRequest
 from vm_ros.node.startup import EXIT_BAD_PARAMETER, build_model, error_line
 from vm_ros.node.timing import StepScheduler
+from vm_ros.recording import bulk
 from vm_ros.recording.cdr import decoder
 from vm_ros.recording.qos import offered_qos_profiles_yaml
 from vm_ros.recording.run_log import RunInfo, RunTiming
@@ -196,6 +197,34 @@ def _finite(out) -> bool:
                          + out.total_energy_rate)
 
 
+class OutputLayouts:
+    """The CDR layouts of the muscle topics (muscle_force, energy_rate, energy_rate_total,
+    energy_total) for the bank's muscles, built once; ``encode`` gives one step's messages."""
+
+    def __init__(self, names):
+        n = len(names)
+        self.names = tuple(names)
+        self.force = bulk.joint_state_layout(names, n, n, n)
+        self.energy_rate = bulk.multi_array_layout(
+            tm.energy_rate_layout(n), n * len(tm.FIBRE_LABELS) * len(tm.COMPONENT_LABELS))
+        self.float64 = bulk.float64_layout()
+
+    def encode(self, out, stamp_ns: int, energy_offset_j: float = 0.0) -> list:
+        """[(topic, bytes)] of ``out``, the force message stamped ``stamp_ns``; energy_total
+        adds ``energy_offset_j`` (energy before a model reset)."""
+        stamp = [stamp_ns]
+        return [
+            (tm.TOPIC_FORCE, self.force.encode(stamp, position=[out.fascicle_length],
+                                               velocity=[out.fascicle_velocity],
+                                               effort=[out.force])[0]),
+            (tm.TOPIC_ENERGY_RATE, self.energy_rate.encode(
+                data=[tm.energy_rate_array(out)])[0]),
+            (tm.TOPIC_ENERGY_RATE_TOTAL, self.float64.encode(data=[out.total_energy_rate])[0]),
+            (tm.TOPIC_ENERGY_TOTAL,
+             self.float64.encode(data=[energy_offset_j + out.total_energy])[0]),
+        ]
+
+
 class MuscleNode(Node):
     """The muscle model as a ROS 2 node (see the module docstring and vm_ros.node.params).
 
@@ -245,7 +274,8 @@ class MuscleNode(Node):
         self._create_endpoints(c.qos_depth)
         self._check_no_unknown_parameters()
         self.run_log = self._open_run_log()
-        self._model_timer = self.create_timer(self._dt_s, self._on_tick)
+        self._model_timer = self.create_timer(self._dt_s * c.steps_per_tick, self._on_tick)
+        self._layouts = OutputLayouts(self.bank.names)
         self._diagnostics_timer = self.create_timer(
             c.diagnostics_period_s, self._publish_diagnostics,
             clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -511,18 +541,53 @@ class MuscleNode(Node):
                                 f"{self.scheduler.max_catch_up_steps} steps at "
                                 f"{now_ns * 1e-9:.6f} s")])
         every = self.config.publish_every_steps
-        for _ in range(due):
-            u, lp, vp = self.inputs.sample(self.scheduler.model_time_ns)
-            joints = self._joint_sample()  # the moment arms this step's forces act through
-            step_start_ns = time.perf_counter_ns()
-            out = self.bank.step(self._dt_s, u, lp, vp)
-            self._step_times.add(time.perf_counter_ns() - step_start_ns)
+        joints = self._joint_sample()  # the moment arms of this tick's forces (inputs arrive
+        done = 0  # between ticks)
+        while done < due:  # batches that end at a publish step or at the last step due
+            count = min(due - done, every - self.scheduler.total_steps % every)
+            self._run_batch(count, joints)
+            done += count
+        self._window_steps += due
+
+    def _run_batch(self, count: int, joints) -> None:
+        """``count`` steps in one MuscleBank.run, each with the inputs sampled at its own model
+        time; published if the last one is a publish step. A non-finite output anywhere in the
+        batch: the batch again, step by step from its start (_run_stepwise)."""
+        start_state = self.bank.state if count > 1 else None
+        t0, step_ns = self.scheduler.model_time_ns, self.scheduler.step_ns
+        inputs = [self.inputs.sample(t0 + j * step_ns) for j in range(count)]
+        u, lp, vp = (np.array([row[i] for row in inputs]) for i in range(3))
+        started_ns = time.perf_counter_ns()
+        if count == 1:
+            out = self.bank.step(self._dt_s, u[0], lp[0], vp[0])
+            finite = _finite(out)
+        else:
+            run = self.bank.run(self._dt_s, u, lp, vp)
+            out = run.last
+            finite = math.isfinite(float(run.force.sum() + run.contractile_force.sum()
+                                         + run.record.energy_rates[:, :, 3].sum()))
+        self._step_times.add((time.perf_counter_ns() - started_ns) // count)
+        if not finite and count > 1:
+            self.bank.set_state(start_state)
+            self._run_stepwise(u, lp, vp, joints)
+            return
+        for _ in range(count):
+            self.scheduler.advance()
+        if not finite:
+            out = self._reset_model(lp[-1])
+        if self.scheduler.total_steps % self.config.publish_every_steps == 0:
+            self._publish(out, joints)
+
+    def _run_stepwise(self, u, lp, vp, joints) -> None:
+        """Steps one by one (a batch that gave a non-finite output): the model is reset at the
+        step that did, as a tick per step does."""
+        for j in range(len(u)):
+            out = self.bank.step(self._dt_s, u[j], lp[j], vp[j])
             self.scheduler.advance()
             if not _finite(out):
-                out = self._reset_model(lp)
-            if self.scheduler.total_steps % every == 0:  # also inside a catch-up: a steady grid
+                out = self._reset_model(lp[j])
+            if self.scheduler.total_steps % self.config.publish_every_steps == 0:
                 self._publish(out, joints)
-        self._window_steps += due
 
     def _joint_sample(self):
         return self.joint_inputs.sample if self.joint_inputs is not None else None
@@ -537,9 +602,9 @@ class MuscleNode(Node):
 
     # --- outputs ----------------------------------------------------------------------------
 
-    def _send(self, topic: str, msg, log_time_ns: int, publish_time_ns: int) -> None:
-        """Serialise once; publish and log the same bytes."""
-        data = serialize_message(msg)
+    def _send_bytes(self, topic: str, data: bytes, log_time_ns: int,
+                    publish_time_ns: int) -> None:
+        """Publish and log the same serialised bytes."""
         try:
             self._publishers_by_topic[topic].publish(data)
         except RCLError:
@@ -551,25 +616,23 @@ class MuscleNode(Node):
 
     def _publish(self, out, joint_sample=None) -> None:
         """The outputs, stamped and logged at the model time; with a geometry also the joint
-        efforts of ``out``'s forces through ``joint_sample``'s moment arms."""
+        efforts of ``out``'s forces through ``joint_sample``'s moment arms. The muscle topics'
+        bytes come from fixed layouts (vm_ros.recording.bulk, the bytes rclpy would serialise),
+        without a message object."""
         self._last_output = out
         now_ns = self.get_clock().now().nanoseconds
         stamp_ns = self.scheduler.model_time_ns
-        messages = [
-            (tm.TOPIC_FORCE,
-             fill_message(JointState(), tm.force_fields(out, self.bank.names, stamp_ns))),
-            (tm.TOPIC_ENERGY_RATE, fill_message(Float64MultiArray(), tm.energy_rate_fields(out))),
-            (tm.TOPIC_ENERGY_RATE_TOTAL, Float64(data=out.total_energy_rate)),
-            (tm.TOPIC_ENERGY_TOTAL, Float64(data=self._energy_offset_j + out.total_energy))]
+        for topic, data in self._layouts.encode(out, stamp_ns, self._energy_offset_j):
+            self._send_bytes(topic, data, stamp_ns, now_ns)
         if joint_sample is not None:
             efforts = self.joint_inputs.efforts(joint_sample, out.force)
-            messages += [
-                (tm.TOPIC_JOINT_EFFORTS,
-                 fill_message(JointState(), tm.joint_efforts_fields(efforts, stamp_ns))),
-                (tm.TOPIC_JOINT_EFFORT_COMMANDS,
-                 fill_message(Float64MultiArray(), tm.joint_effort_commands_fields(efforts)))]
-        for topic, msg in messages:
-            self._send(topic, msg, stamp_ns, now_ns)
+            for topic, msg in (
+                    (tm.TOPIC_JOINT_EFFORTS,
+                     fill_message(JointState(), tm.joint_efforts_fields(efforts, stamp_ns))),
+                    (tm.TOPIC_JOINT_EFFORT_COMMANDS,
+                     fill_message(Float64MultiArray(),
+                                  tm.joint_effort_commands_fields(efforts)))):
+                self._send_bytes(topic, serialize_message(msg), stamp_ns, now_ns)
 
     # --- diagnostics ------------------------------------------------------------------------
 
@@ -664,7 +727,8 @@ class MuscleNode(Node):
         array = DiagnosticArray(status=[status])
         now = self.get_clock().now()
         array.header.stamp = now.to_msg()
-        self._send(tm.TOPIC_DIAGNOSTICS, array, now.nanoseconds, now.nanoseconds)
+        self._send_bytes(tm.TOPIC_DIAGNOSTICS, serialize_message(array), now.nanoseconds,
+                         now.nanoseconds)
         self._reported_counts = dict(self.issues.counts)
         self._step_times.clear()
         self._tick_times.clear()
