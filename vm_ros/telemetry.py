@@ -15,6 +15,8 @@ Topics (relative names, so namespaces and remapping apply):
 | energy_rate | std_msgs/msg/Float64MultiArray | out: W, layout (muscle, fibre, component) below |
 | energy_rate_total | std_msgs/msg/Float64 | out: whole-body energy rate (W) |
 | energy_total | std_msgs/msg/Float64 | out: whole-body energy since start (J) |
+| energy_rate_models | std_msgs/msg/Float64MultiArray | out (with energetics models): W, layout
+  (muscle, model, component) below |
 | /diagnostics | diagnostic_msgs/msg/DiagnosticArray | out: node health at about 1 Hz |
 
 With a geometry (vm_ros.joint_space):
@@ -31,12 +33,23 @@ energy_rate layout: ``data[i*12 + j*4 + k]`` = muscle i (order of the ``muscles`
 fibre j in FIBRE_LABELS = (slow, fast, all), component k in COMPONENT_LABELS = (activation,
 cross_bridge, recovery, total). layout.dim[0..2] carry the labels "muscle", "fibre", "component"
 with sizes and strides; layout.data_offset = 0.
+
+energy_rate_models layout (the published energetics models the run selected,
+vm_ros.energetics_models): ``data[i*M*C + j*C + k]`` = muscle i (order of the ``muscles``
+parameter), model j (the run's models, in the order of the registry MODEL_NAMES), component k in
+MODEL_COMPONENT_LABELS = (activation_maintenance, shortening_lengthening, basal,
+mechanical_work, total), C = 5; NaN where a model has no such component. Each layout.dim's
+label is the axis name, a colon and its entries separated by commas, so that a subscriber needs
+nothing else to read it: ``muscle:vasti,rectus_femoris``, ``model:umberger2010,bhargava2004``,
+``component:activation_maintenance,...,total`` (split_dim_label); sizes and strides as above,
+layout.data_offset = 0.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from vm_ros.energetics_models.in_bank import COMPONENTS as MODEL_COMPONENTS
 from vm_ros.model.bank import ENERGY_COMPONENTS, StepOutput
 
 TOPIC_EXCITATION = "excitation"
@@ -46,6 +59,7 @@ TOPIC_FORCE = "muscle_force"
 TOPIC_ENERGY_RATE = "energy_rate"
 TOPIC_ENERGY_RATE_TOTAL = "energy_rate_total"
 TOPIC_ENERGY_TOTAL = "energy_total"
+TOPIC_ENERGY_RATE_MODELS = "energy_rate_models"
 TOPIC_DIAGNOSTICS = "/diagnostics"
 TOPIC_JOINT_STATES = "joint_states"
 TOPIC_JOINT_EFFORTS = "joint_efforts"
@@ -64,6 +78,7 @@ TOPIC_TYPES = {
     TOPIC_ENERGY_RATE: TYPE_FLOAT64_MULTI_ARRAY,
     TOPIC_ENERGY_RATE_TOTAL: TYPE_FLOAT64,
     TOPIC_ENERGY_TOTAL: TYPE_FLOAT64,
+    TOPIC_ENERGY_RATE_MODELS: TYPE_FLOAT64_MULTI_ARRAY,
     TOPIC_DIAGNOSTICS: TYPE_DIAGNOSTIC_ARRAY,
     TOPIC_JOINT_STATES: TYPE_JOINT_STATE,
     TOPIC_JOINT_EFFORTS: TYPE_JOINT_STATE,
@@ -72,6 +87,7 @@ TOPIC_TYPES = {
 
 FIBRE_LABELS = ("slow", "fast", "all")
 COMPONENT_LABELS = ENERGY_COMPONENTS  # activation, cross_bridge, recovery, total
+MODEL_COMPONENT_LABELS = MODEL_COMPONENTS  # of the published models (energy_rate_models)
 
 
 def energy_partition(by_fibre, total) -> np.ndarray:
@@ -93,6 +109,31 @@ def energy_rate_layout(n_muscles: int) -> list[dict]:
         {"label": "fibre", "size": f, "stride": f * c},
         {"label": "component", "size": c, "stride": c},
     ]
+
+
+def energy_rate_models_layout(muscles, models) -> list[dict]:
+    """MultiArrayDimension fields of energy_rate_models, outermost first; each label is
+    ``axis:entry,entry,...`` (module docstring)."""
+    c, m = len(MODEL_COMPONENT_LABELS), len(models)
+    return [
+        {"label": "muscle:" + ",".join(muscles), "size": len(muscles),
+         "stride": len(muscles) * m * c},
+        {"label": "model:" + ",".join(models), "size": m, "stride": m * c},
+        {"label": "component:" + ",".join(MODEL_COMPONENT_LABELS), "size": c, "stride": c},
+    ]
+
+
+def split_dim_label(label: str) -> tuple[str, tuple]:
+    """``"model:a,b"`` -> ``("model", ("a", "b"))``; a label without a colon has no entries."""
+    axis, _, entries = str(label).partition(":")
+    return axis, tuple(entry for entry in entries.split(",") if entry)
+
+
+def energy_rate_models_fields(out: StepOutput, muscles, models) -> dict:
+    """std_msgs/Float64MultiArray fields of the energy_rate_models message (a StepOutput of a
+    bank with ``energetics_models``)."""
+    return {"layout": {"dim": energy_rate_models_layout(muscles, models), "data_offset": 0},
+            "data": np.asarray(out.energy_rate_models, dtype=float).ravel().tolist()}
 
 
 def stamp_fields(time_ns: int) -> dict:

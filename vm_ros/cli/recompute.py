@@ -32,6 +32,10 @@ logs line up in a timeline tool and model time = log time - start_time_ns in bot
 original's metadata entries that vm_ros does not interpret (scenario, inputs_file, ...) are
 carried over, so that `vm-ros report` of the new log bins it as the original.
 
+Published energetics models: as the log ran them (its ``energetics_models``), or those of
+--energetics-models A,B|all|none: any log, however old, gains (or loses) the energy_rate_models
+channel.
+
 Output: by default beside the input log, <log folder>/<log name>-recomputed-<date>-<time>.mcap
 (runs/knee.mcap -> runs/knee-recomputed-20250101-120000.mcap), as `vm-ros report` writes
 <log name>-report/ beside it; --out elsewhere.
@@ -56,6 +60,7 @@ from vm_ros.cli.runs import (
     default_log_path,
     recorder_options,
 )
+from vm_ros.cli.simulate import add_energetics_option, energetics_models_option
 from vm_ros.errors import ConfigError, VmRosError
 from vm_ros.node.recording import INPUT_RULE as NODE_INPUT_RULE
 from vm_ros.node.replay import (
@@ -91,6 +96,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", type=Path, metavar="FILE.mcap", help="run log to recompute")
     parser.add_argument("--dt", type=float, metavar="S", help="model step (default: recorded)")
     add_model_options(parser, "as recorded, with the attached model files")
+    add_energetics_option(parser, "as recorded")
     add_output_options(parser, "default beside the input log: <log folder>/<log name>-"
                                "recomputed-<date>-<time>.mcap")
 
@@ -204,6 +210,7 @@ def _bank_of(config, log_path, attached_dir):
 
 
 def run(args) -> int:
+    models = energetics_models_option(args.energetics_models)
     log_path = args.log
     with Progress(f"read {log_path.name}", 1.0, enabled=True if args.progress else None) as p:
         recorded = read_run(log_path, topics=(*INPUT_TOPICS, tm.TOPIC_FORCE,
@@ -239,6 +246,8 @@ def run(args) -> int:
     out_path = args.out or default_log_path(f"{stem}-recomputed", folder)
     with tempfile.TemporaryDirectory(prefix="vm_ros-recompute-") as tmp:
         config = apply_model_options(recorded.config(tmp), args)
+        if models is not None:
+            config = config.replace(energetics_models=models)
         bank = _bank_of(config, log_path, tmp)
         config, space = _joint_geometry(recorded, config, node, bank, Path(tmp))
         new_info = RunInfo(config, timing, "recompute", info.namespace, info.time_base, extra,

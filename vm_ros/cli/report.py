@@ -6,6 +6,10 @@ Files written to --out (default: <log name>-report/ beside the log):
                      mechanical work (J), efficiency; also printed
   forces.csv         time_s, <muscle>.force_N, .fascicle_length_m, .fascicle_velocity_m_per_s
   energy_rate.csv    time_s, <muscle>.<slow|fast|all>.<component>_W
+  energy_rate_models.csv  time_s, <muscle>.<model>.<component>_W: the published energetics
+                     models (logs with energy_rate_models: simulate/recompute --energetics-models)
+  model_totals.csv   per model (Tsianos 2012 first): energy over the run (J, all muscles and
+                     each) and relative to Tsianos 2012; also printed
   totals.csv         time_s, energy_rate_total_W, energy_total_J
   telemetry.csv      every muscle_telemetry field (when the log has them)
   joint_efforts.csv  time_s, <joint>.position_rad, .velocity_rad_per_s, .effort_N_m (_m, _m_per_s,
@@ -22,6 +26,9 @@ Files written to --out (default: <log name>-report/ beside the log):
   energy_<muscle>.png  stacked energy rate components per fibre type
   energy_rate.png    Tsianos 2012 Fig. 7 style: all muscles' activation, cross-bridge, recovery
                      and total energy rate in time bins
+  energy_models.png  each published model's total energy rate beside Tsianos 2012's, one panel
+                     per muscle and one for all muscles (binned as energy_rate.png)
+  energy_models_totals.png  energy per model relative to Tsianos 2012, per muscle and all
   energy_partition.png, totals.png, joint_torque.png (one panel per joint: generalized force,
                      and the joint angle on a twin axis)
 Plots of long runs show per time bin the mean (line) and the range (band); the bin comes from
@@ -47,15 +54,20 @@ from vm_ros.recording.run_log import METADATA_NAME, read_run
 from vm_ros.recording.summary import (
     joint_summary_records,
     joint_summary_table,
+    model_totals_records,
+    model_totals_table,
     summary_records,
     summary_table,
 )
 from vm_ros.recording.tables import (
     Table,
+    energy_models_axes,
+    energy_rate_models_table,
     energy_rate_table,
     force_table,
     joint_efforts_table,
     joint_states_table,
+    model_totals,
     muscle_names,
     run_joint_summary,
     run_summary,
@@ -120,7 +132,8 @@ def run(args) -> int:
         log = read_run(log_path, topics=(tm.TOPIC_FORCE, tm.TOPIC_ENERGY_RATE,
                                          tm.TOPIC_ENERGY_RATE_TOTAL, tm.TOPIC_ENERGY_TOTAL,
                                          tm.TOPIC_EXCITATION, TOPIC_TELEMETRY,
-                                         tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_JOINT_STATES),
+                                         tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_JOINT_STATES,
+                                         tm.TOPIC_ENERGY_RATE_MODELS),
                        progress=lambda done, size: p.update(done / max(size, 1)))
     if not muscle_names(log):
         raise VmRosError(f"{log_path}: not a vm_ros run log (no '{METADATA_NAME}' metadata "
@@ -128,7 +141,7 @@ def run(args) -> int:
     out = args.out or log_path.with_name(f"{log_path.stem}-report")
     out.mkdir(parents=True, exist_ok=True)
     builders = (force_table, energy_rate_table, totals_table, telemetry_table,
-                joint_efforts_table, joint_states_table)
+                joint_efforts_table, joint_states_table, energy_rate_models_table)
     tables: dict[str, Table] = {}
     for build in builders:
         table = build(log)
@@ -145,6 +158,12 @@ def run(args) -> int:
     if joint_rows:
         write_csv(out / "joint_summary.csv", list(joint_rows[0]), [r.values() for r in joint_rows])
         print(joint_summary_table(joint_summary))
+    totals, model_rows = model_totals(log), []
+    if totals:
+        model_muscles = energy_models_axes(log)[0]
+        model_rows = model_totals_records(totals, model_muscles)
+        write_csv(out / "model_totals.csv", list(model_rows[0]), [r.values() for r in model_rows])
+        print(model_totals_table(totals, model_muscles))
     if not log.complete:
         print(f"note: {log_path} is cut short ({log.stop_reason}); the report covers what it "
               "holds")
@@ -155,6 +174,6 @@ def run(args) -> int:
         bin_s, reason = report_bin(log, *_span_and_interval(tables), args.bin)
         print(f"plot bins: {reason}")
         written = plot_run(plt, log, tables, out, bin_s, reason)
-    files = len(tables) + bool(records) + bool(joint_rows) + len(written)
+    files = len(tables) + bool(records) + bool(joint_rows) + bool(model_rows) + len(written)
     print(f"report: {out} ({files} files)")
     return 0

@@ -45,6 +45,11 @@ the summary), joint_states giving non-physical path lengths are dropped (counted
 state is published at model time 0 as the node does. The summary adds per joint the peak and mean
 generalized force (N m or N), the joint work (sum of tau qdot dt over the steps) and the clamping.
 
+Published energetics models (--energetics-models A,B or all; vm_ros.energetics_models,
+docs/energetics_models.md): the bank runs them beside Tsianos 2012 and the log gains the
+energy_rate_models channel (W, muscle x model x component, at --publish-rate) and their names in
+the metadata; `vm-ros report` plots them and prints their totals.
+
 SIGINT or SIGTERM stops the run between two steps; the log is finished cleanly and the summary
 covers the time simulated.
 """
@@ -67,7 +72,9 @@ from vm_ros.cli.runs import (
     default_log_path,
     recorder_options,
 )
-from vm_ros.errors import VmRosError
+from vm_ros.energetics_models.in_bank import model_names
+from vm_ros.energetics_models.vm_state import MODEL_NAMES
+from vm_ros.errors import InputError, VmRosError
 from vm_ros.geometry import load_geometry
 from vm_ros.importers.motion import read_motion
 from vm_ros.joint_space import JointMap, JointSpace
@@ -135,6 +142,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                        help="hold a coordinate at VALUE (rad or m) instead of the motion "
                             "(repeatable)")
     add_model_options(parser, "the scenario's settings, lumped recruitment")
+    add_energetics_option(parser, "none")
     add_output_options(parser, "default out/<scenario or file>-<date>-<time>.mcap under the "
                                "current directory: there is no input log to write beside")
 
@@ -153,6 +161,31 @@ class _Source:
     publish_start: bool = False
     # (inputs, result) -> summary lines after the muscles'
     report: Callable = field(default=lambda inputs, result: [])
+
+
+def add_energetics_option(parser: argparse.ArgumentParser, default: str) -> None:
+    """--energetics-models A,B|all (simulate and recompute)."""
+    parser.add_argument("--energetics-models", metavar="A,B|all",
+                        help="published energetics models to run beside Tsianos 2012 and log "
+                             f"(energy_rate_models): {', '.join(MODEL_NAMES)}, all, or none "
+                             f"(default {default})")
+
+
+def energetics_models_option(text: str | None) -> tuple | None:
+    """The models of --energetics-models (None when not given, () for "none"); VmRosError
+    naming the known models for an unknown name."""
+    if text is None:
+        return None
+    if text.strip() == "none":
+        return ()
+    try:
+        names = model_names(text)
+    except InputError as error:
+        raise VmRosError(f"--energetics-models: {error.value!r}: {error.reason}") from None
+    if not names:
+        raise VmRosError(f"--energetics-models: no model named; known: {', '.join(MODEL_NAMES)}"
+                         ", all or none")
+    return names
 
 
 def start_time_ns(text: str) -> int:
@@ -304,6 +337,7 @@ def _positive(name: str, value: float) -> float:
 
 
 def run(args) -> int:
+    models = energetics_models_option(args.energetics_models)
     _check_options(args)
     source = _motion_source(args) if args.motion else _source(args)
     duration = _positive("--duration", source.duration_s if args.duration is None
@@ -315,6 +349,8 @@ def run(args) -> int:
         start_time_ns=time.time_ns() if args.start_time is None else args.start_time,
     )
     config = apply_model_options(source.config, args)
+    if models:
+        config = config.replace(energetics_models=models)
     bank = config.make_bank()
     input_period_ns = timing.dt_ns * timing.steps_per(args.input_rate or timing.model_rate_hz)
     out_path = args.out or default_log_path(source.name)

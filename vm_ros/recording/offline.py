@@ -8,7 +8,8 @@
 
 Step k covers model time [t_k, t_k + dt) with t_k = start + k dt (integer ns). Inputs follow the
 run log's zero-order hold: the step uses the latest input with log_time <= t_k. Outputs
-(muscle_force, energy_rate, energy_rate_total, energy_total) are written every
+(muscle_force, energy_rate, energy_rate_total, energy_total and, for a bank with energetics
+models, energy_rate_models) are written every
 ``timing.steps_per(publish_rate_hz)`` steps and telemetry every
 ``timing.steps_per(telemetry_rate_hz)`` steps, stamped and logged at the end of the step. The
 bank starts at rest, at static equilibrium for the path length held at the start time; with
@@ -66,7 +67,11 @@ _BLOCK_MUSCLE_STEPS = 1_000_000
 # order of the messages written at one step (stepwise loop): inputs after outputs
 _INPUT_RANK, _OUTPUT_RANK = 8, 0
 _OUTPUT_ORDER = {tm.TOPIC_FORCE: 0, tm.TOPIC_ENERGY_RATE: 1, tm.TOPIC_ENERGY_RATE_TOTAL: 2,
-                 tm.TOPIC_ENERGY_TOTAL: 3, msgs.TOPIC_TELEMETRY: 4}
+                 tm.TOPIC_ENERGY_TOTAL: 3, tm.TOPIC_ENERGY_RATE_MODELS: 4,
+                 msgs.TOPIC_TELEMETRY: 5}
+# with published energetics models a block holds their rates, M x 5 values per muscle-step
+# (MuscleBank.run): blocks of at most this many muscle-step-values of them (about 80 MB)
+_BLOCK_MODEL_VALUES = 10_000_000
 
 
 class LogSink:
@@ -415,6 +420,9 @@ class OfflineRun:
               msgs.float64_fields(out.total_energy_rate), time_ns)
         write(tm.TOPIC_ENERGY_TOTAL, tm.TYPE_FLOAT64, msgs.float64_fields(out.total_energy),
               time_ns)
+        if self.bank.energetics_models:
+            write(tm.TOPIC_ENERGY_RATE_MODELS, tm.TYPE_FLOAT64_MULTI_ARRAY,
+                  tm.energy_rate_models_fields(out, names, self.bank.energetics_models), time_ns)
         if efforts is not None:
             write(tm.TOPIC_JOINT_EFFORTS, tm.TYPE_JOINT_STATE,
                   tm.joint_efforts_fields(efforts, time_ns), time_ns)
@@ -504,7 +512,11 @@ class OfflineRun:
             t.telemetry_rate_hz)
         every = [p for p in (per_publish, per_telemetry) if p]
         tick = math.gcd(*every) if every else block_steps
-        steps_per_block = min(block_steps, max(1, _BLOCK_MUSCLE_STEPS // self.bank.n))
+        muscle_steps = _BLOCK_MUSCLE_STEPS
+        if self.bank.energetics_models:
+            values = len(self.bank.energetics_models) * len(tm.MODEL_COMPONENT_LABELS)
+            muscle_steps = min(muscle_steps, _BLOCK_MODEL_VALUES // values)
+        steps_per_block = min(block_steps, max(1, muscle_steps // self.bank.n))
         chunk = max(tick, steps_per_block // tick * tick)
         ticks = _Ticks(self.bank)
         pending = _Pending()
@@ -547,6 +559,10 @@ class _Ticks:
                                                    * len(tm.COMPONENT_LABELS))
         self.float64 = bulk.float64_layout()
         self.record = bulk.telemetry_layout(names)
+        models = bank.energetics_models
+        self.models = None if not models else bulk.multi_array_layout(
+            tm.energy_rate_models_layout(names, models),
+            n * len(models) * len(tm.MODEL_COMPONENT_LABELS))
         self._clear()
 
     def _clear(self) -> None:
@@ -569,7 +585,8 @@ class _Ticks:
                 "effort": record.force[at],
                 "energy_rate": _energy_rates(record.energy_components[at],
                                              record.energy_rates[at]),
-                "rate_total": rate_totals[j], "energy_total": energy_totals[j]})
+                "rate_total": rate_totals[j], "energy_total": energy_totals[j],
+                **({} if self.models is None else {"models": run.energy_rate_models[at]})})
         if np.any(recorded):
             at, j = rows[recorded], np.flatnonzero(recorded)
             eq, excitation = self.equations, record.excitation[at]
@@ -610,6 +627,10 @@ class _Ticks:
                                (tm.TOPIC_ENERGY_TOTAL, "energy_total")):
                 pending.add(keys + _OUTPUT_ORDER[topic], topic,
                             self.float64.encode(data=p[key]), stamps)
+            if self.models is not None:
+                pending.add(keys + _OUTPUT_ORDER[tm.TOPIC_ENERGY_RATE_MODELS],
+                            tm.TOPIC_ENERGY_RATE_MODELS, self.models.encode(data=p["models"]),
+                            stamps)
         if self.recorded:
             r = {key: np.concatenate([part[key] for part in self.recorded])
                  for key in self.recorded[0]}

@@ -20,7 +20,10 @@ with the last ``DETAIL_S`` as published. energy_<muscle>.png (stacked components
 type), energy_rate.png (Tsianos 2012 Fig. 7 style: the whole body's activation, cross-bridge,
 recovery and total energy rate in bins over time), energy_partition.png, totals.png,
 joint_torque.png (joint-space runs) and summary.png (one page: the run, its numbers and the main
-plots).
+plots). Logs with the published energetics models (energy_rate_models): energy_models.png (each
+model's total energy rate beside Tsianos 2012's, one panel per muscle and one for all muscles,
+binned like the other energy plots) and energy_models_totals.png (each model's energy over the
+run relative to Tsianos 2012, per muscle and for all muscles).
 """
 
 from __future__ import annotations
@@ -38,8 +41,11 @@ from vm_ros.recording.summary import EFFORT_UNITS, run_totals
 from vm_ros.recording.tables import (
     FIBRE_TYPES,
     JOINT_UNITS,
+    TSIANOS,
     Table,
+    energy_models_axes,
     joint_units,
+    model_totals,
     muscle_names,
     run_summary,
     time_origin_ns,
@@ -279,6 +285,78 @@ def energy_rate_figure(plt, rates: Table, names, bin_s: float, bin_reason: str):
     return fig
 
 
+def energy_models_figure(plt, models: Table, rates: Table | None, axes, bin_s: float,
+                         bin_reason: str):
+    """One panel per muscle and one for all muscles: each published model's total energy rate
+    (W) and Tsianos 2012's (black), bin means."""
+    muscles, names, _ = axes
+    t = models.column("time_s")
+    detail = _detail(t)
+    fig, grid = _panel_grid(plt, len(muscles) + 1, detail is not None,
+                            "total energy rate: published models beside Tsianos 2012",
+                            bin_reason)
+    grid[0, 0].set_title(textwrap.fill(_bin_words(bin_reason).replace(
+        "bin mean (line) and range (band)", "bin means"), 90 if detail is not None else 110),
+        fontsize=9)
+    total = {name: 0.0 for name in names}
+    own_total = 0.0
+    for row, muscle in enumerate([*muscles, None]):
+        ax = grid[row, 0]
+        series = []
+        for name in names:
+            if muscle is not None:
+                y = models.column(f"{muscle}.{name}.total_W")
+                total[name] = total[name] + y
+            else:
+                y = total[name]
+            series.append((name, y))
+        if rates is not None:
+            if muscle is not None:
+                own = np.interp(t, rates.column("time_s"), rates.column(f"{muscle}.all.total_W"))
+                own_total = own_total + own
+            else:
+                own = own_total
+            series.append((f"{TSIANOS} (vm_ros)", own))
+        for k, (label, y) in enumerate(series):
+            own_line = label.startswith(TSIANOS)
+            color = "k" if own_line else f"C{k % 10}"
+            centres, mean, _, _ = bin_stats(t, y, bin_s)
+            ax.plot(centres, mean, color=color, lw=2.2 if own_line else 1.1,
+                    ls="-" if k < 10 or own_line else "--", label=label, drawstyle="steps-mid")
+            if detail is not None:
+                grid[row, 1].plot(t[detail], y[detail], color=color, lw=1.6 if own_line else 0.9)
+        ax.set_ylabel(f"{muscle or 'all muscles'}\n(W)", fontsize=9)
+    handles, labels = grid[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=min(5, len(labels)), fontsize=8)
+    return fig
+
+
+def energy_models_totals_figure(plt, rows, muscles):
+    """Grouped bars: each model's energy over the run relative to Tsianos 2012, per muscle and
+    for all muscles (1 = Tsianos)."""
+    groups = [*muscles, "all muscles"]
+    fig, ax = plt.subplots(figsize=(max(7.0, 1.2 * len(groups) * len(rows) / 3), 4.4),
+                           layout="constrained")
+    width = 0.8 / max(1, len(rows))
+    x = np.arange(len(groups))
+    for k, row in enumerate(rows):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            per_muscle = np.where(row.tsianos > 0, row.energy / row.tsianos, np.nan)
+        values = np.append(per_muscle, row.relative)
+        # the colours of energy_models.png: models in log order, Tsianos 2012 in black
+        color = "k" if row.model == TSIANOS else f"C{(k - 1) % 10}"
+        ax.bar(x + (k - (len(rows) - 1) / 2) * width, values, width, label=row.model,
+               color=color, alpha=0.35 if row.model == TSIANOS else 0.9)
+    ax.axhline(1.0, color="k", lw=0.8)
+    ax.set_xticks(x, groups)
+    ax.set_ylabel("energy / Tsianos 2012 (1)")
+    ax.grid(alpha=0.3, axis="y")
+    ax.legend(fontsize=7, ncol=3)
+    ax.set_title("energy over the run per published model, relative to Tsianos 2012 "
+                 "(trapezoidal integrals of the published rates)", fontsize=9)
+    return fig
+
+
 def _partition_axes(ax, summary, per_fibre: bool) -> None:
     fibres = range(2) if per_fibre else (2,)
     labels = [f"{row.name}\n{tm.FIBRE_LABELS[j]}" if per_fibre else row.name
@@ -465,6 +543,12 @@ def plot_run(plt, run: RunLog, tables: dict, out: Path, bin_s: float, bin_reason
                   out / f"energy_{m}.png", written)
         _save(plt, energy_rate_figure(plt, rates, names, bin_s, bin_reason),
               out / "energy_rate.png", written)
+    models, axes = tables.get("energy_rate_models"), energy_models_axes(run)
+    if models is not None and axes is not None:
+        _save(plt, energy_models_figure(plt, models, rates, axes, bin_s, bin_reason),
+              out / "energy_models.png", written)
+        _save(plt, energy_models_totals_figure(plt, model_totals(run), axes[0]),
+              out / "energy_models_totals.png", written)
     summary = run_summary(run)
     if summary:
         _save(plt, partition_figure(plt, summary), out / "energy_partition.png", written)

@@ -38,6 +38,8 @@ class RunConfig:
     | geometry | geometry YAML path (vm_ros.geometry), or None: muscle space only |
     | joint_map | robot joints -> coordinates, the ``joint_map`` YAML text ("" = own names) |
     | joints | robot joints ordering joint_efforts (() = every coordinate) |
+    | energetics_models | published energetics models run beside Tsianos 2012 (names of
+      vm_ros.energetics_models.MODEL_NAMES; () none): the energy_rate_models channel |
     """
 
     muscles: tuple
@@ -51,6 +53,7 @@ class RunConfig:
     joint_map: str = ""
     joints: tuple = ()
     drive_law: str | None = None
+    energetics_models: tuple = ()
 
     @property
     def library_path(self) -> Path:
@@ -65,7 +68,7 @@ class RunConfig:
             list(self.muscles), recruitment=self.recruitment, overrides=dict(self.overrides),
             library=self.library_path, params=self.params_path,
             recovery_mode=self.recovery_mode, units_per_type=self.units_per_type,
-            drive_law=self.drive_law)
+            drive_law=self.drive_law, energetics_models=tuple(self.energetics_models))
 
     def replace(self, **changes) -> RunConfig:
         return dataclasses.replace(self, **changes)

@@ -11,14 +11,18 @@ Channels (topic names as the node resolves them, ``/`` + name in the root namesp
 | joint_states | as in vm_ros.telemetry | input as received (runs with a geometry) |
 | joint_efforts, joint_effort_commands | as in vm_ros.telemetry | outputs as published (runs
   with a geometry) |
+| energy_rate_models | as in vm_ros.telemetry | output at the publish rate (runs with
+  energetics models) |
 
 Metadata record ``vm_ros.run`` (RunInfo.to_metadata): muscles, recruitment, recovery mode,
 overrides, dt, model/publish/telemetry rates, start time, time base, input hold rule, source
 (simulate, muscle_node, recompute), scenario, versions; with a geometry also ``geometry_file``,
-``joint_map`` and ``joints`` (RunConfig). Attachments: ``model.yaml`` and ``muscles.yaml`` (exact
-bytes of the files used), ``overrides.yaml`` and, with a geometry, ``geometry.yaml`` (exact
-bytes): with the recorded inputs, enough to recompute the run (vm_ros.recording.offline). A log
-without a geometry has none of the joint channels, keys or attachment.
+``joint_map`` and ``joints`` (RunConfig); with published energetics models ``energetics_models``
+(a JSON list of their names, the model axis of energy_rate_models). Attachments: ``model.yaml``
+and ``muscles.yaml`` (exact bytes of the files used), ``overrides.yaml`` and, with a geometry,
+``geometry.yaml`` (exact bytes): with the recorded inputs, enough to recompute the run
+(vm_ros.recording.offline). A log without a geometry has none of the joint channels, keys or
+attachment; a log without energetics models has no energy_rate_models channel or key.
 
 Times: log_time is in integer ns on one timeline per log: the start time (``start_time_ns`` of the
 metadata: the wall clock when an offline run started, the ROS time of the node's model start)
@@ -72,8 +76,10 @@ OUTPUT_TOPICS = (tm.TOPIC_FORCE, tm.TOPIC_ENERGY_RATE, tm.TOPIC_ENERGY_RATE_TOTA
                  tm.TOPIC_ENERGY_TOTAL, tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_JOINT_EFFORT_COMMANDS)
 # channels of a run with a geometry only (vm_ros.joint_space)
 JOINT_TOPICS = (tm.TOPIC_JOINT_STATES, tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_JOINT_EFFORT_COMMANDS)
+# channels of a run with published energetics models only (RunConfig.energetics_models)
+MODEL_TOPICS = (tm.TOPIC_ENERGY_RATE_MODELS,)
 LOG_TOPIC_TYPES = {
-    **{topic: tm.TOPIC_TYPES[topic] for topic in INPUT_TOPICS + OUTPUT_TOPICS},
+    **{topic: tm.TOPIC_TYPES[topic] for topic in INPUT_TOPICS + OUTPUT_TOPICS + MODEL_TOPICS},
     TOPIC_TELEMETRY: TYPE_MUSCLE_TELEMETRY,
     tm.TOPIC_DIAGNOSTICS: tm.TYPE_DIAGNOSTIC_ARRAY,
 }
@@ -178,6 +184,8 @@ class RunInfo:
         if c.geometry is not None:
             record.update({"geometry_file": str(c.geometry), "joint_map": c.joint_map,
                            "joints": json.dumps(list(c.joints))})
+        if c.energetics_models:
+            record["energetics_models"] = json.dumps(list(c.energetics_models))
         record.update({str(k): str(v) for k, v in self.extra.items()})
         return record
 
@@ -194,7 +202,7 @@ class RunInfo:
                  "overrides", "model_params_file", "muscle_library_file", "dt_s",
                  "model_rate_hz", "publish_rate_hz", "telemetry_rate_hz", "start_time_ns",
                  "initial_state", "input_hold", "namespace", "time_base", "topics",
-                 "geometry_file", "joint_map", "joints"}
+                 "geometry_file", "joint_map", "joints", "energetics_models"}
 
         def value(key, parse, default=_REQUIRED):
             return _metadata_value(record, source, key, parse, default)
@@ -210,6 +218,7 @@ class RunInfo:
             geometry=value("geometry_file", Path, None),
             joint_map=record.get("joint_map", ""),
             joints=value("joints", _names, ()),
+            energetics_models=value("energetics_models", _names, ()),
         )
         timing = RunTiming(
             dt_s=value("dt_s", _positive_float),
@@ -322,7 +331,8 @@ def open_run_log(path, info: RunInfo, bank: MuscleBank | None = None,
     info: the run (RunInfo; ``info.config.recovery_mode`` and ``drive_law`` None are filled
     from ``bank``);
     topics: base names to declare (default: all of LOG_TOPIC_TYPES but /diagnostics, telemetry
-    when telemetry_rate_hz is 0 and the JOINT_TOPICS without a geometry); qos: ``{base name:
+    when telemetry_rate_hz is 0, the JOINT_TOPICS without a geometry and the MODEL_TOPICS
+    without energetics models); qos: ``{base name:
     offered_qos_profiles YAML}``.
     Raises RecorderError naming the path when the file cannot be created.
     """
@@ -335,7 +345,8 @@ def open_run_log(path, info: RunInfo, bank: MuscleBank | None = None,
     if topics is None:
         topics = [t for t in LOG_TOPIC_TYPES if t != tm.TOPIC_DIAGNOSTICS
                   and (t != TOPIC_TELEMETRY or info.timing.telemetry_rate_hz > 0)
-                  and (t not in JOINT_TOPICS or info.config.geometry is not None)]
+                  and (t not in JOINT_TOPICS or info.config.geometry is not None)
+                  and (t not in MODEL_TOPICS or bool(info.config.energetics_models))]
     recorder = McapRecorder(path, metadata={METADATA_NAME: info.to_metadata()},
                             attachments=run_attachments(info.config), **recorder_options)
     for topic in topics:

@@ -124,6 +124,69 @@ def summary_table(rows: list[MuscleSummary]) -> str:
     return "\n".join(lines)
 
 
+# --- published energetics models (energy_rate_models) ----------------------------------------
+
+
+@dataclass(frozen=True)
+class ModelTotals:
+    """One published energetics model over a run (energy_rate_models), beside Tsianos 2012.
+
+    | field | unit |
+    | model | name (vm_ros.energetics_models.MODEL_NAMES; "tsianos2012" for vm_ros's own) |
+    | energy | J, (n muscles,) the model's total rate integrated over the published samples |
+    | tsianos | J, (n,) Tsianos 2012's total energy integrated the same way |
+    """
+
+    model: str
+    energy: np.ndarray
+    tsianos: np.ndarray
+
+    @property
+    def total(self) -> float:
+        return float(np.sum(self.energy))
+
+    @property
+    def relative(self) -> float:
+        """All muscles' energy over Tsianos 2012's (1); NaN when Tsianos' is not positive."""
+        tsianos = float(np.sum(self.tsianos))
+        return self.total / tsianos if tsianos > 0 else float("nan")
+
+
+def model_totals_records(rows: list[ModelTotals], names) -> list[dict]:
+    """One flat dict per model (for CSV): all muscles, then each muscle, J and relative to
+    Tsianos 2012."""
+    records = []
+    for row in rows:
+        record = {"model": row.model, "energy_J": row.total, "relative_to_tsianos":
+                  row.relative if np.isfinite(row.relative) else ""}
+        for i, name in enumerate(names):
+            ratio = row.energy[i] / row.tsianos[i] if row.tsianos[i] > 0 else float("nan")
+            record[f"{name}.energy_J"] = float(row.energy[i])
+            record[f"{name}.relative_to_tsianos"] = ratio if np.isfinite(ratio) else ""
+        records.append(record)
+    return records
+
+
+def model_totals_table(rows: list[ModelTotals], names) -> str:
+    """Fixed-width text: per model its energy over the run (J) for all muscles and each, and
+    all muscles' relative to Tsianos 2012."""
+    shown = list(names)[:4]  # wider tables wrap; the CSV has every muscle
+    header = (f"{'energetics model':<20}{'E all':>11}{'vs Tsianos':>11}"
+              + "".join(f"{name[:12]:>13}" for name in shown))
+    units = f"{'':<20}{'(J)':>11}{'(x)':>11}" + "".join(f"{'(J)':>13}" for _ in shown)
+    lines = [header, units, "-" * len(header)]
+    for row in rows:
+        ratio = f"{row.relative:>11.3f}" if np.isfinite(row.relative) else f"{'n/a':>11}"
+        lines.append(f"{row.model:<20}{row.total:>11.2f}{ratio}"
+                     + "".join(f"{row.energy[i]:>13.2f}" for i in range(len(shown))))
+    if len(names) > len(shown):
+        lines.append(f"(first {len(shown)} of {len(names)} muscles shown; model_totals.csv "
+                     "has every muscle)")
+    lines.append("energies: trapezoidal integral of each model's total rate and of Tsianos "
+                 "2012's over the published samples")
+    return "\n".join(lines)
+
+
 # --- joint space ---------------------------------------------------------------------------
 
 EFFORT_UNITS = {"rad": "N m", "m": "N"}  # generalized force per coordinate unit

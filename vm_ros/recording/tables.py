@@ -20,7 +20,13 @@ from vm_ros.recording.run_log import (
     TopicSeries,
     logged_node_parameters,
 )
-from vm_ros.recording.summary import JointSummary, MuscleSummary, summarize, summarize_joints
+from vm_ros.recording.summary import (
+    JointSummary,
+    ModelTotals,
+    MuscleSummary,
+    summarize,
+    summarize_joints,
+)
 
 # MuscleTelemetry fields per muscle and per fibre type, with their units (msg_defs/)
 TELEMETRY_PER_MUSCLE = {
@@ -97,6 +103,68 @@ def totals_table(run: RunLog) -> Table | None:
     times = (common - common[0]) * 1e-9 if len(common) else common * 1.0
     return Table("totals", ["time_s", "energy_rate_total_W", "energy_total_J"],
                  np.column_stack([times, rate.fields["data"][i], total.fields["data"][j]]))
+
+
+def energy_models_axes(run: RunLog) -> tuple[tuple, tuple, tuple] | None:
+    """(muscles, models, components) of the log's energy_rate_models channel, from its layout
+    labels (vm_ros.telemetry), or None when the log has no such channel or its layout does not
+    fit its data."""
+    series = run.get(tm.TOPIC_ENERGY_RATE_MODELS)
+    if series is None or not len(series) or not series.layout or len(series.layout) != 3:
+        return None
+    axes = [tm.split_dim_label(dim["label"])[1] for dim in series.layout]
+    sizes = [int(dim["size"]) for dim in series.layout]
+    if [len(a) for a in axes] != sizes or series.fields["data"].shape[1] != np.prod(sizes):
+        return None
+    return tuple(axes)
+
+
+def energy_rate_models_table(run: RunLog) -> Table | None:
+    """time_s and <muscle>.<model>.<component>_W of energy_rate_models (None without it)."""
+    axes = energy_models_axes(run)
+    if axes is None:
+        return None
+    series = run.get(tm.TOPIC_ENERGY_RATE_MODELS)
+    muscles, models, components = axes
+    columns = ["time_s"] + [f"{m}.{model}.{c}_W" for m in muscles for model in models
+                            for c in components]
+    return Table("energy_rate_models", columns,
+                 np.hstack([_times(run, series)[:, None], series.fields["data"]]))
+
+
+def trapezoid(time_s: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Trapezoidal integral of ``values`` (k, ...) over ``time_s`` (k,); 0 for k < 2."""
+    if len(time_s) < 2:
+        return np.zeros(np.shape(values)[1:])
+    return (0.5 * (values[1:] + values[:-1]) * np.diff(time_s).reshape(
+        (-1,) + (1,) * (np.ndim(values) - 1))).sum(axis=0)
+
+
+TSIANOS = "tsianos2012"  # vm_ros's own energetics in tables beside the published models
+
+
+def model_totals(run: RunLog) -> list[ModelTotals]:
+    """Tsianos 2012 (first row, the reference), then per published model of
+    energy_rate_models its total rate integrated per muscle, Tsianos 2012's total rate
+    (energy_rate, all fibres) integrated the same way over the same samples beside it ([]
+    without the channel)."""
+    axes = energy_models_axes(run)
+    rates = energy_rate_table(run)
+    if axes is None:
+        return []
+    muscles, models, components = axes
+    table = energy_rate_models_table(run)
+    t = table.column("time_s")
+    if rates is not None and len(rates.data):
+        own = np.column_stack([np.interp(t, rates.column("time_s"),
+                                         rates.column(f"{m}.all.total_W")) for m in muscles])
+        tsianos = trapezoid(t, own)
+    else:
+        tsianos = np.full(len(muscles), np.nan)
+    data = table.data[:, 1:].reshape(len(t), len(muscles), len(models), len(components))
+    energy = trapezoid(t, data[..., components.index("total")])  # (n, M)
+    return [ModelTotals(TSIANOS, tsianos, tsianos)] + [
+        ModelTotals(model, energy[:, j], tsianos) for j, model in enumerate(models)]
 
 
 def telemetry_table(run: RunLog) -> Table | None:
