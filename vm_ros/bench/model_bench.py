@@ -1,5 +1,6 @@
 """Benchmarks of the model alone (no ROS): step cost against bank size and back end, natural
-against lumped units, and the 180 s knee-extension scenario offline.
+against lumped units, the cost of the published energetics models (energetics_models="all")
+over the compiled step, and the 180 s knee-extension scenario offline.
 
 Timings are wall-clock medians over repeats (``time.perf_counter``); one step is
 ``MuscleBank.step`` as a controller calls it (input checks, state copy) followed by reading the
@@ -76,8 +77,12 @@ def time_step(bank: MuscleBank, repeats: int = 7, min_seconds: float = 0.2) -> d
 
 def bench_model_step(counts=(1, 10, 100, 1000), backends=("numba", "numpy"), repeats=7,
                      min_seconds=0.2, progress=None) -> list[dict]:
-    """Step cost for each bank size and back end (lumped units, static recovery)."""
+    """Step cost for each bank size and back end (lumped units, static recovery); with the
+    compiled back end and 1000 muscles also the published models' cost
+    (:func:`bench_energetics_models`, rows with ``models_over_none``)."""
     rows = []
+    if "numba" in backends and kernel.AVAILABLE and 1000 in counts:
+        rows += bench_energetics_models(1000, repeats=repeats, progress=progress)
     for backend in backends:
         if backend == "numba" and not kernel.AVAILABLE:
             rows.append({"backend": backend, "skipped": "numba not importable"})
@@ -94,6 +99,54 @@ def bench_model_step(counts=(1, 10, 100, 1000), backends=("numba", "numpy"), rep
                          "steps_per_repeat": timing["steps_per_repeat"], "repeats": repeats})
             if progress:
                 progress(f"step {backend} {n} muscles: {rows[-1]['step_us']:.1f} us")
+    return rows
+
+
+ENERGETICS_TARGET = 1.5  # all published models add at most 50 % to the compiled step
+
+
+def bench_energetics_models(n: int = 1000, batch: int = 100, repeats: int = 7,
+                            progress=None) -> list[dict]:
+    """Per-step cost of the compiled bank with every published energetics model against none,
+    for ``run`` over ``batch``-step batches and for ``batch`` calls of ``step`` (reading the
+    force and the total energy rate), medians of ``repeats`` interleaved repeats (none, all,
+    none, all, ...) so that a change in the machine's load hits both alike."""
+    plain = library_bank(n, backend="numba")
+    models = MuscleBank(list(plain.specs), plain.params, backend="numba",
+                        energetics_models="all")
+    u, lp, vp = _inputs(plain, batch)
+    for bank in (plain, models):
+        bank.reset(lp[0], excitation=u[0])
+        bank.run(DT, u, lp, vp)  # warm-up
+        bank.step(DT, u[0], lp[0], vp[0])
+
+    def run_once(bank):
+        t0 = time.perf_counter()
+        bank.run(DT, u, lp, vp)
+        return (time.perf_counter() - t0) / batch
+
+    def step_once(bank):
+        t0 = time.perf_counter()
+        for j in range(batch):
+            out = bank.step(DT, u[j], lp[j], vp[j])
+            _ = out.force, out.energy_rate.total
+        return (time.perf_counter() - t0) / batch
+
+    rows = []
+    for call, timer in (("run", run_once), ("step", step_once)):
+        none, every = [], []
+        for _ in range(repeats):
+            none.append(timer(plain))
+            every.append(timer(models))
+        base, cost = statistics.median(none), statistics.median(every)
+        rows.append({"backend": "numba", "muscles": n, "call": call, "batch_steps": batch,
+                     "energetics_models": len(models.energetics_models),
+                     "none_step_us": 1e6 * base, "models_step_us": 1e6 * cost,
+                     "models_over_none": cost / base, "target_ratio": ENERGETICS_TARGET,
+                     "repeats": repeats})
+        if progress:
+            progress(f"energetics models {call} {n} muscles: {1e6 * base:.0f} -> "
+                     f"{1e6 * cost:.0f} us per step ({cost / base:.2f}x)")
     return rows
 
 

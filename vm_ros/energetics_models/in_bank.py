@@ -129,6 +129,9 @@ class BankModels:
         rates = self.rates(excitation, effective_activation, length_m, velocity_m_per_s,
                            duration)
         totals = rates.base[:, TOTAL] if rates.base is not None else rates[..., TOTAL]
+        if totals.shape[-2] == 1:  # one step: E + rate dt, the same sum without the stacking
+            self.energy_j = self.energy_j + totals[:, 0].T * float(dt)
+            return rates, self.energy_j[None].copy()
         steps = np.empty((len(self.names), totals.shape[-2] + 1, self.n))  # (M, 1 + k, n)
         steps[:, 0] = self.energy_j.T
         np.multiply(totals, float(dt), out=steps[:, 1:])
