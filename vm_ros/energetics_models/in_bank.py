@@ -135,8 +135,11 @@ class BankModels:
         steps = np.empty((len(self.names), totals.shape[-2] + 1, self.n))  # (M, 1 + k, n)
         steps[:, 0] = self.energy_j.T
         np.multiply(totals, float(dt), out=steps[:, 1:])
-        # sequential sums along the steps, as step-by-step integration adds them
-        energies = np.moveaxis(np.cumsum(steps, axis=1)[:, 1:], 0, -1)  # (k, n, M) view
+        # sequential sums along the steps, as step-by-step integration adds them (a loop over
+        # the steps: contiguous rows, several times faster than cumsum along axis 1)
+        for j in range(totals.shape[-2]):
+            np.add(steps[:, j], steps[:, j + 1], out=steps[:, j + 1])
+        energies = np.moveaxis(steps[:, 1:], 0, -1)  # (k, n, M) view
         self.energy_j = energies[-1].copy()
         return rates, energies
 

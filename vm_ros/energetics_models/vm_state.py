@@ -108,11 +108,27 @@ class VmModelInputs:
 def fibre_curves(length_l0, velocity_l0_per_s, fibre: FibreTypeParams, generic: GenericParams):
     """FL (1) and FV (1) per fibre type, each (..., 2), at fascicle length L (L0) and velocity V
     (L0/s, negative shortening), each (...,): vm_ros.model.curves' Cheng 2000 relations."""
-    lt = np.asarray(length_l0, dtype=float)[..., None]
-    vt = np.asarray(velocity_l0_per_s, dtype=float)[..., None]
-    fl = curves.force_length_cheng2000(lt, fibre.omega, fibre.beta, fibre.rho)
-    fv = curves.force_velocity_cheng2000(vt, lt, fibre.vmax, fibre.cv0, fibre.cv1, fibre.av0,
-                                         fibre.av1, fibre.av2, fibre.bv,
+    fl, fv = fibre_curves_by_type(length_l0, velocity_l0_per_s, fibre, generic)
+    return np.moveaxis(fl, 0, -1), np.moveaxis(fv, 0, -1)
+
+
+def fibre_curves_by_type(length_l0, velocity_l0_per_s, fibre: FibreTypeParams,
+                         generic: GenericParams):
+    """:func:`fibre_curves` with the fibre type first, (2, ...) each: the same values, computed
+    with the muscles (not the two fibre types) as NumPy's innermost loop."""
+    l = np.asarray(length_l0, dtype=float)
+    v = np.asarray(velocity_l0_per_s, dtype=float)
+    lt, vt = l[None], v[None]
+    per_type = (1, 2) + (1,) * l.ndim
+
+    def typed(value):
+        return np.reshape(value, per_type)[0]
+
+    fl = curves.force_length_cheng2000(lt, typed(fibre.omega), typed(fibre.beta),
+                                       typed(fibre.rho))
+    fv = curves.force_velocity_cheng2000(vt, lt, typed(fibre.vmax), typed(fibre.cv0),
+                                         typed(fibre.cv1), typed(fibre.av0), typed(fibre.av1),
+                                         typed(fibre.av2), typed(fibre.bv),
                                          generic.fv_denominator_min)
     return fl, fv
 
@@ -129,12 +145,6 @@ def time_since_onset(time_s, excitation):
     return np.where(on, t[:, None] - t[last_onset], 0.0)
 
 
-def _fibre_sum(per_type):
-    """Slow + fast over the last axis (size 2): ``sum(axis=-1)`` to the bit (one addition),
-    without the cost of NumPy's reduction over a short last axis."""
-    return per_type[..., 0] + per_type[..., 1]
-
-
 def vm_model_inputs(constants: VmMuscleConstants, excitation, effective_activation,
                     fascicle_length_m, fascicle_velocity_m_per_s,
                     stimulation_duration=None) -> VmModelInputs:
@@ -148,19 +158,24 @@ def vm_model_inputs(constants: VmMuscleConstants, excitation, effective_activati
     xdot = np.asarray(fascicle_velocity_m_per_s, dtype=float)
     shape = x.shape
     l, v = x / c.l0, xdot / c.l0
-    fl, fv = fibre_curves(l, v, c.fibre, c.generic)
+    # per fibre type (slow, fast) first: (2, ...); sums over the types are a_slow + a_fast,
+    # as sum(axis=-1) adds two terms
+    fl, fv = fibre_curves_by_type(l, v, c.fibre, c.generic)
     g = c.generic
     pe1 = curves.passive_parallel_elastic_cheng2000(l, v, c.lmax, g.c1, g.k1, g.lr1, g.eta)
     pe2 = curves.thick_filament_compression_cheng2000(l, g.c2, g.k2, g.lr2)
     f0 = np.broadcast_to(c.f0, shape)
     flv = fl * fv
-    activation = _fibre_sum(activity)
-    isometric_norm = _fibre_sum(activity * fl)
-    active_norm = _fibre_sum(activity * flv)
-    contractile_norm = np.maximum(0.0, pe1 + _fibre_sum(activity * (flv + pe2[..., None])))
+    a_slow, a_fast = activity[..., 0], activity[..., 1]
+    activation = a_slow + a_fast
+    isometric_norm = a_slow * fl[0] + a_fast * fl[1]
+    active_norm = a_slow * flv[0] + a_fast * flv[1]
+    contractile_norm = np.maximum(0.0, pe1 + (a_slow * (flv[0] + pe2)
+                                              + a_fast * (flv[1] + pe2)))
     passive_norm = contractile_norm - active_norm
-    at_rest_fl = _fibre_sum(c.fpcsa * fl)
-    at_rest_fv = np.divide(_fibre_sum(c.fpcsa * flv), at_rest_fl,
+    p_slow, p_fast = c.fpcsa[:, 0], c.fpcsa[:, 1]
+    at_rest_fl = p_slow * fl[0] + p_fast * fl[1]
+    at_rest_fv = np.divide(p_slow * flv[0] + p_fast * flv[1], at_rest_fl,
                            out=np.ones(shape), where=at_rest_fl > 0.0)
     on = activation > 0.0
     fl_multiplier = np.divide(isometric_norm, activation, out=at_rest_fl.copy(), where=on)
@@ -265,6 +280,7 @@ __all__ = [
     "VmModelInputs",
     "VmMuscleConstants",
     "fibre_curves",
+    "fibre_curves_by_type",
     "published_model",
     "published_rates",
     "rates_from_inputs",
