@@ -56,12 +56,19 @@ def test_step_by_step_equals_run_and_published_rates(backend):
     k, n, m = len(u), bank.n, len(MODEL_NAMES)
     assert run.energy_rate_models.shape == (k, n, m, len(COMPONENTS))
     assert run.energy_models.shape == (k, n, m)
-    bank.reset(lp[0])
-    outs = [bank.step(DT, u[j], lp[j], vp[j]) for j in range(k)]
-    stepped = np.array([o.energy_rate_models for o in outs])
-    np.testing.assert_allclose(stepped, run.energy_rate_models, rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose(np.array([o.energy_models for o in outs]), run.energy_models,
-                               rtol=1e-12, atol=1e-12)
+    # read after every step (the models computed one step at a time), then read at the end
+    # (the bank's pending steps computed in one batch)
+    for read_each_step in (True, False):
+        bank.reset(lp[0])
+        outs = []
+        for j in range(k):
+            outs.append(bank.step(DT, u[j], lp[j], vp[j]))
+            if read_each_step:
+                assert outs[-1].energy_rate_models.shape == (n, m, len(COMPONENTS))
+        stepped = np.array([o.energy_rate_models for o in outs])
+        np.testing.assert_allclose(stepped, run.energy_rate_models, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(np.array([o.energy_models for o in outs]),
+                                   run.energy_models, rtol=1e-12, atol=1e-12)
     # the models called on their own on the run's outputs
     reference = published_rates(bank, run)
     for j, name in enumerate(MODEL_NAMES):

@@ -120,21 +120,22 @@ class BankModels:
             for c, component in enumerate(COMPONENTS):
                 out[m, c] = getattr(heat, component)
 
-    def advance(self, dt: float, time_s, excitation, effective_activation, length_m,
+    def advance(self, dt, time_s, excitation, effective_activation, length_m,
                 velocity_m_per_s):
-        """k steps of ``dt`` s that ended at ``time_s`` (k,), outputs (k, n) (effective
-        activation (k, n, 2)): (rates (k, n, M, C) W, cumulative energies (k, n, M) J), the
-        state advanced past them."""
+        """k steps of ``dt`` s (one for all, or (k,)) that ended at ``time_s`` (k,), outputs
+        (k, n) (effective activation (k, n, 2)): (rates (k, n, M, C) W, cumulative energies
+        (k, n, M) J), the state advanced past them."""
+        dt = np.broadcast_to(np.asarray(dt, dtype=float), np.shape(time_s))
         duration = self.stimulation_duration(time_s, excitation)
         rates = self.rates(excitation, effective_activation, length_m, velocity_m_per_s,
                            duration)
         totals = rates.base[:, TOTAL] if rates.base is not None else rates[..., TOTAL]
         if totals.shape[-2] == 1:  # one step: E + rate dt, the same sum without the stacking
-            self.energy_j = self.energy_j + totals[:, 0].T * float(dt)
+            self.energy_j = self.energy_j + totals[:, 0].T * dt[0]
             return rates, self.energy_j[None].copy()
         steps = np.empty((len(self.names), totals.shape[-2] + 1, self.n))  # (M, 1 + k, n)
         steps[:, 0] = self.energy_j.T
-        np.multiply(totals, float(dt), out=steps[:, 1:])
+        np.multiply(totals, dt[None, :, None], out=steps[:, 1:])
         # sequential sums along the steps, as step-by-step integration adds them (a loop over
         # the steps: contiguous rows, several times faster than cumsum along axis 1)
         for j in range(totals.shape[-2]):

@@ -53,6 +53,9 @@ from vm_ros.model.records import (
 from vm_ros.model.recruitment import SCHEMES, make_recruitment
 
 BACKENDS = ("auto", "numba", "numpy")
+# step(): the published energetics models of at most this many muscle-steps wait to be computed
+# in one batch (when read, or when this many are pending); 10 steps of 1000 muscles
+PENDING_MUSCLE_STEPS = 10_000
 
 
 def _valid_dt(dt) -> bool:
@@ -110,6 +113,7 @@ class MuscleBank:
             self._compiled = CompiledStep(KernelConstants.from_bank(self), self.n)
             kernel.warm_up()
         self._models = None
+        self._pending: list = []  # (dt, StepOutput) of steps whose models wait for a batch
         if energetics_models:
             # imported here: vm_ros.energetics_models reads vm_ros.model's curves and params
             from vm_ros.energetics_models.in_bank import BankModels, model_names
@@ -205,7 +209,10 @@ class MuscleBank:
     def set_state(self, state: BankState) -> None:
         """Replace the state by a copy of ``state`` (from :attr:`state` of a bank with the same
         muscles and recruitment); raises ValueError for arrays of another shape."""
-        self._state = layout.checked_state(state, self.n, self.n_pools)
+        checked = layout.checked_state(state, self.n, self.n_pools)
+        if self._models is not None:
+            self._flush_models()
+        self._state = checked
 
     @property
     def time_s(self) -> float:
@@ -257,6 +264,8 @@ class MuscleBank:
         drive; without, at rest (U = 0, sag at aS1). Energies and work start at zero.
         """
         _, lp, _ = self.check_inputs(np.zeros(self.n), path_length)
+        if self._models is not None:
+            self._flush_models()  # the steps before the reset keep their values
         activation = self.steady_activation(np.zeros(self.n) if excitation is None else excitation)
         proto = layout.zero_state(self.n, self.n_pools, time_s)
         for name, value in activation.items():
@@ -335,17 +344,35 @@ class MuscleBank:
         the start of the step; path_velocity: its rate (m/s) over the step (None: held constant).
         Raises InputError (state untouched) for non-finite values, wrong shapes, dt <= 0.
         With ``energetics_models`` the published models then run on the step's outputs
-        (vm_ros.energetics_models.in_bank; StepOutput.energy_rate_models, energy_models).
+        (vm_ros.energetics_models.in_bank; StepOutput.energy_rate_models, energy_models): when
+        first read, or every PENDING_MUSCLE_STEPS muscle-steps, for all the steps taken since
+        the last time in one batch (as :meth:`run` does), which gives each step's numbers.
         """
         out = self._step_model(dt, excitation, path_length, path_velocity)
         if self._models is not None:
-            state = out._state
-            rates, energies = self._models.advance(
-                dt, np.array([state.time_s]), out.excitation[None],
-                out.effective_activation[None], state.fascicle_length_m[None],
-                state.fascicle_velocity_m_per_s[None])
-            out.set_models(rates[0], energies[0])
+            self._pending.append((float(dt), out))
+            out.defer_models(self._flush_models)
+            if len(self._pending) * self.n >= PENDING_MUSCLE_STEPS:
+                self._flush_models()
         return out
+
+    def _flush_models(self) -> None:
+        """The published models of the steps taken since the last flush, in one batch over
+        their (k, n) outputs (the same numbers as one step at a time: elementwise, and the
+        energies summed step by step); each step's StepOutput gets its own."""
+        pending, self._pending = self._pending, []
+        if not pending:
+            return
+        outs = [out for _, out in pending]
+        states = [out._state for out in outs]
+        rates, energies = self._models.advance(
+            np.array([dt for dt, _ in pending]), np.array([out.time_s for out in outs]),
+            np.array([out.excitation for out in outs]),
+            np.array([out.effective_activation for out in outs]),
+            np.array([state.fascicle_length_m for state in states]),
+            np.array([state.fascicle_velocity_m_per_s for state in states]))
+        for j, out in enumerate(outs):
+            out.set_models(rates[j], energies[j])
 
     def _step_model(self, dt, excitation, path_length, path_velocity) -> StepOutput:
         """:meth:`step` without the published energetics models."""
@@ -382,6 +409,8 @@ class MuscleBank:
                 or snapshot_every < 0:
             raise InputError("snapshot_every", snapshot_every, "must be an integer >= 0 steps")
         old = self._require_state()
+        if self._models is not None:
+            self._flush_models()  # the models' state (onset, energies) goes step after step
         u = self._series("excitation", excitation)
         k, n = u.shape
         lp = self._series("path_length", path_length, rows=k)

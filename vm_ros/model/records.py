@@ -137,13 +137,30 @@ class StepOutput:
         self.effective_activation = record.effective_activation
         self.mechanical_power = record.mechanical_power
         self.excitation = record.excitation
-        self.energy_rate_models: np.ndarray | None = None
-        self.energy_models: np.ndarray | None = None
+        self._model_rates: np.ndarray | None = None
+        self._model_energies: np.ndarray | None = None
+        self._models_due = None  # computes them on first read (the bank's pending steps)
 
     def set_models(self, rates: np.ndarray, energies: np.ndarray) -> None:
         """Attach the published models' rates (n, M, C) W and energies (n, M) J (the bank)."""
-        self.energy_rate_models = rates
-        self.energy_models = energies
+        self._model_rates, self._model_energies, self._models_due = rates, energies, None
+
+    def defer_models(self, compute) -> None:
+        """``compute()`` attaches the models' values (set_models) when they are first read:
+        the bank computes the models of its pending steps in one batch."""
+        self._models_due = compute
+
+    @property
+    def energy_rate_models(self) -> np.ndarray | None:
+        if self._models_due is not None:
+            self._models_due()
+        return self._model_rates
+
+    @property
+    def energy_models(self) -> np.ndarray | None:
+        if self._models_due is not None:
+            self._models_due()
+        return self._model_energies
 
     def __repr__(self) -> str:
         return f"StepOutput(time_s={self.time_s}, force={self.force!r})"
