@@ -344,14 +344,15 @@ def energy_models_totals_figure(plt, rows, muscles):
             per_muscle = np.where(row.tsianos > 0, row.energy / row.tsianos, np.nan)
         values = np.append(per_muscle, row.relative)
         # the colours of energy_models.png: models in log order, Tsianos 2012 in black
-        color = "k" if row.model == TSIANOS else f"C{(k - 1) % 10}"
+        own = row.model == TSIANOS
         ax.bar(x + (k - (len(rows) - 1) / 2) * width, values, width, label=row.model,
-               color=color, alpha=0.35 if row.model == TSIANOS else 0.9)
+               color="white" if own else f"C{(k - 1) % 10}", edgecolor="k" if own else None,
+               hatch="//" if own else None)
     ax.axhline(1.0, color="k", lw=0.8)
     ax.set_xticks(x, groups)
     ax.set_ylabel("energy / Tsianos 2012 (1)")
     ax.grid(alpha=0.3, axis="y")
-    ax.legend(fontsize=7, ncol=3)
+    fig.legend(loc="outside lower center", ncol=min(5, len(rows)), fontsize=8)
     ax.set_title("energy over the run per published model, relative to Tsianos 2012 "
                  "(trapezoidal integrals of the published rates)", fontsize=9)
     return fig
