@@ -140,7 +140,7 @@ def bench_energetics_models(n: int = 1000, batch: int = 100, repeats: int = 7,
 
     rows = []
     for call, timer in (("run", run_once),
-                        ("step, models read every 10th step", stepping(10)),
+                        ("step, models read every 10th", stepping(10)),
                         ("step, models read every step", stepping(1))):
         none, every = [], []
         for _ in range(repeats):

@@ -222,9 +222,9 @@ def _csv_rows(results: dict) -> list[dict]:
             r["step_us_max"])
     for r in results.get("model", []):
         if "models_over_none" in r:  # every published energetics model against none
-            add("model", f"{r['backend']} {r['muscles']} muscles, {r['call']}, "
-                f"{r['energetics_models']} energetics models", "models / none step cost",
-                r["models_over_none"], "ratio", f"<= {r['target_ratio']:g}",
+            add("model", f"{r['backend']} {r['muscles']} muscles, {r['call']}",
+                f"{r['energetics_models']} energetics models / none", r["models_over_none"],
+                "ratio", f"<= {r['target_ratio']:g}",
                 r["models_over_none"] <= r["target_ratio"])
     for r in results.get("natural", []):
         add("natural", f"{r['backend']} {r['muscles']} muscles, {r['units_per_type']} units/type",
