@@ -23,7 +23,8 @@ import pytest
 
 from vm_ros.bench import model_bench
 from vm_ros.errors import InputError
-from vm_ros.model import SCHEMES, MuscleBank, kernel, load_model_params
+from vm_ros.model import SCHEMES, MuscleBank, kernel, layout, load_model_params
+from vm_ros.model.compiled_step import CompiledStep, KernelConstants
 from vm_ros.model.lumped_fit import with_drive_law
 from vm_ros.model.params import DRIVE_LAWS
 
@@ -252,14 +253,106 @@ def test_unusual_input_arrays_do_not_recompile_the_kernel():
     bank = MuscleBank.from_config(["vasti", "soleus"])
     lp = bank.l0_m + bank.l0t_m
     bank.reset(lp)
-    signatures = len(kernel.advance.signatures)
+    signatures = len(kernel.advance_series.signatures)
     table = np.column_stack([lp, lp, lp])  # a column of it is a strided view
     frozen = lp.copy()
     frozen.flags.writeable = False
     bank.step(DT, np.array([0.3, 0.3]), table[:, 1])
     bank.step(DT, [0.3, 0.3], frozen)
     bank.step(DT, np.array([1, 0]), lp)  # integers
-    assert len(kernel.advance.signatures) == signatures
+    bank.run(DT, np.full((3, 2), 0.3), np.tile(lp, (3, 1)))
+    assert len(kernel.advance_series.signatures) == signatures
+
+
+@needs_numba
+def test_step_and_run_share_one_compiled_kernel():
+    """A step is a series of one: the single-step function is never compiled by a bank."""
+    code = (
+        "import numpy as np\n"
+        "from vm_ros.model import MuscleBank, kernel\n"
+        "b = MuscleBank.from_config(['vasti'])\n"
+        "lp = b.l0_m + b.l0t_m\n"
+        "b.reset(lp)\n"
+        "b.step(1e-3, 0.5, lp)\n"
+        "b.run(1e-3, np.full((4, 1), 0.5), np.tile(lp, (4, 1)), snapshot_every=2)\n"
+        "assert len(kernel.advance_series.signatures) == 1, kernel.advance_series.signatures\n"
+        "assert not kernel.advance.signatures and not kernel.advance_series_parallel.signatures\n"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            timeout=300)
+    assert result.returncode == 0, result.stderr
+
+
+def _series_inputs(bank, k):
+    lp0 = bank.l0_m + bank.l0t_m
+    rows = [drive_and_path(j, bank.n, lp0) for j in range(k)]
+    return lp0, [np.array([r[i] for r in rows]) for i in range(3)]
+
+
+@needs_numba
+@pytest.mark.parametrize("chunk", [1, 5, 13])
+def test_parallel_kernel_equals_serial_kernel_bit_for_bit(chunk):
+    """The parallel build over blocks of ``chunk`` muscles gives the serial kernel's numbers to
+    the bit (every output and state array, snapshots included), and stops at the same bad
+    input."""
+    bank = library_bank("lumped", "dynamic", "numba", count=13)
+    lp0, (u, lp, vp) = _series_inputs(bank, 300)
+    results = []
+    for function, block in ((kernel.advance_series, 0), (kernel.advance_series_parallel, chunk)):
+        bank.reset(lp0, excitation=np.full(bank.n, 0.2))
+        step = CompiledStep(KernelConstants.from_bank(bank), bank.n)
+        step._advance_series, step.parallel_chunk = function, block
+        status, new, record, length, velocity, snapshots = step.series(
+            bank.state, DT, u, lp, vp, snapshot_every=7)
+        assert status == 0
+        step_state, step_record = step.step(new, DT, u[-1], lp[-1], vp[-1])
+        bad = u.copy()
+        bad[40, 11] = np.nan
+        bad[40, 3] = np.inf
+        first_bad = step.series(new, DT, bad, lp, vp)[0]
+        arrays = [*record, length, velocity, *snapshots, *step_record,
+                  *(getattr(step_state, name) for name in layout.STATE_NAMES)]
+        results.append(([a.copy() for a in arrays], first_bad))
+    (serial, serial_bad), (parallel, parallel_bad) = results
+    for a, b in zip(serial, parallel, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert serial_bad == parallel_bad == 40 * bank.n + 3 + 1
+
+
+@needs_numba
+def test_parallel_switch_and_threshold(monkeypatch):
+    """Off by default; VM_ROS_PARALLEL=1 (or parallel=True) switches it on for banks of
+    PARALLEL_MIN_MUSCLES or more; below that the step stays serial."""
+    monkeypatch.delenv(kernel.PARALLEL_ENV, raising=False)
+    assert not kernel.parallel_wanted()
+    assert kernel.parallel_wanted(True) and not kernel.parallel_wanted(False)
+    monkeypatch.setenv(kernel.PARALLEL_ENV, "1")
+    assert kernel.parallel_wanted()
+    assert kernel.parallel_chunk(kernel.PARALLEL_MIN_MUSCLES - 1, threads=2) == 0
+    assert kernel.parallel_chunk(1001, threads=2) == 501
+    assert kernel.parallel_chunk(1001, threads=1) == 0
+
+
+@needs_numba
+def test_run_reuses_only_buffers_no_caller_holds():
+    """A second run never writes into the arrays of a trajectory the caller still holds; once
+    the caller lets them go, a run of the same size writes into them again."""
+    bank = library_bank("lumped", "static", "numba", count=4)
+    lp0, (u, lp, vp) = _series_inputs(bank, 50)
+    bank.reset(lp0)
+    first = bank.run(DT, u, lp, vp, snapshot_every=10)
+    kept = {name: getattr(first, name).copy() for name in ("force", "fascicle_length")}
+    kept_snapshot = first.snapshots.fascicle_length_m.copy()
+    second = bank.run(DT, u[::-1].copy(), lp, vp, snapshot_every=10)
+    for name, value in kept.items():
+        np.testing.assert_array_equal(getattr(first, name), value)
+        assert not np.shares_memory(getattr(first, name), getattr(second, name))
+    np.testing.assert_array_equal(first.snapshots.fascicle_length_m, kept_snapshot)
+    address = first.force.__array_interface__["data"][0]
+    del first
+    third = bank.run(DT, u, lp, vp, snapshot_every=10)
+    assert third.force.__array_interface__["data"][0] == address
+    assert not np.shares_memory(third.force, second.force)
 
 
 def test_run_names_the_input_with_the_wrong_rows_and_adds_time_like_step():

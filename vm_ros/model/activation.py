@@ -23,9 +23,23 @@ def lag_derivative(y, target, tau):
 
 
 @jitable
+def lag_decay(tau, dt):
+    """exp(-dt / tau): how much of a first-order lag's distance to its target is left after dt."""
+    return np.exp(-dt / tau)
+
+
+@jitable
+def lag_step_decayed(y, target, decay):
+    """:func:`lag_step` given its ``decay`` = :func:`lag_decay` (tau, dt), which the compiled step
+    evaluates once per call for time constants that are constants of the pool."""
+    return target + (y - target) * decay
+
+
+@jitable
 def lag_step(y, target, tau, dt):
-    """Exact update of a first-order lag over dt with target and tau held constant."""
-    return target + (y - target) * np.exp(-dt / tau)
+    """Exact update of a first-order lag over dt with target and tau held constant:
+    y(t + dt) = target + (y - target) exp(-dt / tau)."""
+    return lag_step_decayed(y, target, lag_decay(tau, dt))
 
 
 @jitable

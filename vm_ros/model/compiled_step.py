@@ -10,10 +10,12 @@ from __future__ import annotations
 
 import dataclasses
 import operator
+import sys
 
 import numpy as np
 
 from vm_ros.model import kernel, layout
+from vm_ros.model import recruitment as rc
 from vm_ros.model.layout import LUMPED_ONLY, BankState, M, P, S, T
 from vm_ros.model.records import StepRecord
 
@@ -33,6 +35,8 @@ def _from_bank(cls, bank):
         per_muscle.update(
             u2=rec.u2, rec_lower_s=lower[:, 0], rec_lower_f=lower[:, 1],
             rec_upper_s=upper[:, 0], rec_upper_f=upper[:, 1],
+            t_rise_rate=rc.lumped_drive_rise_rate(rec.coefficients.t_rise,
+                                                  p.lumped.t_rise_step_scale),
         )
         lumped_sources = [rec.coefficients]
     else:
@@ -76,24 +80,49 @@ KernelConstants.__doc__ = (
 _state_arrays = operator.attrgetter(*layout.STATE_NAMES)
 
 
+def _references(arrays) -> int:
+    """The most references any of ``arrays`` has (CPython's count, this call's own included)."""
+    return max(sys.getrefcount(a) for a in arrays)
+
+
+# what _references reports for arrays held by one tuple and nothing else
+_UNSHARED = _references((np.empty(0),)) if hasattr(sys, "getrefcount") else None
+
+
 class CompiledStep:
     """Steps a bank's state with the kernel; holds the packed constants and the kernel's cache.
 
-    ``advance`` and ``advance_series`` default to the compiled kernel; the uncompiled Python
-    functions (``kernel._advance``...) run the same step as plain Python.
+    ``advance_series`` defaults to the compiled kernel (``kernel.advance_series``, which also
+    runs each single step); the uncompiled Python function (``kernel._advance_series``) runs
+    the same steps as plain Python (``advance`` is accepted and unused: a step is a series).
+    ``parallel`` (None: the VM_ROS_PARALLEL environment variable, kernel.parallel_wanted) steps
+    blocks of muscles on Numba's threads, the same numbers to the bit, for banks of
+    kernel.PARALLEL_MIN_MUSCLES or more (``parallel_chunk``: muscles per block, 0 when serial).
+
+    :meth:`series` writes into output arrays kept from an earlier call when the caller no longer
+    holds any of them (no page faults on fresh memory); arrays a caller still holds are never
+    written again.
     """
 
-    def __init__(self, constants, n: int, advance=None, advance_series=None):
+    def __init__(self, constants, n: int, advance=None, advance_series=None, parallel=None):
         self.constants = constants
         self.n = n
         self._constants = constants.arguments()
-        self._advance = advance or kernel.advance
+        compiled = advance_series is None
         self._advance_series = advance_series or kernel.advance_series
+        self.parallel_chunk = (kernel.parallel_chunk(n)
+                               if compiled and kernel.parallel_wanted(parallel) else 0)
+        if self.parallel_chunk:
+            kernel.warm_up(parallel=True)
+            self._advance_series = kernel.advance_series_parallel
         # the (L, V) terms of F_CE at the (x, xdot) of the last step's end (NaN: none)
         self._terms_end = np.zeros((n, layout.N_TERMS))
         self._xv_end = np.full((n, 2), np.nan)
         self._zeros = np.zeros(n)
-        self._shapes = tuple(a.shape_for({"n": n}) for a in layout.OUTPUTS)
+        self._shapes = tuple((1, *a.shape_for({"n": n})) for a in layout.OUTPUTS)
+        self._series_sets = []  # [(key, arrays)]: the last two series' output arrays
+        # a step is a series of one: its fascicle state outputs and (no) snapshots
+        self._step_extra = None
 
     def _vector(self, value):
         """``value`` as a float (n,) array without checks (a scalar is broadcast); None if the
@@ -109,20 +138,40 @@ class CompiledStep:
     def step(self, old: BankState, dt: float, excitation, path_length, path_velocity):
         """(new state, StepRecord), or None on a bad input (the caller then raises the
         InputError; the kernel checks finiteness and path length > 0 itself). ``old`` is not
-        modified."""
+        modified. The kernel runs it as a series of one step."""
         u = self._vector(excitation)
         lp = self._vector(path_length)
         vp = self._zeros if path_velocity is None else self._vector(path_velocity)
         if u is None or lp is None or vp is None:
             return None
+        if self._step_extra is None:
+            sizes = layout.state_sizes(self.n, old.firing_rate_intermediate.shape[1])
+            self._step_extra = (
+                *(a.empty(sizes, (1,)) for a in layout.SERIES_OUTPUTS[len(layout.OUTPUTS):]),
+                0, *(a.empty(sizes, (0,)) for a in layout.SNAPSHOTS),
+            )
         new = old.copy()
-        record = StepRecord(*[np.empty(shape) for shape in self._shapes])
-        status = self._advance(dt, u, lp, vp, *self._constants, *_state_arrays(new),
-                               self._terms_end, self._xv_end, *record)
+        outputs = [np.empty(shape) for shape in self._shapes]
+        status = self._advance_series(dt, u[None], lp[None], vp[None], *self._constants,
+                                      *_state_arrays(new), self._terms_end, self._xv_end,
+                                      *outputs, *self._step_extra, self.parallel_chunk)
         if status != 0:
             return None
         new.time_s = old.time_s + dt
-        return new, record
+        return new, StepRecord(*(array[0] for array in outputs))
+
+    def _series_arrays(self, k: int, pools: int, count: int) -> tuple:
+        """Output arrays of a series (layout.SERIES_OUTPUTS, then layout.SNAPSHOTS): kept ones
+        of the same shapes that no caller holds any more, else new ones."""
+        key = (k, pools, count)
+        for kept_key, arrays in self._series_sets:
+            if kept_key == key and _UNSHARED is not None and _references(arrays) <= _UNSHARED:
+                return arrays
+        sizes = layout.state_sizes(self.n, pools)
+        arrays = (*(a.empty(sizes, (k,)) for a in layout.SERIES_OUTPUTS),
+                  *(a.empty(sizes, (count,)) for a in layout.SNAPSHOTS))
+        self._series_sets = [*self._series_sets[-1:], (key, arrays)]
+        return arrays
 
     def series(self, old: BankState, dt: float, u, lp, vp, snapshot_every: int = 0):
         """k steps in one kernel call, inputs (k, n) checked for shape: (status, new state,
@@ -132,15 +181,16 @@ class CompiledStep:
         at the end of every ``snapshot_every``-th step, (k // snapshot_every, ...) each."""
         k = u.shape[0]
         new = old.copy()
-        record = StepRecord.empty(self.n, (k,))
-        length, velocity = (a.empty({"n": self.n}, (k,))
-                            for a in layout.SERIES_OUTPUTS[len(layout.OUTPUTS):])
-        sizes = layout.state_sizes(self.n, old.firing_rate_intermediate.shape[1])
         count = k // snapshot_every if snapshot_every > 0 else 0
-        snapshots = [a.empty(sizes, (count,)) for a in layout.SNAPSHOTS]
+        arrays = self._series_arrays(k, old.firing_rate_intermediate.shape[1], count)
+        n_outputs = len(layout.OUTPUTS)
+        record = StepRecord(*arrays[:n_outputs])
+        length, velocity = arrays[n_outputs:len(layout.SERIES_OUTPUTS)]
+        snapshots = list(arrays[len(layout.SERIES_OUTPUTS):])
         status = self._advance_series(dt, u, lp, vp, *self._constants, *_state_arrays(new),
                                       self._terms_end, self._xv_end, *record, length, velocity,
-                                      int(max(snapshot_every, 0)), *snapshots)
+                                      int(max(snapshot_every, 0)), *snapshots,
+                                      self.parallel_chunk)
         return status, new, record, length, velocity, snapshots
 
 

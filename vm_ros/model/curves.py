@@ -93,8 +93,25 @@ def force_velocity_slopes_cheng2000(v, l, vmax, cv0, cv1, av0, av1, av2, bv, den
 @jitable
 def logistic(x):
     """1 / (1 + exp(-x)), without overflow for large |x|."""
-    e = np.exp(-np.abs(x))
+    return logistic_from_exp(x, np.exp(-np.abs(x)))
+
+
+@jitable
+def logistic_from_exp(x, e):
+    """:func:`logistic` (x) given e = exp(-|x|)."""
     return where(x >= 0.0, 1.0 / (1.0 + e), e / (1.0 + e))
+
+
+@jitable
+def softplus_from_exp(x, e):
+    """ln(exp(x) + 1) = max(x, 0) + ln(1 + exp(-|x|)) given e = exp(-|x|), without overflow; its
+    slope is :func:`logistic_from_exp` (x, e), so a force and its slope share one exp."""
+    return np.maximum(x, 0.0) + np.log1p(e)
+
+
+@jitable
+def _passive_parallel_elastic_argument(l, lmax, k1, lr1):
+    return (l / lmax - lr1) / k1
 
 
 @jitable
@@ -105,13 +122,24 @@ def passive_parallel_elastic_cheng2000(l, v, lmax, c1, k1, lr1, eta):
 
     Lmax: fascicle length (L0) at the maximum anatomical path length.
     """
-    return c1 * k1 * np.logaddexp(0.0, (l / lmax - lr1) / k1) + eta * v
+    x = _passive_parallel_elastic_argument(l, lmax, k1, lr1)
+    return c1 * k1 * softplus_from_exp(x, np.exp(-np.abs(x))) + eta * v
 
 
 @jitable
 def passive_parallel_elastic_slope_cheng2000(l, lmax, c1, k1, lr1):
     """dFPE1/dL = c1 logistic((L/Lmax - Lr1)/k1) / Lmax (dFPE1/dV is eta)."""
-    return c1 * logistic((l / lmax - lr1) / k1) / lmax
+    x = _passive_parallel_elastic_argument(l, lmax, k1, lr1)
+    return c1 * logistic_from_exp(x, np.exp(-np.abs(x))) / lmax
+
+
+@jitable
+def passive_parallel_elastic_and_slope_cheng2000(l, v, lmax, c1, k1, lr1, eta):
+    """(FPE1, dFPE1/dL) of :func:`passive_parallel_elastic_cheng2000` and
+    :func:`passive_parallel_elastic_slope_cheng2000`, sharing one exp."""
+    x = _passive_parallel_elastic_argument(l, lmax, k1, lr1)
+    e = np.exp(-np.abs(x))
+    return c1 * k1 * softplus_from_exp(x, e) + eta * v, c1 * logistic_from_exp(x, e) / lmax
 
 
 @jitable
@@ -130,9 +158,17 @@ def thick_filament_compression_cheng2000(l, c2, k2, lr2):
 def thick_filament_compression_slope_cheng2000(l, c2, k2, lr2):
     """dFPE2/dL = c2 k2 exp(k2 (L - Lr2)) where FPE2 < 0 and the exponent is below its cap;
     else 0."""
+    return thick_filament_compression_and_slope_cheng2000(l, c2, k2, lr2)[1]
+
+
+@jitable
+def thick_filament_compression_and_slope_cheng2000(l, c2, k2, lr2):
+    """(FPE2, dFPE2/dL) of :func:`thick_filament_compression_cheng2000` and its slope, sharing one
+    expm1 (exp = expm1 + 1)."""
     exponent = k2 * (l - lr2)
-    active = (c2 * np.expm1(np.minimum(exponent, 50.0)) < 0.0) & (exponent < 50.0)
-    return where(active, c2 * k2 * np.exp(np.minimum(exponent, 50.0)), 0.0)
+    excess = np.expm1(np.minimum(exponent, 50.0))
+    active = (c2 * excess < 0.0) & (exponent < 50.0)
+    return np.minimum(0.0, c2 * excess), where(active, c2 * k2 * (excess + 1.0), 0.0)
 
 
 @jitable
@@ -143,13 +179,23 @@ def tendon_force_cheng2000(l_se, ct, kt, lrt):
 
     cT = 27.8, kT = 0.0047, LrT = 0.964: F_SE(1.0) = 1.0 F0 (L0T is the length at F0).
     """
-    return ct * kt * np.logaddexp(0.0, (l_se - lrt) / kt)
+    x = (l_se - lrt) / kt
+    return ct * kt * softplus_from_exp(x, np.exp(-np.abs(x)))
 
 
 @jitable
 def tendon_stiffness_cheng2000(l_se, ct, kt, lrt):
     """dF_SE/dL_SE (F0 per L0T) of :func:`tendon_force_cheng2000`: cT logistic((L_SE - LrT)/kT)."""
     return ct * logistic((l_se - lrt) / kt)
+
+
+@jitable
+def tendon_force_and_stiffness_cheng2000(l_se, ct, kt, lrt):
+    """(F_SE, dF_SE/dL_SE) of :func:`tendon_force_cheng2000` and
+    :func:`tendon_stiffness_cheng2000`, sharing one exp."""
+    x = (l_se - lrt) / kt
+    e = np.exp(-np.abs(x))
+    return ct * kt * softplus_from_exp(x, e), ct * logistic_from_exp(x, e)
 
 
 @jitable

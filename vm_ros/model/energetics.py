@@ -125,7 +125,13 @@ def recovery_filter_derivative(filter_states, initial_rate, taus):
 @jitable
 def recovery_state_step(z, initial_rate, tau, dt):
     """Exact update of one recovery state dz/dt = E_i - z / tau for E_i held constant over dt."""
-    decay = np.exp(-dt / tau)
+    return recovery_state_step_decayed(z, initial_rate, tau, np.exp(-dt / tau))
+
+
+@jitable
+def recovery_state_step_decayed(z, initial_rate, tau, decay):
+    """:func:`recovery_state_step` given decay = exp(-dt / tau) (a constant of the step):
+    z(t + dt) = z decay + E_i tau (1 - decay)."""
     return z * decay + initial_rate * tau * (1.0 - decay)
 
 

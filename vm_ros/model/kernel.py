@@ -14,6 +14,9 @@ The bank uses this path when Numba is importable (see vm_ros.model.jit); otherwi
 
 from __future__ import annotations
 
+import os
+import types
+
 import numpy as np
 
 from vm_ros.model import activation as act
@@ -57,17 +60,18 @@ def _fibre_terms(l, v, m, fibre_type, s, terms, with_slopes):
             dfv_dv, dfv_dl = curves.force_velocity_slopes_cheng2000(v, l, *fv_args)
             terms[DFVDV_SLOW + t] = dfv_dv
             terms[DFVDL_SLOW + t] = dfv_dl
-    terms[PE1] = curves.passive_parallel_elastic_cheng2000(
-        l, v, m[M.lmax], s[S.c1], s[S.k1], s[S.lr1], s[S.eta]
-    )
-    terms[PE2] = curves.thick_filament_compression_cheng2000(l, s[S.c2], s[S.k2], s[S.lr2])
     if with_slopes:
-        terms[DPE1] = curves.passive_parallel_elastic_slope_cheng2000(
-            l, m[M.lmax], s[S.c1], s[S.k1], s[S.lr1]
+        terms[PE1], terms[DPE1] = curves.passive_parallel_elastic_and_slope_cheng2000(
+            l, v, m[M.lmax], s[S.c1], s[S.k1], s[S.lr1], s[S.eta]
         )
-        terms[DPE2] = curves.thick_filament_compression_slope_cheng2000(
+        terms[PE2], terms[DPE2] = curves.thick_filament_compression_and_slope_cheng2000(
             l, s[S.c2], s[S.k2], s[S.lr2]
         )
+    else:
+        terms[PE1] = curves.passive_parallel_elastic_cheng2000(
+            l, v, m[M.lmax], s[S.c1], s[S.k1], s[S.lr1], s[S.eta]
+        )
+        terms[PE2] = curves.thick_filament_compression_cheng2000(l, s[S.c2], s[S.k2], s[S.lr2])
 
 
 @jitable
@@ -108,6 +112,15 @@ def _tendon_force(x, path_length, m, s):
     """F_SE (N) at fascicle length x (m) and path length (m)."""
     l_se = mech.tendon_length_normalised(path_length, x, m[M.l0t])
     return m[M.f0] * curves.tendon_force_cheng2000(l_se, s[S.ct], s[S.kt], s[S.lrt])
+
+
+@jitable
+def _tendon_force_and_slope(x, path_length, m, s):
+    """F_SE (N) and dF_SE/dx (N/m), sharing one exp."""
+    l_se = mech.tendon_length_normalised(path_length, x, m[M.l0t])
+    force, stiffness = curves.tendon_force_and_stiffness_cheng2000(l_se, s[S.ct], s[S.kt],
+                                                                   s[S.lrt])
+    return m[M.f0] * force, mech.tendon_force_slope_from_stiffness(stiffness, m[M.f0], m[M.l0t])
 
 
 @jitable
@@ -157,6 +170,13 @@ def _advance(
     s = shared[0]
     terms_tmp = np.empty(N_TERMS)
     n_pools = pool.shape[0]
+    # the decays over dt of the lags whose time constants are constants of the pool or shared
+    pool_decay = np.empty((n_pools, 2))
+    for j in range(n_pools):
+        pool_decay[j, 0] = act.lag_decay(pool[j, P.ts], dt)
+        pool_decay[j, 1] = act.lag_decay(pool[j, P.ty], dt)
+    recovery_decay = act.lag_decay(s[S.recovery_tau_decay], dt)
+    recovery_rise = act.lag_decay(s[S.recovery_tau_rise], dt)
     for i in range(excitation.shape[0]):
         m = muscle[i]
         lp, vp = path_length[i], path_velocity[i]
@@ -180,8 +200,8 @@ def _advance(
                     s[S.relative_fall_power], s[S.drive_tau_min],
                 )
             else:
-                tau = rc.lumped_drive_tau(
-                    u, effective_drive[i], m[M.t_rise], m[M.t_fall], s[S.t_rise_step_scale]
+                tau = rc.lumped_drive_tau_from_rate(
+                    u, effective_drive[i], m[M.t_rise], m[M.t_fall], m[M.t_rise_rate]
                 )
             ueff = act.lag_step(effective_drive[i], u, tau, dt)
         elif scheme == CONTINUOUS:
@@ -200,8 +220,8 @@ def _advance(
         # every pool: its activation path, then its share of the type's activation
         activity = out_activity[i]
         stimulation = out_stimulation[i]
-        activity[:] = 0.0
-        stimulation[:] = 0.0
+        for t in range(2):
+            activity[t] = stimulation[t] = 0.0
         for j in range(n_pools):
             p = pool[j]
             # Phase 2, FIRING: rise/fall cascade, sag and yield of the pool
@@ -218,14 +238,13 @@ def _advance(
                 f_env, f_int[i, j], fe_old, l_pool, af_now, p[P.tf1], p[P.tf2], p[P.tf3], p[P.tf4]
             )
             fi_new, fe_new = act.cascade_step(f_int[i, j], fe_old, f_env, tf, dt)
-            sag_new = act.lag_step(
+            sag_new = act.lag_step_decayed(
                 sag[i, j],
                 act.sag_target(fe_old, p[P.as1], p[P.as2], p[P.sag_rate_threshold]),
-                p[P.ts],
-                dt,
+                pool_decay[j, 0],
             )
-            yield_new = act.lag_step(
-                yield_factor[i, j], act.yield_target(v, p[P.cy], p[P.vy]), p[P.ty], dt
+            yield_new = act.lag_step_decayed(
+                yield_factor[i, j], act.yield_target(v, p[P.cy], p[P.vy]), pool_decay[j, 1]
             )
             f_int[i, j], f_eff[i, j], sag[i, j], yield_factor[i, j] = (
                 fi_new, fe_new, sag_new, yield_new,
@@ -248,12 +267,8 @@ def _advance(
         base = terms_end[i]
         if not (xv_end[i, 0] == x and xv_end[i, 1] == xdot):
             _fibre_terms(l, v, m, fibre_type, s, base, True)
-        f_se = _tendon_force(x, lp, m, s)
+        f_se, d_se_dx = _tendon_force_and_slope(x, lp, m, s)
         f_ce, d_ce_dx, d_ce_dv = _contractile_force_and_slopes(activity, base, m, s)
-        d_se_dx = mech.tendon_force_slope(
-            mech.tendon_length_normalised(lp, x, m[M.l0t]), m[M.f0], m[M.l0t], s[S.ct], s[S.kt],
-            s[S.lrt],
-        )
         accel, a_x, a_v, a_p = mech.ros2_jacobian(f_se, f_ce, d_se_dx, d_ce_dx, d_ce_dv, m[M.m_eff])
         k1_x, k1_v, x2, v2 = mech.ros2_stage1(x, xdot, vp, dt, accel, a_x, a_v, a_p)
         _fibre_terms(x2 / l0, v2 / l0, m, fibre_type, s, terms_tmp, False)
@@ -276,7 +291,7 @@ def _advance(
         power = -f_ce * xdot_new
         out_power[i] = power
         rates = out_rates[i]
-        rates[:] = 0.0
+        rates[0] = rates[1] = rates[2] = 0.0
         for t in range(2):
             ft = fibre_type[t]
             e_act, e_xb = en.initial_energy_rates_tsianos2012(
@@ -286,11 +301,11 @@ def _advance(
             initial = e_act + e_xb
             # Phase 6, RECOVERY: STEP 6 (static) or the Appendix B filter (dynamic)
             if dynamic_recovery:
-                z_decay = en.recovery_state_step(
-                    recovery_filter[i, t, 0], initial, s[S.recovery_tau_decay], dt
+                z_decay = en.recovery_state_step_decayed(
+                    recovery_filter[i, t, 0], initial, s[S.recovery_tau_decay], recovery_decay
                 )
-                z_rise = en.recovery_state_step(
-                    recovery_filter[i, t, 1], initial, s[S.recovery_tau_rise], dt
+                z_rise = en.recovery_state_step_decayed(
+                    recovery_filter[i, t, 1], initial, s[S.recovery_tau_rise], recovery_rise
                 )
                 recovery_filter[i, t, 0], recovery_filter[i, t, 1] = z_decay, z_rise
                 recovery = en.recovery_rate_from_filter(
@@ -317,6 +332,16 @@ def _advance(
     return 0
 
 
+@jitable
+def _copy(destination, source):
+    """destination[...] = source for C-ordered arrays of one shape, as a flat loop (Numba
+    compiles an array assignment into a broadcasting function of its own, which took most of
+    the series' compile time)."""
+    flat_destination, flat_source = destination.reshape(-1), source.reshape(-1)
+    for i in range(flat_source.shape[0]):
+        flat_destination[i] = flat_source[i]
+
+
 def _advance_series(
     dt, excitation, path_length, path_velocity, scheme, dynamic_recovery,
     muscle, pool, pool_type, thresholds, pool_pcsa, fibre_type, shared, w_slow_poly,
@@ -325,40 +350,63 @@ def _advance_series(
     out_f_se, out_f_ce, out_activity, out_stimulation, out_components, out_rates, out_power,
     out_length, out_velocity, snapshot_every, snap_effective_drive, snap_f_int, snap_f_eff,
     snap_sag, snap_yield_factor, snap_x_state, snap_xdot_state, snap_recovery_filter,
-    snap_energy, snap_work,
+    snap_energy, snap_work, chunk,
 ):
     """:func:`_advance` for k steps: inputs and outputs carry a leading step axis (k, n, ...);
     the state arrays end at the last step, and with ``snapshot_every`` m > 0 the ``snap_``
     arrays (k // m, ...) take the state at the end of steps m, 2m, ... Returns 0, or 1 + the
     flat index step * n + muscle of the first bad input (the caller discards the state
-    arrays)."""
+    arrays).
+
+    Each step runs over blocks of ``chunk`` muscles (0: one block), in parallel where this is
+    compiled with ``parallel`` (advance_series_parallel: ``prange``), in turn otherwise; every
+    muscle takes the same arithmetic either way. A step is a series of one (CompiledStep.step),
+    so the model is compiled once for both."""
     n = excitation.shape[1]
+    size = chunk if chunk > 0 else max(n, 1)
+    blocks = (n + size - 1) // size
+    status = np.zeros(blocks, dtype=np.int64)
     for k in range(excitation.shape[0]):
-        status = _advance_step(
-            dt, excitation[k], path_length[k], path_velocity[k], scheme, dynamic_recovery,
-            muscle, pool, pool_type, thresholds, pool_pcsa, fibre_type, shared, w_slow_poly,
-            effective_drive, f_int, f_eff, sag, yield_factor, x_state, xdot_state,
-            recovery_filter, energy, work, terms_end, xv_end, out_excitation[k], out_f_se[k],
-            out_f_ce[k], out_activity[k], out_stimulation[k], out_components[k], out_rates[k],
-            out_power[k],
-        )
-        if status != 0:
-            return k * n + status
-        out_length[k] = x_state
-        out_velocity[k] = xdot_state
+        for b in prange(blocks):
+            i, j = b * size, min(n, (b + 1) * size)
+            first_bad = _advance_step(
+                dt, excitation[k, i:j], path_length[k, i:j], path_velocity[k, i:j], scheme,
+                dynamic_recovery, muscle[i:j], pool, pool_type, thresholds[i:j],
+                pool_pcsa[i:j], fibre_type, shared, w_slow_poly, effective_drive[i:j],
+                f_int[i:j], f_eff[i:j], sag[i:j], yield_factor[i:j], x_state[i:j],
+                xdot_state[i:j], recovery_filter[i:j], energy[i:j], work[i:j], terms_end[i:j],
+                xv_end[i:j], out_excitation[k, i:j], out_f_se[k, i:j], out_f_ce[k, i:j],
+                out_activity[k, i:j], out_stimulation[k, i:j], out_components[k, i:j],
+                out_rates[k, i:j], out_power[k, i:j],
+            )
+            status[b] = i + first_bad if first_bad != 0 else 0
+        for b in range(blocks):
+            if status[b] != 0:
+                return k * n + status[b]
+        _copy(out_length[k], x_state)
+        _copy(out_velocity[k], xdot_state)
         if snapshot_every > 0 and (k + 1) % snapshot_every == 0:
             j = (k + 1) // snapshot_every - 1
-            snap_effective_drive[j] = effective_drive
-            snap_f_int[j] = f_int
-            snap_f_eff[j] = f_eff
-            snap_sag[j] = sag
-            snap_yield_factor[j] = yield_factor
-            snap_x_state[j] = x_state
-            snap_xdot_state[j] = xdot_state
-            snap_recovery_filter[j] = recovery_filter
-            snap_energy[j] = energy
-            snap_work[j] = work
+            _copy(snap_effective_drive[j], effective_drive)
+            _copy(snap_f_int[j], f_int)
+            _copy(snap_f_eff[j], f_eff)
+            _copy(snap_sag[j], sag)
+            _copy(snap_yield_factor[j], yield_factor)
+            _copy(snap_x_state[j], x_state)
+            _copy(snap_xdot_state[j], xdot_state)
+            _copy(snap_recovery_filter[j], recovery_filter)
+            _copy(snap_energy[j], energy)
+            _copy(snap_work[j], work)
     return 0
+
+
+def _renamed(function, name: str):
+    """A copy of ``function`` under another name (Numba caches each compiled copy by name)."""
+    code = function.__code__.replace(co_name=name, co_qualname=name)
+    copy = types.FunctionType(code, function.__globals__, name, function.__defaults__,
+                              function.__closure__)
+    copy.__qualname__, copy.__module__, copy.__doc__ = name, function.__module__, function.__doc__
+    return copy
 
 
 # LLVM may contract a*b + c into fused multiply-adds, reassociate and use reciprocals; NaN and
@@ -367,26 +415,63 @@ def _advance_series(
 # of the largest velocity, 7e-9 of force; held to 1e-5 of each field's scale).
 FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 _advance_step = jitable(_advance)
-advance = advance_series = None
+prange = range
+advance = advance_series = advance_series_parallel = None
 if HAVE_NUMBA:
+    prange = numba.prange
     with model_cache_directory():
-        _compile = numba.njit(cache=True, nogil=True, error_model="numpy", fastmath=FASTMATH)
-        advance = _compile(_advance)
-        advance_series = _compile(_advance_series)
+        _options = {"cache": True, "nogil": True, "error_model": "numpy", "fastmath": FASTMATH}
+        advance = numba.njit(**_options)(_advance)
+        advance_series = numba.njit(**_options)(_advance_series)
+        advance_series_parallel = numba.njit(parallel=True, **_options)(
+            _renamed(_advance_series, "_advance_series_parallel"))
 AVAILABLE = advance is not None
 
+# The parallel switch (CompiledStep(parallel=...), or this environment variable) and the bank
+# size below which the step stays serial even when it is on (threads' start and join cost more
+# than they save there; measured on 2 cores, test_kernel / the model bench).
+PARALLEL_ENV = "VM_ROS_PARALLEL"
+PARALLEL_MIN_MUSCLES = 256
 
-def warm_up() -> None:
-    """Compile the kernel (or load it from Numba's disk cache) now rather than in the first
-    step: about 10 s the first time on a machine, 0.3 s after."""
-    if not AVAILABLE or advance.signatures:
+
+def parallel_wanted(parallel=None) -> bool:
+    """The parallel switch: ``parallel`` if given, else the environment variable VM_ROS_PARALLEL
+    ("1", "true", "on" or "yes" switch it on; default off). False without Numba."""
+    if parallel is None:
+        parallel = os.environ.get(PARALLEL_ENV, "0").strip().lower() in ("1", "true", "on", "yes")
+    return bool(parallel) and AVAILABLE
+
+
+def parallel_chunk(n: int, threads: int | None = None) -> int:
+    """Muscles per parallel block for a bank of n: 0 (serial) below PARALLEL_MIN_MUSCLES or with
+    one thread, else n split evenly over Numba's threads."""
+    if not AVAILABLE:
+        return 0
+    threads = threads or numba.get_num_threads()
+    if n < PARALLEL_MIN_MUSCLES or threads < 2:
+        return 0
+    return -(-n // threads)
+
+
+def warm_up(parallel: bool = False) -> None:
+    """Compile the kernel (step and run share it) or load it from Numba's disk cache now rather
+    than in the first step: about 5 s the first time on a machine, 0.3 s after; with
+    ``parallel`` its parallel build too."""
+    if not AVAILABLE:
         return
-    advance(*layout.dummy_arguments(LUMPED))
+    for wanted, function in ((True, advance_series), (parallel, advance_series_parallel)):
+        if wanted and not function.signatures:
+            function(*layout.dummy_arguments(LUMPED, series=True))
 
 
 __all__ = [
     "AVAILABLE",
+    "PARALLEL_ENV",
+    "PARALLEL_MIN_MUSCLES",
     "advance",
     "advance_series",
+    "advance_series_parallel",
+    "parallel_chunk",
+    "parallel_wanted",
     "warm_up",
 ]

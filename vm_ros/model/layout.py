@@ -146,11 +146,11 @@ M, M_UNITS = _columns("MuscleColumns", (
     ("rec_lower_s", "1"), ("rec_lower_f", "1"), ("rec_upper_s", "1"), ("rec_upper_f", "1"),
     ("t_rise", "s"), ("t_fall", "s"), ("w_slow_at_u2", "1"), ("w_slow_amplitude", "1"),
     ("w_fast_b", "1"), ("w_fast_c", "1"), ("w_fast_tau", "1"), ("relative_rise", "s"),
-    ("relative_fall", "s"),
+    ("relative_fall", "s"), ("t_rise_rate", "1"),
 ))
 LUMPED_ONLY = ("u2", "rec_lower_s", "rec_lower_f", "rec_upper_s", "rec_upper_f", "t_rise",
                "t_fall", "w_slow_at_u2", "w_slow_amplitude", "w_fast_b", "w_fast_c", "w_fast_tau",
-               "relative_rise", "relative_fall")
+               "relative_rise", "relative_fall", "t_rise_rate")
 # per motor-unit pool (shared by every muscle)
 P, P_UNITS = _columns("PoolColumns", (
     ("af", "f0.5"), ("nf0", "1"), ("nf1", "1"), ("tf1", "s"), ("tf2", "s"), ("tf3", "s"),
@@ -249,24 +249,36 @@ SERIES_OUTPUTS = OUTPUTS + (
 SNAPSHOT_EVERY = Array("snapshot_every", "snapshot_every", (), "1",
                        "steps between state snapshots (0: none)", int)
 SNAPSHOTS = tuple(Array(a.name, f"snap_{a.kernel}", a.shape, a.unit, a.meaning) for a in STATE)
+# and the muscles per block of the parallel kernel (0: one block)
+CHUNK = Array("chunk", "chunk", (), "1", "muscles per block (0: all in one)", int)
 
 
 def kernel_parameters(series: bool = False) -> tuple:
     """The kernel's parameter names, in order (kernel._advance; _advance_series if ``series``)."""
-    outputs = (*SERIES_OUTPUTS, SNAPSHOT_EVERY, *SNAPSHOTS) if series else OUTPUTS
+    outputs = (*SERIES_OUTPUTS, SNAPSHOT_EVERY, *SNAPSHOTS, CHUNK) if series else OUTPUTS
     return tuple(a.kernel for a in (*INPUTS, *CONSTANTS, *STATE, *CACHE, *outputs))
 
 
-def dummy_arguments(scheme: int = 0) -> tuple:
-    """Arguments of every declared type for a bank of no muscles (compiles the kernel)."""
+def dummy_arguments(scheme: int = 0, series: bool = False) -> tuple:
+    """Arguments of every declared type for a bank of no muscles (compiles the kernel; the
+    series kernel with ``series``: one step, no snapshots)."""
     sizes = {"n": 0, "P": 2, "poly": 3}
-    scalars = {"dt": 1e-3, "scheme": scheme, "dynamic_recovery": False}
-    return tuple(scalars[a.name] if a.shape == () else a.zeros(sizes)
-                 for a in (*INPUTS, *CONSTANTS, *STATE, *CACHE, *OUTPUTS))
+    scalars = {"dt": 1e-3, "scheme": scheme, "dynamic_recovery": False, "snapshot_every": 0,
+               "chunk": 0}
+
+    def arrays(declared, leading=()):
+        return tuple(scalars[a.name] if a.shape == () else a.zeros(sizes, leading)
+                     for a in declared)
+
+    if not series:
+        return arrays((*INPUTS, *CONSTANTS, *STATE, *CACHE, *OUTPUTS))
+    return (*arrays(INPUTS[:1]), *arrays(INPUTS[1:], (1,)), *arrays((*CONSTANTS, *STATE, *CACHE)),
+            *arrays(SERIES_OUTPUTS, (1,)), scalars["snapshot_every"], *arrays(SNAPSHOTS, (0,)),
+            scalars["chunk"])
 
 
 __all__ = [
-    "CACHE", "CONSTANTS", "INPUTS", "N_TERMS", "OUTPUTS", "SERIES_OUTPUTS", "SNAPSHOTS",
+    "CACHE", "CHUNK", "CONSTANTS", "INPUTS", "N_TERMS", "OUTPUTS", "SERIES_OUTPUTS", "SNAPSHOTS",
     "SNAPSHOT_EVERY", "STATE", "STATE_NAMES",
     "TIME", "Array", "BankState", "M", "MissingConstantError", "P", "S", "T",
     "checked_state", "dummy_arguments", "kernel_parameters", "table",

@@ -201,7 +201,15 @@ def musculotendon_forces_and_slopes(
 @jitable
 def tendon_force_slope(l_se, f0, l0t, ct, kt, lrt):
     """dF_SE/dx (N/m) = -F0 / L0T * dFSE/dL_SE."""
-    return -f0 / l0t * curves.tendon_stiffness_cheng2000(l_se, ct, kt, lrt)
+    return tendon_force_slope_from_stiffness(
+        curves.tendon_stiffness_cheng2000(l_se, ct, kt, lrt), f0, l0t
+    )
+
+
+@jitable
+def tendon_force_slope_from_stiffness(stiffness, f0, l0t):
+    """:func:`tendon_force_slope` given dFSE/dL_SE (``stiffness``, F0 per L0T)."""
+    return -f0 / l0t * stiffness
 
 
 @jitable

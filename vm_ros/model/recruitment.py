@@ -97,7 +97,21 @@ def lumped_drive_tau(u, ueff, t_rise, t_fall, step_scale):
     U >= Ueff: T_U = T_rise exp(-(U - Ueff) ln(1000 T_rise));  U < Ueff: T_U = T_fall.
     T_U is T_rise for small steps and 1 ms for a full 0 -> 1 step.
     """
-    rising = t_rise * np.exp(-(u - ueff) * np.log(step_scale * t_rise))
+    return lumped_drive_tau_from_rate(
+        u, ueff, t_rise, t_fall, lumped_drive_rise_rate(t_rise, step_scale)
+    )
+
+
+@jitable
+def lumped_drive_rise_rate(t_rise, step_scale):
+    """ln(1000 T_rise) of :func:`lumped_drive_tau`, a constant of the muscle (1 per unit of U)."""
+    return np.log(step_scale * t_rise)
+
+
+@jitable
+def lumped_drive_tau_from_rate(u, ueff, t_rise, t_fall, rise_rate):
+    """:func:`lumped_drive_tau` given ``rise_rate`` = :func:`lumped_drive_rise_rate`."""
+    rising = t_rise * np.exp(-(u - ueff) * rise_rate)
     return where(u >= ueff, rising, t_fall)
 
 
