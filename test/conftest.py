@@ -108,8 +108,10 @@ class Probe:
         keep = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000,
                           reliability=ReliabilityPolicy.RELIABLE)
         self.forces, self.energy_rates, self.energy_rate_totals = [], [], []
-        self.energy_totals, self.diagnostics = [], []
+        self.energy_totals, self.diagnostics, self.energy_rate_models = [], [], []
         for msg_type, topic, store in ((JointState, "muscle_force", self.forces),
+                                       (Float64MultiArray, "energy_rate_models",
+                                        self.energy_rate_models),
                                        (Float64MultiArray, "energy_rate", self.energy_rates),
                                        (Float64, "energy_rate_total", self.energy_rate_totals),
                                        (Float64, "energy_total", self.energy_totals),

@@ -472,3 +472,48 @@ def test_qos_overrides_let_best_effort_publishers_in(ros, lengths):
 def test_bad_qos_override_is_a_config_error(ros):
     with pytest.raises(ConfigError, match="qos_overrides"):
         ros.muscle_node(**{"qos_overrides./muscle_force.publisher.reliability": "sometimes"})
+
+
+def test_energetics_models_are_published_and_logged(ros, lengths, tmp_path):
+    """energetics_models: energy_rate_models carries every model's rates on the node's state,
+    equal to an offline bank with the same models step for step; the log holds the channel and
+    recompute reproduces it. A bad name is a one-line parameter error."""
+    import contextlib
+    import io
+
+    from vm_ros.cli import main
+    from vm_ros.node.params import NodeConfig
+    from vm_ros.recording import read_run
+
+    models = ["umberger2010", "bhargava2004", "minetti_alexander"]
+    path = tmp_path / "run.mcap"
+    node, probe = sim_node(ros, lengths, batch_steps=0, energetics_models=models,
+                           mcap__enabled=True, mcap__path=str(path))
+    received = probe.energy_rate_models
+    probe.send_excitation_array([0.7, 0.3])
+    assert ros.spin_until(lambda: np.array_equal(node.inputs.drive, [0.7, 0.3]))
+    start = SIM_T0 + 10 * MS
+    set_clock(ros, probe, node, start)
+    for k in range(1, 6):
+        set_clock(ros, probe, node, start + k * 10 * MS)
+    assert ros.spin_until(lambda: len(received) == 6)
+    bank = MuscleBank.from_config(MUSCLES, energetics_models=models)
+    offline = [bank.reset(path_length=lengths)]
+    offline += [bank.step(1e-3, [0.7, 0.3], lengths) for _ in range(50)]
+    for i, msg in enumerate(received):
+        assert [tm.split_dim_label(d.label) for d in msg.layout.dim] == [
+            ("muscle", tuple(MUSCLES)), ("model", tuple(models)),
+            ("component", tm.MODEL_COMPONENT_LABELS)]
+        np.testing.assert_allclose(np.array(msg.data).reshape(2, 3, 5),
+                                   offline[10 * i].energy_rate_models, rtol=1e-9, atol=1e-12)
+    node.close_run_log()
+    logged = read_run(path).get(tm.TOPIC_ENERGY_RATE_MODELS)
+    assert logged is not None and len(logged) == 6
+    out = tmp_path / "again.mcap"
+    with contextlib.redirect_stdout(io.StringIO()):
+        assert main(["recompute", str(path), "--out", str(out)]) == 0
+    again = read_run(out).get(tm.TOPIC_ENERGY_RATE_MODELS)
+    np.testing.assert_array_equal(again.time_ns, logged.time_ns)
+    np.testing.assert_allclose(again.fields["data"], logged.fields["data"], rtol=1e-9, atol=0)
+    with pytest.raises(ConfigError, match="energetics_models.*unknown"):
+        NodeConfig.from_values({"energetics_models": ["umberger2099"]})

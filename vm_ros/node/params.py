@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import yaml
 
-from vm_ros.errors import ConfigError
+from vm_ros.errors import ConfigError, InputError
 from vm_ros.joint_space import parse_joint_map
 from vm_ros.model.params import DRIVE_LAWS, RECOVERY_MODES
 from vm_ros.model.recruitment import SCHEMES
@@ -100,6 +100,10 @@ PARAMS = (
               "Drive filter of lumped units ('' = the model file's): relative_drive (follows "
               "natural units through steps) or tsianos2012 (the paper's law, as reconstructed)",
               choices=("", *DRIVE_LAWS)),
+    ParamSpec("energetics_models", [], "string_array", "-",
+              "Published energetics models computed beside Tsianos 2012 on the same state and "
+              "published on energy_rate_models (names from vm_ros.energetics_models, or [all]; "
+              "[] = none)"),
     ParamSpec("model_rate_hz", 1000.0, "double", "Hz",
               "Model step rate; the model advances in fixed steps of 1/model_rate_hz by elapsed "
               "ROS time", low=10.0, high=20000.0),
@@ -186,6 +190,7 @@ class NodeConfig:
     units_per_type: int
     recovery_mode: str
     drive_law: str
+    energetics_models: tuple
     model_rate_hz: float
     publish_rate_hz: float
     batch_steps: int
@@ -241,6 +246,7 @@ class NodeConfig:
         if self.publish_rate_hz > self.model_rate_hz:
             raise ConfigError(PARAMS_SOURCE, "publish_rate_hz", self.publish_rate_hz,
                               f"must not exceed model_rate_hz ({self.model_rate_hz:g} Hz)")
+        self.energetics_model_names()  # raises on an unknown name
         if self.steps_per_tick > self.max_catch_up_steps:
             raise ConfigError(PARAMS_SOURCE, "batch_steps", self.batch_steps,
                               f"{self.steps_per_tick} steps per tick exceed max_catch_up_steps "
@@ -287,6 +293,16 @@ class NodeConfig:
     @property
     def publish_every_steps(self) -> int:
         return max(1, int(round(self.model_rate_hz / self.publish_rate_hz)))
+
+    def energetics_model_names(self) -> tuple:
+        """The energetics_models parameter as model names ("all" expanded)."""
+        from vm_ros.energetics_models.in_bank import model_names  # reads the model's curves
+
+        try:
+            return model_names(list(self.energetics_models))
+        except InputError as exc:
+            raise ConfigError(PARAMS_SOURCE, "energetics_models", list(self.energetics_models),
+                              f"{exc.value}: {exc.reason}") from exc
 
     @property
     def steps_per_tick(self) -> int:

@@ -31,6 +31,7 @@ from vm_ros.recording.bag import BagError, is_bag_path, prepare_bag_directory
 from vm_ros.recording.run_log import (
     INPUT_TOPICS,
     JOINT_TOPICS,
+    MODEL_TOPICS,
     OUTPUT_TOPICS,
     RunInfo,
     open_run_log,
@@ -148,6 +149,8 @@ class NodeRunLog:
             info = self._run_info(start_time_ns)
             topics = [t for t in LOG_TOPICS
                       if t not in JOINT_TOPICS or info.config.geometry is not None]
+            if info.config.energetics_models:
+                topics += MODEL_TOPICS
             options = {**recorded_recorder_options(info), **self._recorder_options}
             self.recorder = open_run_log(self.path, info, topics=topics, qos=self._qos,
                                          **options)

@@ -113,6 +113,11 @@ OUTPUT_TOPICS = (
     (tm.TOPIC_ENERGY_TOTAL, Float64, "energy since the start (J)"),
     (tm.TOPIC_DIAGNOSTICS, DiagnosticArray, "node health and counters (steady clock)"),
 )
+MODEL_OUTPUT_TOPICS = (
+    (tm.TOPIC_ENERGY_RATE_MODELS, Float64MultiArray,
+     "published energetics models' rates (W) by muscle x model x component (with "
+     "energetics_models)"),
+)
 JOINT_OUTPUT_TOPICS = (
     (tm.TOPIC_JOINT_EFFORTS, JointState, "joint efforts (N m or N) by joint (with geometry)"),
     (tm.TOPIC_JOINT_EFFORT_COMMANDS, Float64MultiArray,
@@ -199,20 +204,26 @@ def _finite(out) -> bool:
 
 class OutputLayouts:
     """The CDR layouts of the muscle topics (muscle_force, energy_rate, energy_rate_total,
-    energy_total) for the bank's muscles, built once; ``encode`` gives one step's messages."""
+    energy_total, and energy_rate_models with ``models``) for the bank's muscles, built once;
+    ``encode`` gives one step's messages."""
 
-    def __init__(self, names):
+    def __init__(self, names, models=()):
         n = len(names)
         self.names = tuple(names)
         self.force = bulk.joint_state_layout(names, n, n, n)
         self.energy_rate = bulk.multi_array_layout(
             tm.energy_rate_layout(n), n * len(tm.FIBRE_LABELS) * len(tm.COMPONENT_LABELS))
         self.float64 = bulk.float64_layout()
+        self.models = (bulk.multi_array_layout(
+            tm.energy_rate_models_layout(names, models),
+            n * len(models) * len(tm.MODEL_COMPONENT_LABELS)) if models else None)
 
     def encode(self, out, stamp_ns: int, energy_offset_j: float = 0.0) -> list:
         """[(topic, bytes)] of ``out``, the force message stamped ``stamp_ns``; energy_total
         adds ``energy_offset_j`` (energy before a model reset)."""
         stamp = [stamp_ns]
+        models = [] if self.models is None else [
+            (tm.TOPIC_ENERGY_RATE_MODELS, self.models.encode(data=[out.energy_rate_models])[0])]
         return [
             (tm.TOPIC_FORCE, self.force.encode(stamp, position=[out.fascicle_length],
                                                velocity=[out.fascicle_velocity],
@@ -222,6 +233,7 @@ class OutputLayouts:
             (tm.TOPIC_ENERGY_RATE_TOTAL, self.float64.encode(data=[out.total_energy_rate])[0]),
             (tm.TOPIC_ENERGY_TOTAL,
              self.float64.encode(data=[energy_offset_j + out.total_energy])[0]),
+            *models,
         ]
 
 
@@ -275,7 +287,7 @@ class MuscleNode(Node):
         self._check_no_unknown_parameters()
         self.run_log = self._open_run_log()
         self._model_timer = self.create_timer(self._dt_s * c.steps_per_tick, self._on_tick)
-        self._layouts = OutputLayouts(self.bank.names)
+        self._layouts = OutputLayouts(self.bank.names, self.bank.energetics_models)
         self._diagnostics_timer = self.create_timer(
             c.diagnostics_period_s, self._publish_diagnostics,
             clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -312,6 +324,8 @@ class MuscleNode(Node):
         if self.joint_space is not None:
             outputs += JOINT_OUTPUT_TOPICS
             inputs += JOINT_INPUT_TOPICS
+        if self.bank.energetics_models:
+            outputs += MODEL_OUTPUT_TOPICS
         self._input_types = {topic: msg_type for topic, msg_type, _ in inputs}
         qos_values = {name: p.value for name, p in self._parameter_overrides.items()
                       if name.startswith("qos_overrides.")}

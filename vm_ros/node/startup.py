@@ -53,7 +53,7 @@ def build_model(config: NodeConfig) -> NodeModel:
     c = config
     run_config = RunConfig(
         tuple(c.muscles), recruitment=c.recruitment, recovery_mode=c.recovery_mode,
-        drive_law=c.drive_law or None,
+        drive_law=c.drive_law or None, energetics_models=c.energetics_model_names(),
         overrides=c.overrides_mapping(), library=Path(c.library) if c.library else None,
         params=Path(c.model) if c.model else None, units_per_type=c.units_per_type or None,
         geometry=Path(c.geometry) if c.geometry else None, joint_map=c.joint_map,
