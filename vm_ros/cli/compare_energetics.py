@@ -8,24 +8,30 @@ Writes into --out (default ./compare-energetics/): energetics_comparison.csv (on
 scenario x composition: energy in J, its ratio to Tsianos 2012, mean rate in W) and, unless
 --no-plots (or without matplotlib, pip install 'vm_ros[plot]'), knee_extension_rates.png (1 s
 bins, every model against Tsianos 2012, one panel per composition) and one bar chart per scenario
-group (ratio_<group>.png). The table is printed; the wall time of the whole run is reported.
+group (ratio_<group>.png, log y axis). The table is printed; the wall time of the whole run is
+reported. The scenario constants come from config/energetics_compare.yaml (--config FILE: another
+file of that layout); --duration, --scenarios, --compositions and --models override them.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from vm_ros.energetics_models.compare import (
-    COMPOSITIONS,
+    COMPOSITION_NAMES,
+    FILE_NAME,
     GROUPS,
     TSIANOS,
     ComparisonSettings,
     format_table,
+    load_comparison_settings,
     table_rows,
     timed_comparison,
+    with_duration,
     write_figures,
     write_table,
 )
@@ -40,15 +46,17 @@ TABLE_NAME = "energetics_comparison.csv"
 def add_arguments(parser) -> None:
     parser.add_argument("--out", type=Path, default=Path("compare-energetics"),
                         help="output folder (default ./compare-energetics)")
-    parser.add_argument("--duration", default="180",
-                        help="knee-extension duration in s (default 180, the paper's); the "
-                             "gait-like cycle is cut to it too")
+    parser.add_argument("--config", type=Path, default=None, metavar="FILE",
+                        help=f"scenario constants (default the shipped config/{FILE_NAME})")
+    parser.add_argument("--duration", default=None,
+                        help="knee-extension duration in s (default the config's: 180, the "
+                             "paper's); the gait-like cycle is cut to it too")
     parser.add_argument("--scenarios", nargs="+", default=list(GROUPS), metavar="GROUP",
                         help=f"scenario groups (default all: {', '.join(GROUPS)})")
-    parser.add_argument("--compositions", nargs="+", default=list(COMPOSITIONS), metavar="NAME",
-                        help="fibre compositions (default all: "
-                             + ", ".join(f"{k} {'library' if v is None else v}"
-                                         for k, v in COMPOSITIONS.items()) + ")")
+    parser.add_argument("--compositions", nargs="+", default=list(COMPOSITION_NAMES),
+                        metavar="NAME",
+                        help=f"fibre compositions (default all: {', '.join(COMPOSITION_NAMES)}; "
+                             f"slow fractions in the config, library the muscles' own)")
     parser.add_argument("--models", nargs="+", default=list(MODEL_NAMES), metavar="MODEL",
                         help=f"published models (default all: {', '.join(MODEL_NAMES)})")
     parser.add_argument("--no-plots", action="store_true", help="skip the figures")
@@ -72,13 +80,14 @@ def _subset(name: str, given, known) -> tuple:
 
 
 def settings_from_args(args) -> ComparisonSettings:
-    duration = _positive("duration", args.duration)
-    default = ComparisonSettings()
-    cycles = int(min(default.gait_cycles, max(1.0, duration * default.gait_frequency_hz)))
-    return ComparisonSettings(
-        knee_duration_s=duration, gait_cycles=cycles,
+    """The config file's settings (--config or the shipped one) with the options applied."""
+    settings = load_comparison_settings(args.config)
+    if args.duration is not None:
+        settings = with_duration(settings, _positive("duration", args.duration))
+    return dataclasses.replace(
+        settings,
         groups=_subset("scenarios", args.scenarios, GROUPS),
-        compositions=_subset("compositions", args.compositions, tuple(COMPOSITIONS)),
+        compositions=_subset("compositions", args.compositions, COMPOSITION_NAMES),
         models=_subset("models", args.models, MODEL_NAMES))
 
 

@@ -19,12 +19,18 @@ stretched while the drive rises (phase 0-0.25) and shortens as it falls (0.25-0.
 
 Compositions override every muscle's fpcsa_slow: slow 0.85 (like soleus, 0.88 in the library),
 mixed 0.50, fast 0.15; ``library`` keeps the library's (vasti 0.47, rectus femoris 0.36).
-The constants of these scenarios are :class:`ComparisonSettings`' defaults (units in the names).
+
+Every constant of these scenarios (drives, speeds, travel, the cycle, the compositions, dt,
+durations, recovery mode) is an entry {value, unit, tag, source} of config/energetics_compare.yaml,
+read by :func:`load_comparison_settings` with model.yaml's reader (vm_ros.model.params); a bad
+entry is a one-line ConfigError naming file and field. Numbers above are the shipped file's.
 """
 
 from __future__ import annotations
 
 import csv
+import dataclasses
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -33,36 +39,188 @@ from pathlib import Path
 import numpy as np
 
 from vm_ros.energetics_models.vm_state import MODEL_NAMES, published_rates
+from vm_ros.errors import ConfigError
 from vm_ros.model import MuscleBank
 from vm_ros.model.curves import tendon_length_at_force
 from vm_ros.model.mechanics import contractile_force_normalised
+from vm_ros.model.params import (  # model.yaml's reader
+    RECOVERY_MODES,
+    _holds,
+    _load_yaml,
+    _read_section,
+    _section,
+)
+from vm_ros.resources import config_dir
 from vm_ros.scenarios import load_scenario
 
 TSIANOS = "tsianos2012"
-COMPOSITIONS = {"slow": 0.85, "mixed": 0.50, "fast": 0.15, "library": None}
+FILE_NAME = "energetics_compare.yaml"
+LIBRARY = "library"  # the composition that keeps each muscle's own fpcsa_slow
+COMPOSITION_NAMES = ("slow", "mixed", "fast", LIBRARY)
 GROUPS = ("isometric", "isovelocity", "knee_extension", "gait_cycle")
 
 
 @dataclass(frozen=True)
 class ComparisonSettings:
-    """The comparison's scenario constants (ours; module docstring)."""
+    """The comparison's scenario constants (module docstring), from
+    config/energetics_compare.yaml (:func:`load_comparison_settings`; units in the names), and
+    the selection of a run (compositions, groups, models: all by default)."""
 
-    dt_s: float = 0.001
-    sweep_muscle: str = "vasti"
-    isometric_drives: tuple = (0.1, 0.25, 0.5, 0.75, 1.0)
-    isometric_duration_s: float = 2.0
-    isovelocity_drive: float = 0.5
-    isovelocity_speeds_l0_per_s: tuple = (-2.0, -1.0, -0.5, -0.25, 0.25, 0.5, 1.0, 2.0)
-    isovelocity_half_travel_l0: float = 0.15
-    knee_duration_s: float = 180.0
-    gait_frequency_hz: float = 1.0
-    gait_cycles: int = 20
-    gait_peak_drive: float = 0.4
-    gait_burst_fraction: float = 0.4
-    gait_length_amplitude_l0: float = 0.08
-    compositions: tuple = tuple(COMPOSITIONS)
+    dt_s: float
+    sweep_muscle: str
+    sweep_recovery_mode: str
+    rate_bin_s: float
+    isometric_drives: tuple
+    isometric_duration_s: float
+    isometric_length_l0: float
+    isovelocity_drive: float
+    isovelocity_speeds_l0_per_s: tuple
+    isovelocity_centre_l0: float
+    isovelocity_half_travel_l0: float
+    knee_duration_s: float
+    gait_frequency_hz: float
+    gait_cycles: int
+    gait_peak_drive: float
+    gait_burst_fraction: float
+    gait_length_amplitude_l0: float
+    gait_mid_length_l0: float
+    composition_slow_fractions: dict  # name -> fpcsa_slow, None for LIBRARY
+    compositions: tuple = COMPOSITION_NAMES
     groups: tuple = GROUPS
     models: tuple = MODEL_NAMES
+
+
+# The file's sections, read field by field as model.yaml's are (unit checked against _holds).
+@dataclass(frozen=True)
+class _RunSection:
+    dt: float = _holds("s")
+    sweep_muscle: str = _holds("-")
+    sweep_recovery_mode: str = _holds("-")
+    rate_bin: float = _holds("s")
+
+
+@dataclass(frozen=True)
+class _IsometricSection:
+    drives: tuple = _holds("1")
+    duration: float = _holds("s")
+    fascicle_length: float = _holds("L0")
+
+
+@dataclass(frozen=True)
+class _IsovelocitySection:
+    drive: float = _holds("1")
+    speeds: tuple = _holds("L0/s")
+    centre_length: float = _holds("L0")
+    half_travel: float = _holds("L0")
+
+
+@dataclass(frozen=True)
+class _KneeSection:
+    duration: float = _holds("s")
+
+
+@dataclass(frozen=True)
+class _GaitSection:
+    frequency: float = _holds("1/s")
+    cycles: float = _holds("1")
+    peak_drive: float = _holds("1")
+    burst_fraction: float = _holds("1")
+    length_amplitude: float = _holds("L0")
+    mid_length: float = _holds("L0")
+
+
+@dataclass(frozen=True)
+class _CompositionsSection:
+    slow: float = _holds("1")
+    mixed: float = _holds("1")
+    fast: float = _holds("1")
+
+
+_SECTIONS = {"run": _RunSection, "isometric": _IsometricSection,
+             "isovelocity": _IsovelocitySection, "knee_extension": _KneeSection,
+             "gait_cycle": _GaitSection, "compositions": _CompositionsSection}
+
+
+def comparison_config_path(path=None) -> Path:
+    """``path``, or the shipped config/energetics_compare.yaml (vm_ros.resources.config_dir)."""
+    return Path(path) if path is not None else config_dir() / FILE_NAME
+
+
+def _check(path, where: str, values, ok, reason: str) -> None:
+    for value in (values if isinstance(values, tuple) else (values,)):
+        if not ok(value):
+            raise ConfigError(path, where, values, reason)
+
+
+def load_comparison_settings(path=None) -> ComparisonSettings:
+    """The scenario constants of config/energetics_compare.yaml (or ``path``, same layout) as
+    :class:`ComparisonSettings`; a bad entry (unit, missing tag or source, type, range) is a
+    ConfigError naming file and field."""
+    path = comparison_config_path(path)
+    data = _load_yaml(path)
+    unknown = sorted(set(data) - set(_SECTIONS))
+    if unknown:
+        raise ConfigError(path, unknown[0], None,
+                          f"unknown section; known: {', '.join(_SECTIONS)}")
+    read = {name: cls(**_read_section(cls, path, _section(path, data, name), name, {}))
+            for name, cls in _SECTIONS.items()}
+    run, iso, vel = read["run"], read["isometric"], read["isovelocity"]
+    knee, gait, comp = read["knee_extension"], read["gait_cycle"], read["compositions"]
+
+    def positive(v):
+        return v > 0.0
+
+    def unit_interval(v):
+        return 0.0 <= v <= 1.0
+
+    for where, value, ok, reason in (
+        ("run.dt.value", run.dt, positive, "must be > 0"),
+        ("run.rate_bin.value", run.rate_bin, positive, "must be > 0"),
+        ("run.sweep_recovery_mode.value", run.sweep_recovery_mode,
+         lambda v: v in RECOVERY_MODES, f"must be one of {', '.join(RECOVERY_MODES)}"),
+        ("isometric.drives.value", iso.drives, unit_interval, "each must be in [0, 1]"),
+        ("isometric.duration.value", iso.duration, positive, "must be > 0"),
+        ("isometric.fascicle_length.value", iso.fascicle_length, positive, "must be > 0"),
+        ("isovelocity.drive.value", vel.drive, unit_interval, "must be in [0, 1]"),
+        ("isovelocity.speeds.value", vel.speeds, lambda v: v != 0.0,
+         "each must be nonzero (shortening negative)"),
+        ("isovelocity.half_travel.value", vel.half_travel,
+         lambda v: 0.0 < v < vel.centre_length, "must be > 0 and below centre_length"),
+        ("knee_extension.duration.value", knee.duration, positive, "must be > 0"),
+        ("gait_cycle.frequency.value", gait.frequency, positive, "must be > 0"),
+        ("gait_cycle.cycles.value", gait.cycles, lambda v: v >= 1 and float(v).is_integer(),
+         "must be a whole number >= 1"),
+        ("gait_cycle.peak_drive.value", gait.peak_drive, unit_interval, "must be in [0, 1]"),
+        ("gait_cycle.burst_fraction.value", gait.burst_fraction, lambda v: 0.0 < v <= 1.0,
+         "must be in (0, 1]"),
+        ("gait_cycle.length_amplitude.value", gait.length_amplitude,
+         lambda v: 0.0 <= v < gait.mid_length, "must be >= 0 and below mid_length"),
+        *((f"compositions.{name}.value", getattr(comp, name), unit_interval,
+           "must be in [0, 1]") for name in ("slow", "mixed", "fast")),
+    ):
+        _check(path, where, value, ok, reason)
+    return ComparisonSettings(
+        dt_s=run.dt, sweep_muscle=run.sweep_muscle, sweep_recovery_mode=run.sweep_recovery_mode,
+        rate_bin_s=run.rate_bin,
+        isometric_drives=iso.drives, isometric_duration_s=iso.duration,
+        isometric_length_l0=iso.fascicle_length,
+        isovelocity_drive=vel.drive, isovelocity_speeds_l0_per_s=vel.speeds,
+        isovelocity_centre_l0=vel.centre_length, isovelocity_half_travel_l0=vel.half_travel,
+        knee_duration_s=knee.duration,
+        gait_frequency_hz=gait.frequency, gait_cycles=int(gait.cycles),
+        gait_peak_drive=gait.peak_drive, gait_burst_fraction=gait.burst_fraction,
+        gait_length_amplitude_l0=gait.length_amplitude, gait_mid_length_l0=gait.mid_length,
+        composition_slow_fractions={"slow": comp.slow, "mixed": comp.mixed, "fast": comp.fast,
+                                    LIBRARY: None},
+    )
+
+
+def with_duration(settings: ComparisonSettings, duration_s: float) -> ComparisonSettings:
+    """``settings`` with the knee extension lasting ``duration_s`` and the gait-like cycle cut
+    to as many whole cycles (at least 1) as fit in it, never more than the file's."""
+    fit = max(1, math.floor(duration_s * settings.gait_frequency_hz + 1e-9))
+    return dataclasses.replace(settings, knee_duration_s=duration_s,
+                               gait_cycles=min(settings.gait_cycles, fit))
 
 
 @dataclass(frozen=True)
@@ -111,25 +269,25 @@ def _steps(duration_s: float, dt: float) -> int:
 def _isometric(drive: float, s: ComparisonSettings) -> ScenarioRun:
     def inputs(bank):
         k = _steps(s.isometric_duration_s, s.dt_s)
-        lp = path_length_at(bank, drive, 1.0)
+        lp = path_length_at(bank, drive, s.isometric_length_l0)
         return (np.full((k, bank.n), drive), np.tile(lp, (k, 1)), np.zeros((k, bank.n)),
                 np.full(bank.n, drive))
-    return ScenarioRun(f"isometric_u{drive:.2f}", "isometric", (s.sweep_muscle,), "static",
-                       inputs)
+    return ScenarioRun(f"isometric_u{drive:.2f}", "isometric", (s.sweep_muscle,),
+                       s.sweep_recovery_mode, inputs)
 
 
 def _isovelocity(speed: float, s: ComparisonSettings) -> ScenarioRun:
     def inputs(bank):
         travel = 2.0 * s.isovelocity_half_travel_l0
         k = _steps(travel / abs(speed), s.dt_s)
-        start = 1.0 - np.sign(speed) * s.isovelocity_half_travel_l0
+        start = s.isovelocity_centre_l0 - np.sign(speed) * s.isovelocity_half_travel_l0
         lp0 = path_length_at(bank, s.isovelocity_drive, start)
         t = np.arange(k)[:, None] * s.dt_s
         velocity = speed * bank.l0_m
         return (np.full((k, bank.n), s.isovelocity_drive), lp0 + velocity * t,
                 np.tile(velocity, (k, 1)), np.full(bank.n, s.isovelocity_drive))
-    return ScenarioRun(f"isovelocity_{speed:+.2f}", "isovelocity", (s.sweep_muscle,), "static",
-                       inputs)
+    return ScenarioRun(f"isovelocity_{speed:+.2f}", "isovelocity", (s.sweep_muscle,),
+                       s.sweep_recovery_mode, inputs)
 
 
 def _knee(s: ComparisonSettings) -> ScenarioRun:
@@ -151,12 +309,13 @@ def _gait(s: ComparisonSettings) -> ScenarioRun:
         burst = np.where(phase < s.gait_burst_fraction,
                          np.sin(np.pi * phase / s.gait_burst_fraction) ** 2, 0.0)
         w = 2.0 * np.pi * s.gait_frequency_hz
-        mid = path_length_at(bank, 0.0, 1.0)
+        mid = path_length_at(bank, 0.0, s.gait_mid_length_l0)
         amplitude = s.gait_length_amplitude_l0 * bank.l0_m
         u = np.tile((s.gait_peak_drive * burst)[:, None], (1, bank.n))
         return (u, mid + amplitude * np.sin(w * t)[:, None],
                 amplitude * w * np.cos(w * t)[:, None] * np.ones(bank.n), None)
-    return ScenarioRun("gait_cycle", "gait_cycle", (s.sweep_muscle,), "static", inputs)
+    return ScenarioRun("gait_cycle", "gait_cycle", (s.sweep_muscle,), s.sweep_recovery_mode,
+                       inputs)
 
 
 def scenario_set(settings: ComparisonSettings) -> list:
@@ -174,9 +333,10 @@ def scenario_set(settings: ComparisonSettings) -> list:
     return runs
 
 
-def make_bank(run: ScenarioRun, composition: str) -> MuscleBank:
-    """The scenario's bank with every muscle's fpcsa_slow set by ``composition``."""
-    slow = COMPOSITIONS[composition]
+def make_bank(run: ScenarioRun, composition: str, settings: ComparisonSettings) -> MuscleBank:
+    """The scenario's bank with every muscle's fpcsa_slow set by ``composition`` (its fraction
+    in ``settings``; ``library`` keeps the library's)."""
+    slow = settings.composition_slow_fractions[composition]
     overrides = None if slow is None else {m: {"fpcsa_slow": slow} for m in run.muscles}
     return MuscleBank.from_config(list(run.muscles), overrides=overrides,
                                   recovery_mode=run.recovery_mode)
@@ -185,7 +345,7 @@ def make_bank(run: ScenarioRun, composition: str) -> MuscleBank:
 def run_scenario(run: ScenarioRun, composition: str, settings: ComparisonSettings,
                  keep_traces: bool = False) -> ScenarioResult:
     """Run one scenario for one composition; energies of Tsianos 2012 and every model."""
-    bank = make_bank(run, composition)
+    bank = make_bank(run, composition, settings)
     u, lp, vp, reset_drive = run.inputs(bank)
     bank.reset(lp[0], excitation=reset_drive)
     trajectory = bank.run(settings.dt_s, u, lp, vp)
@@ -300,10 +460,33 @@ def binned_rate(time_s, rate_w, bin_s: float):
     return (np.arange(count) + 0.5) * per_bin * dt, rates
 
 
+def ratio_row(results, scenarios, composition: str, model: str) -> np.ndarray:
+    """``model``'s energy / Tsianos 2012's per scenario of ``scenarios`` (NaN where a scenario
+    is missing for ``composition`` or Tsianos 2012's energy is 0)."""
+    by_scenario = {r.scenario: r for r in results if r.composition == composition}
+    return np.array([by_scenario[s].energy_j[model] / by_scenario[s].energy_j[TSIANOS]
+                     if s in by_scenario and by_scenario[s].energy_j[TSIANOS] else np.nan
+                     for s in scenarios], dtype=float)
+
+
+def ratio_axis(ratios) -> tuple:
+    """The y axis of a ratio bar chart, so that ratios a thousand times apart are all readable:
+    ("log", bottom) when no ratio is negative, ("symlog", linthresh) otherwise (a ratio below 0:
+    a model that counts absorbed work as negative energy); bottom and linthresh are the decade
+    below the smallest nonzero |ratio| (1 when there is none). Ratios of 0 get no bar on a log
+    axis: the chart marks them "0"."""
+    values = np.asarray(ratios, dtype=float)
+    values = values[np.isfinite(values)]
+    nonzero = np.abs(values[values != 0.0])
+    floor = 10.0 ** math.floor(math.log10(nonzero.min())) if nonzero.size else 1.0
+    return ("symlog" if np.any(values < 0.0) else "log"), floor
+
+
 def write_figures(results, settings: ComparisonSettings, out: Path) -> list:
-    """The knee-extension rate traces (1 s bins, one panel per composition) and a bar chart of
-    every model's energy relative to Tsianos 2012 per scenario group (one panel per composition).
-    Returns the PNG paths. Needs matplotlib (ImportError otherwise)."""
+    """The knee-extension rate traces (bins of ``settings.rate_bin_s``, one panel per
+    composition) and a bar chart of every model's energy relative to Tsianos 2012 per scenario
+    group (one panel per composition, log y axis: :func:`ratio_axis`). Returns the PNG paths.
+    Needs matplotlib (ImportError otherwise)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -319,12 +502,13 @@ def write_figures(results, settings: ComparisonSettings, out: Path) -> list:
         for ax, r in zip(axes[:, 0], knee, strict=True):
             for i, model in enumerate(models):
                 colour, style, width = _style(model, i - 1)
-                centres, rates = binned_rate(r.time_s, r.rates_w[model], 1.0)
+                centres, rates = binned_rate(r.time_s, r.rates_w[model], settings.rate_bin_s)
                 ax.plot(centres, rates, color=colour, linestyle=style, linewidth=width,
                         label=model)
             ax.set_ylabel("rate (W)")
             ax.set_title(f"knee extension, {r.composition} (fpcsa_slow "
-                         f"{', '.join(f'{f:.2f}' for f in r.fpcsa_slow)}), 1 s bins",
+                         f"{', '.join(f'{f:.2f}' for f in r.fpcsa_slow)}), "
+                         f"{settings.rate_bin_s:g} s bins",
                          fontsize=9)
             ax.grid(alpha=0.3)
         axes[-1, 0].set_xlabel("time (s)")
@@ -343,18 +527,28 @@ def write_figures(results, settings: ComparisonSettings, out: Path) -> list:
                                  figsize=(max(6.0, 1.3 * len(scenarios) + 3), 2.8
                                           * len(compositions) + 0.6), squeeze=False)
         width = 0.8 / len(settings.models)
+        ratios = {(c, m): ratio_row(chosen, scenarios, c, m)
+                  for c in compositions for m in settings.models}
+        scale, floor = ratio_axis(np.concatenate(list(ratios.values())))
         for ax, composition in zip(axes[:, 0], compositions, strict=True):
-            by_scenario = {r.scenario: r for r in chosen if r.composition == composition}
             x = np.arange(len(scenarios))
+            if scale == "log":
+                ax.set_yscale("log")
+                ax.set_ylim(bottom=floor)
+            else:
+                ax.set_yscale("symlog", linthresh=floor)
             for i, model in enumerate(settings.models):
-                ratios = [by_scenario[s].energy_j[model] / by_scenario[s].energy_j[TSIANOS]
-                          if s in by_scenario and by_scenario[s].energy_j[TSIANOS] else np.nan
-                          for s in scenarios]
-                ax.bar(x - 0.4 + (i + 0.5) * width, ratios, width, color=_style(model, i)[0],
-                       label=model)
+                values = ratios[(composition, model)]
+                centres = x - 0.4 + (i + 0.5) * width
+                colour = _style(model, i)[0]
+                ax.bar(centres, values, width, color=colour, label=model)
+                for centre in centres[values == 0.0]:  # no bar on a log axis: say so
+                    ax.text(centre, floor if scale == "log" else 0.0, "0", color=colour,
+                            fontsize=6, ha="center", va="bottom")
             ax.axhline(1.0, color="black", linewidth=1.5, label=f"{TSIANOS} (= 1)")
             ax.set_xticks(x, [s.replace(f"{group}_", "") for s in scenarios], fontsize=8)
-            ax.set_ylabel("energy / Tsianos 2012")
+            ax.set_ylabel("energy / Tsianos 2012" + (" (log)" if scale == "log"
+                                                     else " (symlog)"))
             ax.set_title(f"{group}, {composition}", fontsize=9)
             ax.grid(alpha=0.3, axis="y")
         axes[0, 0].legend(fontsize=7, ncol=3)
@@ -368,15 +562,22 @@ def write_figures(results, settings: ComparisonSettings, out: Path) -> list:
 
 __all__ = [
     "binned_rate",
+    "ratio_axis",
+    "ratio_row",
     "column_label",
     "write_figures",
-    "COMPOSITIONS",
+    "COMPOSITION_NAMES",
+    "FILE_NAME",
+    "LIBRARY",
     "GROUPS",
     "TABLE_COLUMNS",
     "TSIANOS",
     "ComparisonSettings",
     "ScenarioResult",
     "ScenarioRun",
+    "comparison_config_path",
+    "load_comparison_settings",
+    "with_duration",
     "format_table",
     "make_bank",
     "path_length_at",
