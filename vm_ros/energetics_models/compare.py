@@ -70,6 +70,7 @@ class ComparisonSettings:
     sweep_muscle: str
     sweep_recovery_mode: str
     rate_bin_s: float
+    negligible_ratio: float
     isometric_drives: tuple
     isometric_duration_s: float
     isometric_length_l0: float
@@ -97,6 +98,7 @@ class _RunSection:
     sweep_muscle: str = _holds("-")
     sweep_recovery_mode: str = _holds("-")
     rate_bin: float = _holds("s")
+    negligible_ratio: float = _holds("1")
 
 
 @dataclass(frozen=True)
@@ -176,6 +178,7 @@ def load_comparison_settings(path=None) -> ComparisonSettings:
     for where, value, ok, reason in (
         ("run.dt.value", run.dt, positive, "must be > 0"),
         ("run.rate_bin.value", run.rate_bin, positive, "must be > 0"),
+        ("run.negligible_ratio.value", run.negligible_ratio, positive, "must be > 0"),
         ("run.sweep_recovery_mode.value", run.sweep_recovery_mode,
          lambda v: v in RECOVERY_MODES, f"must be one of {', '.join(RECOVERY_MODES)}"),
         ("isometric.drives.value", iso.drives, unit_interval, "each must be in [0, 1]"),
@@ -201,7 +204,7 @@ def load_comparison_settings(path=None) -> ComparisonSettings:
         _check(path, where, value, ok, reason)
     return ComparisonSettings(
         dt_s=run.dt, sweep_muscle=run.sweep_muscle, sweep_recovery_mode=run.sweep_recovery_mode,
-        rate_bin_s=run.rate_bin,
+        rate_bin_s=run.rate_bin, negligible_ratio=run.negligible_ratio,
         isometric_drives=iso.drives, isometric_duration_s=iso.duration,
         isometric_length_l0=iso.fascicle_length,
         isovelocity_drive=vel.drive, isovelocity_speeds_l0_per_s=vel.speeds,
@@ -469,16 +472,16 @@ def ratio_row(results, scenarios, composition: str, model: str) -> np.ndarray:
                      for s in scenarios], dtype=float)
 
 
-def ratio_axis(ratios) -> tuple:
+def ratio_axis(ratios, negligible: float) -> tuple:
     """The y axis of a ratio bar chart, so that ratios a thousand times apart are all readable:
-    ("log", bottom) when no ratio is negative, ("symlog", linthresh) otherwise (a ratio below 0:
-    a model that counts absorbed work as negative energy); bottom and linthresh are the decade
-    below the smallest nonzero |ratio| (1 when there is none). Ratios of 0 get no bar on a log
-    axis: the chart marks them "0"."""
+    ("log", bottom) when no ratio is below -``negligible``, ("symlog", linthresh) otherwise (a
+    negative ratio: a model that counts absorbed work as negative energy); bottom and linthresh
+    are the decade below the smallest |ratio| of at least ``negligible`` (1 when there is none).
+    Ratios smaller than ``negligible`` in size (Margaria 1968's round-off work in an isometric
+    run) get no bar: the chart marks them "~0"."""
     values = np.asarray(ratios, dtype=float)
-    values = values[np.isfinite(values)]
-    nonzero = np.abs(values[values != 0.0])
-    floor = 10.0 ** math.floor(math.log10(nonzero.min())) if nonzero.size else 1.0
+    values = values[np.isfinite(values) & (np.abs(values) >= negligible)]
+    floor = 10.0 ** math.floor(math.log10(np.abs(values).min())) if values.size else 1.0
     return ("symlog" if np.any(values < 0.0) else "log"), floor
 
 
@@ -529,22 +532,24 @@ def write_figures(results, settings: ComparisonSettings, out: Path) -> list:
         width = 0.8 / len(settings.models)
         ratios = {(c, m): ratio_row(chosen, scenarios, c, m)
                   for c in compositions for m in settings.models}
-        scale, floor = ratio_axis(np.concatenate(list(ratios.values())))
+        scale, floor = ratio_axis(np.concatenate(list(ratios.values())),
+                                  settings.negligible_ratio)
         for ax, composition in zip(axes[:, 0], compositions, strict=True):
             x = np.arange(len(scenarios))
-            if scale == "log":
-                ax.set_yscale("log")
-                ax.set_ylim(bottom=floor)
-            else:
-                ax.set_yscale("symlog", linthresh=floor)
+            ax.set_yscale(scale, **({"linthresh": floor} if scale == "symlog" else {}))
             for i, model in enumerate(settings.models):
                 values = ratios[(composition, model)]
+                negligible = np.abs(values) < settings.negligible_ratio
                 centres = x - 0.4 + (i + 0.5) * width
                 colour = _style(model, i)[0]
-                ax.bar(centres, values, width, color=colour, label=model)
-                for centre in centres[values == 0.0]:  # no bar on a log axis: say so
-                    ax.text(centre, floor if scale == "log" else 0.0, "0", color=colour,
-                            fontsize=6, ha="center", va="bottom")
+                ax.bar(centres, np.where(negligible, np.nan, values), width, color=colour,
+                       label=model)
+                for centre in centres[negligible]:  # no bar: say so
+                    ax.text(centre, floor if scale == "log" else 0.0, "~0", color=colour,
+                            fontsize=6, ha="center", va="bottom", rotation=90)
+            if scale == "log":  # from the floor to the largest bar, a third of a decade above
+                ax.set_ylim(floor, np.nanmax([floor, *np.concatenate(list(ratios.values()))])
+                            * 10.0 ** (1.0 / 3.0))
             ax.axhline(1.0, color="black", linewidth=1.5, label=f"{TSIANOS} (= 1)")
             ax.set_xticks(x, [s.replace(f"{group}_", "") for s in scenarios], fontsize=8)
             ax.set_ylabel("energy / Tsianos 2012" + (" (log)" if scale == "log"
