@@ -1,15 +1,34 @@
-"""Side by side with OpenSim (when the ``opensim`` wheel is installed): one Millard 2012
-equilibrium muscle with the Umberger 2010 metabolics probe, against one vm_ros muscle, both
-driven by the same excitation and the same path length, advanced in 1 ms steps from Python.
+"""``vm-ros bench --compare``: vm_ros beside its peers in one process, at 1 muscle and at N.
 
-The OpenSim model: a slider joint whose coordinate is the musculotendon path length (prescribed,
-a 1 Hz sinusoid of +-2 % about rest), a Millard2012EquilibriumMuscle with the vm_ros muscle's
-F0, L0 and tendon slack length (L0T x 0.964, the inverse of config/muscles.yaml's conversion),
-no pennation, a PrescribedController with a sinusoidal excitation (0.5 +- 0.45, 2 Hz), and an
-Umberger2010MuscleMetabolicsProbe (activation/maintenance, shortening, basal and work terms) with
-the muscle's slow-twitch fraction. Each step is ``Manager.integrate(t + 1 ms)`` followed by
-reading the tendon force and the probe's rate (state realized to Report): what a user of OpenSim
-from Python does per control step. This compares cost, not physiology (different models).
+Each system is a stepper that advances ``n`` muscles in 1 ms steps from Python, the way a user
+calls it per control step, all with the same inputs (:func:`bench_inputs`): per muscle i an
+excitation 0.5 + 0.45 sin(2 pi 2 Hz t + i) and a path length moving with one slider, rest_i +
+0.02 rest_0 sin(2 pi 1 Hz t) (rest = L0 + L0T; the peers pull one body, see below), reading each
+step the force of every muscle and, where the system has it, the energy rate:
+
+- vm_ros: ``MuscleBank.step`` (the compiled back end when Numba is installed; lumped units,
+  energetics on), reading ``out.force`` and ``out.energy_rate.total``.
+- OpenSim (the ``opensim`` wheel): Millard2012EquilibriumMuscles with the vm_ros muscles' F0,
+  L0 and tendon slack length (L0T x 0.964, the inverse of config/muscles.yaml's conversion), no
+  pennation, each excited by one PrescribedController (an OpenSim Sine, the drive above) and an
+  entry in one Umberger2010MuscleMetabolicsProbe (activation and maintenance, shortening, basal
+  and work terms; the muscle's slow-twitch fraction) reporting each muscle's rate. Every muscle
+  runs from its own point on the ground to one body on a slider joint whose coordinate is
+  prescribed (an OpenSim Sine: +-2 % of the first muscle's rest length at 1 Hz), the points
+  placed so that each path is at its muscle's rest length (L0 + L0T) at the middle of the swing.
+  One body for all: a body per muscle would add multibody work that a model with many muscles
+  per body does not have (at 20 muscles it cost about 136 us per extra muscle against 54 us
+  with one body). A step is ``Manager.integrate(t + 1 ms)`` (OpenSim's default integrator),
+  realizing the state to Report and reading every tendon force and the probe's outputs.
+- MuJoCo (the ``mujoco`` wheel): vm_ros.bench.mujoco_compare.
+
+Timing: rounds interleave every (system, size) case, one block of steps each (a block is sized
+from a warm-up to last about ``block_seconds``; the order is reversed every other round), so a
+change in the machine's load hits all alike. Each block is timed with the thread's CPU clock
+(``time.thread_time_ns``: this thread only, not time spent waiting for a core) and the wall
+clock; the figures are medians over the rounds. The cost per extra muscle is the slope between
+the 1- and the N-muscle medians, (t_N - t_1) / (N - 1); ratios are peer over vm_ros. This
+compares cost, not physiology (different models).
 """
 
 from __future__ import annotations
@@ -19,110 +38,249 @@ import time
 
 import numpy as np
 
-from vm_ros.bench.model_bench import DT
+from vm_ros.bench.model_bench import DT, library_bank
 from vm_ros.errors import VmRosError
 from vm_ros.importers.osim import load_opensim
 
 TENDON_SLACK_OVER_L0T = 0.964  # config/muscles.yaml conversion rule 3: L0T = Ls / 0.964
+PERIOD_STEPS = 2000  # input cycle: 2 s holds whole periods of the 1 Hz path and the 2 Hz drive
+PEERS = ("opensim", "mujoco")
 
 
-def available() -> bool:
+class PeerStepper:
+    """``n`` muscles of one system: ``advance(steps)`` runs steps from where the last call
+    stopped; ``reading()`` the last step's total force (N) and total energy rate (W, or None)."""
+
+    def advance(self, steps: int) -> None:
+        raise NotImplementedError
+
+    def reading(self) -> dict:
+        raise NotImplementedError
+
+
+def bench_inputs(n: int):
+    """(u, lp, vp, bank): (PERIOD_STEPS, n) excitation, path length (m) and path velocity (m/s)
+    (module docstring) for a bank of ``n`` library muscles (compiled back end when available);
+    lp[:, 0] is the slider's coordinate."""
+    from vm_ros.model import kernel
+
+    bank = library_bank(n, backend="numba" if kernel.AVAILABLE else "numpy")
+    t = DT * np.arange(PERIOD_STEPS)[:, None]
+    u = 0.5 + 0.45 * np.sin(2 * np.pi * 2.0 * t + np.arange(n)[None, :])
+    rest = bank.l0_m + bank.l0t_m
+    swing = 0.02 * rest[0]
+    lp = rest[None, :] + swing * np.sin(2 * np.pi * t)
+    vp = np.broadcast_to(swing * 2 * np.pi * np.cos(2 * np.pi * t), lp.shape).copy()
+    return u, lp, vp, bank
+
+
+class VmRosMuscles(PeerStepper):
+    def __init__(self, n: int):
+        self.u, self.lp, self.vp, self.bank = bench_inputs(n)
+        self.bank.reset(self.lp[0], excitation=self.u[0])
+        self.k = 0
+        self.force = self.rate = np.zeros(n)
+
+    def advance(self, steps: int) -> None:
+        bank, u, lp, vp, period = self.bank, self.u, self.lp, self.vp, len(self.u)
+        k = self.k
+        for _ in range(steps):
+            j = k % period
+            out = bank.step(DT, u[j], lp[j], vp[j])
+            self.force, self.rate = out.force, out.energy_rate.total
+            k += 1
+        self.k = k
+
+    def reading(self) -> dict:
+        return {"total_force_n": float(np.sum(self.force)),
+                "total_energy_rate_w": float(np.sum(self.rate))}
+
+
+def opensim_missing() -> str | None:
+    """None when OpenSim can be imported, else the reason."""
     try:
         load_opensim()
-    except VmRosError:
-        return False
-    return True
+    except VmRosError as exc:
+        return str(exc)
+    return None
 
 
-def _drive(t):
-    return 0.5 + 0.45 * np.sin(2 * np.pi * 2.0 * t)
+def opensim_version() -> str:
+    return load_opensim().__version__
 
 
-def _opensim_model(f0, l0, l0t, slow_fraction, rest_length):
-    osim = load_opensim()
+class OpensimMuscles(PeerStepper):
+    """``n`` Millard 2012 muscles with Umberger 2010 probe entries (module docstring)."""
 
-    model = osim.Model()
-    model.setName("vm_ros_bench")
-    body = osim.Body("insertion_body", 1.0, osim.Vec3(0), osim.Inertia(0.01))
-    model.addBody(body)
-    joint = osim.SliderJoint("path", model.getGround(), osim.Vec3(0), osim.Vec3(0), body,
-                             osim.Vec3(0), osim.Vec3(0))
-    coordinate = joint.updCoordinate()
-    coordinate.setName("path_length")
-    coordinate.setPrescribedFunction(
-        osim.Sine(0.02 * rest_length, 2 * np.pi, 0.0, rest_length)
-    )
-    coordinate.setDefaultIsPrescribed(True)
-    coordinate.setDefaultValue(rest_length)
-    coordinate.setRangeMin(0.5 * rest_length)
-    coordinate.setRangeMax(1.5 * rest_length)
-    model.addJoint(joint)
-    muscle = osim.Millard2012EquilibriumMuscle("muscle", float(f0), float(l0),
-                                               float(l0t * TENDON_SLACK_OVER_L0T), 0.0)
-    muscle.addNewPathPoint("origin", model.getGround(), osim.Vec3(0))
-    muscle.addNewPathPoint("insertion", body, osim.Vec3(0))
-    model.addForce(muscle)
-    controller = osim.PrescribedController()
-    controller.addActuator(muscle)
-    controller.prescribeControlForActuator("muscle", osim.Sine(0.45, 2 * np.pi * 2.0, 0.0, 0.5))
-    model.addController(controller)
-    probe = osim.Umberger2010MuscleMetabolicsProbe(True, True, True, True)
-    probe.setName("umberger")
-    model.addProbe(probe)
-    probe.addMuscle("muscle", float(slow_fraction))
-    state = model.initSystem()
-    model.equilibrateMuscles(state)
-    return model, muscle, probe, state
+    def __init__(self, n: int):
+        osim = load_opensim()
+        _, _, _, bank = bench_inputs(n)
+        model = osim.Model()
+        model.setName("vm_ros_bench")
+        controller = osim.PrescribedController()
+        probe = osim.Umberger2010MuscleMetabolicsProbe(True, True, True, True)
+        probe.setName("umberger")
+        probe.set_report_total_metabolics_only(False)
+        # one prescribed slider: coordinate q moves +-2 % of the first muscle's rest length at
+        # 1 Hz; muscle i runs from a ground point at q_rest - rest_i to the slider's body
+        rest = bank.l0_m + bank.l0t_m
+        q_rest = float(rest[0])
+        body = osim.Body("insertion", 1.0, osim.Vec3(0), osim.Inertia(0.01))
+        model.addBody(body)
+        joint = osim.SliderJoint("path", model.getGround(), osim.Vec3(0), osim.Vec3(0), body,
+                                 osim.Vec3(0), osim.Vec3(0))
+        coordinate = joint.updCoordinate()
+        coordinate.setName("path_length")
+        coordinate.setPrescribedFunction(osim.Sine(0.02 * q_rest, 2 * np.pi, 0.0, q_rest))
+        coordinate.setDefaultIsPrescribed(True)
+        coordinate.setDefaultValue(q_rest)
+        coordinate.setRangeMin(0.5 * q_rest)
+        coordinate.setRangeMax(1.5 * q_rest)
+        model.addJoint(joint)
+        for i in range(n):
+            muscle = osim.Millard2012EquilibriumMuscle(
+                f"m{i}", float(bank.f0[i]), float(bank.l0_m[i]),
+                float(bank.l0t_m[i] * TENDON_SLACK_OVER_L0T), 0.0)
+            muscle.addNewPathPoint("origin", model.getGround(),
+                                   osim.Vec3(q_rest - float(rest[i]), 0, 0))
+            muscle.addNewPathPoint("insertion", body, osim.Vec3(0))
+            model.addForce(muscle)
+            controller.addActuator(muscle)
+            controller.prescribeControlForActuator(f"m{i}",
+                                                   osim.Sine(0.45, 2 * np.pi * 2.0, float(i), 0.5))
+        model.addController(controller)
+        model.addProbe(probe)
+        for i, spec in enumerate(bank.specs):
+            probe.addMuscle(f"m{i}", float(spec.fpcsa_slow))
+        state = model.initSystem()
+        model.equilibrateMuscles(state)
+        self.model, self.probe, self.state = model, probe, state
+        self.muscles = [osim.Millard2012EquilibriumMuscle.safeDownCast(
+            model.getMuscles().get(f"m{i}")) for i in range(n)]
+        self.manager = osim.Manager(model)
+        self.manager.initialize(state)
+        self.k = 0
+        self.force, self.rate = [0.0] * n, np.zeros(n)
 
-
-def compare(muscle: str = "vastus_lateralis", seconds: float = 2.0, repeats: int = 5) -> dict:
-    """Per-step wall time (median over ``repeats`` runs of ``seconds``) of OpenSim and vm_ros
-    for one muscle, and the mean force and energy rate each reports over the last run."""
-    from vm_ros.model import MuscleBank
-
-    # its per-call integration summary would be timed too; no opensim.log in the working directory
-    osim = load_opensim()
-    bank = MuscleBank.from_config([muscle])
-    spec = bank.specs[0]
-    rest = float(bank.l0_m[0] + bank.l0t_m[0])
-    steps = int(round(seconds / DT))
-    t = DT * np.arange(steps)
-    u = _drive(t)[:, None]
-    lp = (rest + 0.02 * rest * np.sin(2 * np.pi * t))[:, None]
-    vp = (0.02 * rest * 2 * np.pi * np.cos(2 * np.pi * t))[:, None]
-
-    opensim_times, vm_times = [], []
-    for _ in range(repeats):
-        model, os_muscle, probe, state = _opensim_model(bank.f0[0], bank.l0_m[0], bank.l0t_m[0],
-                                                        spec.fpcsa_slow, rest)
-        manager = osim.Manager(model)
-        manager.initialize(state)
-        forces, rates = [], []
-        start = time.perf_counter()
-        for k in range(steps):
+    def advance(self, steps: int) -> None:
+        model, manager, probe, muscles = self.model, self.manager, self.probe, self.muscles
+        k = self.k
+        for _ in range(steps):
             state = manager.integrate((k + 1) * DT)
             model.realizeReport(state)
-            forces.append(os_muscle.getTendonForce(state))
-            rates.append(probe.getProbeOutputs(state).get(0))
-        opensim_times.append((time.perf_counter() - start) / steps)
-        bank.reset(lp[0], excitation=u[0])
-        vm_forces, vm_rates = [], []
-        start = time.perf_counter()
-        for k in range(steps):
-            out = bank.step(DT, u[k], lp[k], vp[k])
-            vm_forces.append(out.force[0])
-            vm_rates.append(out.energy_rate.total[0])
-        vm_times.append((time.perf_counter() - start) / steps)
-    opensim_step = statistics.median(opensim_times)
-    vm_step = statistics.median(vm_times)
-    return {
-        "muscle": spec.name, "seconds": seconds, "repeats": repeats,
-        "opensim_version": osim.__version__,
-        "opensim_step_us": 1e6 * opensim_step, "vm_ros_step_us": 1e6 * vm_step,
-        "opensim_over_vm_ros": opensim_step / vm_step,
-        "opensim_mean_force_n": float(np.mean(forces)),
-        "vm_ros_mean_force_n": float(np.mean(vm_forces)),
-        "opensim_mean_energy_rate_w": float(np.mean(rates)),
-        "vm_ros_mean_energy_rate_w": float(np.mean(vm_rates)),
-        "vm_ros_backend": bank.backend,
-    }
+            self.force = [muscle.getTendonForce(state) for muscle in muscles]
+            self.rate = probe.getProbeOutputs(state).to_numpy()
+            k += 1
+        self.k = k
+
+    def reading(self) -> dict:
+        # the probe's outputs: the total, then each muscle's rate
+        return {"total_force_n": float(np.sum(self.force)),
+                "total_energy_rate_w": float(self.rate[0])}
+
+
+def peer_missing(peer: str) -> str | None:
+    if peer == "opensim":
+        return opensim_missing()
+    from vm_ros.bench import mujoco_compare
+
+    return mujoco_compare.missing()
+
+
+def _peer(peer: str):
+    """(stepper class, version, description) of an installed peer."""
+    if peer == "opensim":
+        return (OpensimMuscles, f"OpenSim {opensim_version()}",
+                "Millard 2012 equilibrium muscle + Umberger 2010 probe")
+    from vm_ros.bench import mujoco_compare
+
+    return (mujoco_compare.MujocoMuscles, f"MuJoCo {mujoco_compare.version()}",
+            "MuJoCo muscle actuator on a spatial tendon (rigid tendon, no energetics)")
+
+
+def _block_steps(stepper: PeerStepper, block_seconds: float) -> int:
+    """Steps per timed block: about ``block_seconds`` from a warm-up (at least 5 steps)."""
+    stepper.advance(5)  # first calls: compilation, caches
+    t0, done = time.perf_counter(), 0
+    while done < 5 or (time.perf_counter() - t0 < 0.2 * block_seconds and done < 2000):
+        stepper.advance(1)
+        done += 1
+    per_step = (time.perf_counter() - t0) / done
+    return int(min(20000, max(5, block_seconds / per_step)))
+
+
+def time_interleaved(cases: dict, rounds: int, block_seconds: float) -> dict:
+    """{name: timing} for steppers ``cases`` {name: PeerStepper}: per-step thread CPU and wall
+    time (us), medians over ``rounds`` interleaved rounds, with min and max."""
+    blocks = {name: _block_steps(stepper, block_seconds) for name, stepper in cases.items()}
+    cpu = {name: [] for name in cases}
+    wall = {name: [] for name in cases}
+    order = list(cases)
+    for r in range(rounds):
+        for name in (order if r % 2 == 0 else order[::-1]):
+            steps = blocks[name]
+            w0, c0 = time.perf_counter_ns(), time.thread_time_ns()
+            cases[name].advance(steps)
+            c1, w1 = time.thread_time_ns(), time.perf_counter_ns()
+            cpu[name].append(1e-3 * (c1 - c0) / steps)
+            wall[name].append(1e-3 * (w1 - w0) / steps)
+    return {name: {"cpu_us": statistics.median(cpu[name]), "cpu_us_min": min(cpu[name]),
+                   "cpu_us_max": max(cpu[name]), "wall_us": statistics.median(wall[name]),
+                   "wall_us_min": min(wall[name]), "wall_us_max": max(wall[name]),
+                   "steps_per_block": blocks[name]} for name in cases}
+
+
+def compare(peers=PEERS, muscles: int = 50, rounds: int = 21, block_seconds: float = 0.05,
+            progress=None) -> dict:
+    """vm_ros and each installed peer of ``peers`` at 1 and ``muscles`` muscles (module
+    docstring); a peer that is not installed is a row with ``skipped`` and the reason."""
+    if muscles < 2:
+        raise VmRosError(f"--compare-muscles must be >= 2, got {muscles}")
+    if rounds < 1:
+        raise VmRosError(f"compare rounds must be >= 1, got {rounds}")
+    systems = [{"system": "vm_ros", "stepper": VmRosMuscles}]
+    for peer in peers:
+        reason = peer_missing(peer)
+        if reason is not None:
+            systems.append({"system": peer, "skipped": reason})
+            if progress:
+                progress(f"compare: {peer} skipped, {reason}")
+            continue
+        stepper, version, description = _peer(peer)
+        systems.append({"system": peer, "version": version, "model": description,
+                        "stepper": stepper})
+    cases = {}
+    for system in systems:
+        stepper = system.pop("stepper", None)
+        for n in ((1, muscles) if stepper else ()):
+            if progress:
+                progress(f"compare: building {system['system']}, {n} muscles ...")
+            cases[(system["system"], n)] = stepper(n)
+    vm = cases[("vm_ros", 1)]
+    systems[0].update(version=f"vm_ros {vm.bank.backend}",
+                      model="Virtual Muscle, lumped units, Tsianos 2012 energetics")
+    if progress:
+        progress(f"compare: {len(cases)} cases, {rounds} interleaved rounds ...")
+    timing = time_interleaved(cases, rounds, block_seconds)
+    for system in systems:
+        if "skipped" in system:
+            continue
+        name = system["system"]
+        one, many = timing[(name, 1)], timing[(name, muscles)]
+        system.update({"muscles": muscles, "rounds": rounds,
+                       "step_1_cpu_us": one["cpu_us"], "step_1_wall_us": one["wall_us"],
+                       "step_n_cpu_us": many["cpu_us"], "step_n_wall_us": many["wall_us"],
+                       "per_muscle_cpu_us": (many["cpu_us"] - one["cpu_us"]) / (muscles - 1),
+                       "per_muscle_wall_us": (many["wall_us"] - one["wall_us"]) / (muscles - 1),
+                       "timing_1": one, "timing_n": many,
+                       "reading_n": cases[(name, muscles)].reading()})
+    base = systems[0]
+    for system in systems[1:]:
+        if "skipped" in system:
+            continue
+        for key in ("step_1_cpu_us", "step_1_wall_us", "per_muscle_cpu_us",
+                    "per_muscle_wall_us"):
+            system[f"over_vm_ros_{key[:-3]}"] = system[key] / base[key]
+    return {"muscles": muscles, "rounds": rounds, "block_seconds": block_seconds,
+            "clock": "thread CPU time (time.thread_time_ns) and wall (perf_counter_ns)",
+            "systems": systems}

@@ -28,9 +28,13 @@ Sections (all but node-memory by default; --only picks some):
             the largest growth over the RSS after the warm-up against +5 MiB, the slope
             (MiB/h), the number of bag files and whether every file reads back.
 
---compare opensim adds OpenSim's Millard 2012 muscle with the Umberger 2010 metabolics probe
-beside one vm_ros muscle, same drive and path, 1 ms steps from Python (vm_ros.bench.
-opensim_compare; needs the opensim wheel).
+--compare [PEERS] (off by default) adds vm_ros beside its peers in the same process: OpenSim's
+Millard 2012 muscle with the Umberger 2010 metabolics probe (the opensim extra) and MuJoCo's
+muscle actuator (the mujoco extra), each at 1 and --compare-muscles N muscles (default 50),
+1 ms steps from Python reading force (and energy rate) every step; thread CPU and wall time per
+step, medians of interleaved rounds; the cost per extra muscle (slope between 1 and N) and the
+ratios peer / vm_ros. No argument: every peer (one not installed is a row with the reason);
+or a comma-separated list (opensim,mujoco). vm_ros.bench.opensim_compare has the definitions.
 
 Timings are medians of repeated runs on a shared machine: compare ratios within one run rather
 than absolute numbers across runs. Targets (issue: performance): 1 muscle <= 30 us per step;
@@ -61,6 +65,10 @@ MEMORY_SPLIT_S = 60.0  # bag split (log time); shorter windows: a tenth of the w
 MEMORY_FILES = 10  # files a window gives at least about, when shorter than 10 splits
 MEMORY_GROWTH_TARGET_MIB = 5.0  # issue: a 10-minute 100-muscle run stays within +5 MiB
 RSS_SAMPLE_PERIOD_S = 5.0
+COMPARE_PEERS = ("opensim", "mujoco")  # --compare: vm_ros.bench.opensim_compare.PEERS
+COMPARE_MUSCLES, COMPARE_QUICK_MUSCLES = 50, 5  # the N of the per-muscle slope
+COMPARE_ROUNDS, COMPARE_QUICK_ROUNDS = 21, 3  # interleaved rounds (--repeats overrides)
+COMPARE_BLOCK_S, COMPARE_QUICK_BLOCK_S = 0.05, 0.005  # about this long per timed block
 
 
 def add_arguments(parser) -> None:
@@ -77,9 +85,14 @@ def add_arguments(parser) -> None:
     parser.add_argument("--node-duration", type=float, default=None, metavar="S",
                         help="seconds measured per node configuration (default 60, --quick "
                              "10; node-memory 600, --quick 60)")
-    parser.add_argument("--compare", choices=("opensim",), default=None,
-                        help="also time OpenSim's Millard muscle with the Umberger 2010 probe "
-                             "against one vm_ros muscle (needs the opensim wheel)")
+    parser.add_argument("--compare", nargs="?", const="all", default=None, metavar="PEERS",
+                        help="also time vm_ros beside its peers in one process at 1 and N "
+                             "muscles: every peer (no argument) or a comma-separated list of "
+                             f"{', '.join(COMPARE_PEERS)}; a peer not installed is skipped "
+                             "with the reason")
+    parser.add_argument("--compare-muscles", type=int, default=None, metavar="N",
+                        help="the larger bank size of --compare (default "
+                             f"{COMPARE_MUSCLES}, --quick {COMPARE_QUICK_MUSCLES})")
 
 
 def _machine() -> dict:
@@ -244,14 +257,8 @@ def _csv_rows(results: dict) -> list[dict]:
             if "cli_s" in logged:
                 add("offline", "the same as a vm-ros simulate process", "wall", logged["cli_s"],
                     "s")
-    if "opensim" in results:
-        r = results["opensim"]
-        add("opensim", f"1 muscle ({r['muscle']}), OpenSim {r['opensim_version']}",
-            "OpenSim step median", r["opensim_step_us"], "us")
-        add("opensim", f"1 muscle ({r['muscle']}), vm_ros {r['vm_ros_backend']}",
-            "vm_ros step median", r["vm_ros_step_us"], "us")
-        add("opensim", "1 muscle", "OpenSim / vm_ros step cost", r["opensim_over_vm_ros"],
-            "ratio")
+    if "compare" in results:
+        _compare_csv_rows(results["compare"], add)
     for r in results.get("node", []):
         case = (f"{r['muscles']} muscles, publish {r['publish_rate_hz']:g} Hz"
                 f"{', MCAP' if r['mcap'] else ''}")
@@ -274,6 +281,46 @@ def _csv_rows(results: dict) -> list[dict]:
     if "node-memory" in results:
         _memory_csv_rows(results["node-memory"], add)
     return rows
+
+
+def _compare_csv_rows(compare: dict, add) -> None:
+    n = compare["muscles"]
+    for r in compare["systems"]:
+        if "skipped" in r:
+            add("compare", r["system"], "skipped", r["skipped"], "")
+            continue
+        for size, key in ((1, "timing_1"), (n, "timing_n")):
+            timing = r[key]
+            case = f"{r['version']}, {size} muscle{'s' if size > 1 else ''}"
+            add("compare", case, "step median, thread CPU", timing["cpu_us"], "us",
+                low=timing["cpu_us_min"], high=timing["cpu_us_max"])
+            add("compare", case, "step median, wall", timing["wall_us"], "us",
+                low=timing["wall_us_min"], high=timing["wall_us_max"])
+        case = f"{r['version']}, slope 1..{n} muscles"
+        add("compare", case, "per extra muscle, thread CPU", r["per_muscle_cpu_us"], "us")
+        add("compare", case, "per extra muscle, wall", r["per_muscle_wall_us"], "us")
+        if r["system"] != "vm_ros":
+            case = f"{r['system']} / vm_ros"
+            add("compare", case, "step at 1 muscle, thread CPU", r["over_vm_ros_step_1_cpu"],
+                "ratio")
+            add("compare", case, "per extra muscle, thread CPU",
+                r["over_vm_ros_per_muscle_cpu"], "ratio")
+            add("compare", case, "step at 1 muscle, wall", r["over_vm_ros_step_1_wall"],
+                "ratio")
+            add("compare", case, "per extra muscle, wall", r["over_vm_ros_per_muscle_wall"],
+                "ratio")
+
+
+def _compare_peers(value: str) -> tuple:
+    """The peers of --compare's value ("all" or a comma-separated list), checked."""
+    if value == "all":
+        return COMPARE_PEERS
+    peers = tuple(dict.fromkeys(name.strip() for name in value.split(",") if name.strip()))
+    unknown = [name for name in peers if name not in COMPARE_PEERS]
+    if unknown or not peers:
+        raise VmRosError(f"--compare: unknown peer {', '.join(unknown) or repr(value)}; "
+                         f"choose from {', '.join(COMPARE_PEERS)}")
+    return peers
 
 
 def _memory_csv_rows(r: dict, add) -> None:
@@ -356,6 +403,12 @@ def run(args) -> int:
     if repeats < 1:
         raise VmRosError("--repeats must be >= 1")
     node_duration = args.node_duration or (10.0 if args.quick else 60.0)
+    if args.compare is not None:  # checked before any section runs
+        peers = _compare_peers(args.compare)
+        compare_muscles = args.compare_muscles or (
+            COMPARE_QUICK_MUSCLES if args.quick else COMPARE_MUSCLES)
+        if compare_muscles < 2:
+            raise VmRosError(f"--compare-muscles must be >= 2, got {compare_muscles}")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     results: dict = {"machine": _machine(), "sections": sections}
@@ -381,13 +434,15 @@ def run(args) -> int:
         results["node-memory"] = _node_memory_row(
             args.node_duration or (MEMORY_QUICK_DURATION_S if args.quick else MEMORY_DURATION_S),
             MEMORY_QUICK_WARMUP_S if args.quick else MEMORY_WARMUP_S, out / "node-memory")
-    if args.compare == "opensim":
+    if args.compare is not None:
         from vm_ros.bench import opensim_compare
 
-        if not opensim_compare.available():
-            raise VmRosError("--compare opensim needs the opensim package: pip install opensim")
-        _say("OpenSim (Millard 2012 + Umberger 2010 probe) against vm_ros, one muscle ...")
-        results["opensim"] = opensim_compare.compare(repeats=3 if args.quick else 5)
+        _say(f"compare: vm_ros beside {', '.join(peers)} ...")
+        results["compare"] = opensim_compare.compare(
+            peers, muscles=compare_muscles, rounds=args.repeats or (
+                COMPARE_QUICK_ROUNDS if args.quick else COMPARE_ROUNDS),
+            block_seconds=COMPARE_QUICK_BLOCK_S if args.quick else COMPARE_BLOCK_S,
+            progress=_say)
     results["machine"]["load_average_end"] = os.getloadavg()
     rows = _csv_rows(results)
     (out / "bench.json").write_text(json.dumps(results, indent=2, default=str) + "\n")
