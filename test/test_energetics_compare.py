@@ -4,9 +4,11 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 
 import numpy as np
 import pytest
+import yaml
 
 from vm_ros.cli import main
 from vm_ros.energetics_models import compare
@@ -130,8 +132,8 @@ def test_verb_writes_one_row_per_model_scenario_composition(tmp_path, capsys):
     assert code == 0
     rows = _table(out / "energetics_comparison.csv")
     scenarios = {r["scenario"] for r in rows}
-    settings = compare.ComparisonSettings(knee_duration_s=2.0, gait_cycles=2,
-                                          compositions=("slow", "fast"))
+    settings = dataclasses.replace(compare.load_comparison_settings(), knee_duration_s=2.0,
+                                   gait_cycles=2, compositions=("slow", "fast"))
     assert scenarios == {run.name for run in compare.scenario_set(settings)}
     keys = {(r["model"], r["scenario"], r["composition"]) for r in rows}
     assert len(rows) == len(keys) == (len(MODEL_NAMES) + 1) * len(scenarios) * 2
@@ -141,7 +143,7 @@ def test_verb_writes_one_row_per_model_scenario_composition(tmp_path, capsys):
 
     # Tsianos 2012's integrated energy equals the bank's own cumulative energy for the same run
     knee = next(run for run in compare.scenario_set(settings) if run.name == "knee_extension")
-    bank = compare.make_bank(knee, "fast")
+    bank = compare.make_bank(knee, "fast", settings)
     u, lp, vp, reset_drive = knee.inputs(bank)
     bank.reset(lp[0], excitation=reset_drive)
     expected = bank.run(DT, u, lp, vp).last.total_energy
@@ -160,3 +162,127 @@ def test_bad_option_is_one_line_and_exit_2(tmp_path, capsys, argv):
     assert code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "compare-energetics: error" in err[0]
+
+
+# The scenario constants in config/energetics_compare.yaml: the values ComparisonSettings held as
+# Python defaults before they moved to the file (so the comparison's numbers did not change).
+PREVIOUS_DEFAULTS = {
+    "dt_s": 0.001, "sweep_muscle": "vasti", "sweep_recovery_mode": "static",
+    "isometric_drives": (0.1, 0.25, 0.5, 0.75, 1.0), "isometric_duration_s": 2.0,
+    "isometric_length_l0": 1.0, "isovelocity_drive": 0.5,
+    "isovelocity_speeds_l0_per_s": (-2.0, -1.0, -0.5, -0.25, 0.25, 0.5, 1.0, 2.0),
+    "isovelocity_centre_l0": 1.0, "isovelocity_half_travel_l0": 0.15, "knee_duration_s": 180.0,
+    "gait_frequency_hz": 1.0, "gait_cycles": 20, "gait_peak_drive": 0.4,
+    "gait_burst_fraction": 0.4, "gait_length_amplitude_l0": 0.08, "gait_mid_length_l0": 1.0,
+    "composition_slow_fractions": {"slow": 0.85, "mixed": 0.50, "fast": 0.15, "library": None},
+    "rate_bin_s": 1.0, "compositions": ("slow", "mixed", "fast", "library"),
+    "groups": ("isometric", "isovelocity", "knee_extension", "gait_cycle"),
+}
+
+
+def test_shipped_config_holds_the_previous_defaults():
+    settings = compare.load_comparison_settings()
+    for name, value in PREVIOUS_DEFAULTS.items():
+        assert getattr(settings, name) == value, name
+    assert isinstance(settings.gait_cycles, int)
+    assert compare.comparison_config_path().name == "energetics_compare.yaml"
+    assert compare.comparison_config_path().is_file()
+
+
+def test_duration_cuts_the_gait_cycle_to_whole_cycles():
+    settings = compare.load_comparison_settings()
+    assert compare.with_duration(settings, 2.5).gait_cycles == 2
+    assert compare.with_duration(settings, 0.3).gait_cycles == 1
+    assert compare.with_duration(settings, 600.0).gait_cycles == 20
+    assert compare.with_duration(settings, 2.5).knee_duration_s == 2.5
+
+
+def _shipped():
+    with open(compare.comparison_config_path(), encoding="utf-8") as handle:
+        return yaml.safe_load(handle)
+
+
+def _write(tmp_path, data, name="compare.yaml"):
+    path = tmp_path / name
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    return path
+
+
+def _bad(edit):
+    def apply(data):
+        edit(data)
+        return data
+    return apply
+
+
+BAD_ENTRIES = [
+    ("isometric.duration.unit", _bad(lambda d: d["isometric"]["duration"].update(unit="L0"))),
+    ("gait_cycle.frequency.unit", _bad(lambda d: d["gait_cycle"]["frequency"].update(unit="Hzz"))),
+    ("compositions.slow.source", _bad(lambda d: d["compositions"]["slow"].pop("source"))),
+    ("isovelocity.drive.value", _bad(lambda d: d["isovelocity"]["drive"].update(value="half"))),
+    ("isometric.drives.value", _bad(lambda d: d["isometric"]["drives"].update(value=0.5))),
+    ("run.sweep_muscle.value", _bad(lambda d: d["run"]["sweep_muscle"].update(value=3))),
+    ("gait_cycle.cycles.value", _bad(lambda d: d["gait_cycle"]["cycles"].update(value=2.5))),
+    ("compositions.fast.value", _bad(lambda d: d["compositions"]["fast"].update(value=1.5))),
+    ("run.sweep_recovery_mode.value",
+     _bad(lambda d: d["run"]["sweep_recovery_mode"].update(value="slow"))),
+    ("knee_extension.duration.tag",
+     _bad(lambda d: d["knee_extension"]["duration"].update(tag="X"))),
+    ("knee_extension", _bad(lambda d: d.pop("knee_extension"))),
+]
+
+
+@pytest.mark.parametrize("field_name,edit", BAD_ENTRIES, ids=[b[0] for b in BAD_ENTRIES])
+def test_bad_config_entry_is_one_line_naming_file_and_field(tmp_path, capsys, field_name, edit):
+    path = _write(tmp_path, edit(_shipped()))
+    out = tmp_path / "x"
+    code = main(["compare-energetics", "--config", str(path), "--out", str(out), "--no-plots"])
+    assert code == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and "compare-energetics: error" in err[0], err
+    assert str(path) in err[0] and f"'{field_name}" in err[0], err[0]
+    assert "Traceback" not in captured.err and not out.exists()
+
+
+def test_missing_config_file_is_one_line(tmp_path, capsys):
+    code = main(["compare-energetics", "--config", str(tmp_path / "none.yaml"), "--out",
+                 str(tmp_path / "x")])
+    assert code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "none.yaml" in err[0]
+
+
+def test_config_option_changes_the_run(tmp_path):
+    data = _shipped()
+    data["isometric"]["drives"]["value"] = [0.3]
+    data["isometric"]["duration"]["value"] = 50  # ms: a unit of time the loader converts
+    data["isometric"]["duration"]["unit"] = "ms"
+    data["compositions"]["fast"]["value"] = 0.25
+    path = _write(tmp_path, data)
+    settings = compare.load_comparison_settings(path)
+    assert settings.isometric_drives == (0.3,) and settings.isometric_duration_s == 0.05
+    out = tmp_path / "cmp"
+    code = main(["compare-energetics", "--config", str(path), "--scenarios", "isometric",
+                 "--compositions", "fast", "--models", "margaria1968", "--out", str(out)])
+    assert code == 0
+    rows = _table(out / "energetics_comparison.csv")
+    assert {r["scenario"] for r in rows} == {"isometric_u0.30"}
+    assert {r["fpcsa_slow"] for r in rows} == {"0.25"}  # the file's fast composition
+    assert all(float(r["duration_s"]) == pytest.approx(0.05) for r in rows)
+    # every margaria1968 ratio is round-off (no work isometric): a chart of ~0 marks only
+    assert (out / "ratio_isometric.png").is_file() or not _has_matplotlib()
+
+
+def _has_matplotlib():
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def test_ratio_axis():
+    assert compare.ratio_axis([0.24, 20.3, 1e-13, np.nan], 1e-3) == ("log", 0.1)
+    assert compare.ratio_axis([-12.0, 0.032, 5.0], 1e-3) == ("symlog", 0.01)
+    assert compare.ratio_axis([1e-12], 1e-3) == ("log", 1.0)
