@@ -50,14 +50,14 @@ def muscles_mjcf(f0_n, l0_m, rest_m) -> str:
     for i, (f0, l0, rest) in enumerate(zip(f0_n, l0_m, rest_m, strict=True)):
         length_min = rest - (1.0 - lo) * l0
         length_max = length_min + (hi - lo) * l0
-        sites.append(f'<site name="origin{i}" pos="{q_rest - rest:.9g} 0 0"/>')
+        sites.append(f'<site name="origin{i}" pos="{q_rest - rest:.17g} 0 0"/>')
         tendons.append(f'<spatial name="path{i}"><site site="origin{i}"/>'
                        '<site site="insertion"/></spatial>')
-        actuators.append(f'<muscle name="m{i}" tendon="path{i}" force="{f0:.9g}" '
-                         f'range="{lo:g} {hi:g}" lengthrange="{length_min:.9g} '
-                         f'{length_max:.9g}"/>')
+        actuators.append(f'<muscle name="m{i}" tendon="path{i}" force="{f0:.17g}" '
+                         f'range="{lo:g} {hi:g}" lengthrange="{length_min:.17g} '
+                         f'{length_max:.17g}"/>')
     body = ('<body name="insertion"><joint name="path" type="slide" axis="1 0 0" '
-            f'range="{0.5 * q_rest:.9g} {1.5 * q_rest:.9g}"/>'
+            f'range="{0.5 * q_rest:.17g} {1.5 * q_rest:.17g}"/>'
             '<geom type="sphere" size="0.01" mass="1" contype="0" conaffinity="0"/>'
             '<site name="insertion"/></body>')
     return ("<mujoco><compiler autolimits=\"true\"/>"

@@ -174,7 +174,7 @@ class OpensimMuscles(PeerStepper):
         self.k = k
 
     def reading(self) -> dict:
-        # the probe's outputs: the total, then each muscle's rate
+        # the probe's outputs: the total, the basal rate, then each muscle's rate
         return {"total_force_n": float(np.sum(self.force)),
                 "total_energy_rate_w": float(self.rate[0])}
 
