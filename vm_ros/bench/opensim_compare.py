@@ -18,13 +18,15 @@ step the force of every muscle and, where the system has it, the energy rate:
   placed so that each path is at its muscle's rest length (L0 + L0T) at the middle of the swing.
   One body for all: a body per muscle would add multibody work that a model with many muscles
   per body does not have (at 20 muscles it cost about 136 us per extra muscle against 54 us
-  with one body). A step is ``Manager.integrate(t + 1 ms)`` (OpenSim's default integrator),
-  realizing the state to Report and reading every tendon force and the probe's outputs.
+  with one body). A step is ``Manager.integrate(t + 1 ms)`` (OpenSim's default integrator; the
+  Manager keeps no storage or trajectory of past states), realizing the state to Report and
+  reading every tendon force and the probe's outputs.
 - MuJoCo (the ``mujoco`` wheel): vm_ros.bench.mujoco_compare.
 
-Timing: rounds interleave every (system, size) case, one block of steps each (a block is sized
-from a warm-up to last about ``block_seconds``; the order is reversed every other round), so a
-change in the machine's load hits all alike. Each block is timed with the thread's CPU clock
+Timing: rounds interleave every (system, size) case, one block of steps each (a block is a whole
+number of the inputs' 1 s cycles, at least one, about ``block_seconds``; the order is reversed
+every other round), so a change in the machine's load hits all alike and every block sees the
+same inputs. Each block is timed with the thread's CPU clock
 (``time.thread_time_ns``: this thread only, not time spent waiting for a core) and the wall
 clock; the figures are medians over the rounds. The cost per extra muscle is the slope between
 the 1- and the N-muscle medians, (t_N - t_1) / (N - 1); ratios are peer over vm_ros. This
@@ -43,7 +45,8 @@ from vm_ros.errors import VmRosError
 from vm_ros.importers.osim import load_opensim
 
 TENDON_SLACK_OVER_L0T = 0.964  # config/muscles.yaml conversion rule 3: L0T = Ls / 0.964
-PERIOD_STEPS = 2000  # input cycle: 2 s holds whole periods of the 1 Hz path and the 2 Hz drive
+PERIOD_STEPS = 2000  # input table: 2 s holds whole periods of the 1 Hz path and the 2 Hz drive
+CYCLE_STEPS = 1000  # 1 s, the inputs' common period: a timed block is a whole number of these
 PEERS = ("opensim", "mujoco")
 
 
@@ -158,6 +161,10 @@ class OpensimMuscles(PeerStepper):
         self.muscles = [osim.Millard2012EquilibriumMuscle.safeDownCast(
             model.getMuscles().get(f"m{i}")) for i in range(n)]
         self.manager = osim.Manager(model)
+        # no record of past states: kept, it makes every step dearer as the run goes on
+        # (1 muscle: 219 us per step in the first simulated second, 442 us in the eighth)
+        self.manager.setWriteToStorage(False)
+        self.manager.setRecordStatesTrajectory(False)
         self.manager.initialize(state)
         self.k = 0
         self.force, self.rate = [0.0] * n, np.zeros(n)
@@ -198,21 +205,28 @@ def _peer(peer: str):
             "MuJoCo muscle actuator on a spatial tendon (rigid tendon, no energetics)")
 
 
-def _block_steps(stepper: PeerStepper, block_seconds: float) -> int:
-    """Steps per timed block: about ``block_seconds`` from a warm-up (at least 5 steps)."""
+def _block_steps(stepper: PeerStepper, block_seconds: float, whole_cycles: bool) -> int:
+    """Steps per timed block: about ``block_seconds`` from a warm-up (at least 5 steps); with
+    ``whole_cycles`` a whole number of input cycles (at least one), since a step's cost can
+    follow the inputs (OpenSim's error-controlled integrator takes more substeps where the
+    activation changes fast)."""
     stepper.advance(5)  # first calls: compilation, caches
     t0, done = time.perf_counter(), 0
     while done < 5 or (time.perf_counter() - t0 < 0.2 * block_seconds and done < 2000):
         stepper.advance(1)
         done += 1
     per_step = (time.perf_counter() - t0) / done
+    if whole_cycles:
+        return CYCLE_STEPS * max(1, round(block_seconds / (per_step * CYCLE_STEPS)))
     return int(min(20000, max(5, block_seconds / per_step)))
 
 
-def time_interleaved(cases: dict, rounds: int, block_seconds: float) -> dict:
+def time_interleaved(cases: dict, rounds: int, block_seconds: float,
+                     whole_cycles: bool = False) -> dict:
     """{name: timing} for steppers ``cases`` {name: PeerStepper}: per-step thread CPU and wall
     time (us), medians over ``rounds`` interleaved rounds, with min and max."""
-    blocks = {name: _block_steps(stepper, block_seconds) for name, stepper in cases.items()}
+    blocks = {name: _block_steps(stepper, block_seconds, whole_cycles)
+              for name, stepper in cases.items()}
     cpu = {name: [] for name in cases}
     wall = {name: [] for name in cases}
     order = list(cases)
@@ -230,10 +244,11 @@ def time_interleaved(cases: dict, rounds: int, block_seconds: float) -> dict:
                    "steps_per_block": blocks[name]} for name in cases}
 
 
-def compare(peers=PEERS, muscles: int = 50, rounds: int = 21, block_seconds: float = 0.05,
-            progress=None) -> dict:
+def compare(peers=PEERS, muscles: int = 50, rounds: int = 15, block_seconds: float = 0.05,
+            whole_cycles: bool = True, progress=None) -> dict:
     """vm_ros and each installed peer of ``peers`` at 1 and ``muscles`` muscles (module
-    docstring); a peer that is not installed is a row with ``skipped`` and the reason."""
+    docstring); a peer that is not installed is a row with ``skipped`` and the reason.
+    ``whole_cycles``: every block a whole number of 1 s input cycles (False: quick runs)."""
     if muscles < 2:
         raise VmRosError(f"--compare-muscles must be >= 2, got {muscles}")
     if rounds < 1:
@@ -261,7 +276,7 @@ def compare(peers=PEERS, muscles: int = 50, rounds: int = 21, block_seconds: flo
                       model="Virtual Muscle, lumped units, Tsianos 2012 energetics")
     if progress:
         progress(f"compare: {len(cases)} cases, {rounds} interleaved rounds ...")
-    timing = time_interleaved(cases, rounds, block_seconds)
+    timing = time_interleaved(cases, rounds, block_seconds, whole_cycles)
     for system in systems:
         if "skipped" in system:
             continue
@@ -282,5 +297,6 @@ def compare(peers=PEERS, muscles: int = 50, rounds: int = 21, block_seconds: flo
                     "per_muscle_wall_us"):
             system[f"over_vm_ros_{key[:-3]}"] = system[key] / base[key]
     return {"muscles": muscles, "rounds": rounds, "block_seconds": block_seconds,
+            "whole_cycles": whole_cycles,
             "clock": "thread CPU time (time.thread_time_ns) and wall (perf_counter_ns)",
             "systems": systems}

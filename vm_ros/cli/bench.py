@@ -32,9 +32,10 @@ Sections (all but node-memory by default; --only picks some):
 Millard 2012 muscle with the Umberger 2010 metabolics probe (the opensim extra) and MuJoCo's
 muscle actuator (the mujoco extra), each at 1 and --compare-muscles N muscles (default 50),
 1 ms steps from Python reading force (and energy rate) every step; thread CPU and wall time per
-step, medians of interleaved rounds; the cost per extra muscle (slope between 1 and N) and the
-ratios peer / vm_ros. No argument: every peer (one not installed is a row with the reason);
-or a comma-separated list (opensim,mujoco). vm_ros.bench.opensim_compare has the definitions.
+step, medians of 15 interleaved rounds of 1 s simulated each (--quick: 3 short rounds); the
+cost per extra muscle (slope between 1 and N) and the ratios peer / vm_ros. No argument: every
+peer (one not installed is a row with the reason); or a comma-separated list (opensim,mujoco).
+vm_ros.bench.opensim_compare has the definitions.
 
 Timings are medians of repeated runs on a shared machine: compare ratios within one run rather
 than absolute numbers across runs. Targets (issue: performance): 1 muscle <= 30 us per step;
@@ -67,7 +68,7 @@ MEMORY_GROWTH_TARGET_MIB = 5.0  # issue: a 10-minute 100-muscle run stays within
 RSS_SAMPLE_PERIOD_S = 5.0
 COMPARE_PEERS = ("opensim", "mujoco")  # --compare: vm_ros.bench.opensim_compare.PEERS
 COMPARE_MUSCLES, COMPARE_QUICK_MUSCLES = 50, 5  # the N of the per-muscle slope
-COMPARE_ROUNDS, COMPARE_QUICK_ROUNDS = 21, 3  # interleaved rounds (--repeats overrides)
+COMPARE_ROUNDS, COMPARE_QUICK_ROUNDS = 15, 3  # interleaved rounds (--repeats overrides)
 COMPARE_BLOCK_S, COMPARE_QUICK_BLOCK_S = 0.05, 0.005  # about this long per timed block
 
 
@@ -442,7 +443,7 @@ def run(args) -> int:
             peers, muscles=compare_muscles, rounds=args.repeats or (
                 COMPARE_QUICK_ROUNDS if args.quick else COMPARE_ROUNDS),
             block_seconds=COMPARE_QUICK_BLOCK_S if args.quick else COMPARE_BLOCK_S,
-            progress=_say)
+            whole_cycles=not args.quick, progress=_say)
     results["machine"]["load_average_end"] = os.getloadavg()
     rows = _csv_rows(results)
     (out / "bench.json").write_text(json.dumps(results, indent=2, default=str) + "\n")
