@@ -428,10 +428,11 @@ if HAVE_NUMBA:
 AVAILABLE = advance is not None
 
 # The parallel switch (CompiledStep(parallel=...), or this environment variable) and the bank
-# size below which the step stays serial even when it is on (threads' start and join cost more
-# than they save there; measured on 2 cores, test_kernel / the model bench).
+# size below which the step stays serial even when it is on. Measured on 2 idle cores (step,
+# serial / parallel): 1.06x at 16 muscles, 1.43x at 64, 1.6x at 128-256, 1.8-2.0x at 1000-10000;
+# with the other core busy it loses (0.4-0.8x), hence off by default.
 PARALLEL_ENV = "VM_ROS_PARALLEL"
-PARALLEL_MIN_MUSCLES = 256
+PARALLEL_MIN_MUSCLES = 64
 
 
 def parallel_wanted(parallel=None) -> bool:
