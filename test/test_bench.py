@@ -49,3 +49,43 @@ def test_node_memory_runs_only_when_named_and_is_held_to_five_mib():
         assert len(target) == 1 and target[0]["value"] == growth and target[0]["met"] is met
         files = [r for r in rows if r["metric"] == "bag files"]
         assert files[0]["value"] == 11
+
+
+def test_kernel_and_node_rows_carry_the_speed_targets():
+    """The kernel rows hold run per muscle-step to 0.25 us at 1000 and 10,000 muscles, run
+    against step to >= 1, parallel 10,000 muscles to real time at 1 kHz and the cold start to
+    10 s; the node rows hold 1, 100 and 1000 muscles to 10 %, 20 % and 100 % of a core and 1000
+    muscles to no time skipped (synthetic results: the rows, not the machine, are tested)."""
+    from vm_ros.cli import bench
+
+    def row(n, run_us, step_us, parallel=False):
+        return {"muscles": n, "steps": 100, "parallel": parallel, "parallel_blocks": parallel,
+                "run_us_per_muscle_step": run_us, "step_us_per_muscle_step": step_us,
+                "run_over_step_speed": step_us / run_us, "load_1min": 0.5}
+
+    kernel = {"serial": [row(1000, 0.2, 0.3), row(10000, 0.3, 0.29)],
+              "parallel": [row(10000, 0.09, 0.1, True)],
+              "cold_start": {"muscles": 10, "cold_start_s": 12.0, "target_s": 10.0}}
+    rows = bench._csv_rows({"kernel": kernel})
+    met = {(r["case"].split(",")[0], r["metric"]): r["met"] for r in rows if r["target"]}
+    assert met[("1000 muscles", "run per muscle-step")] is True
+    assert met[("10000 muscles", "run per muscle-step")] is False
+    assert met[("10000 muscles", "run speed / repeated step")] is False
+    assert met[("10000 muscles", "run per 1 ms step")] is True  # 900 us
+    assert met[("cold start to the first run()", "wall")] is False
+    speedup = [r for r in rows if r["metric"] == "parallel speed-up of run"]
+    assert abs(speedup[0]["value"] - 0.3 / 0.09) < 1e-12
+
+    def node(n, cpu, skipped):
+        return {"muscles": n, "model_rate_hz": 1000.0, "publish_rate_hz": 100.0, "mcap": True,
+                "cpu_percent_one_core": cpu, "model_wall_drift_percent": 0.0,
+                "model_time_skipped_s": skipped}
+
+    rows = bench._csv_rows({"node": [node(1, 9.0, 0.0), node(100, 21.0, 0.0),
+                                     node(1000, 95.0, 0.5)]})
+    targets = {(r["case"].split(" ")[0], r["metric"]): (r["target"], r["met"])
+               for r in rows if r["target"]}
+    assert targets[("1", "cpu_percent_one_core")] == ("<= 10 %", True)
+    assert targets[("100", "cpu_percent_one_core")] == ("<= 20 %", False)
+    assert targets[("1000", "cpu_percent_one_core")] == ("<= 100 %", True)
+    assert targets[("1000", "model_time_skipped_s")] == ("0 s", False)

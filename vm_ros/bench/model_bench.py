@@ -1,6 +1,7 @@
 """Benchmarks of the model alone (no ROS): step cost against bank size and back end, natural
 against lumped units, the cost of the published energetics models (energetics_models="all")
-over the compiled step, and the 180 s knee-extension scenario offline.
+over the compiled step, run against repeated step per muscle-step (serial and parallel), the
+cold start to the first run() result, and the 180 s knee-extension scenario offline.
 
 Timings are wall-clock medians over repeats (``time.perf_counter``); one step is
 ``MuscleBank.step`` as a controller calls it (input checks, state copy) followed by reading the
@@ -12,7 +13,11 @@ activation nor the mechanics sit at a fixed point. Energetics are always on.
 from __future__ import annotations
 
 import dataclasses
+import os
 import statistics
+import subprocess
+import sys
+import tempfile
 import time
 
 import numpy as np
@@ -25,7 +30,7 @@ DT = 1e-3
 
 def library_bank(n: int, recruitment: str = "lumped", backend: str = "auto",
                  units_per_type: int | None = None, params=None,
-                 recovery_mode: str | None = None) -> MuscleBank:
+                 recovery_mode: str | None = None, parallel: bool | None = None) -> MuscleBank:
     """A bank of ``n`` muscles cycling through the shipped library (names m0, m1, ...)."""
     params = params or load_model_params()
     if units_per_type is not None:
@@ -35,7 +40,7 @@ def library_bank(n: int, recruitment: str = "lumped", backend: str = "auto",
     base = resolve_muscles(list(load_muscle_library()), None, None, params.generic.ur_default)
     specs = [dataclasses.replace(base[i % len(base)], name=f"m{i}") for i in range(n)]
     return MuscleBank(specs, params, recruitment=recruitment, backend=backend,
-                      recovery_mode=recovery_mode)
+                      recovery_mode=recovery_mode, parallel=parallel)
 
 
 def _inputs(bank: MuscleBank, steps: int):
@@ -223,3 +228,58 @@ def bench_knee_offline(repeats: int = 3, progress=None, logged: bool = True) -> 
     if progress:
         progress(f"knee extension 180 s offline: {result['wall_s']:.2f} s wall")
     return result
+
+
+def _per_muscle_step_us(call, steps: int, n: int, repeats: int) -> float:
+    samples = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        call()
+        samples.append((time.perf_counter() - start) / (steps * n))
+    return 1e6 * statistics.median(samples)
+
+
+def bench_run_vs_step(counts=(1, 100, 1000, 10000), repeats: int = 5,
+                      parallel: bool = False) -> list[dict]:
+    """Per muscle-step wall time (us, medians) of repeated ``step`` and of one ``run`` over the
+    same k steps (k about 600,000 / n muscle-steps, 20 to 20,000 steps), compiled back end,
+    with the parallel switch as given; the 1-minute load average is recorded."""
+    rows = []
+    for n in counts:
+        bank = library_bank(n, backend="numba", parallel=parallel)
+        k = int(max(20, min(20000, 6e5 / n)))
+        u, lp, vp = _inputs(bank, k)
+        bank.reset(lp[0], excitation=u[0])
+        bank.run(DT, u[:5], lp[:5], vp[:5])  # warm-up
+
+        def steps(bank=bank, u=u, lp=lp, vp=vp, k=k):
+            for j in range(k):
+                bank.step(DT, u[j], lp[j], vp[j])
+
+        step_us = _per_muscle_step_us(steps, k, n, repeats)
+        run_us = _per_muscle_step_us(lambda bank=bank, u=u, lp=lp, vp=vp: bank.run(DT, u, lp, vp),
+                                     k, n, repeats)
+        rows.append({"muscles": n, "steps": k, "parallel": bool(parallel),
+                     "parallel_blocks": bool(bank._compiled.parallel_chunk),
+                     "step_us_per_muscle_step": step_us, "run_us_per_muscle_step": run_us,
+                     "run_over_step_speed": step_us / run_us,
+                     "load_1min": os.getloadavg()[0]})
+    return rows
+
+
+def cold_start_to_first_run(n: int = 10) -> dict:
+    """Wall time (s) of a fresh Python process from start to the first ``run()`` result of an
+    n-muscle bank with an empty compilation cache (NUMBA_CACHE_DIR a new temporary folder):
+    imports, compilation and the run."""
+    code = ("import time; t = time.perf_counter()\n"
+            "from vm_ros.bench.model_bench import DT, _inputs, library_bank\n"
+            f"b = library_bank({int(n)}); u, lp, vp = _inputs(b, 100); b.reset(lp[0])\n"
+            "b.run(DT, u, lp, vp); print(time.perf_counter() - t)")
+    with tempfile.TemporaryDirectory(prefix="vm_ros-cold-") as cache:
+        env = {**os.environ, "NUMBA_CACHE_DIR": cache}
+        done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                              text=True, timeout=600)
+    if done.returncode != 0:
+        return {"muscles": n, "error": (done.stderr.strip().splitlines() or ["failed"])[-1]}
+    return {"muscles": n, "cold_start_s": float(done.stdout.strip().splitlines()[-1]),
+            "target_s": 10.0}

@@ -71,6 +71,11 @@ class MuscleBank:
     ``fpcsa`` ((n, 2) slow/fast PCSA fractions), ``recruitment`` (scheme object),
     ``recovery_mode`` ("static" | "dynamic"), ``params`` (ModelParams), ``equations``
     (the NumPy step, vm_ros.model.numpy_step.NumpyStep), ``backend`` ("numba" | "numpy").
+
+    ``parallel``: run blocks of muscles on Numba's threads (compiled back end, banks of
+    kernel.PARALLEL_MIN_MUSCLES muscles or more; bit-identical to serial); None: the
+    VM_ROS_PARALLEL environment variable, off by default (it loses when the other cores are
+    busy: README, measured speed).
     """
 
     def __init__(
@@ -81,6 +86,7 @@ class MuscleBank:
         recovery_mode: str | None = None,
         backend: str = "auto",
         energetics_models=(),
+        parallel: bool | None = None,
     ):
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
@@ -110,7 +116,8 @@ class MuscleBank:
         self.backend = "numpy" if backend == "numpy" or not kernel.AVAILABLE else "numba"
         self._compiled = None
         if self.backend == "numba":
-            self._compiled = CompiledStep(KernelConstants.from_bank(self), self.n)
+            self._compiled = CompiledStep(KernelConstants.from_bank(self), self.n,
+                                          parallel=parallel)
             kernel.warm_up()
         self._models = None
         self._pending: list = []  # (dt, StepOutput) of steps whose models wait for a batch
@@ -144,6 +151,7 @@ class MuscleBank:
         backend: str = "auto",
         drive_law: str | None = None,
         energetics_models=(),
+        parallel: bool | None = None,
     ):
         """Build a bank from the muscle library (default: the shipped ``config/muscles.yaml``).
 
@@ -153,7 +161,7 @@ class MuscleBank:
         drive_law: the lumped drive filter's law (DRIVE_LAWS; None: the model file's);
         energetics_models: published models to run beside Tsianos 2012 (names of
         vm_ros.energetics_models.MODEL_NAMES, or "all"; an unknown name is an InputError that
-        lists the known ones).
+        lists the known ones); parallel: see the constructor.
         """
         if not isinstance(params, ModelParams):
             params = load_model_params(params)
@@ -170,7 +178,7 @@ class MuscleBank:
         specs = resolve_muscles(muscles, library, overrides, params.generic.ur_default)
         return cls(
             specs, params, recruitment=recruitment, recovery_mode=recovery_mode, backend=backend,
-            energetics_models=energetics_models,
+            energetics_models=energetics_models, parallel=parallel,
         )
 
     @property
