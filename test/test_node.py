@@ -322,7 +322,7 @@ def test_each_bad_input_is_counted_and_reported_in_diagnostics(ros, lengths):
     assert diag[labels["non_finite"]] == "3" and diag[labels["wrong_size"]] == "4"
     assert diag["_level"] == 1 or diag["state"] == "running"  # WARN while issues are recent
     assert {"step time p99 (ms)", "tick rate (Hz)", "excitation age (s)", "kinematics age (s)",
-            "overruns (ticks longer than a step)", "mcap"} <= set(diag)
+            "overruns (ticks longer than their period)", "mcap"} <= set(diag)
     n = len(probe.forces)
     assert ros.spin_until(lambda: len(probe.forces) > n + 3)  # still running
     assert np.all(np.isfinite(probe.forces[-1].effort))

@@ -39,6 +39,16 @@ def test_steps_follow_elapsed_time_exactly():
     assert s.catch_up_ticks == 1 and s.skipped_ns == 0
 
 
+def test_a_tick_of_its_period_is_not_a_catch_up():
+    """With a tick every 10 steps (batch_steps), 10 steps due is on time; 11 is a catch-up."""
+    s = StepScheduler(MS, max_catch_up_steps=50, steps_per_tick=10)
+    s.start(0)
+    assert run(s, 10 * MS) == 10 and s.catch_up_ticks == 0
+    assert run(s, 21 * MS) == 11 and s.catch_up_ticks == 1
+    with pytest.raises(ValueError):
+        StepScheduler(MS, 50, steps_per_tick=0)
+
+
 def test_catch_up_is_bounded_and_the_rest_skipped():
     s = StepScheduler(MS, max_catch_up_steps=20)
     s.start(0)

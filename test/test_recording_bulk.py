@@ -84,6 +84,24 @@ def test_output_messages_equal_the_serializer_byte_for_byte(steps):
         assert totals[i] == serialize(tm.TYPE_FLOAT64, msgs.float64_fields(out.total_energy))
 
 
+def test_one_message_at_a_time_equals_the_serializer(steps):
+    """encode_one (muscle_node, one message per publish through a kept record) gives the
+    serializer's bytes message after message: nothing of one message stays in the next."""
+    names, outs, _ = steps
+    n = len(names)
+    force = bulk.joint_state_layout(names, n, n, n)
+    rate = bulk.multi_array_layout(tm.energy_rate_layout(n), 12 * n)
+    total = bulk.float64_layout()
+    for out, stamp in zip(outs, STAMPS[:len(outs)].tolist(), strict=True):
+        assert force.encode_one(stamp, position=out.fascicle_length,
+                                velocity=out.fascicle_velocity, effort=out.force) == serialize(
+            tm.TYPE_JOINT_STATE, tm.force_fields(out, names, stamp))
+        assert rate.encode_one(data=tm.energy_rate_array(out)) == serialize(
+            tm.TYPE_FLOAT64_MULTI_ARRAY, tm.energy_rate_fields(out))
+        assert total.encode_one(data=out.total_energy) == serialize(
+            tm.TYPE_FLOAT64, msgs.float64_fields(out.total_energy))
+
+
 def test_telemetry_equals_the_serializer_byte_for_byte(steps):
     names, outs, held = steps
     reference = [msgs.telemetry_fields(o, names, int(s), h[1], h[2])

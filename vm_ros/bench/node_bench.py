@@ -460,7 +460,7 @@ def _drift(diagnostics, start_ros_ns: int, end_ros_ns: int) -> dict:
     integrated_s = change("model time (s)") - skipped_s - change("paused model time (s)")
     out.update(model_wall_drift_percent=100.0 * (integrated_s - wall_s) / wall_s,
                model_time_skipped_s=skipped_s, diagnostics_span_s=wall_s,
-               overruns=change("overruns (ticks longer than a step)"),
+               overruns=change("overruns (ticks longer than their period)"),
                catch_up_ticks=change("catch-up ticks"))
     values = [v for _, v in reports]
     for key, name in (("step time p50 (ms)", "step_time_p50_ms"),

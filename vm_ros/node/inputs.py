@@ -292,8 +292,15 @@ class NodeInputs:
         Staleness is judged at ``t_ns`` itself, so a replay of the same messages at the same
         times gives the same inputs step by step.
         """
+        return tuple(array[0] for array in self.sample_many([t_ns]))
+
+    def sample_many(self, times_ns) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`sample` at each of ``times_ns`` (model step starts, ns) from the inputs held
+        now: (drive, path length, path velocity), (k, n) each, the same values element by
+        element as k calls (a batch of steps between two input messages)."""
+        t_ns = np.asarray(times_ns, dtype=np.int64)[:, None]
         timeout = self.limits.timeout_ns
-        u = self.drive
+        u = np.broadcast_to(self.drive, (len(t_ns), len(self.names)))
         if self.limits.stale_policy == "zero_drive":
             drive_stale = ~self.drive_seen | (t_ns - self.drive_time_ns > timeout)
             if np.any(drive_stale):
@@ -305,7 +312,7 @@ class NodeInputs:
                                                       * self.length_seen)
         clamped = np.clip(lp, *self.path_bounds())
         vp = np.where(moving & (clamped == lp), self.velocity_m_per_s, 0.0)
-        return u.copy(), clamped, vp
+        return np.array(u, dtype=float), clamped, vp
 
     def ages_s(self, now_ns: int) -> dict:
         """Age (s) of the newest excitation and kinematics message; None if never received."""

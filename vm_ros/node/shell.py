@@ -221,18 +221,16 @@ class OutputLayouts:
     def encode(self, out, stamp_ns: int, energy_offset_j: float = 0.0) -> list:
         """[(topic, bytes)] of ``out``, the force message stamped ``stamp_ns``; energy_total
         adds ``energy_offset_j`` (energy before a model reset)."""
-        stamp = [stamp_ns]
         models = [] if self.models is None else [
-            (tm.TOPIC_ENERGY_RATE_MODELS, self.models.encode(data=[out.energy_rate_models])[0])]
+            (tm.TOPIC_ENERGY_RATE_MODELS, self.models.encode_one(data=out.energy_rate_models))]
         return [
-            (tm.TOPIC_FORCE, self.force.encode(stamp, position=[out.fascicle_length],
-                                               velocity=[out.fascicle_velocity],
-                                               effort=[out.force])[0]),
-            (tm.TOPIC_ENERGY_RATE, self.energy_rate.encode(
-                data=[tm.energy_rate_array(out)])[0]),
-            (tm.TOPIC_ENERGY_RATE_TOTAL, self.float64.encode(data=[out.total_energy_rate])[0]),
+            (tm.TOPIC_FORCE, self.force.encode_one(stamp_ns, position=out.fascicle_length,
+                                                   velocity=out.fascicle_velocity,
+                                                   effort=out.force)),
+            (tm.TOPIC_ENERGY_RATE, self.energy_rate.encode_one(data=tm.energy_rate_array(out))),
+            (tm.TOPIC_ENERGY_RATE_TOTAL, self.float64.encode_one(data=out.total_energy_rate)),
             (tm.TOPIC_ENERGY_TOTAL,
-             self.float64.encode(data=[energy_offset_j + out.total_energy])[0]),
+             self.float64.encode_one(data=energy_offset_j + out.total_energy)),
             *models,
         ]
 
@@ -269,7 +267,7 @@ class MuscleNode(Node):
         self.inputs = NodeInputs(self.bank.names, model.limits, initial, joint_driven=driven)
         self.joint_inputs = (JointInputs(self.joint_space, self.inputs)
                              if self.joint_space is not None else None)
-        self.scheduler = StepScheduler(c.step_ns, c.max_catch_up_steps)
+        self.scheduler = StepScheduler(c.step_ns, c.max_catch_up_steps, c.steps_per_tick)
         self.issues = IssueLog(LOG_THROTTLE_S)
         self._gaps: dict[str, SequenceGaps] = {}  # input topic -> publication sequence gaps
         self._wrong_type_publishers: set = set()  # (topic, endpoint gid) seen
@@ -521,7 +519,7 @@ class MuscleNode(Node):
             self._run_steps(now_ns)
         tick_ns = time.perf_counter_ns() - tick_start_ns
         self._tick_times.add(tick_ns)
-        if tick_ns > self.scheduler.step_ns:
+        if tick_ns > self.scheduler.step_ns * self.scheduler.steps_per_tick:
             self._overruns += 1
 
     def _start(self, now_ns: int) -> None:
@@ -569,8 +567,7 @@ class MuscleNode(Node):
         batch: the batch again, step by step from its start (_run_stepwise)."""
         start_state = self.bank.state if count > 1 else None
         t0, step_ns = self.scheduler.model_time_ns, self.scheduler.step_ns
-        inputs = [self.inputs.sample(t0 + j * step_ns) for j in range(count)]
-        u, lp, vp = (np.array([row[i] for row in inputs]) for i in range(3))
+        u, lp, vp = self.inputs.sample_many(t0 + step_ns * np.arange(count, dtype=np.int64))
         started_ns = time.perf_counter_ns()
         if count == 1:
             out = self.bank.step(self._dt_s, u[0], lp[0], vp[0])
@@ -669,7 +666,7 @@ class MuscleNode(Node):
             ("step time p99 (ms)", step_p99),
             ("step time max (ms)", step_max),
             ("tick time p99 (ms)", tick_p99),
-            ("overruns (ticks longer than a step)", self._overruns),
+            ("overruns (ticks longer than their period)", self._overruns),
             ("catch-up ticks", s.catch_up_ticks),
             ("skipped model time (s)", format_seconds(s.skipped_ns)),
             ("paused model time (s)", format_seconds(s.paused_ns)),

@@ -20,9 +20,10 @@ from __future__ import annotations
 class StepScheduler:
     """Which model steps are due at a given clock time (all times integer ns)."""
 
-    def __init__(self, step_ns: int, max_catch_up_steps: int):
-        if step_ns <= 0 or max_catch_up_steps < 1:
-            raise ValueError("step_ns and max_catch_up_steps must be positive")
+    def __init__(self, step_ns: int, max_catch_up_steps: int, steps_per_tick: int = 1):
+        if step_ns <= 0 or max_catch_up_steps < 1 or steps_per_tick < 1:
+            raise ValueError("step_ns, max_catch_up_steps and steps_per_tick must be positive")
+        self.steps_per_tick = int(steps_per_tick)  # steps a tick runs on time (the timer period)
         self.step_ns = int(step_ns)
         self.max_catch_up_steps = int(max_catch_up_steps)
         self.anchor_ns: int | None = None
@@ -33,7 +34,7 @@ class StepScheduler:
         self.paused_ns = 0
         self.stalls = 0
         self.backward_jumps = 0
-        self.catch_up_ticks = 0  # ticks that ran more than one step
+        self.catch_up_ticks = 0  # ticks that ran more than steps_per_tick steps
 
     @property
     def started(self) -> bool:
@@ -74,7 +75,7 @@ class StepScheduler:
             self.skipped_ns += skipped * self.step_ns
             self.stalls += 1
             behind = self.max_catch_up_steps
-        if behind > 1:
+        if behind > self.steps_per_tick:
             self.catch_up_ticks += 1
         return int(behind)
 

@@ -92,6 +92,21 @@ class FixedLayout:
     def value_fields(self) -> tuple:
         return tuple(name for name in self.fields if name not in ("sec", "nanosec"))
 
+    def encode_one(self, stamp_ns=None, **values) -> bytes:
+        """One message's bytes (values without the leading message axis), through a record
+        kept for the purpose: the template's bytes stay in place, only the stamp and values
+        are written (a node publishing every period)."""
+        record = self.__dict__.get("_one")
+        if record is None:
+            record = self._one = np.frombuffer(bytearray(self.template.tobytes()),
+                                               dtype=self.dtype)
+        if "sec" in self.fields:
+            record["sec"] = stamp_ns // 1_000_000_000
+            record["nanosec"] = stamp_ns % 1_000_000_000
+        for name in self.value_fields:
+            record[name] = np.asarray(values[name], dtype=float).reshape(self.fields[name][1])
+        return record.tobytes()
+
     def encode(self, stamp_ns=None, **values) -> list[bytes]:
         k = _count(stamp_ns, values)
         records = np.empty(k, dtype=self.dtype)
