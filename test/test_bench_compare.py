@@ -12,7 +12,7 @@ import time
 import numpy as np
 import pytest
 
-from vm_ros.bench import mujoco_compare, opensim_compare
+from vm_ros.bench import mujoco_compare, opensim_compare, peer_compare, peers
 from vm_ros.cli import bench, main
 
 N = 3  # the larger bank of the quick runs
@@ -26,7 +26,7 @@ def _run(tmp_path, *extra):
 
 
 def _installed(peer):
-    return opensim_compare.peer_missing(peer) is None
+    return peer_compare.peer_missing(peer) is None
 
 
 def test_compare_reports_every_installed_peer_beside_vm_ros(tmp_path, capsys):
@@ -79,17 +79,17 @@ def test_bad_compare_arguments_are_one_line_errors(tmp_path, capsys):
         err = capsys.readouterr().err.strip()
         assert code == 2 and len(err.splitlines()) == 1 and "--compare" in err
     assert not (tmp_path / "x" / "bench.json").exists()
-    assert bench.COMPARE_PEERS == opensim_compare.PEERS
+    assert bench.COMPARE_PEERS == peer_compare.PEERS
 
 
-class _Sleeper(opensim_compare.PeerStepper):
+class _Sleeper(peers.PeerStepper):
     """Wall time without CPU time: 1 ms asleep per step."""
 
     def advance(self, steps):
         time.sleep(1e-3 * steps)
 
 
-class _Spinner(opensim_compare.PeerStepper):
+class _Spinner(peers.PeerStepper):
     """CPU time in proportion to n: 20 us of busy work per muscle and step."""
 
     def __init__(self, n):
@@ -102,7 +102,7 @@ class _Spinner(opensim_compare.PeerStepper):
 
 
 def test_the_timer_tells_cpu_from_wall_and_recovers_a_known_slope():
-    timing = opensim_compare.time_interleaved(
+    timing = peer_compare.time_interleaved(
         {"sleep": _Sleeper(), "one": _Spinner(1), "five": _Spinner(5)}, rounds=3,
         block_seconds=0.01)
     assert timing["sleep"]["wall_us"] >= 1000 and timing["sleep"]["cpu_us"] < 200
@@ -117,7 +117,7 @@ def test_mujoco_muscles_match_the_vm_ros_muscles():
     import mujoco
 
     stepper = mujoco_compare.MujocoMuscles(4)
-    _, lp, _, bank = opensim_compare.bench_inputs(4)
+    _, lp, _, bank = peers.bench_inputs(4)
     model, data = stepper.model, stepper.data
     data.qpos[0] = bank.l0_m[0] + bank.l0t_m[0]
     mujoco.mj_forward(model, data)
@@ -135,7 +135,7 @@ def test_opensim_muscles_match_the_vm_ros_muscles():
     """Each Millard muscle's path is the vm_ros muscle's path length, its F0 and L0 the bank's;
     the probe reports the total, the basal rate and one rate per muscle."""
     stepper = opensim_compare.OpensimMuscles(3)
-    _, lp, _, bank = opensim_compare.bench_inputs(3)
+    _, lp, _, bank = peers.bench_inputs(3)
     stepper.advance(50)
     state = stepper.manager.getState()
     stepper.model.realizePosition(state)

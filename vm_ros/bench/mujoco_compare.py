@@ -20,7 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from vm_ros.bench.opensim_compare import DT, PeerStepper, bench_inputs
+from vm_ros.bench.model_bench import DT
+from vm_ros.bench.peers import PeerStepper, bench_inputs
 
 MUSCLE_RANGE_L0 = (0.75, 1.05)  # MuJoCo's default <muscle range> (normalised length)
 NEEDS_MUJOCO = "the mujoco package is not installed (pip install '.[mujoco]')"

@@ -39,7 +39,7 @@ muscle actuator (the mujoco extra), each at 1 and --compare-muscles N muscles (d
 step, medians of 15 interleaved rounds of 1 s simulated each (--quick: 3 short rounds); the
 cost per extra muscle (slope between 1 and N) and the ratios peer / vm_ros. No argument: every
 peer (one not installed is a row with the reason); or a comma-separated list (opensim,mujoco).
-vm_ros.bench.opensim_compare has the definitions.
+vm_ros.bench.peer_compare has the definitions.
 
 Timings are medians of repeated runs on a shared machine: compare ratios within one run rather
 than absolute numbers across runs. Targets: 1 muscle <= 30 us per step; 1000 muscles <= 1 ms
@@ -73,7 +73,7 @@ MEMORY_SPLIT_S = 60.0  # bag split (log time); shorter windows: a tenth of the w
 MEMORY_FILES = 10  # files a window gives at least about, when shorter than 10 splits
 MEMORY_GROWTH_TARGET_MIB = 5.0  # issue: a 10-minute 100-muscle run stays within +5 MiB
 RSS_SAMPLE_PERIOD_S = 5.0
-COMPARE_PEERS = ("opensim", "mujoco")  # --compare: vm_ros.bench.opensim_compare.PEERS
+COMPARE_PEERS = ("opensim", "mujoco")  # --compare: vm_ros.bench.peer_compare.PEERS
 COMPARE_MUSCLES, COMPARE_QUICK_MUSCLES = 50, 5  # the N of the per-muscle slope
 COMPARE_ROUNDS, COMPARE_QUICK_ROUNDS = 15, 3  # interleaved rounds (--repeats overrides)
 COMPARE_BLOCK_S, COMPARE_QUICK_BLOCK_S = 0.05, 0.005  # about this long per timed block
@@ -519,10 +519,10 @@ def run(args) -> int:
             args.node_duration or (MEMORY_QUICK_DURATION_S if args.quick else MEMORY_DURATION_S),
             MEMORY_QUICK_WARMUP_S if args.quick else MEMORY_WARMUP_S, out / "node-memory")
     if args.compare is not None:
-        from vm_ros.bench import opensim_compare
+        from vm_ros.bench import peer_compare
 
         _say(f"compare: vm_ros beside {', '.join(peers)} ...")
-        results["compare"] = opensim_compare.compare(
+        results["compare"] = peer_compare.compare(
             peers, muscles=compare_muscles, rounds=args.repeats or (
                 COMPARE_QUICK_ROUNDS if args.quick else COMPARE_ROUNDS),
             block_seconds=COMPARE_QUICK_BLOCK_S if args.quick else COMPARE_BLOCK_S,
