@@ -552,22 +552,27 @@ class MuscleNode(Node):
             self._report([Issue("skipped_time", f"model fell behind by more than "
                                 f"{self.scheduler.max_catch_up_steps} steps at "
                                 f"{now_ns * 1e-9:.6f} s")])
+        if due == 0:
+            return
         every = self.config.publish_every_steps
         joints = self._joint_sample()  # the moment arms of this tick's forces (inputs arrive
-        done = 0  # between ticks)
+        # between ticks); every step's inputs sampled at its own model time, at once
+        t0, step_ns = self.scheduler.model_time_ns, self.scheduler.step_ns
+        u, lp, vp = self.inputs.sample_many(t0 + step_ns * np.arange(due, dtype=np.int64))
+        done = 0
         while done < due:  # batches that end at a publish step or at the last step due
             count = min(due - done, every - self.scheduler.total_steps % every)
-            self._run_batch(count, joints)
+            self._run_batch(u[done:done + count], lp[done:done + count],
+                            vp[done:done + count], joints)
             done += count
         self._window_steps += due
 
-    def _run_batch(self, count: int, joints) -> None:
-        """``count`` steps in one MuscleBank.run, each with the inputs sampled at its own model
-        time; published if the last one is a publish step. A non-finite output anywhere in the
-        batch: the batch again, step by step from its start (_run_stepwise)."""
+    def _run_batch(self, u, lp, vp, joints) -> None:
+        """The steps of the inputs (k, n) each in one MuscleBank.run; published if the last one
+        is a publish step. A non-finite output anywhere in the batch: the batch again, step by
+        step from its start (_run_stepwise)."""
+        count = len(u)
         start_state = self.bank.state if count > 1 else None
-        t0, step_ns = self.scheduler.model_time_ns, self.scheduler.step_ns
-        u, lp, vp = self.inputs.sample_many(t0 + step_ns * np.arange(count, dtype=np.int64))
         started_ns = time.perf_counter_ns()
         if count == 1:
             out = self.bank.step(self._dt_s, u[0], lp[0], vp[0])
