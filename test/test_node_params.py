@@ -54,6 +54,11 @@ def test_shipped_params_file_is_valid():
         ({"drive_law": "song2008"}, "drive_law"),
         ({"stale_input_policy": "ignore"}, "stale_input_policy"),
         ({"max_catch_up_steps": 0}, "max_catch_up_steps"),
+        ({"batch_steps": -1}, "batch_steps"),
+        ({"batch_steps": 60}, "batch_steps"),  # more than max_catch_up_steps (50)
+        ({"max_catch_up_steps": 5}, "batch_steps"),  # a publish period of 10 steps per tick
+        ({"energetics_models": ["umberger2099"]}, "energetics_models"),
+        ({"energetics_models": ["all", "margaria1968"]}, "energetics_models"),
         ({"qos_depth": 0}, "qos_depth"),
         ({"units_per_type": 2.5}, "units_per_type"),
         ({"muscles": []}, "muscles"),
