@@ -213,8 +213,17 @@ def test_recompute_adds_the_channel_to_an_old_log(logs, tmp_path, capsys):
     assert old.get(tm.TOPIC_ENERGY_RATE_MODELS) is None
     assert "energetics_models" not in old.metadata["vm_ros.run"]
     out = tmp_path / "recomputed.mcap"
+    capsys.readouterr()
     assert main(["recompute", str(logs[1]), "--energetics-models",
                  "umberger2010,bhargava2004", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out  # the totals per model, as report gives them
+    lines = [x.split() for x in printed.splitlines()
+             if x.split()[:1] in (["tsianos2012"], ["umberger2010"], ["bhargava2004"])]
+    assert [x[0] for x in lines] == ["tsianos2012", "umberger2010", "bhargava2004"]
+    from vm_ros.recording.tables import model_totals
+
+    totals = {row.model: row.total for row in model_totals(read_run(out))}
+    assert [float(x[1]) for x in lines] == [round(totals[x[0]], 2) for x in lines]
     run, series, axes = _logged_models(out)
     assert axes[1] == ("model", ("umberger2010", "bhargava2004"))
     assert run.info.config.energetics_models == ("umberger2010", "bhargava2004")

@@ -83,10 +83,12 @@ from vm_ros.recording.run_log import (
 )
 from vm_ros.recording.summary import (
     joint_summary_table,
+    model_totals_table,
     summarize,
     summarize_joints,
     summary_table,
 )
+from vm_ros.recording.tables import logged_model_totals
 from vm_ros.telemetry import energy_partition
 
 HELP = "re-run the model from a log's recorded inputs (other parameters optional) into a new MCAP"
@@ -293,6 +295,8 @@ def run(args) -> int:
                        _verdict(recorded, result, irregular)):
         if comparison:
             print(comparison)
+    if bank.energetics_models and status.ok and status.written:
+        print(model_totals_table(logged_model_totals(out_path), bank.names))
     print(f"log: {shown_log_path(out_path, status.path)} ({status.written} messages, "
           f"{status.bytes_written / 1e6:.2f} MB)")
     if stop.signum:

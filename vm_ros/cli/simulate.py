@@ -92,10 +92,12 @@ from vm_ros.recording.run_config import RunConfig
 from vm_ros.recording.run_log import RunInfo, RunTiming, open_run_log
 from vm_ros.recording.summary import (
     joint_summary_table,
+    model_totals_table,
     summarize,
     summarize_joints,
     summary_table,
 )
+from vm_ros.recording.tables import logged_model_totals
 from vm_ros.scenarios import load_scenario, scenario_names
 from vm_ros.telemetry import energy_partition
 
@@ -378,6 +380,8 @@ def run(args) -> int:
         print(summary_table(rows))
     for line in source.report(inputs, result):
         print(line)
+    if bank.energetics_models and status.ok and status.written:
+        print(model_totals_table(logged_model_totals(out_path), bank.names))
     print(f"log: {shown_log_path(out_path, status.path)} ({status.written} messages, "
           f"{status.bytes_written / 1e6:.2f} MB"
           f"{f', {status.dropped} dropped' if status.dropped else ''})")

@@ -19,6 +19,7 @@ from vm_ros.recording.run_log import (
     RunLog,
     TopicSeries,
     logged_node_parameters,
+    read_run,
 )
 from vm_ros.recording.summary import (
     JointSummary,
@@ -141,6 +142,13 @@ def trapezoid(time_s: np.ndarray, values: np.ndarray) -> np.ndarray:
 
 
 TSIANOS = "tsianos2012"  # vm_ros's own energetics in tables beside the published models
+
+
+def logged_model_totals(path) -> list[ModelTotals]:
+    """:func:`model_totals` of a finished log, reading only its energy_rate and
+    energy_rate_models channels ([] without the latter)."""
+    return model_totals(read_run(path, topics=[tm.TOPIC_ENERGY_RATE,
+                                               tm.TOPIC_ENERGY_RATE_MODELS]))
 
 
 def model_totals(run: RunLog) -> list[ModelTotals]:
