@@ -96,9 +96,17 @@ def energy_partition(by_fibre, total) -> np.ndarray:
     return np.concatenate([by_fibre.as_array(), total.as_array()[:, None, :]], axis=1)
 
 
+def energy_rate_rows(components, rates) -> np.ndarray:
+    """Energy rates (W) as (..., n_muscles, 3 fibre labels, 4 components) from a step record's
+    energy components (..., n, 2, 3) and rates (..., n, 4), one step or many: per fibre type
+    the three components and their sum, then the muscle's rates."""
+    by_fibre = np.concatenate([components, components.sum(axis=-1)[..., None]], axis=-1)
+    return np.concatenate([by_fibre, rates[..., None, :]], axis=-2)
+
+
 def energy_rate_array(out: StepOutput) -> np.ndarray:
     """Energy rates (W) as (n_muscles, 3 fibre labels, 4 components)."""
-    return energy_partition(out.energy_rate_by_fibre, out.energy_rate)
+    return energy_rate_rows(out.record.energy_components, out.record.energy_rates)
 
 
 def energy_rate_layout(n_muscles: int) -> list[dict]:

@@ -202,39 +202,6 @@ def _finite(out) -> bool:
                          + out.total_energy_rate)
 
 
-class OutputLayouts:
-    """The CDR layouts of the muscle topics (muscle_force, energy_rate, energy_rate_total,
-    energy_total, and energy_rate_models with ``models``) for the bank's muscles, built once;
-    ``encode`` gives one step's messages."""
-
-    def __init__(self, names, models=()):
-        n = len(names)
-        self.names = tuple(names)
-        self.force = bulk.joint_state_layout(names, n, n, n)
-        self.energy_rate = bulk.multi_array_layout(
-            tm.energy_rate_layout(n), n * len(tm.FIBRE_LABELS) * len(tm.COMPONENT_LABELS))
-        self.float64 = bulk.float64_layout()
-        self.models = (bulk.multi_array_layout(
-            tm.energy_rate_models_layout(names, models),
-            n * len(models) * len(tm.MODEL_COMPONENT_LABELS)) if models else None)
-
-    def encode(self, out, stamp_ns: int, energy_offset_j: float = 0.0) -> list:
-        """[(topic, bytes)] of ``out``, the force message stamped ``stamp_ns``; energy_total
-        adds ``energy_offset_j`` (energy before a model reset)."""
-        models = [] if self.models is None else [
-            (tm.TOPIC_ENERGY_RATE_MODELS, self.models.encode_one(data=out.energy_rate_models))]
-        return [
-            (tm.TOPIC_FORCE, self.force.encode_one(stamp_ns, position=out.fascicle_length,
-                                                   velocity=out.fascicle_velocity,
-                                                   effort=out.force)),
-            (tm.TOPIC_ENERGY_RATE, self.energy_rate.encode_one(data=tm.energy_rate_array(out))),
-            (tm.TOPIC_ENERGY_RATE_TOTAL, self.float64.encode_one(data=out.total_energy_rate)),
-            (tm.TOPIC_ENERGY_TOTAL,
-             self.float64.encode_one(data=energy_offset_j + out.total_energy)),
-            *models,
-        ]
-
-
 class MuscleNode(Node):
     """The muscle model as a ROS 2 node (see the module docstring and vm_ros.node.params).
 
@@ -285,7 +252,7 @@ class MuscleNode(Node):
         self._check_no_unknown_parameters()
         self.run_log = self._open_run_log()
         self._model_timer = self.create_timer(self._dt_s * c.steps_per_tick, self._on_tick)
-        self._layouts = OutputLayouts(self.bank.names, self.bank.energetics_models)
+        self._layouts = bulk.OutputLayouts(self.bank.names, self.bank.energetics_models)
         self._diagnostics_timer = self.create_timer(
             c.diagnostics_period_s, self._publish_diagnostics,
             clock=Clock(clock_type=ClockType.STEADY_TIME))

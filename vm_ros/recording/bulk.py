@@ -162,6 +162,40 @@ def float64_layout() -> FixedLayout:
     return FixedLayout(t)
 
 
+class OutputLayouts:
+    """The CDR layouts of the published muscle topics (muscle_force, energy_rate,
+    energy_rate_total, energy_total, and energy_rate_models with ``models``) for the bank's
+    muscles, built once: muscle_node encodes one step at a time (``encode``), offline runs
+    many (vm_ros.recording.offline)."""
+
+    def __init__(self, names, models=()):
+        n = len(names)
+        self.names = tuple(names)
+        self.force = joint_state_layout(names, n, n, n)
+        self.energy_rate = multi_array_layout(
+            tm.energy_rate_layout(n), n * len(tm.FIBRE_LABELS) * len(tm.COMPONENT_LABELS))
+        self.float64 = float64_layout()
+        self.models = (multi_array_layout(
+            tm.energy_rate_models_layout(names, models),
+            n * len(models) * len(tm.MODEL_COMPONENT_LABELS)) if models else None)
+
+    def encode(self, out, stamp_ns: int, energy_offset_j: float = 0.0) -> list:
+        """[(topic, bytes)] of ``out``, the force message stamped ``stamp_ns``; energy_total
+        adds ``energy_offset_j`` (energy before a model reset)."""
+        models = [] if self.models is None else [
+            (tm.TOPIC_ENERGY_RATE_MODELS, self.models.encode_one(data=out.energy_rate_models))]
+        return [
+            (tm.TOPIC_FORCE, self.force.encode_one(stamp_ns, position=out.fascicle_length,
+                                                   velocity=out.fascicle_velocity,
+                                                   effort=out.force)),
+            (tm.TOPIC_ENERGY_RATE, self.energy_rate.encode_one(data=tm.energy_rate_array(out))),
+            (tm.TOPIC_ENERGY_RATE_TOTAL, self.float64.encode_one(data=out.total_energy_rate)),
+            (tm.TOPIC_ENERGY_TOTAL,
+             self.float64.encode_one(data=energy_offset_j + out.total_energy)),
+            *models,
+        ]
+
+
 # vm_ros/msg/MuscleTelemetry arrays in message order, with their length per muscle
 TELEMETRY_ARRAYS = (
     ("excitation", 1), ("path_length", 1), ("path_velocity", 1), ("effective_drive", 1),

@@ -551,18 +551,9 @@ class _Ticks:
     computes them (sums per message, over the same axes)."""
 
     def __init__(self, bank: MuscleBank):
-        names, n = bank.names, bank.n
         self.equations = bank.equations
-        self.force = bulk.joint_state_layout(names, n, n, n)
-        self.energy_rate = bulk.multi_array_layout(tm.energy_rate_layout(n),
-                                                   n * len(tm.FIBRE_LABELS)
-                                                   * len(tm.COMPONENT_LABELS))
-        self.float64 = bulk.float64_layout()
-        self.record = bulk.telemetry_layout(names)
-        models = bank.energetics_models
-        self.models = None if not models else bulk.multi_array_layout(
-            tm.energy_rate_models_layout(names, models),
-            n * len(models) * len(tm.MODEL_COMPONENT_LABELS))
+        self.outputs = bulk.OutputLayouts(bank.names, bank.energetics_models)
+        self.record = bulk.telemetry_layout(bank.names)
         self._clear()
 
     def _clear(self) -> None:
@@ -583,10 +574,10 @@ class _Ticks:
                 "time": times_ns[published], "slot": slots[published],
                 "position": run.fascicle_length[at], "velocity": run.fascicle_velocity[at],
                 "effort": record.force[at],
-                "energy_rate": _energy_rates(record.energy_components[at],
-                                             record.energy_rates[at]),
+                "energy_rate": tm.energy_rate_rows(record.energy_components[at],
+                                                record.energy_rates[at]),
                 "rate_total": rate_totals[j], "energy_total": energy_totals[j],
-                **({} if self.models is None else {"models": run.energy_rate_models[at]})})
+                **({} if self.outputs.models is None else {"models": run.energy_rate_models[at]})})
         if np.any(recorded):
             at, j = rows[recorded], np.flatnonzero(recorded)
             eq, excitation = self.equations, record.excitation[at]
@@ -604,8 +595,8 @@ class _Ticks:
                 "firing_rate": eq.per_type_mean(snap.firing_rate_effective[j]),
                 "recruited_fraction": recruited @ eq.membership,
                 "effective_activation": record.effective_activation[at],
-                "energy_rate": _energy_rates(record.energy_components[at],
-                                             record.energy_rates[at]),
+                "energy_rate": tm.energy_rate_rows(record.energy_components[at],
+                                                record.energy_rates[at]),
                 "energy": _energies(snap.energy_j[j]),
                 "total_energy_rate": rate_totals[j], "total_energy": energy_totals[j]})
 
@@ -619,18 +610,18 @@ class _Ticks:
             keys = p["slot"] * 16 + _OUTPUT_RANK
             stamps = p["time"]
             pending.add(keys + _OUTPUT_ORDER[tm.TOPIC_FORCE], tm.TOPIC_FORCE,
-                        self.force.encode(stamps, position=p["position"],
+                        self.outputs.force.encode(stamps, position=p["position"],
                                           velocity=p["velocity"], effort=p["effort"]), stamps)
             pending.add(keys + _OUTPUT_ORDER[tm.TOPIC_ENERGY_RATE], tm.TOPIC_ENERGY_RATE,
-                        self.energy_rate.encode(data=p["energy_rate"]), stamps)
+                        self.outputs.energy_rate.encode(data=p["energy_rate"]), stamps)
             for topic, key in ((tm.TOPIC_ENERGY_RATE_TOTAL, "rate_total"),
                                (tm.TOPIC_ENERGY_TOTAL, "energy_total")):
                 pending.add(keys + _OUTPUT_ORDER[topic], topic,
-                            self.float64.encode(data=p[key]), stamps)
-            if self.models is not None:
+                            self.outputs.float64.encode(data=p[key]), stamps)
+            if self.outputs.models is not None:
                 pending.add(keys + _OUTPUT_ORDER[tm.TOPIC_ENERGY_RATE_MODELS],
-                            tm.TOPIC_ENERGY_RATE_MODELS, self.models.encode(data=p["models"]),
-                            stamps)
+                            tm.TOPIC_ENERGY_RATE_MODELS,
+                            self.outputs.models.encode(data=p["models"]), stamps)
         if self.recorded:
             r = {key: np.concatenate([part[key] for part in self.recorded])
                  for key in self.recorded[0]}
@@ -638,14 +629,6 @@ class _Ticks:
             stamps = r.pop("time")
             pending.add(keys, msgs.TOPIC_TELEMETRY, self.record.encode(stamps, **r), stamps)
         self._clear()
-
-
-def _energy_rates(components, rates) -> np.ndarray:
-    """telemetry.energy_rate_array of each step, (k, n, 3, 4), from the record's energy
-    components (k, n, 2, 3) and rates (k, n, 4), computed at once as StepOutput computes it for
-    one step (the per-fibre total sums the three components)."""
-    by_fibre = np.concatenate([components, components.sum(axis=-1)[..., None]], axis=-1)
-    return np.concatenate([by_fibre, rates[:, :, None, :]], axis=2)
 
 
 def _energies(by_fibre) -> np.ndarray:
