@@ -195,11 +195,12 @@ def _type_name(msg_type) -> str:
     return f"{msg_type.__module__.split('.')[0]}/msg/{msg_type.__name__}"
 
 
-def _finite(out) -> bool:
+def _finite(outputs) -> bool:
     """Tendon force (from the fascicle length), contractile force (length and velocity) and
-    energy rate all finite (a NaN or inf makes the sum so)."""
-    return math.isfinite(float(out.force.sum() + out.contractile_force.sum())
-                         + out.total_energy_rate)
+    energy rate all finite (a NaN or inf makes the sum so), of a StepOutput or of every step of
+    a Trajectory."""
+    return math.isfinite(float(outputs.force.sum() + outputs.contractile_force.sum()
+                               + outputs.record.energy_rates[..., 3].sum()))
 
 
 class MuscleNode(Node):
@@ -547,8 +548,7 @@ class MuscleNode(Node):
         else:
             run = self.bank.run(self._dt_s, u, lp, vp)
             out = run.last
-            finite = math.isfinite(float(run.force.sum() + run.contractile_force.sum()
-                                         + run.record.energy_rates[:, :, 3].sum()))
+            finite = _finite(run)
         self._step_times.add((time.perf_counter_ns() - started_ns) // count)
         if not finite and count > 1:
             self.bank.set_state(start_state)
