@@ -442,7 +442,7 @@ class MuscleBank:
         last = StepOutput(self.equations, new, series.row(-1))
         return self._with_models(dt, Trajectory.from_series(
             times, series, length, velocity, last,
-            self._snapshots(times, snapshot_every, snapshots), series))
+            self._snapshots(times, snapshot_every, snapshots)))
 
     def _with_models(self, dt, trajectory: Trajectory) -> Trajectory:
         """The trajectory with the published models' rates and energies of every step (none
@@ -492,7 +492,7 @@ class MuscleBank:
             times, series,
             np.array([o.fascicle_length for o in outs]),
             np.array([o.fascicle_velocity for o in outs]),
-            outs[-1], self._snapshots(times, snapshot_every, arrays), series,
+            outs[-1], self._snapshots(times, snapshot_every, arrays),
         )
 
 

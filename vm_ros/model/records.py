@@ -276,8 +276,9 @@ class Trajectory:
 
     @classmethod
     def from_series(cls, time_s, series, fascicle_length, fascicle_velocity, last,
-                    snapshots=None, record: StepRecord | None = None) -> Trajectory:
-        """From a series StepRecord (k, ...) and the fascicle state of every step."""
+                    snapshots=None) -> Trajectory:
+        """From a series StepRecord (k, ...), kept as ``record``, and the fascicle state of
+        every step."""
         return cls(
             time_s=time_s,
             excitation=series.excitation,
@@ -290,7 +291,7 @@ class Trajectory:
             mechanical_power=series.mechanical_power,
             last=last,
             snapshots=snapshots,
-            record=record,
+            record=series,
         )
 
     @property
