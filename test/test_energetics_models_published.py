@@ -4,6 +4,11 @@
 The second implementation is scalar Python written here from the formulations of Koelewijn,
 Heinrich & van den Bogert 2019 (PLoS ONE 14(9):e0222037; their published code, BioMAC-Sim-Toolbox
 src/model/@Model/getErate_*.m), with the papers' numbers typed in, never read from the package.
+Lichtwark & Wilson and Houdijk also have a third implementation here, by another group: scalar
+Python written from Luis et al. 2024 (KTH; israelluis/MetabolicRateWalking,
+metabolicCost/MC_LW07_R.m and MC_HO06_R.m), who implemented the papers independently of Koelewijn.
+Their Lichtwark & Wilson uses a constant gamma = 1.5 (the 2007 supplement as they read it) where
+Koelewijn uses the 2005 decay; the package holds both as constants (docs/energetics_models.md 3).
 The grid (activation 0-1, fibre length 0.6-1.5 L0, shortening, isometric and lengthening
 velocities, slow fraction 0, 0.4, 1) comes from a Gaussian force-length and a Hill force-velocity
 curve, so that the state is consistent as a Hill muscle's is.
@@ -130,6 +135,48 @@ def houdijk_reference(row, total_slow=24.4, forbid_negative=False):
     return g + h, s, w, g + h + s + w
 
 
+def lichtwark_luis(row, gamma=1.5):
+    """Luis et al. 2024 MC_LW07_R.m: V_CE in m/s, lengthening positive; no basal rate."""
+    a, fl, fv, v_ce = row["a"], row["fl"], row["fv"], row["v"]
+    curvature, vmax = 4.0, VMAX
+    x = a * fl
+    if fv >= 1.0:  # their lengthening test, on the force-velocity multiplier
+        hm = (0.3 * gamma * vmax / curvature ** 2
+              + 0.7 * gamma * vmax / curvature ** 2 * math.exp(-7.0 * vmax * (fv - 1.0)))
+    else:
+        hm = gamma * vmax / curvature ** 2
+    maintenance = (0.3 * a * hm + 0.7 * x * hm) * F0 * L0
+    hsl = 0.5 * fv * v_ce / L0 if v_ce > 0.0 else -(v_ce / L0) / curvature
+    heat_sl = hsl * x * F0 * L0
+    work = -row["force"] * v_ce
+    return maintenance, heat_sl, work, maintenance + heat_sl + work
+
+
+def houdijk_luis(row, non_negative=False):
+    """Luis et al. 2024 MC_HO06_R.m (their option 1: where E <= 0 the shortening heat is set so
+    that E = 0); slow and fast constants typed as they give them (W/kg)."""
+    a, fl, st = row["a"], row["fl"], row["r"]
+    ft = 1.0 - st
+    h_a = 52.50 * ft + 10.98 * st
+    h_m = 97.50 * ft + 13.42 * st
+    k3, k4 = 12.0 * ft + 6.0 * st, 14.0 * ft + 8.0 * st
+    v_max_freq = k3 + k4 * a
+    v_rel = a ** 2
+    if v_rel > 0.0:
+        h_a_rate = (MASS * h_a * v_rel * (1.0 - math.exp(-0.25 - 18.2 / (v_rel * v_max_freq)))
+                    / (1.0 - math.exp(-0.25 - 18.2 / v_max_freq)))
+    else:
+        h_a_rate = 0.0  # MATLAB's 0 * (1 - exp(-inf)) / (...) = 0
+    h_m_rate = MASS * (h_a + h_m) * a * (fl - h_a / (h_a + h_m))
+    a_tilde = (0.28 * ft + 0.16 * st) * F0
+    v_ce = row["v"]
+    h_sl = -a_tilde * a * fl * v_ce if v_ce <= 0.0 else 0.0
+    work = -row["force"] * v_ce
+    if non_negative and h_a_rate + h_m_rate + h_sl + work <= 0.0:
+        h_sl = -h_a_rate - h_m_rate - work
+    return h_a_rate + h_m_rate, h_sl, work, h_a_rate + h_m_rate + h_sl + work
+
+
 def margaria_reference(row, positive=0.25, negative_work=True):
     """Koelewijn 2019 getErate_margaria.m: 25 % efficient shortening, 120 % lengthening."""
     w = row["force"] * row["v"]  # absorbed power, W
@@ -247,6 +294,36 @@ def test_houdijk_equals_second_implementation(forbid):
         assert rates.total.min() < 0.0  # the switch is exercised
 
 
+def test_lichtwark_equals_luis_2024_with_their_gamma():
+    """Every term of Luis et al.'s implementation, with their constant gamma = 1.5 given as the
+    package's constants (decay constant 1.5, both amplitudes 0); with Koelewijn's default decay
+    the maintenance heat differs by gamma, the shortening heat and work do not."""
+    luis = dataclasses.replace(load_lichtwark_constants(), maintenance_decay_constant=1.5,
+                               maintenance_decay_fast_amplitude=0.0,
+                               maintenance_decay_slow_amplitude=0.0)
+    reference = np.array([lichtwark_luis(row) for row in GRID])
+    for when in (0.0, 30.0):
+        rates = lichtwark_wilson(_state(), luis, stimulation_duration=when)
+        for k, name in enumerate(("activation_maintenance", "shortening_lengthening",
+                                  "mechanical_work", "total")):
+            assert _close(getattr(rates, name), reference[:, k]) <= RTOL, name
+    default = lichtwark_wilson(_state(), load_lichtwark_constants())
+    assert _close(default.shortening_lengthening, reference[:, 1]) <= RTOL
+    on = reference[:, 0] > 1.0
+    assert np.allclose(default.activation_maintenance[on] / reference[on, 0], 0.975 / 1.5,
+                       rtol=RTOL)
+
+
+@pytest.mark.parametrize("forbid", [False, True])
+def test_houdijk_equals_luis_2024(forbid):
+    c = dataclasses.replace(load_houdijk_constants(), forbid_negative_total_power=forbid)
+    rates = houdijk2006(_state(), c)
+    reference = np.array([houdijk_luis(row, non_negative=forbid) for row in GRID])
+    for k, name in enumerate(("activation_maintenance", "shortening_lengthening",
+                              "mechanical_work", "total")):
+        assert _close(getattr(rates, name), reference[:, k]) <= RTOL, name
+
+
 @pytest.mark.parametrize("negative_work", [True, False])
 def test_margaria_equals_second_implementation(negative_work):
     c = dataclasses.replace(load_margaria_constants(),
@@ -267,6 +344,8 @@ def test_a_perturbed_constant_fails_the_comparison():
     assert _close(lichtwark, [lichtwark_reference(r, g_curvature=4.2)[3] for r in GRID]) > 1e-3
     houdijk = houdijk2006(state, load_houdijk_constants()).total
     assert _close(houdijk, [houdijk_reference(r, total_slow=25.0)[3] for r in GRID]) > 1e-3
+    assert _close(lichtwark, [lichtwark_luis(r, gamma=0.975)[3] for r in GRID]) <= RTOL
+    assert _close(lichtwark, [lichtwark_luis(r, gamma=1.0)[3] for r in GRID]) > 1e-3
     margaria = margaria1968(state, load_margaria_constants()).total
     assert _close(margaria, [margaria_reference(r, positive=0.26) for r in GRID]) > 1e-3
     minetti = minetti_alexander(state, load_minetti_constants()).total

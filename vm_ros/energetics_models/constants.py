@@ -96,6 +96,7 @@ class LichtwarkConstants:
     max_contraction_velocity: float = _holds("L0/s")
     force_velocity_curvature: float = _holds("1")
     stable_maintenance_fraction: float = _holds("1")
+    maintenance_decay_constant: float = _holds("1")
     maintenance_decay_fast_amplitude: float = _holds("1")
     maintenance_decay_fast_rate: float = _holds("1/s")
     maintenance_decay_slow_amplitude: float = _holds("1")

@@ -5,7 +5,7 @@ max_contraction_velocity (L0/s), a the activation, F_iso the active force-length
 the force-velocity multiplier (active force over isometric force), t the time since stimulation
 onset (s), G the force_velocity_curvature:
 
-    gamma = 0.8 exp(-0.72 t) + 0.175 exp(-0.022 t)
+    gamma = C + 0.8 exp(-0.72 t) + 0.175 exp(-0.022 t)      (C = maintenance_decay_constant, 0)
     H_m = gamma Vmax / G^2                                       (v > 0)
     H_m = gamma Vmax / G^2 (0.3 + 0.7 exp(-7 Vmax (g - 1)))      (v <= 0)
     H_s = v / G  (v > 0),   0.5 g |v|  (v <= 0)                  (F0 L0 units, per second)
@@ -41,10 +41,12 @@ def force_velocity_multiplier_from_state(state: MuscleState):
 
 
 def maintenance_decay(stimulation_duration, constants: LichtwarkConstants):
-    """Lichtwark & Wilson 2005's gamma (1): 0.8 exp(-0.72 t) + 0.175 exp(-0.022 t), t in s."""
+    """gamma (1): C + 0.8 exp(-0.72 t) + 0.175 exp(-0.022 t), t in s; Lichtwark & Wilson 2005's
+    decay with C = 0 (the default), a constant gamma with both amplitudes 0."""
     c = constants
     t = np.asarray(stimulation_duration, dtype=float)
-    return (c.maintenance_decay_fast_amplitude * np.exp(-c.maintenance_decay_fast_rate * t)
+    return (c.maintenance_decay_constant
+            + c.maintenance_decay_fast_amplitude * np.exp(-c.maintenance_decay_fast_rate * t)
             + c.maintenance_decay_slow_amplitude * np.exp(-c.maintenance_decay_slow_rate * t))
 
 
