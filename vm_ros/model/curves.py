@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vm_ros.model.jit import jitable, where
+from vm_ros.model.jit import jitable, power, where
 
 
 @jitable
@@ -35,9 +35,9 @@ def force_length_and_slope_cheng2000(l, omega, beta, rho):
     dFL/dL = -FL rho (|z|^rho / z) beta L^beta / (L omega)      (0 at z = 0 and at L <= 0)
     """
     l = np.maximum(l, 0.0)
-    l_beta = l**beta
+    l_beta = power(l, beta)
     z = (l_beta - 1.0) / omega
-    z_rho = np.abs(z) ** rho
+    z_rho = power(np.abs(z), rho)
     fl = np.exp(-z_rho)
     defined = (z != 0.0) & (l > 0.0)
     ratio = where(defined, z_rho / where(defined, z * l, 1.0), 0.0)
@@ -221,4 +221,4 @@ def activation_frequency_brown1999(f_eff, l, yield_factor, sag_factor, af, nf0, 
     """
     nf = nf0 + nf1 * (1.0 / l - 1.0)
     drive = np.maximum(yield_factor * sag_factor * f_eff, 0.0) / (af * nf)
-    return -np.expm1(-(drive**nf))
+    return -np.expm1(-power(drive, nf))

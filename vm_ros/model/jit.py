@@ -14,6 +14,7 @@ and branch on scalars when compiled.
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 from contextlib import contextmanager
 from pathlib import Path
@@ -75,6 +76,14 @@ def where(condition, if_true, if_false):
     return np.where(condition, if_true, if_false)
 
 
+def power(base, exponent):
+    """``base ** exponent`` (``np.power``). Compiled for scalars: ``exp(exponent * log(base))``
+    for a positive base and ``base`` itself for an exponent of 1, which costs about half of
+    libm's correctly rounded pow (the kernel's largest single cost) for a relative difference
+    of a few 1e-16 per unit of ``|exponent * log(base)|``; other bases as ``**``."""
+    return np.power(base, exponent)
+
+
 def clip(value, lower, upper):
     """``min(max(value, lower), upper)`` elementwise (``np.clip`` for scalars and arrays)."""
     return np.minimum(np.maximum(value, lower), upper)
@@ -96,7 +105,26 @@ if HAVE_NUMBA:
 
         return array_where
 
+    @overload(power)
+    def _power_compiled(base, exponent):
+        if isinstance(base, _nb_types.Float) and isinstance(exponent, (_nb_types.Float,
+                                                                       _nb_types.Integer)):
+
+            def scalar_power(base, exponent):
+                if exponent == 1.0:
+                    return base
+                if base > 0.0:
+                    return math.exp(exponent * math.log(base))
+                return base**exponent
+
+            return scalar_power
+
+        def array_power(base, exponent):
+            return np.power(base, exponent)
+
+        return array_power
+
     clip = register_jitable(clip)
 
 
-__all__ = ["ENV_SWITCH", "HAVE_NUMBA", "clip", "jitable", "where"]
+__all__ = ["ENV_SWITCH", "HAVE_NUMBA", "clip", "jitable", "power", "where"]

@@ -25,7 +25,7 @@ from functools import cached_property
 
 import numpy as np
 
-from vm_ros.model.jit import clip, jitable, where
+from vm_ros.model.jit import clip, jitable, power, where
 from vm_ros.model.params import FAST, SLOW, ContinuousParams, LumpedParams, NaturalParams
 
 SCHEMES = ("lumped", "natural", "continuous")
@@ -144,8 +144,8 @@ def relative_drive_tau(u, ueff, active, t_rise, rise_power, t_fall, fall_floor, 
     slow fibres' :func:`mid_activation_fall_time_constant`, at which derecruited units let go.
     Held at or above ``tau_min``.
     """
-    rising = t_rise * clip(safe_ratio(ueff, u), 0.0, 1.0) ** rise_power * active
-    falling = fall_floor + t_fall * clip(1.0 - safe_ratio(u, ueff), 0.0, 1.0) ** fall_power
+    rising = t_rise * power(clip(safe_ratio(ueff, u), 0.0, 1.0), rise_power) * active
+    falling = fall_floor + t_fall * power(clip(1.0 - safe_ratio(u, ueff), 0.0, 1.0), fall_power)
     return np.maximum(where(u >= ueff, rising, falling), tau_min)
 
 
