@@ -1,6 +1,8 @@
-"""How muscle_node decodes its inputs (vm_ros.recording.cdr, the decoder a recompute uses): what
-rclpy serialises decodes to the same values; a payload that claims more elements than it holds,
-a truncated or corrupted one, is refused (raises) without a stderr line."""
+"""How muscle_node decodes its inputs (vm_ros.recording.cdr.input_decoder, which a recompute uses
+too; and the general mcap_ros2-based decoder): what rclpy serialises decodes to the same values;
+a payload that claims more elements than it holds, a truncated or corrupted one, is refused
+(raises) without a stderr line. The input decoder gives mcap_ros2's values on every message that
+decodes, and reuses a stream's repeated names."""
 
 from __future__ import annotations
 
@@ -13,7 +15,9 @@ serialization = pytest.importorskip("rclpy.serialization", exc_type=ImportError)
 msgs = pytest.importorskip("sensor_msgs.msg", exc_type=ImportError)
 std = pytest.importorskip("std_msgs.msg", exc_type=ImportError)
 
-from vm_ros.recording.cdr import decoder  # noqa: E402
+from vm_ros.recording.cdr import decoder, input_decoder  # noqa: E402
+
+DECODERS = {"input_decoder": input_decoder, "mcap_ros2": decoder}
 
 
 def samples():
@@ -25,13 +29,18 @@ def samples():
     return [joint, array, msgs.JointState(), std.Float64MultiArray()]
 
 
-def _decode(msg_type, data):
-    return decoder(f"{msg_type.__module__.split('.')[0]}/msg/{msg_type.__name__}")(data)
+def _type(msg_type) -> str:
+    return f"{msg_type.__module__.split('.')[0]}/msg/{msg_type.__name__}"
 
 
+def _decode(msg_type, data, kind="input_decoder"):
+    return DECODERS[kind](_type(msg_type))(data)
+
+
+@pytest.mark.parametrize("kind", DECODERS)
 @pytest.mark.parametrize("msg", samples(), ids=lambda m: type(m).__name__)
-def test_what_rclpy_serialises_decodes_to_the_same_values(msg):
-    decoded = _decode(type(msg), serialization.serialize_message(msg))
+def test_what_rclpy_serialises_decodes_to_the_same_values(msg, kind):
+    decoded = _decode(type(msg), serialization.serialize_message(msg), kind)
     if isinstance(msg, msgs.JointState):
         assert list(decoded.name) == list(msg.name)
         assert list(decoded.position) == list(msg.position)
@@ -42,17 +51,19 @@ def test_what_rclpy_serialises_decodes_to_the_same_values(msg):
         assert [d.label for d in decoded.layout.dim] == [d.label for d in msg.layout.dim]
 
 
-def test_oversized_claims_are_refused_without_a_stderr_line(capfd):
+@pytest.mark.parametrize("kind", DECODERS)
+def test_oversized_claims_are_refused_without_a_stderr_line(capfd, kind):
     data = bytearray(serialization.serialize_message(samples()[0]))
     data[4 + 8: 4 + 12] = struct.pack("<I", 10**9)  # the frame_id length, after the stamp
     for payload in (bytes(data), bytes(data[:20]), b"\x00\x01"):
         with pytest.raises(Exception):  # noqa: B017 - any decoding error: counted as undecodable
-            _decode(msgs.JointState, payload)
+            _decode(msgs.JointState, payload, kind)
     assert capfd.readouterr().err == ""
 
 
+@pytest.mark.parametrize("kind", DECODERS)
 @pytest.mark.parametrize("msg", samples()[:2], ids=lambda m: type(m).__name__)
-def test_truncations_and_corruptions_decode_or_raise_quietly(msg, capfd):
+def test_truncations_and_corruptions_decode_or_raise_quietly(msg, capfd, kind):
     data = serialization.serialize_message(msg)
     rng = random.Random(7)
     refused = 0
@@ -62,8 +73,75 @@ def test_truncations_and_corruptions_decode_or_raise_quietly(msg, capfd):
             for _ in range(3):
                 payload[rng.randrange(4, len(payload))] = rng.randrange(256)
         try:
-            _decode(type(msg), bytes(payload))
+            _decode(type(msg), bytes(payload), kind)
         except Exception:
             refused += 1
     assert refused >= len(data) - 8  # every truncation past the header at least
     assert capfd.readouterr().err == ""
+
+
+def _values(msg):
+    if hasattr(msg, "name"):
+        return (msg.header.stamp.sec, msg.header.stamp.nanosec, msg.header.frame_id,
+                list(msg.name), list(msg.position), list(msg.velocity), list(msg.effort))
+    return ([(d.label, d.size, d.stride) for d in msg.layout.dim], msg.layout.data_offset,
+            list(msg.data))
+
+
+def _many_names(n=1000):
+    rng = random.Random(3)
+    joint = msgs.JointState(name=[f"m{i}_{'é' * (i % 3)}" for i in range(n)],
+                            position=[rng.random() for _ in range(n)],
+                            velocity=[rng.uniform(-1, 1) for _ in range(n)])
+    joint.header.stamp.sec, joint.header.stamp.nanosec = -3, 999
+    joint.header.frame_id = "odd"
+    return joint
+
+
+@pytest.mark.parametrize("msg", samples() + [_many_names()], ids=lambda m: type(m).__name__)
+def test_the_input_decoder_agrees_with_mcap_ros2_on_everything_both_decode(msg):
+    """On the message, its truncations and 600 corruptions (3 random bytes each): wherever
+    mcap_ros2's decoder and the input decoder both decode, every value is the same; every
+    truncation past the encapsulation header that mcap_ros2 refuses, the input decoder refuses."""
+    data = serialization.serialize_message(msg)
+    reference = DECODERS["mcap_ros2"](_type(type(msg)))
+    assert _values(_decode(type(msg), data)) == _values(reference(data))
+    rng = random.Random(11)
+    payloads = [data[:cut] for cut in range(4, len(data), max(1, len(data) // 300))]
+    for _ in range(600):
+        corrupt = bytearray(data)
+        for _ in range(3):
+            corrupt[rng.randrange(4, len(corrupt))] = rng.randrange(256)
+        payloads.append(bytes(corrupt))
+    both = 0
+    for payload in payloads:
+        try:
+            expected = _values(reference(payload))
+        except Exception:
+            expected = None
+        try:
+            got = _values(_decode(type(msg), payload))
+        except (ValueError, UnicodeDecodeError):
+            got = None
+        if expected is not None and got is not None:
+            both += 1
+            assert got == expected
+        elif len(payload) < len(data) and expected is None:
+            assert got is None
+    assert both > 0
+
+
+def test_a_stream_with_repeated_names_decodes_them_once():
+    decode = input_decoder("sensor_msgs/msg/JointState")
+    first = _many_names(50)
+    second = _many_names(50)
+    second.position = [0.5] * 50
+    other = _many_names(50)
+    other.name = list(other.name[::-1])
+    a, b, c = (decode(serialization.serialize_message(m)) for m in (first, second, other))
+    assert b.name is a.name and list(b.position) == [0.5] * 50
+    assert c.name is not a.name and list(c.name) == list(other.name)
+    longer = msgs.JointState(name=list(first.name) + ["extra"], position=[0.0] * 51)
+    longer.header.frame_id = "odd"  # the same name block start, a longer block
+    d = decode(serialization.serialize_message(longer))
+    assert list(d.name) == list(first.name) + ["extra"]

@@ -113,13 +113,29 @@ class NodeInputs:
         self.drive_stale = np.ones(self.n, dtype=bool)
         self.length_stale = np.ones(self.n, dtype=bool)
         self._was_stale = {"excitation": True, "kinematics": True}
+        # per topic: (names object, size) and what _select made of them, for a publisher that
+        # sends the same names every time (vm_ros.recording.cdr.JointStateDecoder reuses them)
+        self._selections: dict = {}
 
     # --- messages ---------------------------------------------------------------------------
 
     def _select(self, topic: str, names, size: int) -> tuple[list, np.ndarray | None, list]:
         """Indices into the message and into the muscles for ``names`` (or positional when
         there are no names); returns (issues, muscle index or None when rejected, message index).
-        """
+        The same names tuple (the same object) and size as the topic's last message give the
+        same answer without looking the names up again."""
+        last = self._selections.get(topic)
+        if last is not None and last[0] is names and last[1] == size:
+            issues, muscles, entries = last[2]
+            return list(issues), muscles, entries
+        issues, muscles, entries = self._selection(topic, names, size)
+        selection = issues, muscles, np.asarray(entries, dtype=int)
+        if isinstance(names, tuple):
+            self._selections[topic] = (names, size, selection)
+        issues, muscles, entries = selection
+        return list(issues), muscles, entries
+
+    def _selection(self, topic: str, names, size: int) -> tuple[list, np.ndarray | None, list]:
         if len(names) == 0:
             if size != self.n:
                 text = (f"{topic}: {size} values without names, expected {self.n} (one per "

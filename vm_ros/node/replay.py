@@ -38,7 +38,7 @@ from vm_ros.joint_space import JointEfforts, JointMap, JointSpace
 from vm_ros.node.inputs import InputLimits, NodeInputs
 from vm_ros.node.joint_inputs import JointInputs
 from vm_ros.node.params import NodeConfig
-from vm_ros.recording.cdr import deserialize
+from vm_ros.recording.cdr import input_decoder
 from vm_ros.recording.run_log import (
     ATTACHMENT_GEOMETRY,
     INPUT_TOPICS,
@@ -194,6 +194,8 @@ class NodeReplayInputs:
         self.conditioning = NodeConditioning(bank, config, space)
         self.inputs = self.conditioning.inputs
         self._events = run.events(INPUT_TOPICS)
+        # the node's decoders (one per topic: a JointState decoder remembers its names)
+        self._decoders = {topic: input_decoder(tm.TOPIC_TYPES[topic]) for topic in INPUT_TOPICS}
         if any(event.data is None for event in self._events):
             raise ValueError(f"{run.path}: inputs read without their raw bytes")
         self._next = 0
@@ -204,7 +206,7 @@ class NodeReplayInputs:
 
     def _apply(self, topic: str, data: bytes, time_ns: int) -> None:
         try:
-            msg = deserialize(tm.TOPIC_TYPES[topic], data)
+            msg = self._decoders[topic](data)
         except Exception:  # the node drops undecodable bytes too
             return
         self.conditioning.on_message(topic, msg, time_ns)

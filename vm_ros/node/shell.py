@@ -86,7 +86,7 @@ from vm_ros.node.signals import ShutdownRequest
 from vm_ros.node.startup import EXIT_BAD_PARAMETER, build_model, error_line
 from vm_ros.node.timing import StepScheduler
 from vm_ros.recording import bulk
-from vm_ros.recording.cdr import decoder
+from vm_ros.recording.cdr import input_decoder
 from vm_ros.recording.qos import offered_qos_profiles_yaml
 from vm_ros.recording.run_log import RunInfo, RunTiming
 
@@ -393,10 +393,10 @@ class MuscleNode(Node):
                   tm.TOPIC_KINEMATICS: self._on_kinematics,
                   tm.TOPIC_JOINT_STATES: self._on_joint_states}[topic]
         gaps = self._gaps[topic] = SequenceGaps()
-        # the decoder a recompute uses (vm_ros.recording.cdr), so that the node and its replay
-        # agree on what is undecodable; rclpy's deserialiser printed a stderr line per oversized
-        # payload and then returned a garbage message
-        decode = decoder(_type_name(msg_type))
+        # the decoder a recompute uses (vm_ros.recording.cdr.input_decoder), so that the node
+        # and its replay agree on what is undecodable; rclpy's deserialiser printed a stderr line
+        # per oversized payload and then returned a garbage message
+        decode = input_decoder(_type_name(msg_type))
 
         def receive_counted(data: bytes, info) -> None:
             lost = gaps.add(info.get("publication_sequence_number"))
