@@ -83,6 +83,26 @@ def test_bad_inputs_raise_and_leave_state_untouched(kwargs, name):
         bank.step(0.0, [0.5, 0.5], lp)
 
 
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+def test_a_restore_point_is_left_as_it_was_and_restores_the_run(backend):
+    """restore_point() is the state object itself (no copy): step and run must replace the
+    state, never write into it, so that set_state() can go back to it (muscle_node does before
+    a batch)."""
+    bank = MuscleBank.from_config(["vasti", "soleus"], backend=backend)
+    lp = rest_path_length(bank)
+    bank.reset(lp)
+    bank.step(DT, [0.3, 0.3], lp)
+    point, copy = bank.restore_point(), bank.state
+    u = np.tile([0.6, 0.2], (20, 1))
+    first = bank.run(DT, u, np.tile(lp, (20, 1)))
+    bank.step(DT, [0.9, 0.9], lp)
+    for f in dataclasses.fields(copy):
+        assert np.array_equal(getattr(point, f.name), getattr(copy, f.name)), f.name
+    bank.set_state(point)
+    again = bank.run(DT, u, np.tile(lp, (20, 1)))
+    assert np.array_equal(again.force, first.force)
+
+
 def test_drive_is_clipped_to_unit_interval():
     bank = MuscleBank.from_config(["soleus"])
     lp = rest_path_length(bank)

@@ -214,6 +214,13 @@ class MuscleBank:
         """A copy of the current state."""
         return self._require_state().copy()
 
+    def restore_point(self) -> BankState:
+        """The current state object itself, without the copy :attr:`state` makes, for
+        :meth:`set_state` to return to: step, run and reset replace the bank's state and never
+        modify one in place (each StepOutput keeps its own), so it stays as it is. Read it, do
+        not modify it."""
+        return self._require_state()
+
     def set_state(self, state: BankState) -> None:
         """Replace the state by a copy of ``state`` (from :attr:`state` of a bank with the same
         muscles and recruitment); raises ValueError for arrays of another shape."""

@@ -540,7 +540,7 @@ class MuscleNode(Node):
         is a publish step. A non-finite output anywhere in the batch: the batch again, step by
         step from its start (_run_stepwise)."""
         count = len(u)
-        start_state = self.bank.state if count > 1 else None
+        start_state = self.bank.restore_point() if count > 1 else None
         started_ns = time.perf_counter_ns()
         if count == 1:
             out = self.bank.step(self._dt_s, u[0], lp[0], vp[0])
