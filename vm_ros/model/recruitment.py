@@ -144,9 +144,11 @@ def relative_drive_tau(u, ueff, active, t_rise, rise_power, t_fall, fall_floor, 
     slow fibres' :func:`mid_activation_fall_time_constant`, at which derecruited units let go.
     Held at or above ``tau_min``.
     """
-    rising = t_rise * power(clip(safe_ratio(ueff, u), 0.0, 1.0), rise_power) * active
-    falling = fall_floor + t_fall * power(clip(1.0 - safe_ratio(u, ueff), 0.0, 1.0), fall_power)
-    return np.maximum(where(u >= ueff, rising, falling), tau_min)
+    up = u >= ueff
+    # one power per muscle: the branch's base and exponent chosen first
+    share = power(clip(where(up, safe_ratio(ueff, u), 1.0 - safe_ratio(u, ueff)), 0.0, 1.0),
+                  where(up, rise_power, fall_power))
+    return np.maximum(where(up, t_rise * share * active, fall_floor + t_fall * share), tau_min)
 
 
 @jitable
