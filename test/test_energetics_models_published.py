@@ -82,6 +82,15 @@ def _state(rows=GRID) -> MuscleState:
         max_isometric_force=np.full(n, F0), mass=np.full(n, MASS), slow_fraction=column["r"])
 
 
+COMPONENTS = ("activation_maintenance", "shortening_lengthening", "mechanical_work", "total")
+
+
+def _assert_components_equal(rates, reference):
+    """Every component of ``rates`` against the reference's columns (in COMPONENTS order)."""
+    for k, name in enumerate(COMPONENTS):
+        assert _close(getattr(rates, name), reference[:, k]) <= RTOL, name
+
+
 def _close(ours, reference):
     """Worst relative difference; rates below 1 W are compared absolutely (to 1e-12 W at RTOL),
     as a total that forbid_negative_total_power raises to 0 is 0 only to rounding."""
@@ -275,19 +284,21 @@ def test_lichtwark_equals_second_implementation(option, kwargs):
         c = dataclasses.replace(c, include_negative_mechanical_work=False)
     rates = lichtwark_wilson(_state(), c, stimulation_duration=kwargs.get("t", 0.0))
     reference = np.array([lichtwark_reference(row, **kwargs) for row in GRID])
-    for k, name in enumerate(("activation_maintenance", "shortening_lengthening",
-                              "mechanical_work", "total")):
-        assert _close(getattr(rates, name), reference[:, k]) <= RTOL, name
+    _assert_components_equal(rates, reference)
 
 
+@pytest.mark.parametrize("implementation", ["koelewijn2019", "luis2024"])
 @pytest.mark.parametrize("forbid", [False, True])
-def test_houdijk_equals_second_implementation(forbid):
+def test_houdijk_equals_second_implementation(forbid, implementation):
+    """Against Koelewijn et al.'s and Luis et al.'s implementations, with and without
+    forbid_negative_total_power (Luis et al.'s option 1)."""
     c = dataclasses.replace(load_houdijk_constants(), forbid_negative_total_power=forbid)
     rates = houdijk2006(_state(), c)
-    reference = np.array([houdijk_reference(row, forbid_negative=forbid) for row in GRID])
-    for k, name in enumerate(("activation_maintenance", "shortening_lengthening",
-                              "mechanical_work", "total")):
-        assert _close(getattr(rates, name), reference[:, k]) <= RTOL, name
+    if implementation == "koelewijn2019":
+        reference = [houdijk_reference(row, forbid_negative=forbid) for row in GRID]
+    else:
+        reference = [houdijk_luis(row, non_negative=forbid) for row in GRID]
+    _assert_components_equal(rates, np.array(reference))
     if forbid:
         assert rates.total.min() >= -1e-9
     else:
@@ -304,24 +315,12 @@ def test_lichtwark_equals_luis_2024_with_their_gamma():
     reference = np.array([lichtwark_luis(row) for row in GRID])
     for when in (0.0, 30.0):
         rates = lichtwark_wilson(_state(), luis, stimulation_duration=when)
-        for k, name in enumerate(("activation_maintenance", "shortening_lengthening",
-                                  "mechanical_work", "total")):
-            assert _close(getattr(rates, name), reference[:, k]) <= RTOL, name
+        _assert_components_equal(rates, reference)
     default = lichtwark_wilson(_state(), load_lichtwark_constants())
     assert _close(default.shortening_lengthening, reference[:, 1]) <= RTOL
     on = reference[:, 0] > 1.0
     assert np.allclose(default.activation_maintenance[on] / reference[on, 0], 0.975 / 1.5,
                        rtol=RTOL)
-
-
-@pytest.mark.parametrize("forbid", [False, True])
-def test_houdijk_equals_luis_2024(forbid):
-    c = dataclasses.replace(load_houdijk_constants(), forbid_negative_total_power=forbid)
-    rates = houdijk2006(_state(), c)
-    reference = np.array([houdijk_luis(row, non_negative=forbid) for row in GRID])
-    for k, name in enumerate(("activation_maintenance", "shortening_lengthening",
-                              "mechanical_work", "total")):
-        assert _close(getattr(rates, name), reference[:, k]) <= RTOL, name
 
 
 @pytest.mark.parametrize("negative_work", [True, False])
