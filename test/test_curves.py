@@ -235,24 +235,27 @@ def test_slopes_match_central_differences(t):
     pe1 = lambda x: curves.passive_parallel_elastic_cheng2000(x, 0.0, lmax, g.c1, g.k1, g.lr1,  # noqa: E731
                                                                g.eta)
     np.testing.assert_allclose(
-        curves.passive_parallel_elastic_slope_cheng2000(l, lmax, g.c1, g.k1, g.lr1),
+        curves.passive_parallel_elastic_and_slope_cheng2000(l, 0.0, lmax, g.c1, g.k1, g.lr1,
+                                                            g.eta)[1],
         _central_difference(pe1, l, 1e-6), rtol=1e-6, atol=1e-8)
     short = np.linspace(0.3, 0.69, 9)  # PE2 acts below Lr2 = 0.70
     pe2 = lambda x: curves.thick_filament_compression_cheng2000(x, g.c2, g.k2, g.lr2)  # noqa: E731
     np.testing.assert_allclose(
-        curves.thick_filament_compression_slope_cheng2000(short, g.c2, g.k2, g.lr2),
+        curves.thick_filament_compression_and_slope_cheng2000(short, g.c2, g.k2, g.lr2)[1],
         _central_difference(pe2, short, 1e-7), rtol=1e-6, atol=1e-8)
-    assert np.all(curves.thick_filament_compression_slope_cheng2000(l[l > 0.71], g.c2, g.k2,
-                                                                    g.lr2) == 0.0)
+    assert np.all(curves.thick_filament_compression_and_slope_cheng2000(l[l > 0.71], g.c2, g.k2,
+                                                                        g.lr2)[1] == 0.0)
     l_se = np.linspace(0.94, 1.03, 19)
     fse = lambda x: curves.tendon_force_cheng2000(x, g.ct, g.kt, g.lrt)  # noqa: E731
-    np.testing.assert_allclose(curves.tendon_stiffness_cheng2000(l_se, g.ct, g.kt, g.lrt),
+    np.testing.assert_allclose(curves.tendon_force_and_stiffness_cheng2000(l_se, g.ct, g.kt,
+                                                                           g.lrt)[1],
                                _central_difference(fse, l_se, 1e-8), rtol=1e-6, atol=1e-6)
 
 
 def test_logistic_is_finite_and_symmetric_for_large_arguments():
     x = np.array([-1e4, -50.0, 0.0, 50.0, 1e4])
-    y = curves.logistic(x)
+    e = np.exp(-np.abs(x))
+    y = curves.logistic_from_exp(x, e)
     assert np.all(np.isfinite(y))
-    np.testing.assert_allclose(y + curves.logistic(-x), 1.0, rtol=1e-15)
+    np.testing.assert_allclose(y + curves.logistic_from_exp(-x, e), 1.0, rtol=1e-15)
     assert y[2] == 0.5

@@ -91,14 +91,8 @@ def force_velocity_slopes_cheng2000(v, l, vmax, cv0, cv1, av0, av1, av2, bv, den
 
 
 @jitable
-def logistic(x):
-    """1 / (1 + exp(-x)), without overflow for large |x|."""
-    return logistic_from_exp(x, np.exp(-np.abs(x)))
-
-
-@jitable
 def logistic_from_exp(x, e):
-    """:func:`logistic` (x) given e = exp(-|x|)."""
+    """1 / (1 + exp(-x)) given e = exp(-|x|), without overflow for large |x|."""
     return where(x >= 0.0, 1.0 / (1.0 + e), e / (1.0 + e))
 
 
@@ -127,16 +121,9 @@ def passive_parallel_elastic_cheng2000(l, v, lmax, c1, k1, lr1, eta):
 
 
 @jitable
-def passive_parallel_elastic_slope_cheng2000(l, lmax, c1, k1, lr1):
-    """dFPE1/dL = c1 logistic((L/Lmax - Lr1)/k1) / Lmax (dFPE1/dV is eta)."""
-    x = _passive_parallel_elastic_argument(l, lmax, k1, lr1)
-    return c1 * logistic_from_exp(x, np.exp(-np.abs(x))) / lmax
-
-
-@jitable
 def passive_parallel_elastic_and_slope_cheng2000(l, v, lmax, c1, k1, lr1, eta):
-    """(FPE1, dFPE1/dL) of :func:`passive_parallel_elastic_cheng2000` and
-    :func:`passive_parallel_elastic_slope_cheng2000`, sharing one exp."""
+    """(FPE1, dFPE1/dL) of :func:`passive_parallel_elastic_cheng2000`, sharing one exp:
+    dFPE1/dL = c1 logistic((L/Lmax - Lr1)/k1) / Lmax (dFPE1/dV is eta)."""
     x = _passive_parallel_elastic_argument(l, lmax, k1, lr1)
     e = np.exp(-np.abs(x))
     return c1 * k1 * softplus_from_exp(x, e) + eta * v, c1 * logistic_from_exp(x, e) / lmax
@@ -155,16 +142,10 @@ def thick_filament_compression_cheng2000(l, c2, k2, lr2):
 
 
 @jitable
-def thick_filament_compression_slope_cheng2000(l, c2, k2, lr2):
-    """dFPE2/dL = c2 k2 exp(k2 (L - Lr2)) where FPE2 < 0 and the exponent is below its cap;
-    else 0."""
-    return thick_filament_compression_and_slope_cheng2000(l, c2, k2, lr2)[1]
-
-
-@jitable
 def thick_filament_compression_and_slope_cheng2000(l, c2, k2, lr2):
-    """(FPE2, dFPE2/dL) of :func:`thick_filament_compression_cheng2000` and its slope, sharing one
-    expm1 (exp = expm1 + 1)."""
+    """(FPE2, dFPE2/dL) of :func:`thick_filament_compression_cheng2000`, sharing one expm1
+    (exp = expm1 + 1): dFPE2/dL = c2 k2 exp(k2 (L - Lr2)) where FPE2 < 0 and the exponent is
+    below its cap; else 0."""
     exponent = k2 * (l - lr2)
     excess = np.expm1(np.minimum(exponent, 50.0))
     active = (c2 * excess < 0.0) & (exponent < 50.0)
@@ -184,15 +165,9 @@ def tendon_force_cheng2000(l_se, ct, kt, lrt):
 
 
 @jitable
-def tendon_stiffness_cheng2000(l_se, ct, kt, lrt):
-    """dF_SE/dL_SE (F0 per L0T) of :func:`tendon_force_cheng2000`: cT logistic((L_SE - LrT)/kT)."""
-    return ct * logistic((l_se - lrt) / kt)
-
-
-@jitable
 def tendon_force_and_stiffness_cheng2000(l_se, ct, kt, lrt):
-    """(F_SE, dF_SE/dL_SE) of :func:`tendon_force_cheng2000` and
-    :func:`tendon_stiffness_cheng2000`, sharing one exp."""
+    """(F_SE, dF_SE/dL_SE) of :func:`tendon_force_cheng2000`, sharing one exp: the stiffness is
+    cT logistic((L_SE - LrT)/kT)."""
     x = (l_se - lrt) / kt
     e = np.exp(-np.abs(x))
     return ct * kt * softplus_from_exp(x, e), ct * logistic_from_exp(x, e)

@@ -118,10 +118,9 @@ def contractile_force_and_slopes_normalised(
                g.fv_denominator_min)
     fv = curves.force_velocity_cheng2000(vt, lt, *fv_args)
     dfv_dv, dfv_dl = curves.force_velocity_slopes_cheng2000(vt, lt, *fv_args)
-    pe1 = curves.passive_parallel_elastic_cheng2000(l, v, lmax, g.c1, g.k1, g.lr1, g.eta)
-    pe2 = curves.thick_filament_compression_cheng2000(lt, g.c2, g.k2, g.lr2)
-    dpe1 = curves.passive_parallel_elastic_slope_cheng2000(l, lmax, g.c1, g.k1, g.lr1)
-    dpe2 = curves.thick_filament_compression_slope_cheng2000(lt, g.c2, g.k2, g.lr2)
+    pe1, dpe1 = curves.passive_parallel_elastic_and_slope_cheng2000(l, v, lmax, g.c1, g.k1,
+                                                                     g.lr1, g.eta)
+    pe2, dpe2 = curves.thick_filament_compression_and_slope_cheng2000(lt, g.c2, g.k2, g.lr2)
     active = active_force_term(activity, fl, fv, pe2).sum(axis=-1)
     active_dl, active_dv = active_force_slopes(activity, fl, dfl, fv, dfv_dv, dfv_dl, dpe2)
     d_dl, d_dv = contractile_force_slopes_total(
@@ -189,8 +188,9 @@ def musculotendon_forces_and_slopes(
     dF_SE/dx, dF_CE/dx (N/m), dF_CE/dxdot (N s/m)), each (..., n). F_SE depends on x through
     L_SE = (L_path - x) / L0T."""
     l_se = tendon_length_normalised(path_length, x, geometry.l0t)
-    f_se = geometry.f0 * curves.tendon_force_cheng2000(l_se, g.ct, g.kt, g.lrt)
-    d_se_dx = tendon_force_slope(l_se, geometry.f0, geometry.l0t, g.ct, g.kt, g.lrt)
+    force, stiffness = curves.tendon_force_and_stiffness_cheng2000(l_se, g.ct, g.kt, g.lrt)
+    f_se = geometry.f0 * force
+    d_se_dx = tendon_force_slope_from_stiffness(stiffness, geometry.f0, geometry.l0t)
     f_ce, d_ce_dl, d_ce_dv = contractile_force_and_slopes_normalised(
         x / geometry.l0, xdot / geometry.l0, activity, geometry.lmax, fibre, g
     )
@@ -199,16 +199,9 @@ def musculotendon_forces_and_slopes(
 
 
 @jitable
-def tendon_force_slope(l_se, f0, l0t, ct, kt, lrt):
-    """dF_SE/dx (N/m) = -F0 / L0T * dFSE/dL_SE."""
-    return tendon_force_slope_from_stiffness(
-        curves.tendon_stiffness_cheng2000(l_se, ct, kt, lrt), f0, l0t
-    )
-
-
-@jitable
 def tendon_force_slope_from_stiffness(stiffness, f0, l0t):
-    """:func:`tendon_force_slope` given dFSE/dL_SE (``stiffness``, F0 per L0T)."""
+    """dF_SE/dx (N/m) = -F0 / L0T * dFSE/dL_SE, given dFSE/dL_SE (``stiffness``, F0 per L0T):
+    x is the fascicle's share of the path."""
     return -f0 / l0t * stiffness
 
 
