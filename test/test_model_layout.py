@@ -36,7 +36,6 @@ def test_kernel_signatures_follow_the_declaration():
         names = tuple(inspect.signature(function).parameters)
         assert names == layout.kernel_parameters(series), function.__name__
     if kernel.AVAILABLE:
-        assert kernel.advance.py_func is kernel._advance
         assert kernel.advance_series.py_func is kernel._advance_series
 
 
@@ -100,7 +99,7 @@ def test_both_executors_run_every_phase_once_in_order():
 
 def _uncompiled(bank) -> CompiledStep:
     """The kernel as plain Python, fed by the same glue as the compiled one."""
-    return CompiledStep(KernelConstants.from_bank(bank), bank.n, advance=kernel._advance,
+    return CompiledStep(KernelConstants.from_bank(bank), bank.n,
                         advance_series=kernel._advance_series)
 
 

@@ -93,8 +93,8 @@ class CompiledStep:
     """Steps a bank's state with the kernel; holds the packed constants and the kernel's cache.
 
     ``advance_series`` defaults to the compiled kernel (``kernel.advance_series``, which also
-    runs each single step); the uncompiled Python function (``kernel._advance_series``) runs
-    the same steps as plain Python (``advance`` is accepted and unused: a step is a series).
+    runs each single step: a step is a series of one); the uncompiled Python function
+    (``kernel._advance_series``) runs the same steps as plain Python.
     ``parallel`` (None: the VM_ROS_PARALLEL environment variable, kernel.parallel_wanted) steps
     blocks of muscles on Numba's threads, the same numbers to the bit, for banks of
     kernel.PARALLEL_MIN_MUSCLES or more (``parallel_chunk``: muscles per block, 0 when serial).
@@ -104,7 +104,7 @@ class CompiledStep:
     written again.
     """
 
-    def __init__(self, constants, n: int, advance=None, advance_series=None, parallel=None):
+    def __init__(self, constants, n: int, advance_series=None, parallel=None):
         self.constants = constants
         self.n = n
         self._constants = constants.arguments()

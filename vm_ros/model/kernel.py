@@ -416,16 +416,15 @@ def _renamed(function, name: str):
 FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 _advance_step = jitable(_advance)
 prange = range
-advance = advance_series = advance_series_parallel = None
+advance_series = advance_series_parallel = None
 if HAVE_NUMBA:
     prange = numba.prange
     with model_cache_directory():
         _options = {"cache": True, "nogil": True, "error_model": "numpy", "fastmath": FASTMATH}
-        advance = numba.njit(**_options)(_advance)
         advance_series = numba.njit(**_options)(_advance_series)
         advance_series_parallel = numba.njit(parallel=True, **_options)(
             _renamed(_advance_series, "_advance_series_parallel"))
-AVAILABLE = advance is not None
+AVAILABLE = advance_series is not None
 
 # The parallel switch (CompiledStep(parallel=...), or this environment variable) and the bank
 # size below which the step stays serial even when it is on. Measured on 2 idle cores (step,
@@ -462,14 +461,13 @@ def warm_up(parallel: bool = False) -> None:
         return
     for wanted, function in ((True, advance_series), (parallel, advance_series_parallel)):
         if wanted and not function.signatures:
-            function(*layout.dummy_arguments(LUMPED, series=True))
+            function(*layout.dummy_arguments(LUMPED))
 
 
 __all__ = [
     "AVAILABLE",
     "PARALLEL_ENV",
     "PARALLEL_MIN_MUSCLES",
-    "advance",
     "advance_series",
     "advance_series_parallel",
     "parallel_chunk",

@@ -259,9 +259,9 @@ def kernel_parameters(series: bool = False) -> tuple:
     return tuple(a.kernel for a in (*INPUTS, *CONSTANTS, *STATE, *CACHE, *outputs))
 
 
-def dummy_arguments(scheme: int = 0, series: bool = False) -> tuple:
-    """Arguments of every declared type for a bank of no muscles (compiles the kernel; the
-    series kernel with ``series``: one step, no snapshots)."""
+def dummy_arguments(scheme: int = 0) -> tuple:
+    """Arguments of every declared type of the series kernel (kernel._advance_series) for a bank
+    of no muscles, one step and no snapshots: they compile it."""
     sizes = {"n": 0, "P": 2, "poly": 3}
     scalars = {"dt": 1e-3, "scheme": scheme, "dynamic_recovery": False, "snapshot_every": 0,
                "chunk": 0}
@@ -270,8 +270,6 @@ def dummy_arguments(scheme: int = 0, series: bool = False) -> tuple:
         return tuple(scalars[a.name] if a.shape == () else a.zeros(sizes, leading)
                      for a in declared)
 
-    if not series:
-        return arrays((*INPUTS, *CONSTANTS, *STATE, *CACHE, *OUTPUTS))
     return (*arrays(INPUTS[:1]), *arrays(INPUTS[1:], (1,)), *arrays((*CONSTANTS, *STATE, *CACHE)),
             *arrays(SERIES_OUTPUTS, (1,)), scalars["snapshot_every"], *arrays(SNAPSHOTS, (0,)),
             scalars["chunk"])
