@@ -30,7 +30,12 @@ from __future__ import annotations
 import numpy as np
 
 from vm_ros.energetics_models.constants import BhargavaConstants
-from vm_ros.energetics_models.state import HeatRates, MuscleState
+from vm_ros.energetics_models.state import (
+    HeatRates,
+    MuscleState,
+    mechanical_work_rate,
+    shortening_heat_for_nonnegative_total,
+)
 
 
 def recruited_excitations(excitation, slow_fraction):
@@ -90,11 +95,11 @@ def bhargava2004(state: MuscleState, constants: BhargavaConstants,
         alpha = np.where(shortening, c.shortening_coefficient * f_total, 0.0)
     shortening_heat = -alpha * velocity
 
-    work = np.where(c.include_negative_mechanical_work | shortening, -f_active * velocity, 0.0)
+    work = mechanical_work_rate(f_active, velocity, c.include_negative_mechanical_work)
 
     if c.forbid_negative_total_power:
-        before = activation_heat + maintenance_heat + shortening_heat + work
-        shortening_heat = np.where(before < 0.0, shortening_heat - before, shortening_heat)
+        shortening_heat = shortening_heat_for_nonnegative_total(
+            shortening_heat, activation_heat + maintenance_heat + shortening_heat + work)
 
     all_heat_on = c.activation_rate_on and c.maintenance_rate_on and c.shortening_rate_on
     if all_heat_on:

@@ -31,7 +31,12 @@ from __future__ import annotations
 import numpy as np
 
 from vm_ros.energetics_models.constants import HoudijkConstants
-from vm_ros.energetics_models.state import HeatRates, MuscleState
+from vm_ros.energetics_models.state import (
+    HeatRates,
+    MuscleState,
+    mechanical_work_rate,
+    shortening_heat_for_nonnegative_total,
+)
 from vm_ros.energetics_models.umberger import force_length_multiplier_from_state
 
 
@@ -71,11 +76,11 @@ def houdijk2006(state: MuscleState, constants: HoudijkConstants,
     activation_heat = mass * g_bar * nu * recruited / at_max
     maintenance_heat = mass * a * (total_bar * f_iso - g_bar)
     shortening_heat = np.where(velocity <= 0.0, -a_bar * a * f_iso * velocity, 0.0)
-    work = -np.asarray(state.active_fibre_force, dtype=float) * velocity
-    work = np.where(c.include_negative_mechanical_work | (velocity <= 0.0), work, 0.0)
+    work = mechanical_work_rate(np.asarray(state.active_fibre_force, dtype=float), velocity,
+                                c.include_negative_mechanical_work)
     if c.forbid_negative_total_power:
-        before = activation_heat + maintenance_heat + shortening_heat + work
-        shortening_heat = np.where(before < 0.0, shortening_heat - before, shortening_heat)
+        shortening_heat = shortening_heat_for_nonnegative_total(
+            shortening_heat, activation_heat + maintenance_heat + shortening_heat + work)
     total = activation_heat + maintenance_heat + shortening_heat + work
     return HeatRates(
         activation_maintenance=activation_heat + maintenance_heat,

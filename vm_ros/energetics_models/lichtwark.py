@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from vm_ros.energetics_models.constants import LichtwarkConstants
-from vm_ros.energetics_models.state import HeatRates, MuscleState
+from vm_ros.energetics_models.state import HeatRates, MuscleState, mechanical_work_rate
 from vm_ros.energetics_models.umberger import force_length_multiplier_from_state
 
 
@@ -82,8 +82,8 @@ def lichtwark_wilson(state: MuscleState, constants: LichtwarkConstants,
     stable = c.stable_maintenance_fraction
     activation_maintenance = a * maintenance * (stable + (1.0 - stable) * f_iso) * scale
     shortening_lengthening = a * f_iso * shortening_heat * scale
-    work = -np.asarray(state.active_fibre_force, dtype=float) * velocity
-    work = np.where(c.include_negative_mechanical_work | (velocity <= 0.0), work, 0.0)
+    work = mechanical_work_rate(np.asarray(state.active_fibre_force, dtype=float), velocity,
+                                c.include_negative_mechanical_work)
     total = activation_maintenance + shortening_lengthening + work
     return HeatRates(
         activation_maintenance=activation_maintenance,

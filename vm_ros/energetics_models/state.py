@@ -48,3 +48,15 @@ class HeatRates:
     basal: np.ndarray
     mechanical_work: np.ndarray
     total: np.ndarray
+
+
+def mechanical_work_rate(force, velocity, include_negative_mechanical_work: bool):
+    """-F V (W; positive while shortening, V < 0), and 0 while lengthening (V > 0) unless
+    ``include_negative_mechanical_work``: the models' shared work term and its option."""
+    return np.where(include_negative_mechanical_work | (velocity <= 0.0), -force * velocity, 0.0)
+
+
+def shortening_heat_for_nonnegative_total(shortening_heat, total):
+    """The models' ``forbid_negative_total_power`` (OpenSim's name): where ``total`` is below 0
+    the shortening heat is raised by the deficit, so the total becomes 0."""
+    return np.where(total < 0.0, shortening_heat - total, shortening_heat)

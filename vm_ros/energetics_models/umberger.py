@@ -39,7 +39,12 @@ import numpy as np
 
 from vm_ros.energetics_models.bhargava import recruited_excitations
 from vm_ros.energetics_models.constants import UmbergerConstants
-from vm_ros.energetics_models.state import HeatRates, MuscleState
+from vm_ros.energetics_models.state import (
+    HeatRates,
+    MuscleState,
+    mechanical_work_rate,
+    shortening_heat_for_nonnegative_total,
+)
 
 
 def force_length_multiplier_from_state(state: MuscleState):
@@ -104,12 +109,11 @@ def umberger(state: MuscleState, constants: UmbergerConstants,
     shortening = np.where(velocity_norm <= 0.0, shortening_rate, lengthening_rate)
     shortening = np.where(lengthened, shortening * f_iso, shortening)
 
-    work = np.where(c.include_negative_mechanical_work | (velocity <= 0.0),
-                    -f_active * velocity, 0.0) / mass
+    work = mechanical_work_rate(f_active, velocity, c.include_negative_mechanical_work) / mass
 
     if c.forbid_negative_total_power:
-        before = activation_maintenance + shortening + work
-        shortening = np.where(before < 0.0, shortening - before, shortening)
+        shortening = shortening_heat_for_nonnegative_total(
+            shortening, activation_maintenance + shortening + work)
 
     both_heat_on = c.activation_maintenance_rate_on and c.shortening_rate_on
     if both_heat_on:
