@@ -486,7 +486,7 @@ class MuscleBank:
             for row in range(u.shape[0]):
                 outs.append(self._step_model(dt, u[row], lp[row], vp[row]))
                 if snapshot_every and (row + 1) % snapshot_every == 0:
-                    states.append(self._state.copy())
+                    states.append(self._state)  # never modified in place (restore_point)
         except InputError as error:
             self._state = saved
             raise InputError(f"{error.name} at step {len(outs)}", error.value,
