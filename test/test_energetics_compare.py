@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import operator
 
 import numpy as np
 import pytest
@@ -132,8 +133,9 @@ def test_verb_writes_one_row_per_model_scenario_composition(tmp_path, capsys):
     assert code == 0
     rows = _table(out / "energetics_comparison.csv")
     scenarios = {r["scenario"] for r in rows}
-    settings = dataclasses.replace(compare.load_comparison_settings(), knee_duration_s=2.0,
-                                   gait_cycles=2, compositions=("slow", "fast"))
+    settings = dataclasses.replace(compare.with_duration(compare.load_comparison_settings(), 2.0),
+                                   compositions=("slow", "fast"))
+    assert settings.knee_extension.duration == 2.0 and settings.gait_cycle.cycles == 2
     assert scenarios == {run.name for run in compare.scenario_set(settings)}
     keys = {(r["model"], r["scenario"], r["composition"]) for r in rows}
     assert len(rows) == len(keys) == (len(MODEL_NAMES) + 1) * len(scenarios) * 2
@@ -167,15 +169,17 @@ def test_bad_option_is_one_line_and_exit_2(tmp_path, capsys, argv):
 # The scenario constants in config/energetics_compare.yaml: the values ComparisonSettings held as
 # Python defaults before they moved to the file (so the comparison's numbers did not change).
 PREVIOUS_DEFAULTS = {
-    "dt_s": 0.001, "sweep_muscle": "vasti", "sweep_recovery_mode": "static",
-    "isometric_drives": (0.1, 0.25, 0.5, 0.75, 1.0), "isometric_duration_s": 2.0,
-    "isometric_length_l0": 1.0, "isovelocity_drive": 0.5,
-    "isovelocity_speeds_l0_per_s": (-2.0, -1.0, -0.5, -0.25, 0.25, 0.5, 1.0, 2.0),
-    "isovelocity_centre_l0": 1.0, "isovelocity_half_travel_l0": 0.15, "knee_duration_s": 180.0,
-    "gait_frequency_hz": 1.0, "gait_cycles": 20, "gait_peak_drive": 0.4,
-    "gait_burst_fraction": 0.4, "gait_length_amplitude_l0": 0.08, "gait_mid_length_l0": 1.0,
-    "composition_slow_fractions": {"slow": 0.85, "mixed": 0.50, "fast": 0.15, "library": None},
-    "rate_bin_s": 1.0, "compositions": ("slow", "mixed", "fast", "library"),
+    "run.dt": 0.001, "run.sweep_muscle": "vasti", "run.sweep_recovery_mode": "static",
+    "isometric.drives": (0.1, 0.25, 0.5, 0.75, 1.0), "isometric.duration": 2.0,
+    "isometric.fascicle_length": 1.0, "isovelocity.drive": 0.5,
+    "isovelocity.speeds": (-2.0, -1.0, -0.5, -0.25, 0.25, 0.5, 1.0, 2.0),
+    "isovelocity.centre_length": 1.0, "isovelocity.half_travel": 0.15,
+    "knee_extension.duration": 180.0,
+    "gait_cycle.frequency": 1.0, "gait_cycle.cycles": 20, "gait_cycle.peak_drive": 0.4,
+    "gait_cycle.burst_fraction": 0.4, "gait_cycle.length_amplitude": 0.08,
+    "gait_cycle.mid_length": 1.0,
+    "slow_fractions.slow": 0.85, "slow_fractions.mixed": 0.50, "slow_fractions.fast": 0.15,
+    "run.rate_bin": 1.0, "compositions": ("slow", "mixed", "fast", "library"),
     "groups": ("isometric", "isovelocity", "knee_extension", "gait_cycle"),
 }
 
@@ -183,18 +187,19 @@ PREVIOUS_DEFAULTS = {
 def test_shipped_config_holds_the_previous_defaults():
     settings = compare.load_comparison_settings()
     for name, value in PREVIOUS_DEFAULTS.items():
-        assert getattr(settings, name) == value, name
-    assert isinstance(settings.gait_cycles, int)
+        assert operator.attrgetter(name)(settings) == value, name
+    assert settings.slow_fractions.slow_fraction("library") is None
+    assert isinstance(settings.gait_cycle.cycles, int)
     assert compare.comparison_config_path().name == "energetics_compare.yaml"
     assert compare.comparison_config_path().is_file()
 
 
 def test_duration_cuts_the_gait_cycle_to_whole_cycles():
     settings = compare.load_comparison_settings()
-    assert compare.with_duration(settings, 2.5).gait_cycles == 2
-    assert compare.with_duration(settings, 0.3).gait_cycles == 1
-    assert compare.with_duration(settings, 600.0).gait_cycles == 20
-    assert compare.with_duration(settings, 2.5).knee_duration_s == 2.5
+    assert compare.with_duration(settings, 2.5).gait_cycle.cycles == 2
+    assert compare.with_duration(settings, 0.3).gait_cycle.cycles == 1
+    assert compare.with_duration(settings, 600.0).gait_cycle.cycles == 20
+    assert compare.with_duration(settings, 2.5).knee_extension.duration == 2.5
 
 
 def _shipped():
@@ -261,7 +266,7 @@ def test_config_option_changes_the_run(tmp_path):
     data["compositions"]["fast"]["value"] = 0.25
     path = _write(tmp_path, data)
     settings = compare.load_comparison_settings(path)
-    assert settings.isometric_drives == (0.3,) and settings.isometric_duration_s == 0.05
+    assert settings.isometric.drives == (0.3,) and settings.isometric.duration == 0.05
     out = tmp_path / "cmp"
     code = main(["compare-energetics", "--config", str(path), "--scenarios", "isometric",
                  "--compositions", "fast", "--models", "margaria1968", "--out", str(out)])

@@ -50,6 +50,7 @@ from vm_ros.model.params import (  # model.yaml's reader
     _read_section,
     _section,
 )
+from vm_ros.recording.tables import bin_means
 from vm_ros.resources import config_dir
 from vm_ros.scenarios import load_scenario
 
@@ -60,40 +61,10 @@ COMPOSITION_NAMES = ("slow", "mixed", "fast", LIBRARY)
 GROUPS = ("isometric", "isovelocity", "knee_extension", "gait_cycle")
 
 
+# The file's sections, read field by field as model.yaml's are (unit checked against _holds;
+# values in the units the names give: s, 1/s, L0, L0/s).
 @dataclass(frozen=True)
-class ComparisonSettings:
-    """The comparison's scenario constants (module docstring), from
-    config/energetics_compare.yaml (:func:`load_comparison_settings`; units in the names), and
-    the selection of a run (compositions, groups, models: all by default)."""
-
-    dt_s: float
-    sweep_muscle: str
-    sweep_recovery_mode: str
-    rate_bin_s: float
-    negligible_ratio: float
-    isometric_drives: tuple
-    isometric_duration_s: float
-    isometric_length_l0: float
-    isovelocity_drive: float
-    isovelocity_speeds_l0_per_s: tuple
-    isovelocity_centre_l0: float
-    isovelocity_half_travel_l0: float
-    knee_duration_s: float
-    gait_frequency_hz: float
-    gait_cycles: int
-    gait_peak_drive: float
-    gait_burst_fraction: float
-    gait_length_amplitude_l0: float
-    gait_mid_length_l0: float
-    composition_slow_fractions: dict  # name -> fpcsa_slow, None for LIBRARY
-    compositions: tuple = COMPOSITION_NAMES
-    groups: tuple = GROUPS
-    models: tuple = MODEL_NAMES
-
-
-# The file's sections, read field by field as model.yaml's are (unit checked against _holds).
-@dataclass(frozen=True)
-class _RunSection:
+class RunSection:
     dt: float = _holds("s")
     sweep_muscle: str = _holds("-")
     sweep_recovery_mode: str = _holds("-")
@@ -102,14 +73,14 @@ class _RunSection:
 
 
 @dataclass(frozen=True)
-class _IsometricSection:
+class IsometricSection:
     drives: tuple = _holds("1")
     duration: float = _holds("s")
     fascicle_length: float = _holds("L0")
 
 
 @dataclass(frozen=True)
-class _IsovelocitySection:
+class IsovelocitySection:
     drive: float = _holds("1")
     speeds: tuple = _holds("L0/s")
     centre_length: float = _holds("L0")
@@ -117,14 +88,14 @@ class _IsovelocitySection:
 
 
 @dataclass(frozen=True)
-class _KneeSection:
+class KneeSection:
     duration: float = _holds("s")
 
 
 @dataclass(frozen=True)
-class _GaitSection:
+class GaitSection:
     frequency: float = _holds("1/s")
-    cycles: float = _holds("1")
+    cycles: float = _holds("1")  # a whole number, held as an int once loaded
     peak_drive: float = _holds("1")
     burst_fraction: float = _holds("1")
     length_amplitude: float = _holds("L0")
@@ -132,15 +103,39 @@ class _GaitSection:
 
 
 @dataclass(frozen=True)
-class _CompositionsSection:
+class CompositionsSection:
     slow: float = _holds("1")
     mixed: float = _holds("1")
     fast: float = _holds("1")
 
+    def slow_fraction(self, composition: str) -> float | None:
+        """fpcsa_slow of ``composition``; None for LIBRARY (each muscle keeps its own)."""
+        return None if composition == LIBRARY else getattr(self, composition)
 
-_SECTIONS = {"run": _RunSection, "isometric": _IsometricSection,
-             "isovelocity": _IsovelocitySection, "knee_extension": _KneeSection,
-             "gait_cycle": _GaitSection, "compositions": _CompositionsSection}
+
+@dataclass(frozen=True)
+class ComparisonSettings:
+    """The comparison's scenario constants (module docstring): the sections of
+    config/energetics_compare.yaml (:func:`load_comparison_settings`), and the selection of a
+    run (compositions, groups, models: all by default)."""
+
+    run: RunSection
+    isometric: IsometricSection
+    isovelocity: IsovelocitySection
+    knee_extension: KneeSection
+    gait_cycle: GaitSection
+    slow_fractions: CompositionsSection  # the file's section "compositions"
+    compositions: tuple = COMPOSITION_NAMES
+    groups: tuple = GROUPS
+    models: tuple = MODEL_NAMES
+
+
+# file section -> (its dataclass, the ComparisonSettings field that holds it)
+_SECTIONS = {"run": (RunSection, "run"), "isometric": (IsometricSection, "isometric"),
+             "isovelocity": (IsovelocitySection, "isovelocity"),
+             "knee_extension": (KneeSection, "knee_extension"),
+             "gait_cycle": (GaitSection, "gait_cycle"),
+             "compositions": (CompositionsSection, "slow_fractions")}
 
 
 def comparison_config_path(path=None) -> Path:
@@ -165,7 +160,7 @@ def load_comparison_settings(path=None) -> ComparisonSettings:
         raise ConfigError(path, unknown[0], None,
                           f"unknown section; known: {', '.join(_SECTIONS)}")
     read = {name: cls(**_read_section(cls, path, _section(path, data, name), name, {}))
-            for name, cls in _SECTIONS.items()}
+            for name, (cls, _) in _SECTIONS.items()}
     run, iso, vel = read["run"], read["isometric"], read["isovelocity"]
     knee, gait, comp = read["knee_extension"], read["gait_cycle"], read["compositions"]
 
@@ -203,27 +198,19 @@ def load_comparison_settings(path=None) -> ComparisonSettings:
     ):
         _check(path, where, value, ok, reason)
     return ComparisonSettings(
-        dt_s=run.dt, sweep_muscle=run.sweep_muscle, sweep_recovery_mode=run.sweep_recovery_mode,
-        rate_bin_s=run.rate_bin, negligible_ratio=run.negligible_ratio,
-        isometric_drives=iso.drives, isometric_duration_s=iso.duration,
-        isometric_length_l0=iso.fascicle_length,
-        isovelocity_drive=vel.drive, isovelocity_speeds_l0_per_s=vel.speeds,
-        isovelocity_centre_l0=vel.centre_length, isovelocity_half_travel_l0=vel.half_travel,
-        knee_duration_s=knee.duration,
-        gait_frequency_hz=gait.frequency, gait_cycles=int(gait.cycles),
-        gait_peak_drive=gait.peak_drive, gait_burst_fraction=gait.burst_fraction,
-        gait_length_amplitude_l0=gait.length_amplitude, gait_mid_length_l0=gait.mid_length,
-        composition_slow_fractions={"slow": comp.slow, "mixed": comp.mixed, "fast": comp.fast,
-                                    LIBRARY: None},
-    )
+        **{field: read[name] for name, (_, field) in _SECTIONS.items()
+           if name != "gait_cycle"},
+        gait_cycle=dataclasses.replace(gait, cycles=int(gait.cycles)))
 
 
 def with_duration(settings: ComparisonSettings, duration_s: float) -> ComparisonSettings:
     """``settings`` with the knee extension lasting ``duration_s`` and the gait-like cycle cut
     to as many whole cycles (at least 1) as fit in it, never more than the file's."""
-    fit = max(1, math.floor(duration_s * settings.gait_frequency_hz + 1e-9))
-    return dataclasses.replace(settings, knee_duration_s=duration_s,
-                               gait_cycles=min(settings.gait_cycles, fit))
+    gait = settings.gait_cycle
+    fit = max(1, math.floor(duration_s * gait.frequency + 1e-9))
+    return dataclasses.replace(
+        settings, knee_extension=dataclasses.replace(settings.knee_extension, duration=duration_s),
+        gait_cycle=dataclasses.replace(gait, cycles=min(gait.cycles, fit)))
 
 
 @dataclass(frozen=True)
@@ -271,54 +258,56 @@ def _steps(duration_s: float, dt: float) -> int:
 
 def _isometric(drive: float, s: ComparisonSettings) -> ScenarioRun:
     def inputs(bank):
-        k = _steps(s.isometric_duration_s, s.dt_s)
-        lp = path_length_at(bank, drive, s.isometric_length_l0)
+        k = _steps(s.isometric.duration, s.run.dt)
+        lp = path_length_at(bank, drive, s.isometric.fascicle_length)
         return (np.full((k, bank.n), drive), np.tile(lp, (k, 1)), np.zeros((k, bank.n)),
                 np.full(bank.n, drive))
-    return ScenarioRun(f"isometric_u{drive:.2f}", "isometric", (s.sweep_muscle,),
-                       s.sweep_recovery_mode, inputs)
+    return ScenarioRun(f"isometric_u{drive:.2f}", "isometric", (s.run.sweep_muscle,),
+                       s.run.sweep_recovery_mode, inputs)
 
 
 def _isovelocity(speed: float, s: ComparisonSettings) -> ScenarioRun:
+    c = s.isovelocity
+
     def inputs(bank):
-        travel = 2.0 * s.isovelocity_half_travel_l0
-        k = _steps(travel / abs(speed), s.dt_s)
-        start = s.isovelocity_centre_l0 - np.sign(speed) * s.isovelocity_half_travel_l0
-        lp0 = path_length_at(bank, s.isovelocity_drive, start)
-        t = np.arange(k)[:, None] * s.dt_s
+        k = _steps(2.0 * c.half_travel / abs(speed), s.run.dt)
+        lp0 = path_length_at(bank, c.drive, c.centre_length - np.sign(speed) * c.half_travel)
+        t = np.arange(k)[:, None] * s.run.dt
         velocity = speed * bank.l0_m
-        return (np.full((k, bank.n), s.isovelocity_drive), lp0 + velocity * t,
-                np.tile(velocity, (k, 1)), np.full(bank.n, s.isovelocity_drive))
-    return ScenarioRun(f"isovelocity_{speed:+.2f}", "isovelocity", (s.sweep_muscle,),
-                       s.sweep_recovery_mode, inputs)
+        return (np.full((k, bank.n), c.drive), lp0 + velocity * t, np.tile(velocity, (k, 1)),
+                np.full(bank.n, c.drive))
+    return ScenarioRun(f"isovelocity_{speed:+.2f}", "isovelocity", (s.run.sweep_muscle,),
+                       s.run.sweep_recovery_mode, inputs)
 
 
 def _knee(s: ComparisonSettings) -> ScenarioRun:
     scenario = load_scenario("knee_extension")
 
     def inputs(bank):
-        k = _steps(s.knee_duration_s, s.dt_s)
-        u, lp, vp = scenario.inputs(bank).sample(np.arange(k) * s.dt_s)
+        k = _steps(s.knee_extension.duration, s.run.dt)
+        u, lp, vp = scenario.inputs(bank).sample(np.arange(k) * s.run.dt)
         return u, lp, vp, None
     return ScenarioRun("knee_extension", "knee_extension", scenario.muscles,
                        scenario.recovery_mode, inputs)
 
 
 def _gait(s: ComparisonSettings) -> ScenarioRun:
+    g = s.gait_cycle
+
     def inputs(bank):
-        k = _steps(s.gait_cycles / s.gait_frequency_hz, s.dt_s)
-        t = np.arange(k) * s.dt_s
-        phase = (t * s.gait_frequency_hz) % 1.0
-        burst = np.where(phase < s.gait_burst_fraction,
-                         np.sin(np.pi * phase / s.gait_burst_fraction) ** 2, 0.0)
-        w = 2.0 * np.pi * s.gait_frequency_hz
-        mid = path_length_at(bank, 0.0, s.gait_mid_length_l0)
-        amplitude = s.gait_length_amplitude_l0 * bank.l0_m
-        u = np.tile((s.gait_peak_drive * burst)[:, None], (1, bank.n))
+        k = _steps(g.cycles / g.frequency, s.run.dt)
+        t = np.arange(k) * s.run.dt
+        phase = (t * g.frequency) % 1.0
+        burst = np.where(phase < g.burst_fraction,
+                         np.sin(np.pi * phase / g.burst_fraction) ** 2, 0.0)
+        w = 2.0 * np.pi * g.frequency
+        mid = path_length_at(bank, 0.0, g.mid_length)
+        amplitude = g.length_amplitude * bank.l0_m
+        u = np.tile((g.peak_drive * burst)[:, None], (1, bank.n))
         return (u, mid + amplitude * np.sin(w * t)[:, None],
                 amplitude * w * np.cos(w * t)[:, None] * np.ones(bank.n), None)
-    return ScenarioRun("gait_cycle", "gait_cycle", (s.sweep_muscle,), s.sweep_recovery_mode,
-                       inputs)
+    return ScenarioRun("gait_cycle", "gait_cycle", (s.run.sweep_muscle,),
+                       s.run.sweep_recovery_mode, inputs)
 
 
 def scenario_set(settings: ComparisonSettings) -> list:
@@ -326,9 +315,9 @@ def scenario_set(settings: ComparisonSettings) -> list:
     s = settings
     runs = []
     if "isometric" in s.groups:
-        runs += [_isometric(d, s) for d in s.isometric_drives]
+        runs += [_isometric(d, s) for d in s.isometric.drives]
     if "isovelocity" in s.groups:
-        runs += [_isovelocity(v, s) for v in s.isovelocity_speeds_l0_per_s]
+        runs += [_isovelocity(v, s) for v in s.isovelocity.speeds]
     if "knee_extension" in s.groups:
         runs.append(_knee(s))
     if "gait_cycle" in s.groups:
@@ -339,7 +328,7 @@ def scenario_set(settings: ComparisonSettings) -> list:
 def make_bank(run: ScenarioRun, composition: str, settings: ComparisonSettings) -> MuscleBank:
     """The scenario's bank with every muscle's fpcsa_slow set by ``composition`` (its fraction
     in ``settings``; ``library`` keeps the library's)."""
-    slow = settings.composition_slow_fractions[composition]
+    slow = settings.slow_fractions.slow_fraction(composition)
     overrides = None if slow is None else {m: {"fpcsa_slow": slow} for m in run.muscles}
     return MuscleBank.from_config(list(run.muscles), overrides=overrides,
                                   recovery_mode=run.recovery_mode)
@@ -351,8 +340,8 @@ def run_scenario(run: ScenarioRun, composition: str, settings: ComparisonSetting
     bank = make_bank(run, composition, settings)
     u, lp, vp, reset_drive = run.inputs(bank)
     bank.reset(lp[0], excitation=reset_drive)
-    trajectory = bank.run(settings.dt_s, u, lp, vp)
-    dt = settings.dt_s
+    dt = settings.run.dt
+    trajectory = bank.run(dt, u, lp, vp)
     rates = {TSIANOS: trajectory.record.energy_rates[..., 3].sum(axis=-1)}
     for name, heat in published_rates(bank, trajectory, settings.models).items():
         rates[name] = heat.total.sum(axis=-1)
@@ -452,17 +441,6 @@ def _style(model: str, index: int):
     return (f"C{index % 10}", "-" if index < 10 else "--", 1.2)
 
 
-def binned_rate(time_s, rate_w, bin_s: float):
-    """Mean rate (W) per bin of ``bin_s`` s (as Tsianos 2012 Fig. 7 averages over 1 s bins):
-    (bin centres (s), rates); a last partial bin is dropped unless it is the only one."""
-    dt = float(time_s[1] - time_s[0]) if len(time_s) > 1 else bin_s
-    per_bin = max(1, int(round(bin_s / dt)))
-    count = max(1, len(rate_w) // per_bin)
-    used = np.asarray(rate_w[:count * per_bin], dtype=float)
-    rates = used.reshape(count, -1).mean(axis=1)
-    return (np.arange(count) + 0.5) * per_bin * dt, rates
-
-
 def ratio_row(results, scenarios, composition: str, model: str) -> np.ndarray:
     """``model``'s energy / Tsianos 2012's per scenario of ``scenarios`` (NaN where a scenario
     is missing for ``composition`` or Tsianos 2012's energy is 0)."""
@@ -486,7 +464,7 @@ def ratio_axis(ratios, negligible: float) -> tuple:
 
 
 def write_figures(results, settings: ComparisonSettings, out: Path) -> list:
-    """The knee-extension rate traces (bins of ``settings.rate_bin_s``, one panel per
+    """The knee-extension rate traces (bins of ``settings.run.rate_bin`` s, one panel per
     composition) and a bar chart of every model's energy relative to Tsianos 2012 per scenario
     group (one panel per composition, log y axis: :func:`ratio_axis`). Returns the PNG paths.
     Needs matplotlib (ImportError otherwise)."""
@@ -505,13 +483,13 @@ def write_figures(results, settings: ComparisonSettings, out: Path) -> list:
         for ax, r in zip(axes[:, 0], knee, strict=True):
             for i, model in enumerate(models):
                 colour, style, width = _style(model, i - 1)
-                centres, rates = binned_rate(r.time_s, r.rates_w[model], settings.rate_bin_s)
+                centres, rates = bin_means(r.time_s, r.rates_w[model], settings.run.rate_bin)
                 ax.plot(centres, rates, color=colour, linestyle=style, linewidth=width,
                         label=model)
             ax.set_ylabel("rate (W)")
             ax.set_title(f"knee extension, {r.composition} (fpcsa_slow "
                          f"{', '.join(f'{f:.2f}' for f in r.fpcsa_slow)}), "
-                         f"{settings.rate_bin_s:g} s bins",
+                         f"{settings.run.rate_bin:g} s bins",
                          fontsize=9)
             ax.grid(alpha=0.3)
         axes[-1, 0].set_xlabel("time (s)")
@@ -533,13 +511,13 @@ def write_figures(results, settings: ComparisonSettings, out: Path) -> list:
         ratios = {(c, m): ratio_row(chosen, scenarios, c, m)
                   for c in compositions for m in settings.models}
         scale, floor = ratio_axis(np.concatenate(list(ratios.values())),
-                                  settings.negligible_ratio)
+                                  settings.run.negligible_ratio)
         for ax, composition in zip(axes[:, 0], compositions, strict=True):
             x = np.arange(len(scenarios))
             ax.set_yscale(scale, **({"linthresh": floor} if scale == "symlog" else {}))
             for i, model in enumerate(settings.models):
                 values = ratios[(composition, model)]
-                negligible = np.abs(values) < settings.negligible_ratio
+                negligible = np.abs(values) < settings.run.negligible_ratio
                 centres = x - 0.4 + (i + 0.5) * width
                 colour = _style(model, i)[0]
                 ax.bar(centres, np.where(negligible, np.nan, values), width, color=colour,
@@ -566,7 +544,6 @@ def write_figures(results, settings: ComparisonSettings, out: Path) -> list:
 
 
 __all__ = [
-    "binned_rate",
     "ratio_axis",
     "ratio_row",
     "column_label",
@@ -578,6 +555,12 @@ __all__ = [
     "TABLE_COLUMNS",
     "TSIANOS",
     "ComparisonSettings",
+    "CompositionsSection",
+    "GaitSection",
+    "IsometricSection",
+    "IsovelocitySection",
+    "KneeSection",
+    "RunSection",
     "ScenarioResult",
     "ScenarioRun",
     "comparison_config_path",
