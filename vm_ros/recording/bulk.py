@@ -179,21 +179,38 @@ class OutputLayouts:
             tm.energy_rate_models_layout(names, models),
             n * len(models) * len(tm.MODEL_COMPONENT_LABELS)) if models else None)
 
+    def _topics(self, position, velocity, effort, energy_rate, rate_total, energy_total,
+                models) -> list:
+        """(topic, layout, values) of each published muscle topic, in publishing order: the one
+        place that says which output goes into which message."""
+        topics = [
+            (tm.TOPIC_FORCE, self.force,
+             {"position": position, "velocity": velocity, "effort": effort}),
+            (tm.TOPIC_ENERGY_RATE, self.energy_rate, {"data": energy_rate}),
+            (tm.TOPIC_ENERGY_RATE_TOTAL, self.float64, {"data": rate_total}),
+            (tm.TOPIC_ENERGY_TOTAL, self.float64, {"data": energy_total}),
+        ]
+        if self.models is not None:
+            topics.append((tm.TOPIC_ENERGY_RATE_MODELS, self.models, {"data": models}))
+        return topics
+
     def encode(self, out, stamp_ns: int, energy_offset_j: float = 0.0) -> list:
         """[(topic, bytes)] of ``out``, the force message stamped ``stamp_ns``; energy_total
         adds ``energy_offset_j`` (energy before a model reset)."""
-        models = [] if self.models is None else [
-            (tm.TOPIC_ENERGY_RATE_MODELS, self.models.encode_one(data=out.energy_rate_models))]
-        return [
-            (tm.TOPIC_FORCE, self.force.encode_one(stamp_ns, position=out.fascicle_length,
-                                                   velocity=out.fascicle_velocity,
-                                                   effort=out.force)),
-            (tm.TOPIC_ENERGY_RATE, self.energy_rate.encode_one(data=tm.energy_rate_array(out))),
-            (tm.TOPIC_ENERGY_RATE_TOTAL, self.float64.encode_one(data=out.total_energy_rate)),
-            (tm.TOPIC_ENERGY_TOTAL,
-             self.float64.encode_one(data=energy_offset_j + out.total_energy)),
-            *models,
-        ]
+        topics = self._topics(out.fascicle_length, out.fascicle_velocity, out.force,
+                              tm.energy_rate_array(out), out.total_energy_rate,
+                              energy_offset_j + out.total_energy,
+                              out.energy_rate_models if self.models is not None else None)
+        return [(topic, layout.encode_one(stamp_ns, **values))
+                for topic, layout, values in topics]
+
+    def encode_many(self, stamps_ns, position, velocity, effort, energy_rate, rate_total,
+                    energy_total, models=None) -> list:
+        """[(topic, [bytes] per step)] of k published steps, the arrays with a leading step
+        axis (energy_rate as telemetry.energy_rate_rows gives it)."""
+        topics = self._topics(position, velocity, effort, energy_rate, rate_total, energy_total,
+                              models)
+        return [(topic, layout.encode(stamps_ns, **values)) for topic, layout, values in topics]
 
 
 # vm_ros/msg/MuscleTelemetry arrays in message order, with their length per muscle

@@ -609,19 +609,11 @@ class _Ticks:
                  for key in self.published[0]}
             keys = p["slot"] * 16 + _OUTPUT_RANK
             stamps = p["time"]
-            pending.add(keys + _OUTPUT_ORDER[tm.TOPIC_FORCE], tm.TOPIC_FORCE,
-                        self.outputs.force.encode(stamps, position=p["position"],
-                                          velocity=p["velocity"], effort=p["effort"]), stamps)
-            pending.add(keys + _OUTPUT_ORDER[tm.TOPIC_ENERGY_RATE], tm.TOPIC_ENERGY_RATE,
-                        self.outputs.energy_rate.encode(data=p["energy_rate"]), stamps)
-            for topic, key in ((tm.TOPIC_ENERGY_RATE_TOTAL, "rate_total"),
-                               (tm.TOPIC_ENERGY_TOTAL, "energy_total")):
-                pending.add(keys + _OUTPUT_ORDER[topic], topic,
-                            self.outputs.float64.encode(data=p[key]), stamps)
-            if self.outputs.models is not None:
-                pending.add(keys + _OUTPUT_ORDER[tm.TOPIC_ENERGY_RATE_MODELS],
-                            tm.TOPIC_ENERGY_RATE_MODELS,
-                            self.outputs.models.encode(data=p["models"]), stamps)
+            encoded = self.outputs.encode_many(
+                stamps, p["position"], p["velocity"], p["effort"], p["energy_rate"],
+                p["rate_total"], p["energy_total"], p.get("models"))
+            for topic, messages in encoded:
+                pending.add(keys + _OUTPUT_ORDER[topic], topic, messages, stamps)
         if self.recorded:
             r = {key: np.concatenate([part[key] for part in self.recorded])
                  for key in self.recorded[0]}
