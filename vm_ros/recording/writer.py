@@ -111,6 +111,11 @@ class _Block:
     log_times_ns: np.ndarray
 
 
+def _message_count(item) -> int:
+    """Messages in a queue entry: a block's, or one."""
+    return len(item.data) if isinstance(item, _Block) else 1
+
+
 class _BlockError(Exception):
     """A block failed after ``handed`` of its messages went to the writer."""
 
@@ -380,7 +385,7 @@ class McapRecorder:
             late = 0
             while not self._queue.empty():  # written after close() began: never recorded
                 item = self._queue.get_nowait()
-                late += len(item.data) if isinstance(item, _Block) else 1
+                late += _message_count(item)
             self._count_dropped(late)
             self._closed = True
 
@@ -408,7 +413,7 @@ class McapRecorder:
                 time.sleep(0)
             if self._error is not None:
                 if item is not None:
-                    self._count_dropped(len(item.data) if isinstance(item, _Block) else 1)
+                    self._count_dropped(_message_count(item))
                 continue
             try:
                 if isinstance(item, _Block):
