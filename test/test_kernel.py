@@ -2,13 +2,14 @@
 
 The NumPy step is the one test_integrator.py holds against the scipy Radau reference; the compiled
 step calls the same equation functions in the same order, so the two must agree to rounding. The
-kernel is compiled with fast-math contraction and reassociation (fused multiply-adds), so they
-differ in the last bits, and the stiff fascicle dynamics carry that on: measured over these 1500
-steps at most 4e-6 of the largest fascicle velocity (where FV is flat a rounding-level force
-difference moves V most), 2e-8 of length, 7e-9 of force. Held here to 1e-5 of each field's scale;
-an error in an equation shows up at 1e-3 or more. Without Numba the compiled
-step is unavailable, the bank falls back to NumPy, and the comparisons are skipped (they are
-recorded as skips, so a Numba-less run shows them); the kernel's own code is still held to the
+kernel is compiled with fused multiply-adds (fast-math contraction) and its exp, expm1, log,
+log1p and power are vm_ros.model.jit's arithmetic versions (within a few ulp of NumPy's, checked
+below), so they differ in the last bits, and the stiff fascicle dynamics carry that on: measured
+over these 1500 steps at most 8e-8 of the largest fascicle velocity (where FV is flat a
+rounding-level force difference moves V most), 5e-10 of length, 4e-10 of force. Held here to
+1e-5 of each field's scale; an error in an equation shows up at 1e-3 or more. Without Numba the
+compiled step is unavailable, the bank falls back to NumPy, and the comparisons are skipped (they
+are recorded as skips, so a Numba-less run shows them); the kernel's own code is still held to the
 NumPy step, run as plain Python, by test_model_layout.py.
 """
 
@@ -23,7 +24,7 @@ import pytest
 
 from vm_ros.bench import model_bench
 from vm_ros.errors import InputError
-from vm_ros.model import SCHEMES, MuscleBank, kernel, layout, load_model_params
+from vm_ros.model import SCHEMES, MuscleBank, jit, kernel, layout, load_model_params
 from vm_ros.model.compiled_step import CompiledStep, KernelConstants
 from vm_ros.model.lumped_fit import with_drive_law
 from vm_ros.model.params import DRIVE_LAWS
@@ -67,6 +68,55 @@ def assert_outputs_equal(a, b):
         assert_close(getattr(a, name), getattr(b, name), name)
     assert_close(a.energy_rate_by_fibre.as_array(), b.energy_rate_by_fibre.as_array(), "rates")
     assert_close(a.energy_by_fibre.as_array(), b.energy_by_fibre.as_array(), "energies")
+
+
+def _compiled_math():
+    """jit's exp, expm1, log, log1p and power compiled as the kernel compiles them."""
+    import numba
+
+    @numba.njit(fastmath=kernel.FASTMATH, error_model="numpy")
+    def evaluate(x, y, exponent, out):
+        for i in range(x.shape[0]):
+            out[0, i] = jit.exp(x[i])
+            out[1, i] = jit.expm1(x[i])
+            out[2, i] = jit.log(y[i])
+            out[3, i] = jit.log1p(y[i] - 1.0 if y[i] < 1.0 else y[i])
+            out[4, i] = jit.power(y[i], exponent[i])
+
+    return evaluate
+
+
+@needs_numba
+def test_compiled_transcendentals_match_numpy_to_a_few_ulp():
+    """The arithmetic exp, expm1, log, log1p and power the kernel uses (no libm calls, so that
+    its loops vectorise) against NumPy's libm: within 2 ulp (log1p also where 1 + x rounds, and
+    over (-1, 0)), power within its exp(y log x) error (2 + 2 |y log x| ulp), and NumPy's
+    values at 0, infinity, NaN, negative, subnormal and overflowing arguments."""
+    rng = np.random.default_rng(7)
+    x = np.concatenate([rng.uniform(-700, 700, 20000), rng.uniform(-1, 1, 20000),
+                        10.0 ** rng.uniform(-300, 0, 5000) * rng.choice([-1, 1], 5000),
+                        [0.0, -0.0, 1e-320, 709.7, 710.0, -745.0, -746.0, -800.0, 800.0,
+                         np.inf, -np.inf, np.nan]])
+    y = np.concatenate([10.0 ** rng.uniform(-307, 307, 20000), rng.uniform(0, 3, 20000),
+                        rng.uniform(-1, 1e-3, 5000),
+                        [0.0, 1.0, 5e-324, 1e-310, 2.0, -1.0, -0.5, 3.0, 1e300, 1e-300,
+                         np.inf, np.nan]])
+    exponent = np.clip(rng.uniform(-4, 4, x.size), -4, 4)
+    out = np.empty((5, x.size))
+    _compiled_math()(x, y, exponent, out)
+    y_log1p = np.where(y < 1.0, y - 1.0, y)
+    with np.errstate(all="ignore"):
+        references = (np.exp(x), np.expm1(x), np.log(y), np.log1p(y_log1p),
+                      np.power(y, exponent))
+        error_bound = (2.0, 2.0, 2.0, 2.0, 2.0 + 2.0 * np.abs(exponent * np.log(y)))
+    for name, got, expected, bound in zip(("exp", "expm1", "log", "log1p", "power"), out,
+                                          references, error_bound, strict=True):
+        finite = np.isfinite(expected)  # (subnormal results included: their ulp is 5e-324)
+        ulp = np.spacing(np.abs(expected[finite]))
+        bound = np.broadcast_to(bound, expected.shape)[finite]
+        excess = np.abs(got[finite] - expected[finite]) / (bound * ulp)
+        assert excess.max() <= 1.0, (name, float(excess.max()))
+        np.testing.assert_array_equal(got[~finite], expected[~finite], err_msg=name)
 
 
 @needs_numba

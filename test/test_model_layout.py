@@ -94,7 +94,8 @@ def test_both_executors_run_every_phase_once_in_order():
     numpy_source = inspect.getsource(NumpyStep.advance_activation) + inspect.getsource(
         NumpyStep.step)
     assert _phase_labels(numpy_source) == expected
-    assert _phase_labels(inspect.getsource(kernel._advance)) == expected
+    kernel_source = "".join(inspect.getsource(loop) for loop in kernel.PHASE_LOOPS)
+    assert _phase_labels(kernel_source) == expected
 
 
 def _uncompiled(bank) -> CompiledStep:
@@ -204,3 +205,18 @@ def test_old_fiber_names_warn_and_return_the_fibre_fields():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         _ = out.energy_rate_by_fibre, trajectory.energy_rate_by_fibre
+
+
+def test_the_kernel_reads_polynomials_padded_to_a_fixed_length():
+    """W_S's coefficients reach the kernel padded with leading zeros to POLY_TERMS (it reads them
+    as a tuple of that length): the same values by Horner's rule; a longer one is refused."""
+    from vm_ros.model.recruitment import polyval_horner
+
+    coefficients = [1.56, -1.20, 0.884]
+    padded = layout.padded_polynomial(coefficients)
+    assert padded.shape == (layout.POLY_TERMS,)
+    u = np.linspace(0.0, 1.0, 11)
+    np.testing.assert_array_equal(polyval_horner(tuple(padded), u),
+                                  polyval_horner(coefficients, u))
+    with pytest.raises(ValueError, match="at most 8"):
+        layout.padded_polynomial(np.ones(layout.POLY_TERMS + 1))

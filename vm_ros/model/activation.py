@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vm_ros.model.jit import jitable, where
+from vm_ros.model.jit import exp, expm1, jitable, where
 
 
 @jitable
@@ -25,7 +25,7 @@ def lag_derivative(y, target, tau):
 @jitable
 def lag_decay(tau, dt):
     """exp(-dt / tau): how much of a first-order lag's distance to its target is left after dt."""
-    return np.exp(-dt / tau)
+    return exp(-dt / tau)
 
 
 @jitable
@@ -47,7 +47,7 @@ def cascade_step(y1, y2, target, tau, dt):
     """Exact update of two cascaded lags sharing one tau (dy1 = (target - y1)/tau,
     dy2 = (y1 - y2)/tau), target and tau held constant over dt. Returns (y1, y2)."""
     ratio = dt / tau
-    decay = np.exp(-ratio)
+    decay = exp(-ratio)
     d1 = y1 - target
     return target + d1 * decay, target + ((y2 - target) + d1 * ratio) * decay
 
@@ -85,7 +85,7 @@ def sag_target(f_eff, as1, as2, threshold):
 @jitable
 def yield_target(v, cy, vy):
     """Yield target 1 - cY (1 - exp(-|V|/VY)) (slow fibres; cY = 0 makes it 1 for fast)."""
-    return 1.0 - cy * (-np.expm1(-np.abs(v) / vy))
+    return 1.0 - cy * (-expm1(-np.abs(v) / vy))
 
 
 def activation_length_max(nf0, nf1, max_fraction):

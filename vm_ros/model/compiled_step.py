@@ -56,7 +56,7 @@ def _from_bank(cls, bank):
         pool_pcsa=np.ascontiguousarray(rec.pool_pcsa, dtype=float),
         fibre_type=layout.table("fibre_type", T, 2, [p.energetics, p.fibre]),
         shared=layout.table("shared", S, 1, [p.generic, p.energetics, p.lumped, continuous]),
-        w_slow_poly=np.asarray(p.lumped.w_slow_poly, dtype=float),
+        w_slow_poly=layout.padded_polynomial(p.lumped.w_slow_poly),
     )
 
 

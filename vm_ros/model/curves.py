@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vm_ros.model.jit import jitable, power, where
+from vm_ros.model.jit import exp, expm1, jitable, log, log1p, power, where
 
 
 @jitable
@@ -38,7 +38,7 @@ def force_length_and_slope_cheng2000(l, omega, beta, rho):
     l_beta = power(l, beta)
     z = (l_beta - 1.0) / omega
     z_rho = power(np.abs(z), rho)
-    fl = np.exp(-z_rho)
+    fl = exp(-z_rho)
     defined = (z != 0.0) & (l > 0.0)
     ratio = where(defined, z_rho / where(defined, z * l, 1.0), 0.0)
     return fl, -fl * rho * ratio * beta * l_beta / omega
@@ -100,7 +100,7 @@ def logistic_from_exp(x, e):
 def softplus_from_exp(x, e):
     """ln(exp(x) + 1) = max(x, 0) + ln(1 + exp(-|x|)) given e = exp(-|x|), without overflow; its
     slope is :func:`logistic_from_exp` (x, e), so a force and its slope share one exp."""
-    return np.maximum(x, 0.0) + np.log1p(e)
+    return np.maximum(x, 0.0) + log1p(e)
 
 
 @jitable
@@ -117,7 +117,7 @@ def passive_parallel_elastic_cheng2000(l, v, lmax, c1, k1, lr1, eta):
     Lmax: fascicle length (L0) at the maximum anatomical path length.
     """
     x = _passive_parallel_elastic_argument(l, lmax, k1, lr1)
-    return c1 * k1 * softplus_from_exp(x, np.exp(-np.abs(x))) + eta * v
+    return c1 * k1 * softplus_from_exp(x, exp(-np.abs(x))) + eta * v
 
 
 @jitable
@@ -125,7 +125,7 @@ def passive_parallel_elastic_and_slope_cheng2000(l, v, lmax, c1, k1, lr1, eta):
     """(FPE1, dFPE1/dL) of :func:`passive_parallel_elastic_cheng2000`, sharing one exp:
     dFPE1/dL = c1 logistic((L/Lmax - Lr1)/k1) / Lmax (dFPE1/dV is eta)."""
     x = _passive_parallel_elastic_argument(l, lmax, k1, lr1)
-    e = np.exp(-np.abs(x))
+    e = exp(-np.abs(x))
     return c1 * k1 * softplus_from_exp(x, e) + eta * v, c1 * logistic_from_exp(x, e) / lmax
 
 
@@ -138,7 +138,7 @@ def thick_filament_compression_cheng2000(l, c2, k2, lr2):
     Human rescaling k2 = -21, Lr2 = 0.70 (Tsianos 2012); VM's cat set is -18.7, 0.79.
     """
     exponent = np.minimum(k2 * (l - lr2), 50.0)
-    return np.minimum(0.0, c2 * np.expm1(exponent))
+    return np.minimum(0.0, c2 * expm1(exponent))
 
 
 @jitable
@@ -147,7 +147,7 @@ def thick_filament_compression_and_slope_cheng2000(l, c2, k2, lr2):
     (exp = expm1 + 1): dFPE2/dL = c2 k2 exp(k2 (L - Lr2)) where FPE2 < 0 and the exponent is
     below its cap; else 0."""
     exponent = k2 * (l - lr2)
-    excess = np.expm1(np.minimum(exponent, 50.0))
+    excess = expm1(np.minimum(exponent, 50.0))
     active = (c2 * excess < 0.0) & (exponent < 50.0)
     return np.minimum(0.0, c2 * excess), where(active, c2 * k2 * (excess + 1.0), 0.0)
 
@@ -161,7 +161,7 @@ def tendon_force_cheng2000(l_se, ct, kt, lrt):
     cT = 27.8, kT = 0.0047, LrT = 0.964: F_SE(1.0) = 1.0 F0 (L0T is the length at F0).
     """
     x = (l_se - lrt) / kt
-    return ct * kt * softplus_from_exp(x, np.exp(-np.abs(x)))
+    return ct * kt * softplus_from_exp(x, exp(-np.abs(x)))
 
 
 @jitable
@@ -169,7 +169,7 @@ def tendon_force_and_stiffness_cheng2000(l_se, ct, kt, lrt):
     """(F_SE, dF_SE/dL_SE) of :func:`tendon_force_cheng2000`, sharing one exp: the stiffness is
     cT logistic((L_SE - LrT)/kT)."""
     x = (l_se - lrt) / kt
-    e = np.exp(-np.abs(x))
+    e = exp(-np.abs(x))
     return ct * kt * softplus_from_exp(x, e), ct * logistic_from_exp(x, e)
 
 
@@ -181,7 +181,7 @@ def tendon_length_at_force(force, ct, kt, lrt):
     """
     z = np.asarray(force) / (ct * kt)
     # ln(exp(z) - 1) = z + ln(1 - exp(-z)), stable for large z
-    return kt * (z + np.log(-np.expm1(-z))) + lrt
+    return kt * (z + log(-expm1(-z))) + lrt
 
 
 @jitable
@@ -196,4 +196,4 @@ def activation_frequency_brown1999(f_eff, l, yield_factor, sag_factor, af, nf0, 
     """
     nf = nf0 + nf1 * (1.0 / l - 1.0)
     drive = np.maximum(yield_factor * sag_factor * f_eff, 0.0) / (af * nf)
-    return -np.expm1(-power(drive, nf))
+    return -expm1(-power(drive, nf))

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vm_ros.model.jit import jitable, where
+from vm_ros.model.jit import exp, jitable, where
 
 
 @jitable
@@ -125,7 +125,7 @@ def recovery_filter_derivative(filter_states, initial_rate, taus):
 @jitable
 def recovery_state_step(z, initial_rate, tau, dt):
     """Exact update of one recovery state dz/dt = E_i - z / tau for E_i held constant over dt."""
-    return recovery_state_step_decayed(z, initial_rate, tau, np.exp(-dt / tau))
+    return recovery_state_step_decayed(z, initial_rate, tau, exp(-dt / tau))
 
 
 @jitable

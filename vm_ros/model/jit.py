@@ -9,6 +9,15 @@ decorator does nothing and the bank uses the NumPy step.
 The two helpers below exist because NumPy's ``np.where`` and ``np.clip`` do not accept plain
 scalars inside Numba: :func:`where` and :func:`clip` are ``np.where`` and ``np.clip`` from Python
 and branch on scalars when compiled.
+
+The transcendental functions :func:`exp`, :func:`expm1`, :func:`log`, :func:`log1p` and
+:func:`power` are NumPy's from Python. Compiled for scalars they are written out in arithmetic
+(no call into libm), so that LLVM can inline them and vectorise the kernel's loops over muscles
+with SIMD instructions; libm's scalar calls were most of the kernel's time and cannot be
+vectorised by this Numba (its LLVM has no vector maths library). exp and expm1: Cody & Waite's
+reduction x = k ln2 + r and expm1(r) by its Taylor series to r^13; log and log1p: fdlibm's
+(e_log.c). test_kernel.py holds them to 2 ulp of NumPy's, power to 2 + 2 |y log x| ulp, with
+NumPy's values at 0, infinity, NaN and negative arguments.
 """
 
 from __future__ import annotations
@@ -64,11 +73,44 @@ if _numba_wanted():
         numba = None
 
 HAVE_NUMBA = numba is not None
+# a loop over a tuple that Numba unrolls, each pass with its element as a constant
+literal_unroll = numba.literal_unroll if HAVE_NUMBA else (lambda iterable: iterable)
 
 
-def jitable(func):
-    """Mark an equation as callable from the compiled kernel (no-op without Numba)."""
-    return register_jitable(func) if HAVE_NUMBA else func
+# LLVM's limits, raised for the compiled kernel (vm_ros.model.kernel): each phase is a loop over
+# muscles calling the model's equation functions, which LLVM must inline whole before it can
+# vectorise the loop (default threshold 225), and whose rows it must check for overlap once per
+# loop (default: at most 8 comparisons). With the defaults the kernel stays scalar: measured
+# 0.65 us per muscle-step at 1000 muscles against 0.20 us with these. These are options of the
+# process's LLVM: other Numba code compiled in the same process after the kernel is imported
+# sees them too (they change how much LLVM inlines and vectorises, never results).
+LLVM_OPTIONS = (
+    "-inline-threshold=3000",
+    "-runtime-memory-check-threshold=4096",
+    "-vectorize-memory-check-threshold=4096",
+    "-memory-check-merge-threshold=4096",
+)
+
+
+def set_llvm_options() -> None:
+    """Set :data:`LLVM_OPTIONS` in this process's LLVM (before the kernel compiles)."""
+    if HAVE_NUMBA:
+        import llvmlite.binding as llvm
+
+        for option in LLVM_OPTIONS:
+            llvm.set_option("vm_ros", option)
+
+
+def jitable(func=None, *, inline=False):
+    """Mark an equation as callable from the compiled kernel (no-op without Numba). With
+    ``inline`` Numba inlines its body into every caller before typing, so that array arguments
+    cost no reference counting inside the caller's loops (which would stop their
+    vectorisation); without it LLVM decides."""
+    if func is None:
+        return lambda func: jitable(func, inline=inline)
+    if not HAVE_NUMBA:
+        return func
+    return register_jitable(inline="always")(func) if inline else register_jitable(func)
 
 
 def where(condition, if_true, if_false):
@@ -78,10 +120,38 @@ def where(condition, if_true, if_false):
 
 def power(base, exponent):
     """``base ** exponent`` (``np.power``). Compiled for scalars: ``exp(exponent * log(base))``
-    for a positive base and ``base`` itself for an exponent of 1, which costs about half of
-    libm's correctly rounded pow (the kernel's largest single cost) for a relative difference
-    of a few 1e-16 per unit of ``|exponent * log(base)|``; other bases as ``**``."""
+    for a positive base (a relative difference of a few 1e-16 per unit of
+    ``|exponent * log(base)|``), ``base`` itself for an exponent of 1, 0 ** y as NumPy, and NaN
+    for a negative base (the model raises only lengths, drives and fractions, all >= 0)."""
     return np.power(base, exponent)
+
+
+def exp(x):
+    """``np.exp``; arithmetic when compiled for scalars (module docstring)."""
+    return np.exp(x)
+
+
+def expm1(x):
+    """``np.expm1``; arithmetic when compiled for scalars (module docstring)."""
+    return np.expm1(x)
+
+
+def log(x):
+    """``np.log``; arithmetic when compiled for scalars (module docstring)."""
+    return np.log(x)
+
+
+def log1p(x):
+    """``np.log1p``; arithmetic when compiled for scalars (module docstring)."""
+    return np.log1p(x)
+
+
+def fixed_tuple(array, length):
+    """The first ``length`` elements of a 1-d array as a tuple (Numba's ``to_fixed_tuple``
+    when compiled, which needs ``length`` to be a constant and the array that long)."""
+    if len(array) != length:
+        raise ValueError(f"an array of {len(array)} elements, {length} expected")
+    return tuple(array)
 
 
 def clip(value, lower, upper):
@@ -105,17 +175,149 @@ if HAVE_NUMBA:
 
         return array_where
 
+    from llvmlite import ir as _ir
+    from numba.extending import intrinsic
+    from numba.np.unsafe.ndarray import to_fixed_tuple
+
+    @intrinsic
+    def _bits_as_float(typingctx, bits):
+        """The float64 whose IEEE 754 bits are the int64 ``bits``."""
+
+        def codegen(context, builder, signature, args):
+            return builder.bitcast(args[0], _ir.DoubleType())
+
+        return _nb_types.float64(_nb_types.int64), codegen
+
+    @intrinsic
+    def _float_as_bits(typingctx, value):
+        """The IEEE 754 bits of the float64 ``value``, as an int64."""
+
+        def codegen(context, builder, signature, args):
+            return builder.bitcast(args[0], _ir.IntType(64))
+
+        return _nb_types.int64(_nb_types.float64), codegen
+
+    # Cody & Waite's split of ln 2 (the high part has 20 trailing zero bits), as in fdlibm
+    _LN2_HI, _LN2_LO = 6.93147180369123816490e-01, 1.90821492927058770002e-10
+    _LOG2E = 1.4426950408889634
+    # expm1(r) = r + r^2 (1/2! + r/3! + ... + r^11/13!) on |r| <= ln2/2: truncation below 1e-17
+    _EXPM1_TAYLOR = tuple(1.0 / math.factorial(k) for k in range(13, 1, -1))
+    # log(1+f) = f - f^2/2 + s (f^2/2 + R(s^2)), s = f/(2+f): fdlibm e_log.c's Lg1..Lg7
+    _LG = (6.666666666666735130e-01, 3.999999999940941908e-01, 2.857142874366239149e-01,
+           2.222219843214978396e-01, 1.818357216161805012e-01, 1.531383769920937332e-01,
+           1.479819860511658591e-01)
+    _SMALLEST_NORMAL = 2.2250738585072014e-308
+
+    @register_jitable
+    def _exp_parts(x):
+        """(2^h, 2^(k-h), expm1(r)) with x = k ln2 + r, |r| <= ln2/2, h = floor(k / 2), x
+        clamped to where exp is finite and not zero: exp(x) = 2^h (2^(k-h) (1 + expm1(r))),
+        each factor a normal float from k = -1076 to 1024."""
+        x = min(max(x, -746.0), 710.0)
+        kf = math.floor(x * _LOG2E + 0.5)
+        r = (x - kf * _LN2_HI) - kf * _LN2_LO
+        c = _EXPM1_TAYLOR
+        p = c[0]
+        for coefficient in c[1:]:
+            p = p * r + coefficient
+        k = np.int64(kf)
+        half = k >> 1
+        return (_bits_as_float((half + 1023) << 52), _bits_as_float((k - half + 1023) << 52),
+                r + r * r * p)
+
+    @register_jitable
+    def _exp_scalar(x):
+        scale_high, scale_low, p = _exp_parts(x)
+        return x if x != x else scale_high * (scale_low + scale_low * p)
+
+    @register_jitable
+    def _expm1_scalar(x):
+        scale_high, scale_low, p = _exp_parts(x)
+        scale = scale_high * scale_low  # 2^k: finite below k = 1024
+        precise = (scale - 1.0) + scale * p
+        large = scale_high * (scale_low + scale_low * p) - 1.0  # exp(x) - 1 where 1 is lost
+        value = large if x > 700.0 else precise
+        return x if x != x else value
+
+    @register_jitable
+    def _log_parts(x):
+        """(k, f) with x = 2^k (1 + f), 1 + f in [sqrt(1/2), sqrt(2)), for a positive x."""
+        subnormal = x < _SMALLEST_NORMAL
+        normal = x * 18014398509481984.0 if subnormal else x  # 2^54
+        bits = _float_as_bits(normal)
+        e = (bits >> 52) - (1077 if subnormal else 1023)
+        m = _bits_as_float((bits & 0x000FFFFFFFFFFFFF) | 0x3FF0000000000000)  # [1, 2)
+        above = m > 1.4142135623730951
+        return np.float64(e + 1 if above else e), (m * 0.5 if above else m) - 1.0
+
+    @register_jitable
+    def _log_from_parts(k, f):
+        """k ln2 + log(1 + f) for |f| below about 0.41 (fdlibm's e_log.c)."""
+        s = f / (2.0 + f)
+        z = s * s
+        w = z * z
+        lg = _LG
+        r = (w * (lg[1] + w * (lg[3] + w * lg[5]))
+             + z * (lg[0] + w * (lg[2] + w * (lg[4] + w * lg[6]))))
+        half_f2 = 0.5 * f * f
+        return k * _LN2_HI - ((half_f2 - (s * (half_f2 + r) + k * _LN2_LO)) - f)
+
+    @register_jitable
+    def _log_special(x, y):
+        """y where log(x) is finite; log's value at 0, infinity, negative numbers and NaN."""
+        y = x if x == math.inf else y
+        y = -math.inf if x == 0.0 else y
+        return math.nan if (x < 0.0 or x != x) else y
+
+    @register_jitable
+    def _log_scalar(x):
+        k, f = _log_parts(x)
+        return _log_special(x, _log_from_parts(k, f))
+
+    @register_jitable
+    def _log1p_scalar(x):
+        # where 1 + x needs no power of 2 (k = 0), f is x itself, without the rounding of 1 + x
+        # (a correction term such as ((1 + x) - 1) - x would be reassociated to 0 under fast
+        # maths); elsewhere |log1p(x)| > 0.29 and the rounding of 1 + x is below an ulp of it
+        u = 1.0 + x
+        k, f = _log_parts(u)
+        f = x if k == 0.0 else f
+        return _log_special(u, _log_from_parts(k, f))
+
+    def _scalar_or_array(scalar_function, array_function):
+        def choose(x):
+            if isinstance(x, _nb_types.Float):
+                return scalar_function
+            return lambda x: array_function(x)
+
+        return choose
+
+    overload(exp)(_scalar_or_array(_exp_scalar, np.exp))
+    overload(expm1)(_scalar_or_array(_expm1_scalar, np.expm1))
+    overload(log)(_scalar_or_array(_log_scalar, np.log))
+    overload(log1p)(_scalar_or_array(_log1p_scalar, np.log1p))
+
+    @overload(fixed_tuple)
+    def _fixed_tuple_compiled(array, length):
+        if not isinstance(length, _nb_types.IntegerLiteral):
+            raise numba.errors.TypingError("fixed_tuple's length must be a constant")
+        size = length.literal_value
+
+        def constant_length_tuple(array, length):
+            return to_fixed_tuple(array, size)
+
+        return constant_length_tuple
+
     @overload(power)
     def _power_compiled(base, exponent):
         if isinstance(base, _nb_types.Float) and isinstance(exponent, (_nb_types.Float,
                                                                        _nb_types.Integer)):
 
             def scalar_power(base, exponent):
-                if exponent == 1.0:
-                    return base
-                if base > 0.0:
-                    return math.exp(exponent * math.log(base))
-                return base**exponent
+                y = _exp_scalar(exponent * _log_scalar(base))
+                at_zero = 0.0 if exponent > 0.0 else (1.0 if exponent == 0.0 else math.inf)
+                y = at_zero if base == 0.0 else y
+                return base if exponent == 1.0 else y
 
             return scalar_power
 
@@ -127,4 +329,5 @@ if HAVE_NUMBA:
     clip = register_jitable(clip)
 
 
-__all__ = ["ENV_SWITCH", "HAVE_NUMBA", "clip", "jitable", "power", "where"]
+__all__ = ["ENV_SWITCH", "HAVE_NUMBA", "LLVM_OPTIONS", "clip", "exp", "expm1", "fixed_tuple",
+           "jitable", "literal_unroll", "log", "log1p", "power", "set_llvm_options", "where"]

@@ -1,4 +1,4 @@
-"""The fixed step compiled with Numba: one loop over muscles and pools, scalars in registers.
+"""The fixed step compiled with Numba: each phase a loop over muscles that LLVM vectorises.
 
 It calls the model's own equation functions (curves, activation, recruitment, mechanics,
 energetics; each marked ``@jitable``), in the order the NumPy step
@@ -24,14 +24,26 @@ from vm_ros.model import curves, layout
 from vm_ros.model import energetics as en
 from vm_ros.model import mechanics as mech
 from vm_ros.model import recruitment as rc
-from vm_ros.model.jit import HAVE_NUMBA, clip, jitable, model_cache_directory, numba
-from vm_ros.model.layout import N_TERMS, M, P, S, T
+from vm_ros.model.jit import (
+    HAVE_NUMBA,
+    clip,
+    fixed_tuple,
+    jitable,
+    literal_unroll,
+    model_cache_directory,
+    numba,
+    set_llvm_options,
+)
+from vm_ros.model.layout import N_TERMS, POLY_TERMS, M, P, S, T
 from vm_ros.model.params import DRIVE_LAWS
 
 SCHEME_CODES = {"lumped": 0, "natural": 1, "continuous": 2}
 LUMPED, NATURAL, CONTINUOUS = 0, 1, 2
 DRIVE_LAW_CODES = {law: code for code, law in enumerate(DRIVE_LAWS)}  # of the lumped scheme
 RELATIVE_DRIVE = DRIVE_LAW_CODES["relative_drive"]
+N_SHARED, N_TYPE_COLUMNS = len(S), len(T)
+# the fibre types (slow, fast), for loops that Numba unrolls (their tuples' indices are constants)
+FIBRE_TYPES = (0, 1)
 
 
 # --- the compiled loop -----------------------------------------------------------------------
@@ -45,51 +57,62 @@ RELATIVE_DRIVE = DRIVE_LAW_CODES["relative_drive"]
 
 
 @jitable
-def _fibre_terms(l, v, m, fibre_type, s, terms, with_slopes):
-    """FL, FV of each fibre type, FPE1 and FPE2 at (L, V), into terms; with their slopes (dFL/dL,
-    dFV/dV, dFV/dL, dFPE1/dL, dFPE2/dL) if ``with_slopes``."""
-    for t in range(2):
-        ft = fibre_type[t]
-        fl, dfl = curves.force_length_and_slope_cheng2000(l, ft[T.omega], ft[T.beta], ft[T.rho])
-        terms[FL_SLOW + t] = fl
-        terms[DFL_SLOW + t] = dfl
-        fv_args = (ft[T.vmax], ft[T.cv0], ft[T.cv1], ft[T.av0], ft[T.av1], ft[T.av2], ft[T.bv],
-                   s[S.fv_denominator_min])
-        terms[FV_SLOW + t] = curves.force_velocity_cheng2000(v, l, *fv_args)
-        if with_slopes:
-            dfv_dv, dfv_dl = curves.force_velocity_slopes_cheng2000(v, l, *fv_args)
-            terms[DFVDV_SLOW + t] = dfv_dv
-            terms[DFVDL_SLOW + t] = dfv_dl
-    if with_slopes:
-        terms[PE1], terms[DPE1] = curves.passive_parallel_elastic_and_slope_cheng2000(
-            l, v, m[M.lmax], s[S.c1], s[S.k1], s[S.lr1], s[S.eta]
-        )
-        terms[PE2], terms[DPE2] = curves.thick_filament_compression_and_slope_cheng2000(
-            l, s[S.c2], s[S.k2], s[S.lr2]
-        )
-    else:
-        terms[PE1] = curves.passive_parallel_elastic_cheng2000(
-            l, v, m[M.lmax], s[S.c1], s[S.k1], s[S.lr1], s[S.eta]
-        )
-        terms[PE2] = curves.thick_filament_compression_cheng2000(l, s[S.c2], s[S.k2], s[S.lr2])
+def _tables_as_tuples(shared, fibre_type, w_slow_poly):
+    """The shared scalars, the two fibre types' rows and the W_S coefficients as tuples: values
+    that inlined equations read without the reference counting of an array argument."""
+    slow = fixed_tuple(fibre_type[0], N_TYPE_COLUMNS)
+    fast = fixed_tuple(fibre_type[1], N_TYPE_COLUMNS)
+    return fixed_tuple(shared[0], N_SHARED), (slow, fast), fixed_tuple(w_slow_poly, POLY_TERMS)
+
+
+@jitable(inline=True)
+def _fibre_terms(l, v, lmax, fibre_type, s):
+    """The (L, V) terms at (L, V), in the order FL_SLOW ... DPE2: FL, FV of each fibre type, FPE1
+    and FPE2, and their slopes (dFL/dL, dFV/dV, dFV/dL, dFPE1/dL, dFPE2/dL). ``fibre_type`` and
+    ``s``: rows of the constant tables as tuples (:func:`_tables_as_tuples`). Inlined by Numba
+    into its callers, where LLVM drops the terms a caller does not use."""
+    ft = fibre_type[0]
+    fl_s, dfl_s = curves.force_length_and_slope_cheng2000(l, ft[T.omega], ft[T.beta], ft[T.rho])
+    slow = (ft[T.vmax], ft[T.cv0], ft[T.cv1], ft[T.av0], ft[T.av1], ft[T.av2], ft[T.bv],
+            s[S.fv_denominator_min])
+    ft = fibre_type[1]
+    fl_f, dfl_f = curves.force_length_and_slope_cheng2000(l, ft[T.omega], ft[T.beta], ft[T.rho])
+    fast = (ft[T.vmax], ft[T.cv0], ft[T.cv1], ft[T.av0], ft[T.av1], ft[T.av2], ft[T.bv],
+            s[S.fv_denominator_min])
+    fv_s = curves.force_velocity_cheng2000(v, l, slow[0], slow[1], slow[2], slow[3], slow[4],
+                                           slow[5], slow[6], slow[7])
+    fv_f = curves.force_velocity_cheng2000(v, l, fast[0], fast[1], fast[2], fast[3], fast[4],
+                                           fast[5], fast[6], fast[7])
+    dfv_dv_s, dfv_dl_s = curves.force_velocity_slopes_cheng2000(
+        v, l, slow[0], slow[1], slow[2], slow[3], slow[4], slow[5], slow[6], slow[7])
+    dfv_dv_f, dfv_dl_f = curves.force_velocity_slopes_cheng2000(
+        v, l, fast[0], fast[1], fast[2], fast[3], fast[4], fast[5], fast[6], fast[7])
+    pe1, dpe1 = curves.passive_parallel_elastic_and_slope_cheng2000(
+        l, v, lmax, s[S.c1], s[S.k1], s[S.lr1], s[S.eta]
+    )
+    pe2, dpe2 = curves.thick_filament_compression_and_slope_cheng2000(
+        l, s[S.c2], s[S.k2], s[S.lr2]
+    )
+    return (fl_s, fl_f, fv_s, fv_f, pe1, pe2, dfl_s, dfl_f, dfv_dv_s, dfv_dv_f, dfv_dl_s,
+            dfv_dl_f, dpe1, dpe2)
 
 
 @jitable
-def _contractile_force(activity, terms, m):
+def _contractile_force(activity, terms, f0):
     """F_CE (N) from the (L, V) terms and the per-type effective activation."""
     active = 0.0
-    for t in range(2):
+    for t in literal_unroll(FIBRE_TYPES):
         active += mech.active_force_term(
             activity[t], terms[FL_SLOW + t], terms[FV_SLOW + t], terms[PE2]
         )
-    return m[M.f0] * mech.contractile_force_total(terms[PE1], active)
+    return f0 * mech.contractile_force_total(terms[PE1], active)
 
 
 @jitable
-def _contractile_force_and_slopes(activity, terms, m, s):
+def _contractile_force_and_slopes(activity, terms, f0, l0, s):
     """F_CE (N), dF_CE/dx (N/m) and dF_CE/dxdot (N s/m) from the (L, V) terms and slopes."""
     active = active_dl = active_dv = 0.0
-    for t in range(2):
+    for t in literal_unroll(FIBRE_TYPES):
         active += mech.active_force_term(
             activity[t], terms[FL_SLOW + t], terms[FV_SLOW + t], terms[PE2]
         )
@@ -102,51 +125,369 @@ def _contractile_force_and_slopes(activity, terms, m, s):
     d_ce_dl, d_ce_dv = mech.contractile_force_slopes_total(
         terms[PE1], active, terms[DPE1], s[S.eta], active_dl, active_dv
     )
-    scale = m[M.f0] / m[M.l0]
-    f_ce = m[M.f0] * mech.contractile_force_total(terms[PE1], active)
+    scale = f0 / l0
+    f_ce = f0 * mech.contractile_force_total(terms[PE1], active)
     return f_ce, scale * d_ce_dl, scale * d_ce_dv
 
 
 @jitable
-def _tendon_force(x, path_length, m, s):
+def _tendon_force(x, path_length, f0, l0t, s):
     """F_SE (N) at fascicle length x (m) and path length (m)."""
-    l_se = mech.tendon_length_normalised(path_length, x, m[M.l0t])
-    return m[M.f0] * curves.tendon_force_cheng2000(l_se, s[S.ct], s[S.kt], s[S.lrt])
+    l_se = mech.tendon_length_normalised(path_length, x, l0t)
+    return f0 * curves.tendon_force_cheng2000(l_se, s[S.ct], s[S.kt], s[S.lrt])
 
 
 @jitable
-def _tendon_force_and_slope(x, path_length, m, s):
+def _tendon_force_and_slope(x, path_length, f0, l0t, s):
     """F_SE (N) and dF_SE/dx (N/m), sharing one exp."""
-    l_se = mech.tendon_length_normalised(path_length, x, m[M.l0t])
+    l_se = mech.tendon_length_normalised(path_length, x, l0t)
     force, stiffness = curves.tendon_force_and_stiffness_cheng2000(l_se, s[S.ct], s[S.kt],
                                                                    s[S.lrt])
-    return m[M.f0] * force, mech.tendon_force_slope_from_stiffness(stiffness, m[M.f0], m[M.l0t])
+    return f0 * force, mech.tendon_force_slope_from_stiffness(stiffness, f0, l0t)
 
 
 @jitable
-def _type_weights(scheme, ueff, m, threshold_s, threshold_f, w_slow_poly, s):
-    """Weights of the slow and fast pools at drive Ueff (lumped: rF W; continuous: Ueff W)."""
-    if scheme == LUMPED:
-        slow = rc.linear_recruited_fraction(
-            ueff, m[M.fpcsa_s], m[M.rec_lower_s], m[M.rec_upper_s]
-        ) * rc.lumped_weight_slow(
-            ueff, s[S.u1], m[M.u2], w_slow_poly, m[M.w_slow_at_u2], m[M.w_slow_amplitude],
-            s[S.w_slow_tau],
-        )
-        fast = rc.linear_recruited_fraction(
-            ueff, m[M.fpcsa_f], m[M.rec_lower_f], m[M.rec_upper_f]
-        ) * rc.lumped_weight_fast(
-            ueff, m[M.u2], m[M.ur], m[M.w_fast_b], m[M.w_fast_c], m[M.w_fast_tau],
-            s[S.w_fast_offset], s[S.w_fast_rise],
-        )
-        return slow, fast
-    excess_s = rc.continuous_excess_song2008(ueff, threshold_s, m[M.fpcsa_s] > 0.0)
-    excess_f = rc.continuous_excess_song2008(ueff, threshold_f, m[M.fpcsa_f] > 0.0)
+def _type_weights(lumped, ueff, threshold_s, threshold_f, fpcsa_s, fpcsa_f, lower_s, lower_f,
+                  upper_s, upper_f, u2, ur, w_slow_at_u2, w_slow_amplitude, w_fast_b, w_fast_c,
+                  w_fast_tau, w_slow_poly, s):
+    """Weights of the slow and fast pools at drive Ueff (lumped: rF W; continuous: Ueff W; both
+    evaluated, one selected)."""
+    lumped_slow = rc.linear_recruited_fraction(ueff, fpcsa_s, lower_s, upper_s)
+    lumped_slow *= rc.lumped_weight_slow(ueff, s[S.u1], u2, w_slow_poly, w_slow_at_u2,
+                                         w_slow_amplitude, s[S.w_slow_tau])
+    lumped_fast = rc.linear_recruited_fraction(ueff, fpcsa_f, lower_f, upper_f)
+    lumped_fast *= rc.lumped_weight_fast(ueff, u2, ur, w_fast_b, w_fast_c, w_fast_tau,
+                                         s[S.w_fast_offset], s[S.w_fast_rise])
+    excess_s = rc.continuous_excess_song2008(ueff, threshold_s, fpcsa_s > 0.0)
+    excess_f = rc.continuous_excess_song2008(ueff, threshold_f, fpcsa_f > 0.0)
     total = excess_s + excess_f
-    return (
-        ueff * rc.continuous_share_song2008(excess_s, total),
-        ueff * rc.continuous_share_song2008(excess_f, total),
-    )
+    continuous_slow = ueff * rc.continuous_share_song2008(excess_s, total)
+    continuous_fast = ueff * rc.continuous_share_song2008(excess_f, total)
+    if lumped:
+        return lumped_slow, lumped_fast
+    return continuous_slow, continuous_fast
+
+
+# --- the step over a block of muscles as a structure of arrays ---------------------------------
+#
+# A block of muscles is held in two (rows, muscles) arrays: ``variable`` (state, the (L, V) terms
+# kept between steps, the step's inputs and outputs, scratch) and ``constant`` (the muscle table's
+# columns, each pool's threshold and PCSA fraction). Every phase is a loop over the muscles that
+# reads and writes whole rows, each passed as its own contiguous 1-d array, so that LLVM runs
+# several muscles at once in SIMD registers (a row of a 2-d array written in such a loop could,
+# for all it can prove, overlap another row; separate arrays it checks once per loop).
+
+
+def _row_starts(*sizes):
+    """The first row of each group of rows of the given sizes, then the total."""
+    starts, total = [], 0
+    for size in sizes:
+        starts.append(total)
+        total += size
+    return (*starts, total)
+
+
+(
+    ROW_U_IN, ROW_LP, ROW_VP, ROW_DRIVE, ROW_X, ROW_XDOT, ROW_WORK, ROW_RECOVERY, ROW_ENERGY,
+    ROW_TERMS, ROW_XV, ROW_OUT_U, ROW_OUT_FSE, ROW_OUT_FCE, ROW_OUT_POWER, ROW_ACTIVITY,
+    ROW_STIMULATION, ROW_COMPONENTS, ROW_RATES, ROW_WEIGHT, ROW_POOLS,
+) = _row_starts(1, 1, 1, 1, 1, 1, 1, 4, 6, N_TERMS, 2, 1, 1, 1, 1, 2, 2, 6, 4, 2)
+# per pool, after ROW_POOLS: f_int, f_eff, sag, yield (the pool's row is ROW_POOLS + q * P + j)
+POOL_F_INT, POOL_F_EFF, POOL_SAG, POOL_YIELD, POOL_VARIABLE_ROWS = range(5)
+# constant rows: the muscle table's columns, then each pool's threshold and PCSA fraction
+ROW_C_THRESHOLD = len(M)
+N_MUSCLE_COLUMNS = len(M)
+
+
+@jitable
+def _variable_rows(n_pools):
+    return ROW_POOLS + POOL_VARIABLE_ROWS * n_pools
+
+
+@jitable
+def _pool_row(quantity, j, n_pools):
+    return ROW_POOLS + quantity * n_pools + j
+
+
+@jitable
+def _move_rows(block, i0, count, arrays, first_rows, into_rows):
+    """Between a block's rows and the (n, columns) arrays of muscles i0 ... i0 + count - 1:
+    column c of ``arrays[a]`` is row ``first_rows[a] + c``; into the rows if ``into_rows``, else
+    out of them."""
+    for a in range(len(arrays)):
+        array, first = arrays[a], first_rows[a]
+        if into_rows:
+            for c in range(array.shape[1]):
+                for i in range(count):
+                    block[first + c, i] = array[i0 + i, c]
+        else:
+            for i in range(count):
+                for c in range(array.shape[1]):
+                    array[i0 + i, c] = block[first + c, i]
+
+
+@jitable
+def _columns(array):
+    """``array`` as (n, columns): its first axis the muscles, the others flattened."""
+    return array.reshape(array.shape[0], -1)
+
+
+@jitable
+def _state_columns(effective_drive, f_int, f_eff, sag, yield_factor, x_state, xdot_state,
+                   recovery_filter, energy, work):
+    """The state arrays (layout.STATE) as (n, columns) and the first row of each in a block."""
+    n_pools = f_int.shape[1]
+    arrays = (_columns(effective_drive), _columns(x_state), _columns(xdot_state), _columns(work),
+              _columns(recovery_filter), _columns(energy), f_int, f_eff, sag, yield_factor)
+    first_rows = (ROW_DRIVE, ROW_X, ROW_XDOT, ROW_WORK, ROW_RECOVERY, ROW_ENERGY,
+                  _pool_row(POOL_F_INT, 0, n_pools), _pool_row(POOL_F_EFF, 0, n_pools),
+                  _pool_row(POOL_SAG, 0, n_pools), _pool_row(POOL_YIELD, 0, n_pools))
+    return arrays, first_rows
+
+
+@jitable
+def _load_inputs(variable, i0, count, excitation, path_length, path_velocity):
+    """One step's inputs of muscles i0 ... into a block's rows: 0, or 1 + the block's index of
+    the first bad one (non-finite, path length <= 0)."""
+    for i in range(count):
+        g = i0 + i
+        u, lp, vp = excitation[g], path_length[g], path_velocity[g]
+        if not (np.isfinite(u) and np.isfinite(lp) and lp > 0.0 and np.isfinite(vp)):
+            return i + 1
+        variable[ROW_U_IN, i] = u
+        variable[ROW_LP, i] = lp
+        variable[ROW_VP, i] = vp
+    return 0
+
+
+@jitable
+def _store_outputs(block, i0, count, out_excitation, out_f_se, out_f_ce, out_activity,
+                   out_stimulation, out_components, out_rates, out_power, out_length,
+                   out_velocity):
+    """A block's output rows into one step's output arrays (layout.SERIES_OUTPUTS), muscles
+    i0 ... (written out: this runs every step, and a loop over a tuple of arrays costs twice
+    as much)."""
+    for i in range(count):
+        g = i0 + i
+        out_excitation[g] = block[ROW_OUT_U, i]
+        out_f_se[g] = block[ROW_OUT_FSE, i]
+        out_f_ce[g] = block[ROW_OUT_FCE, i]
+        out_power[g] = block[ROW_OUT_POWER, i]
+        out_length[g] = block[ROW_X, i]
+        out_velocity[g] = block[ROW_XDOT, i]
+        for t in range(2):
+            out_activity[g, t] = block[ROW_ACTIVITY + t, i]
+            out_stimulation[g, t] = block[ROW_STIMULATION + t, i]
+            for c in range(3):
+                out_components[g, t, c] = block[ROW_COMPONENTS + 3 * t + c, i]
+        for c in range(4):
+            out_rates[g, c] = block[ROW_RATES + c, i]
+
+
+@jitable
+def _drive_loop(dt, count, lumped, natural, relative_drive, u_in, out_u, drive, f_eff_slow,
+                weight_s, weight_f, constant, fall_tau_mid, s, w_slow_poly):
+    """Phase 1 over a block's muscles."""
+    c = constant
+    for i in range(count):
+        u = min(max(u_in[i], 0.0), 1.0)
+        out_u[i] = u
+        # Phase 1, DRIVE: filtered drive Ueff and the pool weights it sets. The candidates of
+        # every scheme are computed and one is selected: branches on the scheme inside the loop
+        # would stop its vectorisation (the other schemes' constants are NaN, never selected).
+        ueff_old = drive[i]
+        # lumped, relative-drive law: the slow pool (pool 0) says how active the units already are
+        active = rc.firing_fraction(
+            f_eff_slow[i],
+            act.firing_envelope(u, c[ROW_C_THRESHOLD, i], s[S.fmin], s[S.fmax]),
+        )
+        tau_relative = rc.relative_drive_tau(
+            u, ueff_old, active, c[M.relative_rise, i], s[S.relative_rise_power],
+            c[M.relative_fall, i], fall_tau_mid, s[S.relative_fall_power], s[S.drive_tau_min],
+        )
+        tau_rate = rc.lumped_drive_tau_from_rate(
+            u, ueff_old, c[M.t_rise, i], c[M.t_fall, i], c[M.t_rise_rate, i]
+        )
+        tau_continuous = rc.continuous_drive_tau_song2008(
+            u, ueff_old, s[S.continuous_tau_rise], s[S.continuous_tau_fall]
+        )
+        tau = (tau_relative if relative_drive else tau_rate) if lumped else tau_continuous
+        ueff = u if natural else act.lag_step(ueff_old, u, tau, dt)
+        drive[i] = ueff
+        weight_s[i], weight_f[i] = _type_weights(
+            lumped, ueff, c[ROW_C_THRESHOLD, i], c[ROW_C_THRESHOLD + 1, i], c[M.fpcsa_s, i],
+            c[M.fpcsa_f, i], c[M.rec_lower_s, i], c[M.rec_lower_f, i], c[M.rec_upper_s, i],
+            c[M.rec_upper_f, i], c[M.u2, i], c[M.ur, i], c[M.w_slow_at_u2, i],
+            c[M.w_slow_amplitude, i], c[M.w_fast_b, i], c[M.w_fast_c, i], c[M.w_fast_tau, i],
+            w_slow_poly, s,
+        )
+
+
+@jitable
+def _pool_loop(dt, count, natural, u, x, xdot, f_int, f_eff, sag, yield_factor, activity,
+               stimulation, type_weight, threshold, pcsa, l0, p, sag_decay, yield_decay, s):
+    """Phases 2 and 3 of one pool over a block's muscles (``p``: the pool's constants)."""
+    for i in range(count):
+        l, v = x[i] / l0[i], xdot[i] / l0[i]
+        # Phase 2, FIRING: rise/fall cascade, sag and yield of the pool
+        l_pool = clip(l, s[S.l_activation_min], p[P.l_max])
+        f_env = act.firing_envelope(u[i], threshold[i], s[S.fmin], s[S.fmax])
+        fi_old, fe_old = f_int[i], f_eff[i]
+        # Af at the old state enters the time constant only while falling
+        af_old = curves.activation_frequency_brown1999(
+            fe_old, l_pool, yield_factor[i], sag[i], p[P.af], p[P.nf0], p[P.nf1]
+        )
+        af_now = af_old if fi_old < fe_old else 0.0
+        tf = act.rise_fall_time_constant(
+            f_env, fi_old, fe_old, l_pool, af_now, p[P.tf1], p[P.tf2], p[P.tf3], p[P.tf4]
+        )
+        fi_new, fe_new = act.cascade_step(fi_old, fe_old, f_env, tf, dt)
+        sag_new = act.lag_step_decayed(
+            sag[i], act.sag_target(fe_old, p[P.as1], p[P.as2], p[P.sag_rate_threshold]),
+            sag_decay,
+        )
+        yield_new = act.lag_step_decayed(
+            yield_factor[i], act.yield_target(v, p[P.cy], p[P.vy]), yield_decay
+        )
+        f_int[i], f_eff[i], sag[i], yield_factor[i] = fi_new, fe_new, sag_new, yield_new
+        # Phase 3, ACTIVATION: the pool's share of Acteff and stimulation of its type
+        weight = pcsa[i] if natural else type_weight[i]
+        af = curves.activation_frequency_brown1999(
+            fe_new, l_pool, yield_new, sag_new, p[P.af], p[P.nf0], p[P.nf1]
+        )
+        af_l0 = curves.activation_frequency_brown1999(
+            fe_new, 1.0, 1.0, sag_new, p[P.af], p[P.nf0], p[P.nf1]
+        )
+        activity[i] += weight * af
+        stimulation[i] += weight * af_l0
+
+
+@jitable
+def _refresh_terms(count, x, xdot, xv_x, xv_xdot, terms, constant, fibre, s):
+    """The kept (L, V) terms recomputed where (x, xdot) moved since they were computed (a reset
+    or set_state): they are reused while (x, xdot) are bit-for-bit the same."""
+    c = constant
+    t0, t1, t2, t3, t4, t5, t6, t7, t8, t9, t10, t11, t12, t13 = terms
+    for i in range(count):
+        if not (xv_x[i] == x[i] and xv_xdot[i] == xdot[i]):
+            l0 = c[M.l0, i]
+            (t0[i], t1[i], t2[i], t3[i], t4[i], t5[i], t6[i], t7[i], t8[i], t9[i], t10[i],
+             t11[i], t12[i], t13[i]) = _fibre_terms(x[i] / l0, xdot[i] / l0, c[M.lmax, i], fibre,
+                                                    s)
+
+
+@jitable
+def _mechanics_loop(dt, count, lp_in, vp_in, x_state, xdot_state, activity_s, activity_f, terms,
+                    xv_x, xv_xdot, out_f_se, out_f_ce, out_power, constant, fibre, s):
+    """Phase 4 and the end state's forces and terms over a block's muscles."""
+    c = constant
+    # the terms' rows as names (a helper taking the tuple would count references in the loop)
+    t0, t1, t2, t3, t4, t5, t6, t7, t8, t9, t10, t11, t12, t13 = terms
+    for i in range(count):
+        lp, vp, x, xdot = lp_in[i], vp_in[i], x_state[i], xdot_state[i]
+        activity = (activity_s[i], activity_f[i])
+        l0, l0t, f0, lmax, m_eff = c[M.l0, i], c[M.l0t, i], c[M.f0, i], c[M.lmax, i], c[M.m_eff, i]
+        # Phase 4, MECHANICS (ROS2, activation held over the step, analytic Jacobian)
+        f_se, d_se_dx = _tendon_force_and_slope(x, lp, f0, l0t, s)
+        start_terms = (t0[i], t1[i], t2[i], t3[i], t4[i], t5[i], t6[i], t7[i], t8[i], t9[i],
+                       t10[i], t11[i], t12[i], t13[i])
+        f_ce, d_ce_dx, d_ce_dv = _contractile_force_and_slopes(activity, start_terms, f0, l0, s)
+        accel, a_x, a_v, a_p = mech.ros2_jacobian(f_se, f_ce, d_se_dx, d_ce_dx, d_ce_dv, m_eff)
+        k1_x, k1_v, x2, v2 = mech.ros2_stage1(x, xdot, vp, dt, accel, a_x, a_v, a_p)
+        stage2_terms = _fibre_terms(x2 / l0, v2 / l0, lmax, fibre, s)
+        accel2 = (
+            _tendon_force(x2, lp + dt * vp, f0, l0t, s)
+            - _contractile_force(activity, stage2_terms, f0)
+        ) / m_eff
+        x_new, xdot_new = mech.ros2_stage2(x, xdot, vp, dt, a_x, a_v, a_p, k1_x, k1_v, v2, accel2)
+        floor = s[S.l_activation_min] * l0
+        below = x_new < floor
+        x_new = floor if below else x_new
+        xdot_new = max(xdot_new, 0.0) if below else xdot_new
+        x_state[i], xdot_state[i] = x_new, xdot_new
+        # the forces and the (L, V) terms at the step's end state, kept for the next step
+        end_terms = _fibre_terms(x_new / l0, xdot_new / l0, lmax, fibre, s)
+        (t0[i], t1[i], t2[i], t3[i], t4[i], t5[i], t6[i], t7[i], t8[i], t9[i], t10[i], t11[i],
+         t12[i], t13[i]) = end_terms
+        xv_x[i], xv_xdot[i] = x_new, xdot_new
+        f_ce = _contractile_force(activity, end_terms, f0)
+        out_f_se[i] = _tendon_force(x_new, lp + dt * vp, f0, l0t, s)
+        out_f_ce[i] = f_ce
+        out_power[i] = -f_ce * xdot_new
+
+
+@jitable
+def _energy_loop(dt, count, dynamic_recovery, xdot, activity, stimulation, fl, recovery_filter,
+                 energy, work, components, rates, out_power, constant, fibre, s, recovery_decay,
+                 recovery_rise):
+    """Phases 5 to 7 over a block's muscles (activity, stimulation, fl: the rows of the two fibre
+    types; recovery_filter, energy, components: of type t and component k at 2t + k, 3t + k)."""
+    c = constant
+    for i in range(count):
+        v_new = xdot[i] / c[M.l0, i]
+        rate_a = rate_xb = rate_r = 0.0
+        for t in literal_unroll(FIBRE_TYPES):
+            ft = fibre[t]
+            # Phase 5, INITIAL_ENERGY: E_a and E_xb at the step's end state (STEPs 1-5)
+            e_act, e_xb = en.initial_energy_rates_tsianos2012(
+                stimulation[t][i], activity[t][i], fl[t][i], v_new, c[M.dry_mass, i],
+                ft[T.e1], ft[T.e2], ft[T.e3], ft[T.e4], s[S.activation_fraction], ft[T.vmax],
+            )
+            initial = e_act + e_xb
+            # Phase 6, RECOVERY: STEP 6 (static) or the Appendix B filter (dynamic)
+            z_decay = en.recovery_state_step_decayed(
+                recovery_filter[2 * t][i], initial, s[S.recovery_tau_decay], recovery_decay
+            )
+            z_rise = en.recovery_state_step_decayed(
+                recovery_filter[2 * t + 1][i], initial, s[S.recovery_tau_rise], recovery_rise
+            )
+            dynamic = en.recovery_rate_from_filter(
+                z_decay, z_rise, ft[T.recovery_ratio], s[S.recovery_tau_rise],
+                s[S.recovery_tau_decay],
+            )
+            static = en.static_recovery_rate(initial, ft[T.recovery_ratio])
+            recovery = dynamic if dynamic_recovery else static
+            if dynamic_recovery:  # (static: the filter is not touched)
+                recovery_filter[2 * t][i] = z_decay
+                recovery_filter[2 * t + 1][i] = z_rise
+            # Phase 7, TOTALS: rates summed (STEP 7), energies and work integrated
+            components[3 * t][i] = e_act
+            components[3 * t + 1][i] = e_xb
+            components[3 * t + 2][i] = recovery
+            energy[3 * t][i] += dt * e_act
+            energy[3 * t + 1][i] += dt * e_xb
+            energy[3 * t + 2][i] += dt * recovery
+            rate_a += e_act
+            rate_xb += e_xb
+            rate_r += recovery
+        rates[0][i], rates[1][i], rates[2][i] = rate_a, rate_xb, rate_r
+        rates[3][i] = rate_a + rate_xb + rate_r
+        work[i] += dt * out_power[i]
+
+
+# the loops that carry the phases, in order (test_model_layout.py reads their comments)
+PHASE_LOOPS = (_drive_loop, _pool_loop, _mechanics_loop, _energy_loop)
+
+
+@jitable
+def _rows_tuple4(variable, first):
+    return (variable[first], variable[first + 1], variable[first + 2], variable[first + 3])
+
+
+@jitable
+def _rows_tuple6(variable, first):
+    return (variable[first], variable[first + 1], variable[first + 2], variable[first + 3],
+            variable[first + 4], variable[first + 5])
+
+
+@jitable
+def _pool_decays(dt, pool):
+    """The decays over dt of each pool's sag and yield lags (time constants of the pool)."""
+    pool_decay = np.empty((pool.shape[0], 2))
+    for j in range(pool.shape[0]):
+        pool_decay[j, 0] = act.lag_decay(pool[j, P.ts], dt)
+        pool_decay[j, 1] = act.lag_decay(pool[j, P.ty], dt)
+    return pool_decay
 
 
 def _advance(
@@ -156,190 +497,29 @@ def _advance(
     energy, work, terms_end, xv_end, out_excitation,
     out_f_se, out_f_ce, out_activity, out_stimulation, out_components, out_rates, out_power,
 ):
-    """Advance every muscle by dt in place (state arrays) and fill the outputs.
+    """Advance every muscle by dt in place (state arrays) and fill the outputs: a series of one
+    step (:func:`_advance_series`, which the bank calls compiled).
 
     out_rates (n, 4): the energy rates summed over fibre types (activation, cross-bridge,
     recovery, total). Returns 0, or 1 + the index of the first muscle with a bad input
-    (non-finite, path length <= 0), having stopped there: the caller then discards the partly
-    updated arrays.
+    (non-finite, path length <= 0), found before anything is written.
 
     terms_end (n, N_TERMS) and xv_end (n, 2): the (L, V) terms of F_CE at the (x, xdot) in
     xv_end, kept between calls (any content is valid: they are recomputed where xv_end does not
     match the state).
     """
-    s = shared[0]
-    terms_tmp = np.empty(N_TERMS)
-    n_pools = pool.shape[0]
-    # the decays over dt of the lags whose time constants are constants of the pool or shared
-    pool_decay = np.empty((n_pools, 2))
-    for j in range(n_pools):
-        pool_decay[j, 0] = act.lag_decay(pool[j, P.ts], dt)
-        pool_decay[j, 1] = act.lag_decay(pool[j, P.ty], dt)
-    recovery_decay = act.lag_decay(s[S.recovery_tau_decay], dt)
-    recovery_rise = act.lag_decay(s[S.recovery_tau_rise], dt)
-    for i in range(excitation.shape[0]):
-        m = muscle[i]
-        lp, vp = path_length[i], path_velocity[i]
-        if not (np.isfinite(excitation[i]) and np.isfinite(lp) and lp > 0.0 and np.isfinite(vp)):
-            return i + 1
-        u = min(max(excitation[i], 0.0), 1.0)
-        out_excitation[i] = u
-        x, xdot = x_state[i], xdot_state[i]
-        l, v = x / m[M.l0], xdot / m[M.l0]
-        # Phase 1, DRIVE: filtered drive Ueff and the pool weights it sets
-        if scheme == LUMPED:
-            if s[S.drive_law_code] == RELATIVE_DRIVE:
-                # the slow pool (pool 0) says how active the lumped units already are
-                active = rc.firing_fraction(
-                    f_eff[i, 0], act.firing_envelope(u, thresholds[i, 0], s[S.fmin], s[S.fmax])
-                )
-                tau = rc.relative_drive_tau(
-                    u, effective_drive[i], active, m[M.relative_rise], s[S.relative_rise_power],
-                    m[M.relative_fall],
-                    rc.mid_activation_fall_time_constant(pool[0, P.tf3], pool[0, P.tf4]),
-                    s[S.relative_fall_power], s[S.drive_tau_min],
-                )
-            else:
-                tau = rc.lumped_drive_tau_from_rate(
-                    u, effective_drive[i], m[M.t_rise], m[M.t_fall], m[M.t_rise_rate]
-                )
-            ueff = act.lag_step(effective_drive[i], u, tau, dt)
-        elif scheme == CONTINUOUS:
-            tau = rc.continuous_drive_tau_song2008(
-                u, effective_drive[i], s[S.continuous_tau_rise], s[S.continuous_tau_fall]
-            )
-            ueff = act.lag_step(effective_drive[i], u, tau, dt)
-        else:
-            ueff = u
-        effective_drive[i] = ueff
-        weight_s = weight_f = 0.0
-        if scheme != NATURAL:
-            weight_s, weight_f = _type_weights(
-                scheme, ueff, m, thresholds[i, 0], thresholds[i, 1], w_slow_poly, s
-            )
-        # every pool: its activation path, then its share of the type's activation
-        activity = out_activity[i]
-        stimulation = out_stimulation[i]
-        for t in range(2):
-            activity[t] = stimulation[t] = 0.0
-        for j in range(n_pools):
-            p = pool[j]
-            # Phase 2, FIRING: rise/fall cascade, sag and yield of the pool
-            l_pool = clip(l, s[S.l_activation_min], p[P.l_max])
-            f_env = act.firing_envelope(u, thresholds[i, j], s[S.fmin], s[S.fmax])
-            fe_old = f_eff[i, j]
-            # Af at the old state enters the time constant only while falling
-            af_now = 0.0
-            if f_int[i, j] < fe_old:
-                af_now = curves.activation_frequency_brown1999(
-                    fe_old, l_pool, yield_factor[i, j], sag[i, j], p[P.af], p[P.nf0], p[P.nf1]
-                )
-            tf = act.rise_fall_time_constant(
-                f_env, f_int[i, j], fe_old, l_pool, af_now, p[P.tf1], p[P.tf2], p[P.tf3], p[P.tf4]
-            )
-            fi_new, fe_new = act.cascade_step(f_int[i, j], fe_old, f_env, tf, dt)
-            sag_new = act.lag_step_decayed(
-                sag[i, j],
-                act.sag_target(fe_old, p[P.as1], p[P.as2], p[P.sag_rate_threshold]),
-                pool_decay[j, 0],
-            )
-            yield_new = act.lag_step_decayed(
-                yield_factor[i, j], act.yield_target(v, p[P.cy], p[P.vy]), pool_decay[j, 1]
-            )
-            f_int[i, j], f_eff[i, j], sag[i, j], yield_factor[i, j] = (
-                fi_new, fe_new, sag_new, yield_new,
-            )
-            # Phase 3, ACTIVATION: the pool's share of Acteff and stimulation of its type
-            t = pool_type[j]
-            weight = pool_pcsa[i, j] if scheme == NATURAL else (weight_s if t == 0 else weight_f)
-            af = curves.activation_frequency_brown1999(
-                fe_new, l_pool, yield_new, sag_new, p[P.af], p[P.nf0], p[P.nf1]
-            )
-            af_l0 = curves.activation_frequency_brown1999(
-                fe_new, 1.0, 1.0, sag_new, p[P.af], p[P.nf0], p[P.nf1]
-            )
-            activity[t] += weight * af
-            stimulation[t] += weight * af_l0
-        # Phase 4, MECHANICS (ROS2, activation held over the step, analytic Jacobian). The
-        # curves' terms and slopes depend on (x, xdot) only: those of the last step's end state are
-        # kept in terms_end and reused while (x, xdot) are bit-for-bit the same.
-        l0 = m[M.l0]
-        base = terms_end[i]
-        if not (xv_end[i, 0] == x and xv_end[i, 1] == xdot):
-            _fibre_terms(l, v, m, fibre_type, s, base, True)
-        f_se, d_se_dx = _tendon_force_and_slope(x, lp, m, s)
-        f_ce, d_ce_dx, d_ce_dv = _contractile_force_and_slopes(activity, base, m, s)
-        accel, a_x, a_v, a_p = mech.ros2_jacobian(f_se, f_ce, d_se_dx, d_ce_dx, d_ce_dv, m[M.m_eff])
-        k1_x, k1_v, x2, v2 = mech.ros2_stage1(x, xdot, vp, dt, accel, a_x, a_v, a_p)
-        _fibre_terms(x2 / l0, v2 / l0, m, fibre_type, s, terms_tmp, False)
-        accel2 = (
-            _tendon_force(x2, lp + dt * vp, m, s) - _contractile_force(activity, terms_tmp, m)
-        ) / m[M.m_eff]
-        x_new, xdot_new = mech.ros2_stage2(x, xdot, vp, dt, a_x, a_v, a_p, k1_x, k1_v, v2, accel2)
-        floor = s[S.l_activation_min] * l0
-        if x_new < floor:
-            x_new = floor
-            xdot_new = max(xdot_new, 0.0)
-        x_state[i], xdot_state[i] = x_new, xdot_new
-        # Phase 5, INITIAL_ENERGY: forces, E_a and E_xb at the step's end state (STEPs 1-5)
-        l_new, v_new = x_new / l0, xdot_new / l0
-        _fibre_terms(l_new, v_new, m, fibre_type, s, base, True)
-        xv_end[i, 0], xv_end[i, 1] = x_new, xdot_new
-        f_se = _tendon_force(x_new, lp + dt * vp, m, s)
-        f_ce = _contractile_force(activity, base, m)
-        out_f_se[i], out_f_ce[i] = f_se, f_ce
-        power = -f_ce * xdot_new
-        out_power[i] = power
-        rates = out_rates[i]
-        rates[0] = rates[1] = rates[2] = 0.0
-        for t in range(2):
-            ft = fibre_type[t]
-            e_act, e_xb = en.initial_energy_rates_tsianos2012(
-                stimulation[t], activity[t], base[FL_SLOW + t], v_new, m[M.dry_mass],
-                ft[T.e1], ft[T.e2], ft[T.e3], ft[T.e4], s[S.activation_fraction], ft[T.vmax],
-            )
-            initial = e_act + e_xb
-            # Phase 6, RECOVERY: STEP 6 (static) or the Appendix B filter (dynamic)
-            if dynamic_recovery:
-                z_decay = en.recovery_state_step_decayed(
-                    recovery_filter[i, t, 0], initial, s[S.recovery_tau_decay], recovery_decay
-                )
-                z_rise = en.recovery_state_step_decayed(
-                    recovery_filter[i, t, 1], initial, s[S.recovery_tau_rise], recovery_rise
-                )
-                recovery_filter[i, t, 0], recovery_filter[i, t, 1] = z_decay, z_rise
-                recovery = en.recovery_rate_from_filter(
-                    z_decay,
-                    z_rise,
-                    ft[T.recovery_ratio],
-                    s[S.recovery_tau_rise],
-                    s[S.recovery_tau_decay],
-                )
-            else:
-                recovery = en.static_recovery_rate(initial, ft[T.recovery_ratio])
-            # Phase 7, TOTALS: rates summed (STEP 7), energies and work integrated
-            out_components[i, t, 0] = e_act
-            out_components[i, t, 1] = e_xb
-            out_components[i, t, 2] = recovery
-            energy[i, t, 0] += dt * e_act
-            energy[i, t, 1] += dt * e_xb
-            energy[i, t, 2] += dt * recovery
-            rates[0] += e_act
-            rates[1] += e_xb
-            rates[2] += recovery
-        rates[3] = rates[0] + rates[1] + rates[2]
-        work[i] += dt * power
-    return 0
-
-
-@jitable
-def _copy(destination, source):
-    """destination[...] = source for C-ordered arrays of one shape, as a flat loop (Numba
-    compiles an array assignment into a broadcasting function of its own, which took most of
-    the series' compile time)."""
-    flat_destination, flat_source = destination.reshape(-1), source.reshape(-1)
-    for i in range(flat_source.shape[0]):
-        flat_destination[i] = flat_source[i]
+    n = excitation.shape[0]
+    no_snapshots = [np.empty((0, *a.shape)) for a in (
+        effective_drive, f_int, f_eff, sag, yield_factor, x_state, xdot_state, recovery_filter,
+        energy, work)]
+    return _advance_series(
+        dt, excitation[None], path_length[None], path_velocity[None], scheme, dynamic_recovery,
+        muscle, pool, pool_type, thresholds, pool_pcsa, fibre_type, shared, w_slow_poly,
+        effective_drive, f_int, f_eff, sag, yield_factor, x_state, xdot_state, recovery_filter,
+        energy, work, terms_end, xv_end, out_excitation[None], out_f_se[None], out_f_ce[None],
+        out_activity[None], out_stimulation[None], out_components[None], out_rates[None],
+        out_power[None], np.empty((1, n)), np.empty((1, n)), 0, *no_snapshots, 0,
+    )
 
 
 def _advance_series(
@@ -358,45 +538,101 @@ def _advance_series(
     flat index step * n + muscle of the first bad input (the caller discards the state
     arrays).
 
-    Each step runs over blocks of ``chunk`` muscles (0: one block), in parallel where this is
-    compiled with ``parallel`` (advance_series_parallel: ``prange``), in turn otherwise; every
-    muscle takes the same arithmetic either way. A step is a series of one (CompiledStep.step),
-    so the model is compiled once for both."""
-    n = excitation.shape[1]
+    The muscles are split into blocks of ``chunk`` (0: one block), each held in its rows for
+    the whole series; each step runs the blocks in parallel where this is compiled with
+    ``parallel`` (advance_series_parallel: ``prange``), in turn otherwise. Every muscle takes
+    the same arithmetic either way. A step is a series of one (CompiledStep.step), so the model
+    is compiled once for both."""
+    n, n_pools = excitation.shape[1], pool.shape[0]
     size = chunk if chunk > 0 else max(n, 1)
     blocks = (n + size - 1) // size
+    pool_decay = _pool_decays(dt, pool)
+    recovery_decay = act.lag_decay(shared[0, S.recovery_tau_decay], dt)
+    recovery_rise = act.lag_decay(shared[0, S.recovery_tau_rise], dt)
+    fall_tau_mid = rc.mid_activation_fall_time_constant(pool[0, P.tf3], pool[0, P.tf4])
+    state_arrays, state_rows = _state_columns(effective_drive, f_int, f_eff, sag, yield_factor,
+                                              x_state, xdot_state, recovery_filter, energy, work)
+    variable = np.empty((blocks, _variable_rows(n_pools), size))
+    constant = np.empty((blocks, ROW_C_THRESHOLD + 2 * n_pools, size))
+    for b in range(blocks):
+        i0 = b * size
+        count = min(n, i0 + size) - i0
+        _move_rows(constant[b], i0, count, (muscle, thresholds, pool_pcsa),
+                   (0, ROW_C_THRESHOLD, ROW_C_THRESHOLD + n_pools), True)
+        _move_rows(variable[b], i0, count, state_arrays, state_rows, True)
+        _move_rows(variable[b], i0, count, (terms_end, xv_end), (ROW_TERMS, ROW_XV), True)
     status = np.zeros(blocks, dtype=np.int64)
     for k in range(excitation.shape[0]):
         for b in prange(blocks):
-            i, j = b * size, min(n, (b + 1) * size)
-            first_bad = _advance_step(
-                dt, excitation[k, i:j], path_length[k, i:j], path_velocity[k, i:j], scheme,
-                dynamic_recovery, muscle[i:j], pool, pool_type, thresholds[i:j],
-                pool_pcsa[i:j], fibre_type, shared, w_slow_poly, effective_drive[i:j],
-                f_int[i:j], f_eff[i:j], sag[i:j], yield_factor[i:j], x_state[i:j],
-                xdot_state[i:j], recovery_filter[i:j], energy[i:j], work[i:j], terms_end[i:j],
-                xv_end[i:j], out_excitation[k, i:j], out_f_se[k, i:j], out_f_ce[k, i:j],
-                out_activity[k, i:j], out_stimulation[k, i:j], out_components[k, i:j],
-                out_rates[k, i:j], out_power[k, i:j],
-            )
-            status[b] = i + first_bad if first_bad != 0 else 0
+            i0 = b * size
+            count = min(n, i0 + size) - i0
+            block = variable[b]
+            bad = _load_inputs(block, i0, count, excitation[k], path_length[k], path_velocity[k])
+            status[b] = i0 + bad if bad != 0 else 0
+            if bad == 0:
+                # one step of the block; its inputs are in the rows ROW_U_IN, ROW_LP, ROW_VP
+                v, c = block, constant[b]
+                s, fibre, w_slow = _tables_as_tuples(shared, fibre_type, w_slow_poly)
+                # the scheme as flags: tests of one code against several constants in a loop
+                # would become a switch, which stops its vectorisation
+                lumped, natural = scheme == LUMPED, scheme == NATURAL
+                relative_drive = s[S.drive_law_code] == RELATIVE_DRIVE
+                _drive_loop(dt, count, lumped, natural, relative_drive, v[ROW_U_IN],
+                            v[ROW_OUT_U], v[ROW_DRIVE], v[_pool_row(POOL_F_EFF, 0, n_pools)],
+                            v[ROW_WEIGHT], v[ROW_WEIGHT + 1], c, fall_tau_mid, s, w_slow)
+                for t in range(2):
+                    for i in range(count):
+                        v[ROW_ACTIVITY + t, i] = 0.0
+                        v[ROW_STIMULATION + t, i] = 0.0
+                # every pool: its activation path, then its share of the type's activation
+                for j in range(n_pools):
+                    t = pool_type[j]
+                    _pool_loop(
+                        dt, count, natural, v[ROW_OUT_U], v[ROW_X], v[ROW_XDOT],
+                        v[_pool_row(POOL_F_INT, j, n_pools)], v[_pool_row(POOL_F_EFF, j, n_pools)],
+                        v[_pool_row(POOL_SAG, j, n_pools)], v[_pool_row(POOL_YIELD, j, n_pools)],
+                        v[ROW_ACTIVITY + t], v[ROW_STIMULATION + t], v[ROW_WEIGHT + t],
+                        c[ROW_C_THRESHOLD + j], c[ROW_C_THRESHOLD + n_pools + j], c[M.l0],
+                        pool[j], pool_decay[j, 0], pool_decay[j, 1], s,
+                    )
+                terms = (v[ROW_TERMS], v[ROW_TERMS + 1], v[ROW_TERMS + 2], v[ROW_TERMS + 3],
+                         v[ROW_TERMS + 4], v[ROW_TERMS + 5], v[ROW_TERMS + 6], v[ROW_TERMS + 7],
+                         v[ROW_TERMS + 8], v[ROW_TERMS + 9], v[ROW_TERMS + 10],
+                         v[ROW_TERMS + 11], v[ROW_TERMS + 12], v[ROW_TERMS + 13])
+                _refresh_terms(count, v[ROW_X], v[ROW_XDOT], v[ROW_XV], v[ROW_XV + 1], terms, c,
+                               fibre, s)
+                _mechanics_loop(dt, count, v[ROW_LP], v[ROW_VP], v[ROW_X], v[ROW_XDOT],
+                                v[ROW_ACTIVITY], v[ROW_ACTIVITY + 1], terms, v[ROW_XV],
+                                v[ROW_XV + 1], v[ROW_OUT_FSE], v[ROW_OUT_FCE], v[ROW_OUT_POWER],
+                                c, fibre, s)
+                _energy_loop(dt, count, dynamic_recovery, v[ROW_XDOT],
+                             (v[ROW_ACTIVITY], v[ROW_ACTIVITY + 1]),
+                             (v[ROW_STIMULATION], v[ROW_STIMULATION + 1]),
+                             (v[ROW_TERMS + FL_SLOW], v[ROW_TERMS + FL_FAST]),
+                             _rows_tuple4(v, ROW_RECOVERY), _rows_tuple6(v, ROW_ENERGY),
+                             v[ROW_WORK], _rows_tuple6(v, ROW_COMPONENTS),
+                             _rows_tuple4(v, ROW_RATES), v[ROW_OUT_POWER], c, fibre, s,
+                             recovery_decay, recovery_rise)
+                _store_outputs(block, i0, count, out_excitation[k], out_f_se[k], out_f_ce[k],
+                               out_activity[k], out_stimulation[k], out_components[k],
+                               out_rates[k], out_power[k], out_length[k], out_velocity[k])
         for b in range(blocks):
             if status[b] != 0:
                 return k * n + status[b]
-        _copy(out_length[k], x_state)
-        _copy(out_velocity[k], xdot_state)
         if snapshot_every > 0 and (k + 1) % snapshot_every == 0:
             j = (k + 1) // snapshot_every - 1
-            _copy(snap_effective_drive[j], effective_drive)
-            _copy(snap_f_int[j], f_int)
-            _copy(snap_f_eff[j], f_eff)
-            _copy(snap_sag[j], sag)
-            _copy(snap_yield_factor[j], yield_factor)
-            _copy(snap_x_state[j], x_state)
-            _copy(snap_xdot_state[j], xdot_state)
-            _copy(snap_recovery_filter[j], recovery_filter)
-            _copy(snap_energy[j], energy)
-            _copy(snap_work[j], work)
+            snap_arrays, _ = _state_columns(
+                snap_effective_drive[j], snap_f_int[j], snap_f_eff[j], snap_sag[j],
+                snap_yield_factor[j], snap_x_state[j], snap_xdot_state[j],
+                snap_recovery_filter[j], snap_energy[j], snap_work[j])
+            for b in range(blocks):
+                i0 = b * size
+                _move_rows(variable[b], i0, min(n, i0 + size) - i0, snap_arrays, state_rows, False)
+    for b in range(blocks):
+        i0 = b * size
+        count = min(n, i0 + size) - i0
+        _move_rows(variable[b], i0, count, state_arrays, state_rows, False)
+        _move_rows(variable[b], i0, count, (terms_end, xv_end), (ROW_TERMS, ROW_XV), False)
     return 0
 
 
@@ -409,16 +645,18 @@ def _renamed(function, name: str):
     return copy
 
 
-# LLVM may contract a*b + c into fused multiply-adds, reassociate and use reciprocals; NaN and
-# infinity keep their IEEE meaning (the input checks rely on them). Results differ from the NumPy
-# step by rounding, which the stiff fascicle dynamics carry on (test_kernel: measured at most 4e-6
-# of the largest velocity, 7e-9 of force; held to 1e-5 of each field's scale).
-FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
-_advance_step = jitable(_advance)
+# LLVM may contract a*b + c into fused multiply-adds; nothing else (reassociation or reciprocals
+# would make a vectorised loop's muscles and its scalar remainder's differ in the last bits, and
+# then the parallel build would no longer equal the serial one to the bit); NaN and infinity keep
+# their IEEE meaning (the input checks rely on them). Results differ from the NumPy step by
+# rounding, which the stiff fascicle dynamics carry on (test_kernel: measured at most 8e-8 of the
+# largest velocity, 4e-10 of force; held to 1e-5 of each field's scale).
+FASTMATH = {"contract"}
 prange = range
 advance_series = advance_series_parallel = None
 if HAVE_NUMBA:
     prange = numba.prange
+    set_llvm_options()
     with model_cache_directory():
         _options = {"cache": True, "nogil": True, "error_model": "numpy", "fastmath": FASTMATH}
         advance_series = numba.njit(**_options)(_advance_series)

@@ -8,8 +8,8 @@ its signatures by test_model_layout.py), its warm-up arguments and the output re
 the equations that move it.
 
 Shapes name their axes: ``n`` muscles, ``P`` motor-unit pools (2 for lumped and continuous
-recruitment, 2N for N natural units per fibre type), ``k`` steps (a series), ``poly`` the
-coefficients of a polynomial; numbers are fixed sizes (2 fibre types, 3 energy components).
+recruitment, 2N for N natural units per fibre type), ``k`` steps (a series); numbers are fixed
+sizes (2 fibre types, 3 energy components, POLY_TERMS coefficients of a polynomial).
 """
 
 from __future__ import annotations
@@ -175,6 +175,21 @@ S, S_UNITS = _columns("SharedColumns", (
     ("drive_tau_min", "s"),
 ))
 
+# The kernel reads a polynomial's coefficients as a tuple of this fixed length (leading zeros
+# change nothing in Horner's rule): a degree of up to POLY_TERMS - 1.
+POLY_TERMS = 8
+
+
+def padded_polynomial(coefficients) -> np.ndarray:
+    """``coefficients`` (highest power first) with leading zeros up to POLY_TERMS; ValueError
+    for a degree above POLY_TERMS - 1."""
+    coefficients = np.asarray(coefficients, dtype=float).reshape(-1)
+    if coefficients.size > POLY_TERMS:
+        raise ValueError(f"a polynomial of {coefficients.size} coefficients: the compiled step "
+                         f"takes at most {POLY_TERMS}")
+    return np.concatenate([np.zeros(POLY_TERMS - coefficients.size), coefficients])
+
+
 # In the kernel's argument order.
 CONSTANTS = (
     Array("scheme", "scheme", (), "1", "recruitment scheme code (SCHEME_CODES)", int),
@@ -187,7 +202,8 @@ CONSTANTS = (
     Array("pool_pcsa", "pool_pcsa", ("n", "P"), "1", "PCSA fraction of each pool"),
     Array("fibre_type", "fibre_type", (2, len(T)), "T_UNITS", "per-fibre-type table, columns T"),
     Array("shared", "shared", (1, len(S)), "S_UNITS", "shared scalars, columns S"),
-    Array("w_slow_poly", "w_slow_poly", ("poly",), "1", "W_S polynomial in Ueff, highest first"),
+    Array("w_slow_poly", "w_slow_poly", (POLY_TERMS,), "1",
+          "W_S polynomial in Ueff, highest first, padded with leading zeros"),
 )
 
 
@@ -262,7 +278,7 @@ def kernel_parameters(series: bool = False) -> tuple:
 def dummy_arguments(scheme: int = 0) -> tuple:
     """Arguments of every declared type of the series kernel (kernel._advance_series) for a bank
     of no muscles, one step and no snapshots: they compile it."""
-    sizes = {"n": 0, "P": 2, "poly": 3}
+    sizes = {"n": 0, "P": 2}
     scalars = {"dt": 1e-3, "scheme": scheme, "dynamic_recovery": False, "snapshot_every": 0,
                "chunk": 0}
 
@@ -276,9 +292,10 @@ def dummy_arguments(scheme: int = 0) -> tuple:
 
 
 __all__ = [
-    "CACHE", "CHUNK", "CONSTANTS", "INPUTS", "N_TERMS", "OUTPUTS", "SERIES_OUTPUTS", "SNAPSHOTS",
+    "CACHE", "CHUNK", "CONSTANTS", "INPUTS", "N_TERMS", "OUTPUTS", "POLY_TERMS", "SERIES_OUTPUTS",
+    "SNAPSHOTS",
     "SNAPSHOT_EVERY", "STATE", "STATE_NAMES",
     "TIME", "Array", "BankState", "M", "MissingConstantError", "P", "S", "T",
-    "checked_state", "dummy_arguments", "kernel_parameters", "table",
+    "checked_state", "dummy_arguments", "kernel_parameters", "padded_polynomial", "table",
     "zero_state",
 ]

@@ -1,7 +1,7 @@
 """The phases of one fixed step, numbered once.
 
 The step is written twice, as speed asks: over arrays (vm_ros.model.numpy_step.NumpyStep.step) and
-as one compiled loop over muscles (vm_ros.model.kernel._advance). Both mark where each phase starts
+as compiled loops over muscles (vm_ros.model.kernel.PHASE_LOOPS). Both mark where each phase starts
 with a comment ``# Phase <number>, <NAME>: ...`` in this order; test_model_layout.py checks that the
 two executors carry every phase, once each, in this order. The energetic phases carry the names of
 Tsianos, Rustin & Loeb 2012 (STEPs 1-7).

@@ -25,7 +25,7 @@ from functools import cached_property
 
 import numpy as np
 
-from vm_ros.model.jit import clip, jitable, power, where
+from vm_ros.model.jit import clip, exp, expm1, jitable, power, where
 from vm_ros.model.params import FAST, SLOW, ContinuousParams, LumpedParams, NaturalParams
 
 SCHEMES = ("lumped", "natural", "continuous")
@@ -111,7 +111,7 @@ def lumped_drive_rise_rate(t_rise, step_scale):
 @jitable
 def lumped_drive_tau_from_rate(u, ueff, t_rise, t_fall, rise_rate):
     """:func:`lumped_drive_tau` given ``rise_rate`` = :func:`lumped_drive_rise_rate`."""
-    rising = t_rise * np.exp(-(u - ueff) * rise_rate)
+    rising = t_rise * exp(-(u - ueff) * rise_rate)
     return where(u >= ueff, rising, t_fall)
 
 
@@ -171,7 +171,7 @@ def lumped_weight_slow(ueff, u1, u2, w_slow_poly, at_u2, amplitude, tau):
     """W_S(Ueff): 0 below U1; 1.56 Ueff^2 - 1.20 Ueff + 0.884 up to U2;
     W_S(U2) + A (1 - exp(-(Ueff - U2)/0.26)) above."""
     quadratic = polyval_horner(w_slow_poly, np.minimum(ueff, u2))
-    above = at_u2 - amplitude * np.expm1(-np.maximum(ueff - u2, 0.0) / tau)
+    above = at_u2 - amplitude * expm1(-np.maximum(ueff - u2, 0.0) / tau)
     return where(ueff < u1, 0.0, where(ueff <= u2, quadratic, above))
 
 
@@ -181,7 +181,7 @@ def lumped_weight_fast(ueff, u2, ur, b, c, tau_f, offset, rise):
     W_F(Ur) + 0.35 (1 - exp(-(Ueff - Ur)/tau_f)) above."""
     quadratic = safe_ratio(np.minimum(ueff, ur) - b, c) ** 2 + offset
     at_ur = safe_ratio(ur - b, c) ** 2 + offset
-    above = at_ur - rise * np.expm1(-np.maximum(ueff - ur, 0.0) / tau_f)
+    above = at_ur - rise * expm1(-np.maximum(ueff - ur, 0.0) / tau_f)
     return where(ueff < u2, 0.0, where(ueff < ur, quadratic, above))
 
 
