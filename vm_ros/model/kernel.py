@@ -46,6 +46,15 @@ N_SHARED, N_TYPE_COLUMNS = len(S), len(T)
 FIBRE_TYPES = (0, 1)
 
 
+def _renamed(function, name: str):
+    """A copy of ``function`` under another name (Numba caches each compiled copy by name)."""
+    code = function.__code__.replace(co_name=name, co_qualname=name)
+    copy = types.FunctionType(code, function.__globals__, name, function.__defaults__,
+                              function.__closure__)
+    copy.__qualname__, copy.__module__, copy.__doc__ = name, function.__module__, function.__doc__
+    return copy
+
+
 # --- the compiled loop -----------------------------------------------------------------------
 
 
@@ -362,6 +371,11 @@ def _pool_loop(dt, count, natural, u, x, xdot, f_int, f_eff, sag, yield_factor, 
         stimulation[i] += weight * af_l0
 
 
+# _fibre_terms compiled as a function of its own, called rather than inlined: for the rare
+# refresh of the kept terms below, where inlining it only costs compile time
+_fibre_terms_called = jitable(_renamed(_fibre_terms, "_fibre_terms_called"))
+
+
 @jitable
 def _refresh_terms(count, x, xdot, xv_x, xv_xdot, terms, constant, fibre, s):
     """The kept (L, V) terms recomputed where (x, xdot) moved since they were computed (a reset
@@ -371,9 +385,9 @@ def _refresh_terms(count, x, xdot, xv_x, xv_xdot, terms, constant, fibre, s):
     for i in range(count):
         if not (xv_x[i] == x[i] and xv_xdot[i] == xdot[i]):
             l0 = c[M.l0, i]
+            terms_now = _fibre_terms_called(x[i] / l0, xdot[i] / l0, c[M.lmax, i], fibre, s)
             (t0[i], t1[i], t2[i], t3[i], t4[i], t5[i], t6[i], t7[i], t8[i], t9[i], t10[i],
-             t11[i], t12[i], t13[i]) = _fibre_terms(x[i] / l0, xdot[i] / l0, c[M.lmax, i], fibre,
-                                                    s)
+             t11[i], t12[i], t13[i]) = terms_now
 
 
 @jitable
@@ -634,15 +648,6 @@ def _advance_series(
         _move_rows(variable[b], i0, count, state_arrays, state_rows, False)
         _move_rows(variable[b], i0, count, (terms_end, xv_end), (ROW_TERMS, ROW_XV), False)
     return 0
-
-
-def _renamed(function, name: str):
-    """A copy of ``function`` under another name (Numba caches each compiled copy by name)."""
-    code = function.__code__.replace(co_name=name, co_qualname=name)
-    copy = types.FunctionType(code, function.__globals__, name, function.__defaults__,
-                              function.__closure__)
-    copy.__qualname__, copy.__module__, copy.__doc__ = name, function.__module__, function.__doc__
-    return copy
 
 
 # LLVM may contract a*b + c into fused multiply-adds; nothing else (reassociation or reciprocals
