@@ -552,11 +552,12 @@ def _advance_series(
     flat index step * n + muscle of the first bad input (the caller discards the state
     arrays).
 
-    The muscles are split into blocks of ``chunk`` (0: one block), each held in its rows for
-    the whole series; each step runs the blocks in parallel where this is compiled with
-    ``parallel`` (advance_series_parallel: ``prange``), in turn otherwise. Every muscle takes
-    the same arithmetic either way. A step is a series of one (CompiledStep.step), so the model
-    is compiled once for both."""
+    The muscles are split into blocks of ``chunk`` (0: one block). Muscles do not interact, so
+    each block runs all k steps in its rows on its own: in parallel where this is compiled with
+    ``parallel`` (advance_series_parallel: ``prange``, one parallel region per series), in turn
+    otherwise. A block stops at its first bad input; the series' is the earliest of the blocks'.
+    Every muscle takes the same arithmetic either way. A step is a series of one
+    (CompiledStep.step), so the model is compiled once for both."""
     n, n_pools = excitation.shape[1], pool.shape[0]
     size = chunk if chunk > 0 else max(n, 1)
     blocks = (n + size - 1) // size
@@ -564,90 +565,84 @@ def _advance_series(
     recovery_decay = act.lag_decay(shared[0, S.recovery_tau_decay], dt)
     recovery_rise = act.lag_decay(shared[0, S.recovery_tau_rise], dt)
     fall_tau_mid = rc.mid_activation_fall_time_constant(pool[0, P.tf3], pool[0, P.tf4])
-    state_arrays, state_rows = _state_columns(effective_drive, f_int, f_eff, sag, yield_factor,
-                                              x_state, xdot_state, recovery_filter, energy, work)
     variable = np.empty((blocks, _variable_rows(n_pools), size))
     constant = np.empty((blocks, ROW_C_THRESHOLD + 2 * n_pools, size))
-    for b in range(blocks):
+    status = np.zeros(blocks, dtype=np.int64)  # per block: 0, or 1 + its first bad input's index
+    for b in prange(blocks):
         i0 = b * size
         count = min(n, i0 + size) - i0
-        _move_rows(constant[b], i0, count, (muscle, thresholds, pool_pcsa),
+        v, c = variable[b], constant[b]
+        # (tuples made here, inside the parallel region, which takes arrays and scalars only)
+        s, fibre, w_slow = _tables_as_tuples(shared, fibre_type, w_slow_poly)
+        state_arrays, state_rows = _state_columns(effective_drive, f_int, f_eff, sag,
+                                                  yield_factor, x_state, xdot_state,
+                                                  recovery_filter, energy, work)
+        _move_rows(c, i0, count, (muscle, thresholds, pool_pcsa),
                    (0, ROW_C_THRESHOLD, ROW_C_THRESHOLD + n_pools), True)
-        _move_rows(variable[b], i0, count, state_arrays, state_rows, True)
-        _move_rows(variable[b], i0, count, (terms_end, xv_end), (ROW_TERMS, ROW_XV), True)
-    status = np.zeros(blocks, dtype=np.int64)
-    for k in range(excitation.shape[0]):
-        for b in prange(blocks):
-            i0 = b * size
-            count = min(n, i0 + size) - i0
-            block = variable[b]
-            bad = _load_inputs(block, i0, count, excitation[k], path_length[k], path_velocity[k])
-            status[b] = i0 + bad if bad != 0 else 0
-            if bad == 0:
-                # one step of the block; its inputs are in the rows ROW_U_IN, ROW_LP, ROW_VP
-                v, c = block, constant[b]
-                s, fibre, w_slow = _tables_as_tuples(shared, fibre_type, w_slow_poly)
-                # the scheme as flags: tests of one code against several constants in a loop
-                # would become a switch, which stops its vectorisation
-                lumped, natural = scheme == LUMPED, scheme == NATURAL
-                relative_drive = s[S.drive_law_code] == RELATIVE_DRIVE
-                _drive_loop(dt, count, lumped, natural, relative_drive, v[ROW_U_IN],
-                            v[ROW_OUT_U], v[ROW_DRIVE], v[_pool_row(POOL_F_EFF, 0, n_pools)],
-                            v[ROW_WEIGHT], v[ROW_WEIGHT + 1], c, fall_tau_mid, s, w_slow)
-                for t in range(2):
-                    for i in range(count):
-                        v[ROW_ACTIVITY + t, i] = 0.0
-                        v[ROW_STIMULATION + t, i] = 0.0
-                # every pool: its activation path, then its share of the type's activation
-                for j in range(n_pools):
-                    t = pool_type[j]
-                    _pool_loop(
-                        dt, count, natural, v[ROW_OUT_U], v[ROW_X], v[ROW_XDOT],
-                        v[_pool_row(POOL_F_INT, j, n_pools)], v[_pool_row(POOL_F_EFF, j, n_pools)],
-                        v[_pool_row(POOL_SAG, j, n_pools)], v[_pool_row(POOL_YIELD, j, n_pools)],
-                        v[ROW_ACTIVITY + t], v[ROW_STIMULATION + t], v[ROW_WEIGHT + t],
-                        c[ROW_C_THRESHOLD + j], c[ROW_C_THRESHOLD + n_pools + j], c[M.l0],
-                        pool[j], pool_decay[j, 0], pool_decay[j, 1], s,
-                    )
-                terms = (v[ROW_TERMS], v[ROW_TERMS + 1], v[ROW_TERMS + 2], v[ROW_TERMS + 3],
-                         v[ROW_TERMS + 4], v[ROW_TERMS + 5], v[ROW_TERMS + 6], v[ROW_TERMS + 7],
-                         v[ROW_TERMS + 8], v[ROW_TERMS + 9], v[ROW_TERMS + 10],
-                         v[ROW_TERMS + 11], v[ROW_TERMS + 12], v[ROW_TERMS + 13])
-                _refresh_terms(count, v[ROW_X], v[ROW_XDOT], v[ROW_XV], v[ROW_XV + 1], terms, c,
-                               fibre, s)
-                _mechanics_loop(dt, count, v[ROW_LP], v[ROW_VP], v[ROW_X], v[ROW_XDOT],
-                                v[ROW_ACTIVITY], v[ROW_ACTIVITY + 1], terms, v[ROW_XV],
-                                v[ROW_XV + 1], v[ROW_OUT_FSE], v[ROW_OUT_FCE], v[ROW_OUT_POWER],
-                                c, fibre, s)
-                _energy_loop(dt, count, dynamic_recovery, v[ROW_XDOT],
-                             (v[ROW_ACTIVITY], v[ROW_ACTIVITY + 1]),
-                             (v[ROW_STIMULATION], v[ROW_STIMULATION + 1]),
-                             (v[ROW_TERMS + FL_SLOW], v[ROW_TERMS + FL_FAST]),
-                             _rows_tuple4(v, ROW_RECOVERY), _rows_tuple6(v, ROW_ENERGY),
-                             v[ROW_WORK], _rows_tuple6(v, ROW_COMPONENTS),
-                             _rows_tuple4(v, ROW_RATES), v[ROW_OUT_POWER], c, fibre, s,
-                             recovery_decay, recovery_rise)
-                _store_outputs(block, i0, count, out_excitation[k], out_f_se[k], out_f_ce[k],
-                               out_activity[k], out_stimulation[k], out_components[k],
-                               out_rates[k], out_power[k], out_length[k], out_velocity[k])
-        for b in range(blocks):
-            if status[b] != 0:
-                return k * n + status[b]
-        if snapshot_every > 0 and (k + 1) % snapshot_every == 0:
-            j = (k + 1) // snapshot_every - 1
-            snap_arrays, _ = _state_columns(
-                snap_effective_drive[j], snap_f_int[j], snap_f_eff[j], snap_sag[j],
-                snap_yield_factor[j], snap_x_state[j], snap_xdot_state[j],
-                snap_recovery_filter[j], snap_energy[j], snap_work[j])
-            for b in range(blocks):
-                i0 = b * size
-                _move_rows(variable[b], i0, min(n, i0 + size) - i0, snap_arrays, state_rows, False)
+        _move_rows(v, i0, count, state_arrays, state_rows, True)
+        _move_rows(v, i0, count, (terms_end, xv_end), (ROW_TERMS, ROW_XV), True)
+        # the scheme as flags: tests of one code against several constants in a loop would
+        # become a switch, which stops its vectorisation
+        lumped, natural = scheme == LUMPED, scheme == NATURAL
+        relative_drive = s[S.drive_law_code] == RELATIVE_DRIVE
+        for k in range(excitation.shape[0]):
+            bad = _load_inputs(v, i0, count, excitation[k], path_length[k], path_velocity[k])
+            if bad != 0:
+                status[b] = k * n + i0 + bad
+                break
+            # one step of the block; its inputs are in the rows ROW_U_IN, ROW_LP, ROW_VP
+            _drive_loop(dt, count, lumped, natural, relative_drive, v[ROW_U_IN], v[ROW_OUT_U],
+                        v[ROW_DRIVE], v[_pool_row(POOL_F_EFF, 0, n_pools)], v[ROW_WEIGHT],
+                        v[ROW_WEIGHT + 1], c, fall_tau_mid, s, w_slow)
+            for t in range(2):
+                for i in range(count):
+                    v[ROW_ACTIVITY + t, i] = 0.0
+                    v[ROW_STIMULATION + t, i] = 0.0
+            # every pool: its activation path, then its share of the type's activation
+            for j in range(n_pools):
+                t = pool_type[j]
+                _pool_loop(
+                    dt, count, natural, v[ROW_OUT_U], v[ROW_X], v[ROW_XDOT],
+                    v[_pool_row(POOL_F_INT, j, n_pools)], v[_pool_row(POOL_F_EFF, j, n_pools)],
+                    v[_pool_row(POOL_SAG, j, n_pools)], v[_pool_row(POOL_YIELD, j, n_pools)],
+                    v[ROW_ACTIVITY + t], v[ROW_STIMULATION + t], v[ROW_WEIGHT + t],
+                    c[ROW_C_THRESHOLD + j], c[ROW_C_THRESHOLD + n_pools + j], c[M.l0],
+                    pool[j], pool_decay[j, 0], pool_decay[j, 1], s,
+                )
+            terms = (v[ROW_TERMS], v[ROW_TERMS + 1], v[ROW_TERMS + 2], v[ROW_TERMS + 3],
+                     v[ROW_TERMS + 4], v[ROW_TERMS + 5], v[ROW_TERMS + 6], v[ROW_TERMS + 7],
+                     v[ROW_TERMS + 8], v[ROW_TERMS + 9], v[ROW_TERMS + 10], v[ROW_TERMS + 11],
+                     v[ROW_TERMS + 12], v[ROW_TERMS + 13])
+            _refresh_terms(count, v[ROW_X], v[ROW_XDOT], v[ROW_XV], v[ROW_XV + 1], terms, c,
+                           fibre, s)
+            _mechanics_loop(dt, count, v[ROW_LP], v[ROW_VP], v[ROW_X], v[ROW_XDOT],
+                            v[ROW_ACTIVITY], v[ROW_ACTIVITY + 1], terms, v[ROW_XV],
+                            v[ROW_XV + 1], v[ROW_OUT_FSE], v[ROW_OUT_FCE], v[ROW_OUT_POWER], c,
+                            fibre, s)
+            _energy_loop(dt, count, dynamic_recovery, v[ROW_XDOT],
+                         (v[ROW_ACTIVITY], v[ROW_ACTIVITY + 1]),
+                         (v[ROW_STIMULATION], v[ROW_STIMULATION + 1]),
+                         (v[ROW_TERMS + FL_SLOW], v[ROW_TERMS + FL_FAST]),
+                         _rows_tuple4(v, ROW_RECOVERY), _rows_tuple6(v, ROW_ENERGY), v[ROW_WORK],
+                         _rows_tuple6(v, ROW_COMPONENTS), _rows_tuple4(v, ROW_RATES),
+                         v[ROW_OUT_POWER], c, fibre, s, recovery_decay, recovery_rise)
+            _store_outputs(v, i0, count, out_excitation[k], out_f_se[k], out_f_ce[k],
+                           out_activity[k], out_stimulation[k], out_components[k], out_rates[k],
+                           out_power[k], out_length[k], out_velocity[k])
+            if snapshot_every > 0 and (k + 1) % snapshot_every == 0:
+                j = (k + 1) // snapshot_every - 1
+                snap_arrays, _ = _state_columns(
+                    snap_effective_drive[j], snap_f_int[j], snap_f_eff[j], snap_sag[j],
+                    snap_yield_factor[j], snap_x_state[j], snap_xdot_state[j],
+                    snap_recovery_filter[j], snap_energy[j], snap_work[j])
+                _move_rows(v, i0, count, snap_arrays, state_rows, False)
+        _move_rows(v, i0, count, state_arrays, state_rows, False)
+        _move_rows(v, i0, count, (terms_end, xv_end), (ROW_TERMS, ROW_XV), False)
+    first_bad = 0
     for b in range(blocks):
-        i0 = b * size
-        count = min(n, i0 + size) - i0
-        _move_rows(variable[b], i0, count, state_arrays, state_rows, False)
-        _move_rows(variable[b], i0, count, (terms_end, xv_end), (ROW_TERMS, ROW_XV), False)
-    return 0
+        if status[b] != 0 and (first_bad == 0 or status[b] < first_bad):
+            first_bad = status[b]
+    return first_bad
 
 
 # LLVM may contract a*b + c into fused multiply-adds; nothing else (reassociation or reciprocals
@@ -698,7 +693,7 @@ def parallel_chunk(n: int, threads: int | None = None) -> int:
 
 def warm_up(parallel: bool = False) -> None:
     """Compile the kernel (step and run share it) or load it from Numba's disk cache now rather
-    than in the first step: about 5 s the first time on a machine, 0.3 s after; with
+    than in the first step: about 15 s the first time on a machine, 0.3 s after; with
     ``parallel`` its parallel build too."""
     if not AVAILABLE:
         return
