@@ -80,10 +80,11 @@ literal_unroll = numba.literal_unroll if HAVE_NUMBA else (lambda iterable: itera
 # LLVM's limits, raised for the compiled kernel (vm_ros.model.kernel): each phase is a loop over
 # muscles calling the model's equation functions, which LLVM must inline whole before it can
 # vectorise the loop (default threshold 225), and whose rows it must check for overlap once per
-# loop (default: at most 8 comparisons). With the defaults the kernel stays scalar: measured
-# 0.65 us per muscle-step at 1000 muscles against 0.20 us with these. These are options of the
-# process's LLVM: other Numba code compiled in the same process after the kernel is imported
-# sees them too (they change how much LLVM inlines and vectorises, never results).
+# loop (default: at most 8 comparisons). With the defaults the phase loops keep calls and stay
+# scalar: measured 1.37 us per muscle-step at 1000 muscles against 0.17 us with these. These
+# are options of the process's LLVM: other Numba code compiled in the same process after the
+# kernel is imported sees them too (they change how much LLVM inlines and vectorises, never
+# results).
 LLVM_OPTIONS = (
     "-inline-threshold=3000",
     "-runtime-memory-check-threshold=4096",
@@ -103,9 +104,8 @@ def set_llvm_options() -> None:
 
 def jitable(func=None, *, inline=False):
     """Mark an equation as callable from the compiled kernel (no-op without Numba). With
-    ``inline`` Numba inlines its body into every caller before typing, so that array arguments
-    cost no reference counting inside the caller's loops (which would stop their
-    vectorisation); without it LLVM decides."""
+    ``inline`` Numba inlines its body into every caller before typing (for a large function that
+    a loop must have inlined to be vectorised); without it LLVM decides."""
     if func is None:
         return lambda func: jitable(func, inline=inline)
     if not HAVE_NUMBA:

@@ -665,9 +665,11 @@ if HAVE_NUMBA:
 AVAILABLE = advance_series is not None
 
 # The parallel switch (CompiledStep(parallel=...), or this environment variable) and the bank
-# size below which the step stays serial even when it is on. Measured on 2 idle cores (step,
-# serial / parallel): 1.06x at 16 muscles, 1.43x at 64, 1.6x at 128-256, 1.8-2.0x at 1000-10000;
-# with the other core busy it loses (0.4-0.8x), hence off by default.
+# size below which the step stays serial even when it is on. Measured on 2 idle cores (serial
+# time / parallel time, 2026-11-30): one step per call 0.73x at 8 muscles, 0.83x at 16, 0.93x at
+# 32, 1.02x at 64, 1.19x at 128; a series (run) 0.63x at 8, 1.11x at 16, 1.52x at 32, 1.68x at
+# 64, 1.7-1.9x at 1000-10000. With the other core busy it loses (0.4-0.8x, measured with the
+# earlier scalar kernel), hence off by default.
 PARALLEL_ENV = "VM_ROS_PARALLEL"
 PARALLEL_MIN_MUSCLES = 64
 
