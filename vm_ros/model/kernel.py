@@ -274,8 +274,7 @@ def _store_outputs(block, i0, count, out_excitation, out_f_se, out_f_ce, out_act
                    out_stimulation, out_components, out_rates, out_power, out_length,
                    out_velocity):
     """A block's output rows into one step's output arrays (layout.SERIES_OUTPUTS), muscles
-    i0 ... (written out: this runs every step, and a loop over a tuple of arrays costs twice
-    as much)."""
+    i0 ... i0 + count - 1."""
     for i in range(count):
         g = i0 + i
         out_excitation[g] = block[ROW_OUT_U, i]
