@@ -38,7 +38,7 @@ from vm_ros.model.layout import N_TERMS, POLY_TERMS, M, P, S, T
 from vm_ros.model.params import DRIVE_LAWS
 
 SCHEME_CODES = {"lumped": 0, "natural": 1, "continuous": 2}
-LUMPED, NATURAL, CONTINUOUS = 0, 1, 2
+LUMPED, NATURAL = SCHEME_CODES["lumped"], SCHEME_CODES["natural"]
 DRIVE_LAW_CODES = {law: code for code, law in enumerate(DRIVE_LAWS)}  # of the lumped scheme
 RELATIVE_DRIVE = DRIVE_LAW_CODES["relative_drive"]
 N_SHARED, N_TYPE_COLUMNS = len(S), len(T)
@@ -74,28 +74,29 @@ def _tables_as_tuples(shared, fibre_type, w_slow_poly):
     return fixed_tuple(shared[0], N_SHARED), (slow, fast), fixed_tuple(w_slow_poly, POLY_TERMS)
 
 
+@jitable
+def _type_terms(l, v, ft, fv_denominator_min):
+    """One fibre type's FL, dFL/dL, FV, dFV/dV and dFV/dL at (L, V) (``ft``: its row of the
+    fibre-type table as a tuple)."""
+    fl, dfl = curves.force_length_and_slope_cheng2000(l, ft[T.omega], ft[T.beta], ft[T.rho])
+    fv = curves.force_velocity_cheng2000(v, l, ft[T.vmax], ft[T.cv0], ft[T.cv1], ft[T.av0],
+                                         ft[T.av1], ft[T.av2], ft[T.bv], fv_denominator_min)
+    dfv_dv, dfv_dl = curves.force_velocity_slopes_cheng2000(
+        v, l, ft[T.vmax], ft[T.cv0], ft[T.cv1], ft[T.av0], ft[T.av1], ft[T.av2], ft[T.bv],
+        fv_denominator_min)
+    return fl, dfl, fv, dfv_dv, dfv_dl
+
+
 @jitable(inline=True)
 def _fibre_terms(l, v, lmax, fibre_type, s):
     """The (L, V) terms at (L, V), in the order FL_SLOW ... DPE2: FL, FV of each fibre type, FPE1
     and FPE2, and their slopes (dFL/dL, dFV/dV, dFV/dL, dFPE1/dL, dFPE2/dL). ``fibre_type`` and
     ``s``: rows of the constant tables as tuples (:func:`_tables_as_tuples`). Inlined by Numba
     into its callers, where LLVM drops the terms a caller does not use."""
-    ft = fibre_type[0]
-    fl_s, dfl_s = curves.force_length_and_slope_cheng2000(l, ft[T.omega], ft[T.beta], ft[T.rho])
-    slow = (ft[T.vmax], ft[T.cv0], ft[T.cv1], ft[T.av0], ft[T.av1], ft[T.av2], ft[T.bv],
-            s[S.fv_denominator_min])
-    ft = fibre_type[1]
-    fl_f, dfl_f = curves.force_length_and_slope_cheng2000(l, ft[T.omega], ft[T.beta], ft[T.rho])
-    fast = (ft[T.vmax], ft[T.cv0], ft[T.cv1], ft[T.av0], ft[T.av1], ft[T.av2], ft[T.bv],
-            s[S.fv_denominator_min])
-    fv_s = curves.force_velocity_cheng2000(v, l, slow[0], slow[1], slow[2], slow[3], slow[4],
-                                           slow[5], slow[6], slow[7])
-    fv_f = curves.force_velocity_cheng2000(v, l, fast[0], fast[1], fast[2], fast[3], fast[4],
-                                           fast[5], fast[6], fast[7])
-    dfv_dv_s, dfv_dl_s = curves.force_velocity_slopes_cheng2000(
-        v, l, slow[0], slow[1], slow[2], slow[3], slow[4], slow[5], slow[6], slow[7])
-    dfv_dv_f, dfv_dl_f = curves.force_velocity_slopes_cheng2000(
-        v, l, fast[0], fast[1], fast[2], fast[3], fast[4], fast[5], fast[6], fast[7])
+    fl_s, dfl_s, fv_s, dfv_dv_s, dfv_dl_s = _type_terms(l, v, fibre_type[0],
+                                                        s[S.fv_denominator_min])
+    fl_f, dfl_f, fv_f, dfv_dv_f, dfv_dl_f = _type_terms(l, v, fibre_type[1],
+                                                        s[S.fv_denominator_min])
     pe1, dpe1 = curves.passive_parallel_elastic_and_slope_cheng2000(
         l, v, lmax, s[S.c1], s[S.k1], s[S.lr1], s[S.eta]
     )
@@ -205,7 +206,6 @@ def _row_starts(*sizes):
 POOL_F_INT, POOL_F_EFF, POOL_SAG, POOL_YIELD, POOL_VARIABLE_ROWS = range(5)
 # constant rows: the muscle table's columns, then each pool's threshold and PCSA fraction
 ROW_C_THRESHOLD = len(M)
-N_MUSCLE_COLUMNS = len(M)
 
 
 @jitable
@@ -522,16 +522,16 @@ def _advance(
     match the state).
     """
     n = excitation.shape[0]
-    no_snapshots = [np.empty((0, *a.shape)) for a in (
-        effective_drive, f_int, f_eff, sag, yield_factor, x_state, xdot_state, recovery_filter,
-        energy, work)]
+    sizes = layout.state_sizes(n, pool.shape[0])
+    fascicle_rows = [a.empty(sizes, (1,)) for a in layout.SERIES_OUTPUTS[len(layout.OUTPUTS):]]
+    no_snapshots = [a.empty(sizes, (0,)) for a in layout.SNAPSHOTS]
     return _advance_series(
         dt, excitation[None], path_length[None], path_velocity[None], scheme, dynamic_recovery,
         muscle, pool, pool_type, thresholds, pool_pcsa, fibre_type, shared, w_slow_poly,
         effective_drive, f_int, f_eff, sag, yield_factor, x_state, xdot_state, recovery_filter,
         energy, work, terms_end, xv_end, out_excitation[None], out_f_se[None], out_f_ce[None],
         out_activity[None], out_stimulation[None], out_components[None], out_rates[None],
-        out_power[None], np.empty((1, n)), np.empty((1, n)), 0, *no_snapshots, 0,
+        out_power[None], *fascicle_rows, 0, *no_snapshots, 0,
     )
 
 
@@ -584,6 +584,18 @@ def _advance_series(
         # become a switch, which stops its vectorisation
         lumped, natural = scheme == LUMPED, scheme == NATURAL
         relative_drive = s[S.drive_law_code] == RELATIVE_DRIVE
+        # the rows the loops take as tuples, the same views for every step
+        terms = (v[ROW_TERMS], v[ROW_TERMS + 1], v[ROW_TERMS + 2], v[ROW_TERMS + 3],
+                 v[ROW_TERMS + 4], v[ROW_TERMS + 5], v[ROW_TERMS + 6], v[ROW_TERMS + 7],
+                 v[ROW_TERMS + 8], v[ROW_TERMS + 9], v[ROW_TERMS + 10], v[ROW_TERMS + 11],
+                 v[ROW_TERMS + 12], v[ROW_TERMS + 13])
+        activity = (v[ROW_ACTIVITY], v[ROW_ACTIVITY + 1])
+        stimulation = (v[ROW_STIMULATION], v[ROW_STIMULATION + 1])
+        fl = (v[ROW_TERMS + FL_SLOW], v[ROW_TERMS + FL_FAST])
+        recovery = _rows_tuple4(v, ROW_RECOVERY)
+        energy_rows = _rows_tuple6(v, ROW_ENERGY)
+        components = _rows_tuple6(v, ROW_COMPONENTS)
+        rates = _rows_tuple4(v, ROW_RATES)
         for k in range(excitation.shape[0]):
             bad = _load_inputs(v, i0, count, excitation[k], path_length[k], path_velocity[k])
             if bad != 0:
@@ -608,22 +620,14 @@ def _advance_series(
                     c[ROW_C_THRESHOLD + j], c[ROW_C_THRESHOLD + n_pools + j], c[M.l0],
                     pool[j], pool_decay[j, 0], pool_decay[j, 1], s,
                 )
-            terms = (v[ROW_TERMS], v[ROW_TERMS + 1], v[ROW_TERMS + 2], v[ROW_TERMS + 3],
-                     v[ROW_TERMS + 4], v[ROW_TERMS + 5], v[ROW_TERMS + 6], v[ROW_TERMS + 7],
-                     v[ROW_TERMS + 8], v[ROW_TERMS + 9], v[ROW_TERMS + 10], v[ROW_TERMS + 11],
-                     v[ROW_TERMS + 12], v[ROW_TERMS + 13])
             _refresh_terms(count, v[ROW_X], v[ROW_XDOT], v[ROW_XV], v[ROW_XV + 1], terms, c,
                            fibre, s)
             _mechanics_loop(dt, count, v[ROW_LP], v[ROW_VP], v[ROW_X], v[ROW_XDOT],
-                            v[ROW_ACTIVITY], v[ROW_ACTIVITY + 1], terms, v[ROW_XV],
+                            activity[0], activity[1], terms, v[ROW_XV],
                             v[ROW_XV + 1], v[ROW_OUT_FSE], v[ROW_OUT_FCE], v[ROW_OUT_POWER], c,
                             fibre, s)
-            _energy_loop(dt, count, dynamic_recovery, v[ROW_XDOT],
-                         (v[ROW_ACTIVITY], v[ROW_ACTIVITY + 1]),
-                         (v[ROW_STIMULATION], v[ROW_STIMULATION + 1]),
-                         (v[ROW_TERMS + FL_SLOW], v[ROW_TERMS + FL_FAST]),
-                         _rows_tuple4(v, ROW_RECOVERY), _rows_tuple6(v, ROW_ENERGY), v[ROW_WORK],
-                         _rows_tuple6(v, ROW_COMPONENTS), _rows_tuple4(v, ROW_RATES),
+            _energy_loop(dt, count, dynamic_recovery, v[ROW_XDOT], activity, stimulation, fl,
+                         recovery, energy_rows, v[ROW_WORK], components, rates,
                          v[ROW_OUT_POWER], c, fibre, s, recovery_decay, recovery_rise)
             _store_outputs(v, i0, count, out_excitation[k], out_f_se[k], out_f_ce[k],
                            out_activity[k], out_stimulation[k], out_components[k], out_rates[k],
