@@ -210,9 +210,9 @@ if HAVE_NUMBA:
 
     @register_jitable
     def _exp_parts(x):
-        """(2^h, 2^(k-h), expm1(r)) with x = k ln2 + r, |r| <= ln2/2, h = floor(k / 2), x
+        """(2^h, 2^(k-h), 2^-h, expm1(r)) with x = k ln2 + r, |r| <= ln2/2, h = floor(k / 2), x
         clamped to where exp is finite and not zero: exp(x) = 2^h (2^(k-h) (1 + expm1(r))),
-        each factor a normal float from k = -1076 to 1024."""
+        each power of 2 a normal float from k = -1076 to 1024."""
         x = min(max(x, -746.0), 710.0)
         kf = math.floor(x * _LOG2E + 0.5)
         r = (x - kf * _LN2_HI) - kf * _LN2_LO
@@ -223,21 +223,20 @@ if HAVE_NUMBA:
         k = np.int64(kf)
         half = k >> 1
         return (_bits_as_float((half + 1023) << 52), _bits_as_float((k - half + 1023) << 52),
-                r + r * r * p)
+                _bits_as_float((1023 - half) << 52), r + r * r * p)
 
     @register_jitable
     def _exp_scalar(x):
-        scale_high, scale_low, p = _exp_parts(x)
+        scale_high, scale_low, _, p = _exp_parts(x)
         return x if x != x else scale_high * (scale_low + scale_low * p)
 
     @register_jitable
     def _expm1_scalar(x):
-        scale_high, scale_low, p = _exp_parts(x)
-        scale = scale_high * scale_low  # 2^k: finite below k = 1024
-        precise = (scale - 1.0) + scale * p
-        large = scale_high * (scale_low + scale_low * p) - 1.0  # exp(x) - 1 where 1 is lost
-        value = large if x > 700.0 else precise
-        return x if x != x else value
+        # exp(x) - 1 = 2^h ((2^(k-h) - 2^-h) + 2^(k-h) expm1(r)): the difference of two powers
+        # of 2 is exact where it matters (|k| small, where the 1 cancels), and no factor
+        # overflows before the result does
+        scale_high, scale_low, inverse_high, p = _exp_parts(x)
+        return x if x != x else scale_high * ((scale_low - inverse_high) + scale_low * p)
 
     @register_jitable
     def _log_parts(x):
