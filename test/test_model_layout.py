@@ -1,11 +1,11 @@
 """The step's declared layout (vm_ros.model.layout) and phases (vm_ros.model.phases) against the
 code that uses them, and the kernel run as plain Python against the NumPy step.
 
-These tests need no Numba: the kernel's Python function (``kernel._advance``) runs uncompiled with
-the same arguments the compiled one gets. Uncompiled it evaluates the same equation functions in the
-same order on the same float64 numbers, so after 300 steps it equals the NumPy step to rounding
-(measured at most 3.4e-15 of each field's largest value, every scheme and recovery mode); held
-here to 1e-13. An error in an equation or in the order of the phases shows up far above that.
+These tests need no Numba: the kernel's Python function (``kernel._advance_series``) runs uncompiled
+with the same arguments the compiled one gets. Uncompiled it evaluates the same equation functions
+in the same order on the same float64 numbers, so after 300 steps it equals the NumPy step to
+rounding (measured at most 3.4e-15 of each field's largest value, every scheme and recovery mode);
+held here to 1e-13. An error in an equation or in the order of the phases shows up far above that.
 """
 
 from __future__ import annotations
@@ -32,9 +32,8 @@ RELATIVE = 1e-13
 
 
 def test_kernel_signatures_follow_the_declaration():
-    for function, series in ((kernel._advance, False), (kernel._advance_series, True)):
-        names = tuple(inspect.signature(function).parameters)
-        assert names == layout.kernel_parameters(series), function.__name__
+    names = tuple(inspect.signature(kernel._advance_series).parameters)
+    assert names == layout.kernel_parameters()
     if kernel.AVAILABLE:
         assert kernel.advance_series.py_func is kernel._advance_series
 

@@ -4,10 +4,11 @@ It calls the model's own equation functions (curves, activation, recruitment, me
 energetics; each marked ``@jitable``), in the order the NumPy step
 (vm_ros.model.numpy_step.NumpyStep.step) calls their array forms, phase by phase as
 vm_ros.model.phases numbers them, so there is one source of every equation. Its arguments are the
-flat list vm_ros.model.layout declares (test_model_layout.py checks both signatures against it);
-the packing of constants and the call live in vm_ros.model.compiled_step. Run as plain Python
-(``_advance``) it equals the NumPy step to rounding (test_model_layout.py, with or without Numba);
-compiled, to the fast-math tolerance of test_kernel.py.
+flat list vm_ros.model.layout declares (test_model_layout.py checks the signature against it);
+the packing of constants and the call live in vm_ros.model.compiled_step. A step is a series of
+one. Run as plain Python (``_advance_series``) it equals the NumPy step to rounding
+(test_model_layout.py, with or without Numba); compiled, to the fast-math tolerance of
+test_kernel.py.
 
 The bank uses this path when Numba is importable (see vm_ros.model.jit); otherwise the NumPy step.
 """
@@ -503,38 +504,6 @@ def _pool_decays(dt, pool):
     return pool_decay
 
 
-def _advance(
-    dt, excitation, path_length, path_velocity, scheme, dynamic_recovery,
-    muscle, pool, pool_type, thresholds, pool_pcsa, fibre_type, shared, w_slow_poly,
-    effective_drive, f_int, f_eff, sag, yield_factor, x_state, xdot_state, recovery_filter,
-    energy, work, terms_end, xv_end, out_excitation,
-    out_f_se, out_f_ce, out_activity, out_stimulation, out_components, out_rates, out_power,
-):
-    """Advance every muscle by dt in place (state arrays) and fill the outputs: a series of one
-    step (:func:`_advance_series`, which the bank calls compiled).
-
-    out_rates (n, 4): the energy rates summed over fibre types (activation, cross-bridge,
-    recovery, total). Returns 0, or 1 + the index of the first muscle with a bad input
-    (non-finite, path length <= 0), found before anything is written.
-
-    terms_end (n, N_TERMS) and xv_end (n, 2): the (L, V) terms of F_CE at the (x, xdot) in
-    xv_end, kept between calls (any content is valid: they are recomputed where xv_end does not
-    match the state).
-    """
-    n = excitation.shape[0]
-    sizes = layout.state_sizes(n, pool.shape[0])
-    fascicle_rows = [a.empty(sizes, (1,)) for a in layout.SERIES_OUTPUTS[len(layout.OUTPUTS):]]
-    no_snapshots = [a.empty(sizes, (0,)) for a in layout.SNAPSHOTS]
-    return _advance_series(
-        dt, excitation[None], path_length[None], path_velocity[None], scheme, dynamic_recovery,
-        muscle, pool, pool_type, thresholds, pool_pcsa, fibre_type, shared, w_slow_poly,
-        effective_drive, f_int, f_eff, sag, yield_factor, x_state, xdot_state, recovery_filter,
-        energy, work, terms_end, xv_end, out_excitation[None], out_f_se[None], out_f_ce[None],
-        out_activity[None], out_stimulation[None], out_components[None], out_rates[None],
-        out_power[None], *fascicle_rows, 0, *no_snapshots, 0,
-    )
-
-
 def _advance_series(
     dt, excitation, path_length, path_velocity, scheme, dynamic_recovery,
     muscle, pool, pool_type, thresholds, pool_pcsa, fibre_type, shared, w_slow_poly,
@@ -545,8 +514,14 @@ def _advance_series(
     snap_sag, snap_yield_factor, snap_x_state, snap_xdot_state, snap_recovery_filter,
     snap_energy, snap_work, chunk,
 ):
-    """:func:`_advance` for k steps: inputs and outputs carry a leading step axis (k, n, ...);
-    the state arrays end at the last step, and with ``snapshot_every`` m > 0 the ``snap_``
+    """Advance every muscle by dt, k times (k the leading axis of the inputs and outputs, (k, n,
+    ...)), in place in the state arrays, and fill the outputs. out_rates: the energy rates summed
+    over fibre types (activation, cross-bridge, recovery, total). terms_end (n, N_TERMS) and
+    xv_end (n, 2): the (L, V) terms of F_CE at the (x, xdot) in xv_end, kept between calls (any
+    content is valid: they are recomputed where xv_end does not match the state). Bad inputs:
+    non-finite, or a path length <= 0.
+
+    The state arrays end at the last step, and with ``snapshot_every`` m > 0 the ``snap_``
     arrays (k // m, ...) take the state at the end of steps m, 2m, ... Returns 0, or 1 + the
     flat index step * n + muscle of the first bad input (the caller discards the state
     arrays).

@@ -269,10 +269,10 @@ SNAPSHOTS = tuple(Array(a.name, f"snap_{a.kernel}", a.shape, a.unit, a.meaning) 
 CHUNK = Array("chunk", "chunk", (), "1", "muscles per block (0: all in one)", int)
 
 
-def kernel_parameters(series: bool = False) -> tuple:
-    """The kernel's parameter names, in order (kernel._advance; _advance_series if ``series``)."""
-    outputs = (*SERIES_OUTPUTS, SNAPSHOT_EVERY, *SNAPSHOTS, CHUNK) if series else OUTPUTS
-    return tuple(a.kernel for a in (*INPUTS, *CONSTANTS, *STATE, *CACHE, *outputs))
+def kernel_parameters() -> tuple:
+    """The kernel's parameter names, in order (kernel._advance_series)."""
+    return tuple(a.kernel for a in (*INPUTS, *CONSTANTS, *STATE, *CACHE, *SERIES_OUTPUTS,
+                                    SNAPSHOT_EVERY, *SNAPSHOTS, CHUNK))
 
 
 def dummy_arguments(scheme: int = 0) -> tuple:
