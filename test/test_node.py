@@ -156,6 +156,35 @@ def test_batched_ticks_equal_the_bank_run_offline(ros, lengths, tmp_path):
     assert_log_replays(path, lengths, [np.array(m.effort) for m in probe.forces])
 
 
+def test_real_time_ticks_fall_after_whole_periods_and_run_one_batch(ros, lengths):
+    """ROS time from the system clock, the default tick of one publish period (10 steps): the
+    timer restarts at the model's start, so that its next call falls a whole number of periods
+    after it (left in its own phase, that gap is short of a whole period by the start tick's
+    wake-up delay, and every tick woken sooner in its period than the start tick ran 9 steps
+    and split the next tick's 11 into two calls). In 1 s of running, about one MuscleBank call
+    per tick."""
+    node = ros.muscle_node(muscles=MUSCLES, stale_input_policy="hold", input_timeout_s=1000.0)
+    probe = ros.probe()
+    connected(ros, node, probe)
+    probe.send_excitation_array(np.array([0.4, 0.3]))
+    probe.send_kinematics(MUSCLES, lengths)
+    assert ros.spin_until(lambda: node.scheduler.started, timeout_s=5)
+    period_ns = node.scheduler.step_ns * node.scheduler.steps_per_tick
+    next_call_ns = node.get_clock().now().nanoseconds + node._model_timer.time_until_next_call()
+    phase_ns = (next_call_ns - node.scheduler.anchor_ns) % period_ns
+    assert phase_ns < 0.05 * period_ns, phase_ns  # the reset comes microseconds after the start
+
+    calls = []
+    for name in ("run", "step"):
+        method = getattr(node.bank, name)
+        setattr(node.bank, name, lambda *a, _m=method, **k: calls.append(1) or _m(*a, **k))
+    ticks = node.ticks
+    ros.spin_for(1.0)
+    ticks = node.ticks - ticks
+    assert ticks >= 50
+    assert len(calls) <= 1.2 * ticks, (len(calls), ticks)
+
+
 @pytest.mark.parametrize("batch_steps", [0, 1])
 def test_a_non_finite_step_resets_the_model_at_that_step(ros, lengths, batch_steps):
     """A state that gives a NaN (here planted): the model is reset to equilibrium at that step

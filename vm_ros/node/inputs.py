@@ -88,14 +88,19 @@ class NodeInputs:
         self.names = tuple(names)
         self.n = len(self.names)
         self._index = {name: i for i, name in enumerate(self.names)}
+        # every muscle in order: a message that names them so (or none, positional) is stored
+        # by slices instead of index arrays (the usual message, in fewer NumPy operations)
+        self._order = np.arange(self.n)
+        self._order.flags.writeable = False
         unknown = [m for m in joint_driven if m not in self._index]
         if unknown:
             raise ValueError(f"joint-driven muscles {unknown} are not among {self.names}")
         self.joint_driven = np.isin(self.names, list(joint_driven))
-        self.limits = limits
+        self._any_joint_driven = bool(self.joint_driven.any())
         # path-length ranges accepted beyond the library's (allow_path_range)
         self._allowed_lo = np.full(self.n, np.inf)
         self._allowed_hi = np.full(self.n, -np.inf)
+        self.limits = limits
         self.drive = np.zeros(self.n)
         self.drive_seen = np.zeros(self.n, dtype=bool)
         self.drive_time_ns = np.zeros(self.n, dtype=np.int64)
@@ -117,19 +122,34 @@ class NodeInputs:
         # sends the same names every time (vm_ros.recording.cdr.JointStateDecoder reuses them)
         self._selections: dict = {}
 
+    @property
+    def limits(self) -> InputLimits:
+        return self._limits
+
+    @limits.setter
+    def limits(self, limits: InputLimits) -> None:
+        """New limits (runtime parameters); the accepted path lengths follow."""
+        self._limits = limits
+        self._bounds = self._path_bounds()
+
     # --- messages ---------------------------------------------------------------------------
 
     def _select(self, topic: str, names, size: int) -> tuple[list, np.ndarray | None, list]:
         """Indices into the message and into the muscles for ``names`` (or positional when
         there are no names); returns (issues, muscle index or None when rejected, message index).
         The same names tuple (the same object) and size as the topic's last message give the
-        same answer without looking the names up again."""
+        same answer without looking the names up again. Every muscle in order: both indices
+        are ``self._order``."""
         last = self._selections.get(topic)
         if last is not None and last[0] is names and last[1] == size:
             issues, muscles, entries = last[2]
             return list(issues), muscles, entries
         issues, muscles, entries = self._selection(topic, names, size)
-        selection = issues, muscles, np.asarray(entries, dtype=int)
+        entries = np.asarray(entries, dtype=int)
+        if (muscles is not None and np.array_equal(muscles, self._order)
+                and np.array_equal(entries, self._order)):
+            muscles = entries = self._order
+        selection = issues, muscles, entries
         if isinstance(names, tuple):
             self._selections[topic] = (names, size, selection)
         issues, muscles, entries = selection
@@ -168,9 +188,10 @@ class NodeInputs:
         if np.any(clipped != values):
             issues.append(Issue("drive_clipped", f"{topic}: drive outside [0, 1] "
                                 f"({values.min():.3g} .. {values.max():.3g})"))
-        self.drive[muscles] = clipped
-        self.drive_seen[muscles] = True
-        self.drive_time_ns[muscles] = now_ns
+        where = slice(None) if muscles is self._order else muscles
+        self.drive[where] = clipped
+        self.drive_seen[where] = True
+        self.drive_time_ns[where] = now_ns
         self.last_excitation_ns = now_ns
         return issues
 
@@ -182,7 +203,8 @@ class NodeInputs:
             return issues
         if muscles.size == 0:
             return issues
-        return issues + self._set_drive("excitation", muscles, drive[entries], now_ns)
+        values = drive if entries is self._order else drive[entries]
+        return issues + self._set_drive("excitation", muscles, values, now_ns)
 
     def on_excitation_array(self, drive, now_ns: int) -> list[Issue]:
         """Float64MultiArray on excitation_array: one drive per muscle, muscles-parameter order."""
@@ -190,7 +212,7 @@ class NodeInputs:
         if drive.size != self.n:
             return [Issue("wrong_size", f"excitation_array: {drive.size} values, expected "
                           f"{self.n} (one per muscle)")]
-        return self._set_drive("excitation_array", np.arange(self.n), drive, now_ns)
+        return self._set_drive("excitation_array", self._order, drive, now_ns)
 
     @property
     def joint_driven_names(self) -> tuple[str, ...]:
@@ -208,6 +230,12 @@ class NodeInputs:
         issues, muscles, entries = self._select(topic, names, length.size)
         if muscles is None or muscles.size == 0:
             return issues
+        if entries is self._order and not self._any_joint_driven:
+            vp = velocity if velocity.size else np.zeros(length.size)
+            more, accepted = self.set_path_kinematics(topic, muscles, length, vp, now_ns)
+            if accepted:
+                self.last_kinematics_ns = now_ns
+            return issues + more
         driven = self.joint_driven[muscles]
         if np.any(driven):
             shown = ", ".join(self.names[i] for i in muscles[driven][:3])
@@ -230,38 +258,51 @@ class NodeInputs:
         range (an importer clips Lmax into VM's 1.1-1.4 and shortens the library's maximum)."""
         self._allowed_lo[muscles] = lo
         self._allowed_hi[muscles] = hi
+        self._bounds = self._path_bounds()
 
     def path_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """(lo, hi) path length (m) accepted per muscle: the limits, widened by
         allow_path_range."""
-        return (np.minimum(self.limits.path_length_min_m, self._allowed_lo),
-                np.maximum(self.limits.path_length_max_m, self._allowed_hi))
+        return self._bounds
+
+    def _path_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        lo = np.minimum(self.limits.path_length_min_m, self._allowed_lo)
+        hi = np.maximum(self.limits.path_length_max_m, self._allowed_hi)
+        lo.flags.writeable = hi.flags.writeable = False
+        return lo, hi
 
     def set_path_kinematics(self, topic: str, muscles: np.ndarray, lp: np.ndarray,
                             vp: np.ndarray, now_ns: int) -> tuple[list[Issue], bool]:
         """Store path lengths ``lp`` (m) and velocities ``vp`` (m/s) of ``muscles`` (indices)
         received at ``now_ns``, if all are finite and physical; (issues, stored). Used by
         on_kinematics and by vm_ros.joint_space for the joint-driven muscles."""
+        where = slice(None) if muscles is self._order else muscles
+        lo, hi = (bound[where] for bound in self._bounds)
+        # one test for the usual message (a NaN or an infinity fails a comparison), the
+        # checks one by one only to say what is wrong
+        if not (np.all((lp >= lo) & (lp <= hi))
+                and np.all(np.abs(vp) <= self.limits.path_speed_max_m_per_s)):
+            return self._rejected(topic, muscles, lp, vp, lo, hi), False
+        self.length_m[where] = lp
+        self.velocity_m_per_s[where] = vp
+        self.length_seen[where] = True
+        self.length_time_ns[where] = now_ns
+        return [], True
+
+    def _rejected(self, topic: str, muscles, lp, vp, lo, hi) -> list[Issue]:
+        """What set_path_kinematics found wrong with path kinematics it did not store."""
         if not (np.all(np.isfinite(lp)) and np.all(np.isfinite(vp))):
-            return [Issue("non_finite", f"{topic}: length or velocity is not finite")], False
-        lo, hi = (bound[muscles] for bound in self.path_bounds())
+            return [Issue("non_finite", f"{topic}: length or velocity is not finite")]
         bad = (lp < lo) | (lp > hi)
         if np.any(bad):
             i = int(np.argmax(bad))
             return [Issue("non_physical_length", f"{topic}: {self.names[muscles[i]]} "
                           f"path length {lp[i]:.6g} m outside [{lo[i]:.4g}, "
-                          f"{hi[i]:.4g}] m")], False
-        fast = np.abs(vp) > self.limits.path_speed_max_m_per_s
-        if np.any(fast):
-            i = int(np.argmax(fast))
-            return [Issue("non_physical_velocity", f"{topic}: {self.names[muscles[i]]} "
-                          f"path velocity {vp[i]:.6g} m/s beyond "
-                          f"{self.limits.path_speed_max_m_per_s:g} m/s")], False
-        self.length_m[muscles] = lp
-        self.velocity_m_per_s[muscles] = vp
-        self.length_seen[muscles] = True
-        self.length_time_ns[muscles] = now_ns
-        return [], True
+                          f"{hi[i]:.4g}] m")]
+        i = int(np.argmax(np.abs(vp) > self.limits.path_speed_max_m_per_s))
+        return [Issue("non_physical_velocity", f"{topic}: {self.names[muscles[i]]} "
+                      f"path velocity {vp[i]:.6g} m/s beyond "
+                      f"{self.limits.path_speed_max_m_per_s:g} m/s")]
 
     # --- time -------------------------------------------------------------------------------
 
@@ -274,6 +315,11 @@ class NodeInputs:
         """Which muscles' inputs are stale at ``now_ns`` (for the pause policy, diagnostics and
         the fresh -> stale reports; sample() judges staleness at its own time)."""
         timeout = self.limits.timeout_ns
+        if (not (self._was_stale["excitation"] or self._was_stale["kinematics"])
+                and now_ns - self.drive_time_ns.min() <= timeout
+                and now_ns - self.length_time_ns.min() <= timeout
+                and self.drive_seen.all() and self.length_seen.all()):
+            return []  # fresh as at the last call: drive_stale and length_stale stay all False
         self.drive_stale = ~self.drive_seen | (now_ns - self.drive_time_ns > timeout)
         self.length_stale = np.where(self.length_seen, now_ns - self.length_time_ns > timeout,
                                      ~self.length_initial)
@@ -326,7 +372,8 @@ class NodeInputs:
         moving = self.length_seen & (since_ns < horizon_ns)
         lp = self.length_m + self.velocity_m_per_s * (np.minimum(since_ns, horizon_ns) * 1e-9
                                                       * self.length_seen)
-        clamped = np.clip(lp, *self.path_bounds())
+        lo, hi = self._bounds
+        clamped = np.minimum(np.maximum(lp, lo), hi)  # np.clip, faster on small arrays
         vp = np.where(moving & (clamped == lp), self.velocity_m_per_s, 0.0)
         return np.array(u, dtype=float), clamped, vp
 
