@@ -81,6 +81,23 @@ def test_unknown_names_are_counted_per_name(bank):
     assert [(i.kind, i.count) for i in issues] == [("unknown_name", 2)]
 
 
+def test_every_muscle_in_order_and_an_unknown_name_stores_the_known_ones(bank):
+    """The muscles in order, then names the node does not have (as a message with every muscle
+    in order and nothing else, which takes a shorter path, must not): the unknown names counted,
+    the known entries stored, the others' values (even a NaN) ignored."""
+    inputs = make_inputs(bank, stale_input_policy="hold")
+    names = (*MUSCLES, "knee")
+    for _ in range(2):  # the second time from the remembered selection
+        issues = inputs.on_excitation(names, [0.2, 0.4, np.nan], 0)
+        assert [(i.kind, i.count) for i in issues] == [("unknown_name", 1)]
+        np.testing.assert_array_equal(inputs.drive, [0.2, 0.4])
+        lengths = mid_lengths(bank)
+        issues = inputs.on_kinematics(names, [*lengths, np.nan], [0.01, 0.02, np.inf], 0)
+        assert kinds(issues) == ["unknown_name"]
+        np.testing.assert_array_equal(inputs.length_m, lengths)
+        np.testing.assert_array_equal(inputs.velocity_m_per_s, [0.01, 0.02])
+
+
 def test_excitation_array(bank):
     inputs = make_inputs(bank)
     assert inputs.on_excitation_array([0.2, 0.3], 0) == []

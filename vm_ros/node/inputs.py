@@ -134,19 +134,20 @@ class NodeInputs:
 
     # --- messages ---------------------------------------------------------------------------
 
-    def _select(self, topic: str, names, size: int) -> tuple[list, np.ndarray | None, list]:
+    def _select(self, topic: str, names,
+                size: int) -> tuple[list, np.ndarray | None, np.ndarray]:
         """Indices into the message and into the muscles for ``names`` (or positional when
         there are no names); returns (issues, muscle index or None when rejected, message index).
         The same names tuple (the same object) and size as the topic's last message give the
-        same answer without looking the names up again. Every muscle in order: both indices
-        are ``self._order``."""
+        same answer without looking the names up again. Every muscle in order and nothing else:
+        both indices are ``self._order``."""
         last = self._selections.get(topic)
         if last is not None and last[0] is names and last[1] == size:
             issues, muscles, entries = last[2]
             return list(issues), muscles, entries
         issues, muscles, entries = self._selection(topic, names, size)
         entries = np.asarray(entries, dtype=int)
-        if (muscles is not None and np.array_equal(muscles, self._order)
+        if (muscles is not None and size == self.n and np.array_equal(muscles, self._order)
                 and np.array_equal(entries, self._order)):
             muscles = entries = self._order
         selection = issues, muscles, entries

@@ -756,10 +756,11 @@ def make_executor(kind: str, context=None):
 
 
 def freeze_startup_objects() -> None:
-    """Move every object alive now (imports, the compiled model: about 140,000 in muscle_node)
-    to the garbage collector's permanent generation, so that its full collections stop walking
-    them: each took 32 ms of the spinning thread, every 10 s (1 muscle at 1 kHz), a stall of
-    three publish periods."""
+    """Move every object alive now (imports, the compiled model: about 140,000 in muscle_node;
+    run_node calls it for each vm_ros node once built) to the garbage collector's permanent
+    generation, so that its full collections stop walking them: each took 32 ms of the
+    spinning thread, every 10 s (muscle_node, 1 muscle at 1 kHz), a stall of three publish
+    periods."""
     gc.collect()
     gc.freeze()
 

@@ -13,7 +13,8 @@ and the ``mcap`` library read it.
 
 Threading: ``write`` puts (topic, bytes, times) on a bounded queue and returns; a writer thread
 owns the ``mcap.writer.Writer``, drains the queue every DRAIN_PERIOD_S (at once when it holds
-WAKE_SIZE messages, or at close) and yields the GIL every few messages. Woken by every message,
+WAKE_SIZE entries, or a quarter of ``queue_size`` if less, or at close) and yields the GIL
+every few messages. Woken by every message,
 as a ``queue.Queue`` would, the writer thread cost a thread switch per message: 600 a second
 in a node at 1 kHz publishing at 100 Hz, in the middle of its model ticks. When the queue is full,
 or after the writer failed, ``write`` returns False and counts the message as dropped. A write
@@ -71,7 +72,8 @@ FLUSH_INTERVAL_S = 1.0
 # (a 1 kHz loop) waits about one batch (~0.3 ms), not CPython's 5 ms switch interval; it stops
 # doing so while the queue is more than a quarter full, to catch up.
 _YIELD_EVERY = 32
-# The writer thread drains the queue this often (s), or at once when WAKE_SIZE messages wait.
+# The writer thread drains the queue this often (s), or at once when WAKE_SIZE queue entries
+# (messages, or write_block blocks) wait, or a quarter of the queue if that is less.
 DRAIN_PERIOD_S = 0.05
 WAKE_SIZE = 256
 
@@ -245,7 +247,7 @@ class McapRecorder:
         self._queue: deque = deque()  # appended by callers, taken by the writer thread
         self._queue_size = queue_size
         self._wake = threading.Event()  # set: the writer thread drains without waiting
-        self._wake_size = min(WAKE_SIZE, queue_size)
+        self._wake_size = max(1, min(WAKE_SIZE, queue_size // 4))
         self._catch_up_size = max(1, queue_size // 4)
         self._channel_lock = threading.Lock()
         self._channels: dict[str, _ChannelSpec] = {}
