@@ -134,6 +134,10 @@ class NodeInputs:
 
     # --- messages ---------------------------------------------------------------------------
 
+    def _where(self, muscles: np.ndarray):
+        """The index that stores values of ``muscles``: a slice for every muscle in order."""
+        return slice(None) if muscles is self._order else muscles
+
     def _select(self, topic: str, names,
                 size: int) -> tuple[list, np.ndarray | None, np.ndarray]:
         """Indices into the message and into the muscles for ``names`` (or positional when
@@ -189,7 +193,7 @@ class NodeInputs:
         if np.any(clipped != values):
             issues.append(Issue("drive_clipped", f"{topic}: drive outside [0, 1] "
                                 f"({values.min():.3g} .. {values.max():.3g})"))
-        where = slice(None) if muscles is self._order else muscles
+        where = self._where(muscles)
         self.drive[where] = clipped
         self.drive_seen[where] = True
         self.drive_time_ns[where] = now_ns
@@ -231,14 +235,8 @@ class NodeInputs:
         issues, muscles, entries = self._select(topic, names, length.size)
         if muscles is None or muscles.size == 0:
             return issues
-        if entries is self._order and not self._any_joint_driven:
-            vp = velocity if velocity.size else np.zeros(length.size)
-            more, accepted = self.set_path_kinematics(topic, muscles, length, vp, now_ns)
-            if accepted:
-                self.last_kinematics_ns = now_ns
-            return issues + more
-        driven = self.joint_driven[muscles]
-        if np.any(driven):
+        driven = self.joint_driven[muscles] if self._any_joint_driven else None
+        if driven is not None and np.any(driven):
             shown = ", ".join(self.names[i] for i in muscles[driven][:3])
             issues.append(Issue("joint_driven_kinematics", f"{topic}: {shown} driven from "
                                 "joint_states", count=int(np.sum(driven))))
@@ -246,8 +244,9 @@ class NodeInputs:
                                                                     strict=True) if not d]
             if muscles.size == 0:
                 return issues
-        lp = length[entries]
-        vp = velocity[entries] if velocity.size else np.zeros(lp.size)
+        lp = length if entries is self._order else length[entries]
+        vp = (np.zeros(lp.size) if not velocity.size
+              else velocity if entries is self._order else velocity[entries])
         more, accepted = self.set_path_kinematics(topic, muscles, lp, vp, now_ns)
         if accepted:
             self.last_kinematics_ns = now_ns
@@ -277,7 +276,7 @@ class NodeInputs:
         """Store path lengths ``lp`` (m) and velocities ``vp`` (m/s) of ``muscles`` (indices)
         received at ``now_ns``, if all are finite and physical; (issues, stored). Used by
         on_kinematics and by vm_ros.joint_space for the joint-driven muscles."""
-        where = slice(None) if muscles is self._order else muscles
+        where = self._where(muscles)
         lo, hi = (bound[where] for bound in self._bounds)
         # one test for the usual message (a NaN or an infinity fails a comparison), the
         # checks one by one only to say what is wrong

@@ -14,15 +14,14 @@ and the ``mcap`` library read it.
 Threading: ``write`` puts (topic, bytes, times) on a bounded queue and returns; a writer thread
 owns the ``mcap.writer.Writer``, drains the queue every DRAIN_PERIOD_S (at once when it holds
 WAKE_SIZE entries, or a quarter of ``queue_size`` if less, or at close) and yields the GIL
-every few messages. Woken by every message,
-as a ``queue.Queue`` would, the writer thread cost a thread switch per message: 600 a second
-in a node at 1 kHz publishing at 100 Hz, in the middle of its model ticks. When the queue is full,
-or after the writer failed, ``write`` returns False and counts the message as dropped. A write
-error (disk full...) is caught by the writer thread: ``status.ok`` turns False with the error
-text and later messages are dropped; the caller never sees an exception. ``status.written`` then
-counts the messages that reached the file (a reader gets them back): those of the chunk being
-written are lost with it, unless the chunk itself was written whole and the error came after it
-(in its message index, say).
+every few messages. Woken by every message, as a ``queue.Queue`` would, the writer thread cost
+a thread switch per message: 600 a second in a node at 1 kHz publishing at 100 Hz, in the
+middle of its model ticks. When the queue is full, or after the writer failed, ``write``
+returns False and counts the message as dropped. A write error (disk full...) is caught by the
+writer thread: ``status.ok`` turns False with the error text and later messages are dropped;
+the caller never sees an exception. ``status.written`` then counts the messages that reached
+the file (a reader gets them back): those of the chunk being written are lost with it, unless
+the chunk itself was written whole and the error came after it (in its message index, say).
 
 Crash safety: messages are written in zstd chunks of ``chunk_size`` bytes (uncompressed); each
 closed chunk goes straight to the OS (the sink is unbuffered), so a process killed with SIGKILL
@@ -247,8 +246,8 @@ class McapRecorder:
         self._queue: deque = deque()  # appended by callers, taken by the writer thread
         self._queue_size = queue_size
         self._wake = threading.Event()  # set: the writer thread drains without waiting
-        self._wake_size = max(1, min(WAKE_SIZE, queue_size // 4))
         self._catch_up_size = max(1, queue_size // 4)
+        self._wake_size = min(WAKE_SIZE, self._catch_up_size)
         self._channel_lock = threading.Lock()
         self._channels: dict[str, _ChannelSpec] = {}
         self._pending: list[_ChannelSpec] = []
