@@ -80,7 +80,7 @@ def _compiled_math():
             out[0, i] = jit.exp(x[i])
             out[1, i] = jit.expm1(x[i])
             out[2, i] = jit.log(y[i])
-            out[3, i] = jit.log1p(y[i] - 1.0 if y[i] < 1.0 else y[i])
+            out[3, i] = jit.log1p(x[i])
             out[4, i] = jit.power(y[i], exponent[i])
 
     return evaluate
@@ -101,12 +101,11 @@ def test_compiled_transcendentals_match_numpy_to_a_few_ulp():
                         rng.uniform(-1, 1e-3, 5000),
                         [0.0, 1.0, 5e-324, 1e-310, 2.0, -1.0, -0.5, 3.0, 1e300, 1e-300,
                          np.inf, np.nan]])
-    exponent = np.clip(rng.uniform(-4, 4, x.size), -4, 4)
+    exponent = rng.uniform(-4, 4, x.size)
     out = np.empty((5, x.size))
     _compiled_math()(x, y, exponent, out)
-    y_log1p = np.where(y < 1.0, y - 1.0, y)
     with np.errstate(all="ignore"):
-        references = (np.exp(x), np.expm1(x), np.log(y), np.log1p(y_log1p),
+        references = (np.exp(x), np.expm1(x), np.log(y), np.log1p(x),
                       np.power(y, exponent))
         error_bound = (2.0, 2.0, 2.0, 2.0, 2.0 + 2.0 * np.abs(exponent * np.log(y)))
     for name, got, expected, bound in zip(("exp", "expm1", "log", "log1p", "power"), out,
@@ -443,7 +442,8 @@ for loop in kernel.PHASE_LOOPS:
     bodies = [f for f in re.split(r"\\n(?=define )", ir)
               if re.match(r"define [^@]*@\\w*" + loop.__name__ + r"B", f)]
     vectors = sum(len(re.findall(r"<[2-9] x double>", f)) for f in bodies)
-    calls = sum(len(re.findall(r"call [^@\\n]*@_ZN", f)) for f in bodies)
+    calls = sum(len(re.findall(r"call [^@\\n]*@(?:_ZN|(?:llvm\\.(?:exp|log|pow)\\w*|exp|expm1"
+                               r"|log|log1p|pow)\\b)", f)) for f in bodies)
     print(loop.__name__, len(bodies), vectors, calls)
 """
 

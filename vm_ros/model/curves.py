@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vm_ros.model.jit import exp, expm1, jitable, log, log1p, power, where
+from vm_ros.model.jit import exp, expm1, jitable, log1p, power, where
 
 
 @jitable
@@ -173,7 +173,6 @@ def tendon_force_and_stiffness_cheng2000(l_se, ct, kt, lrt):
     return ct * kt * softplus_from_exp(x, e), ct * logistic_from_exp(x, e)
 
 
-@jitable
 def tendon_length_at_force(force, ct, kt, lrt):
     """Inverse of :func:`tendon_force_cheng2000`: L_SE (L0T) at which the tendon carries ``force``.
 
@@ -181,7 +180,7 @@ def tendon_length_at_force(force, ct, kt, lrt):
     """
     z = np.asarray(force) / (ct * kt)
     # ln(exp(z) - 1) = z + ln(1 - exp(-z)), stable for large z
-    return kt * (z + log(-expm1(-z))) + lrt
+    return kt * (z + np.log(-np.expm1(-z))) + lrt
 
 
 @jitable

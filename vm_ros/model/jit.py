@@ -147,8 +147,9 @@ def log1p(x):
 
 
 def fixed_tuple(array, length):
-    """The first ``length`` elements of a 1-d array as a tuple (Numba's ``to_fixed_tuple``
-    when compiled, which needs ``length`` to be a constant and the array that long)."""
+    """The elements of a 1-d array of ``length`` elements as a tuple (Numba's
+    ``to_fixed_tuple`` when compiled, which needs ``length`` to be a constant); ValueError for
+    an array of another length."""
     if len(array) != length:
         raise ValueError(f"an array of {len(array)} elements, {length} expected")
     return tuple(array)
@@ -175,27 +176,17 @@ if HAVE_NUMBA:
 
         return array_where
 
-    from llvmlite import ir as _ir
-    from numba.extending import intrinsic
     from numba.np.unsafe.ndarray import to_fixed_tuple
 
-    @intrinsic
-    def _bits_as_float(typingctx, bits):
-        """The float64 whose IEEE 754 bits are the int64 ``bits``."""
+    @register_jitable
+    def _bits_as_float(bits):
+        """The float64 whose IEEE 754 bits are the int64 ``bits`` (a bitcast)."""
+        return np.int64(bits).view(np.float64)
 
-        def codegen(context, builder, signature, args):
-            return builder.bitcast(args[0], _ir.DoubleType())
-
-        return _nb_types.float64(_nb_types.int64), codegen
-
-    @intrinsic
-    def _float_as_bits(typingctx, value):
-        """The IEEE 754 bits of the float64 ``value``, as an int64."""
-
-        def codegen(context, builder, signature, args):
-            return builder.bitcast(args[0], _ir.IntType(64))
-
-        return _nb_types.int64(_nb_types.float64), codegen
+    @register_jitable
+    def _float_as_bits(value):
+        """The IEEE 754 bits of the float64 ``value``, as an int64 (a bitcast)."""
+        return np.float64(value).view(np.int64)
 
     # Cody & Waite's split of ln 2 (the high part has 20 trailing zero bits), as in fdlibm
     _LN2_HI, _LN2_LO = 6.93147180369123816490e-01, 1.90821492927058770002e-10
@@ -303,6 +294,8 @@ if HAVE_NUMBA:
         size = length.literal_value
 
         def constant_length_tuple(array, length):
+            if array.shape[0] != size:  # to_fixed_tuple itself does not check
+                raise ValueError("fixed_tuple: an array of another length than expected")
             return to_fixed_tuple(array, size)
 
         return constant_length_tuple
