@@ -26,6 +26,7 @@ from vm_ros.model import energetics as en
 from vm_ros.model import mechanics as mech
 from vm_ros.model import recruitment as rc
 from vm_ros.model.jit import (
+    COMPILE_OPTIONS,
     HAVE_NUMBA,
     clip,
     fixed_tuple,
@@ -640,7 +641,8 @@ if HAVE_NUMBA:
     prange = numba.prange
     set_llvm_options()
     with model_cache_directory():
-        _options = {"cache": True, "nogil": True, "error_model": "numpy", "fastmath": FASTMATH}
+        _options = {"cache": True, "nogil": True, "error_model": "numpy", "fastmath": FASTMATH,
+                    **COMPILE_OPTIONS}
         advance_series = numba.njit(**_options)(_advance_series)
         advance_series_parallel = numba.njit(parallel=True, **_options)(
             _renamed(_advance_series, "_advance_series_parallel"))
@@ -677,7 +679,7 @@ def parallel_chunk(n: int, threads: int | None = None) -> int:
 
 def warm_up(parallel: bool = False) -> None:
     """Compile the kernel (step and run share it) or load it from Numba's disk cache now rather
-    than in the first step: about 15 s the first time on a machine, 0.3 s after; with
+    than in the first step: about 13 s the first time on a machine, 0.3 s after; with
     ``parallel`` its parallel build too."""
     if not AVAILABLE:
         return
