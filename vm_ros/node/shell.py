@@ -62,6 +62,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.qos_overriding_options import InvalidQosOverridesError, QoSOverridingOptions
 from rclpy.serialization import serialize_message
 from rclpy.signals import SignalHandlerOptions
+from rclpy.task import Future
 from rclpy.utilities import remove_ros_args
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray
@@ -765,10 +766,21 @@ def freeze_startup_objects() -> None:
     gc.freeze()
 
 
+SPIN_CHECK_S = 1.0  # the longest a stop request can wait when no callback runs (see spin)
+
+
 def spin(executor, context, stop: ShutdownRequest) -> None:
-    """spin_once until a shutdown is requested or the context is shut down."""
+    """Spin until a shutdown is requested or the context is shut down, in the executor's own
+    loop: spin_until_future_complete on a future that the stop request completes. Python runs
+    the signal handler at the next callback (the model timer's, every publish period), and the
+    spin returns from it; without any callback, at the next SPIN_CHECK_S. A Python loop of
+    spin_once calls, one per callback, cost the 1-muscle node about 0.6 % of a core more
+    (node_bench, 1 kHz, publish 100 Hz, 6 interleaved 30 s runs each, 2026-11-30: medians
+    10.8 % against 10.3 %, means 11.2 % against 10.4 %)."""
+    requested = Future()
+    stop.when_requested(lambda: requested.done() or requested.set_result(True))
     while not stop.requested and context.ok():
-        executor.spin_once(timeout_sec=0.1)
+        executor.spin_until_future_complete(requested, timeout_sec=SPIN_CHECK_S)
 
 
 def _topic_lines(topics) -> list[str]:
