@@ -65,7 +65,8 @@ def test_kernel_and_node_rows_carry_the_speed_targets():
 
     kernel = {"serial": [row(1000, 0.2, 0.3), row(10000, 0.3, 0.29)],
               "parallel": [row(10000, 0.09, 0.1, True)],
-              "cold_start": {"muscles": 10, "cold_start_s": 12.0, "target_s": 10.0}}
+              "cold_start": {"muscles": 10, "cold_start_s": 12.0, "imports_s": 0.5,
+                             "target_s": 10.0}}
     rows = bench._csv_rows({"kernel": kernel})
     met = {(r["case"].split(",")[0], r["metric"]): r["met"] for r in rows if r["target"]}
     assert met[("1000 muscles", "run per muscle-step")] is True
@@ -73,6 +74,8 @@ def test_kernel_and_node_rows_carry_the_speed_targets():
     assert met[("10000 muscles", "run speed / repeated step")] is False
     assert met[("10000 muscles", "run per 1 ms step")] is True  # 900 us
     assert met[("cold start to the first run()", "wall")] is False
+    imports = [r for r in rows if r["metric"] == "of which imports"]
+    assert [r["value"] for r in imports] == [0.5] and not imports[0]["target"]
     speedup = [r for r in rows if r["metric"] == "parallel speed-up of run"]
     assert abs(speedup[0]["value"] - 0.3 / 0.09) < 1e-12
 
