@@ -169,7 +169,11 @@ def clip(value, lower, upper):
 
 if HAVE_NUMBA:
 
-    @overload(where, jit_options=COMPILE_OPTIONS)
+    def _compiled_overload(function):
+        """Numba's ``overload`` with the model's COMPILE_OPTIONS (as :func:`jitable` gives)."""
+        return overload(function, jit_options=COMPILE_OPTIONS)
+
+    @_compiled_overload(where)
     def _where_compiled(condition, if_true, if_false):
         if isinstance(condition, _nb_types.Boolean):
 
@@ -185,12 +189,12 @@ if HAVE_NUMBA:
 
     from numba.np.unsafe.ndarray import to_fixed_tuple
 
-    @register_jitable(**COMPILE_OPTIONS)
+    @jitable
     def _bits_as_float(bits):
         """The float64 whose IEEE 754 bits are the int64 ``bits`` (a bitcast)."""
         return np.int64(bits).view(np.float64)
 
-    @register_jitable(**COMPILE_OPTIONS)
+    @jitable
     def _float_as_bits(value):
         """The IEEE 754 bits of the float64 ``value``, as an int64 (a bitcast)."""
         return np.float64(value).view(np.int64)
@@ -206,7 +210,7 @@ if HAVE_NUMBA:
            1.479819860511658591e-01)
     _SMALLEST_NORMAL = 2.2250738585072014e-308
 
-    @register_jitable(**COMPILE_OPTIONS)
+    @jitable
     def _exp_parts(x):
         """(2^h, 2^(k-h), 2^-h, expm1(r)) with x = k ln2 + r, |r| <= ln2/2, h = floor(k / 2), x
         clamped to where exp is finite and not zero: exp(x) = 2^h (2^(k-h) (1 + expm1(r))),
@@ -223,12 +227,12 @@ if HAVE_NUMBA:
         return (_bits_as_float((half + 1023) << 52), _bits_as_float((k - half + 1023) << 52),
                 _bits_as_float((1023 - half) << 52), r + r * r * p)
 
-    @register_jitable(**COMPILE_OPTIONS)
+    @jitable
     def _exp_scalar(x):
         scale_high, scale_low, _, p = _exp_parts(x)
         return x if x != x else scale_high * (scale_low + scale_low * p)
 
-    @register_jitable(**COMPILE_OPTIONS)
+    @jitable
     def _expm1_scalar(x):
         # exp(x) - 1 = 2^h ((2^(k-h) - 2^-h) + 2^(k-h) expm1(r)): the difference of two powers
         # of 2 is exact where it matters (|k| small, where the 1 cancels), and no factor
@@ -236,7 +240,7 @@ if HAVE_NUMBA:
         scale_high, scale_low, inverse_high, p = _exp_parts(x)
         return x if x != x else scale_high * ((scale_low - inverse_high) + scale_low * p)
 
-    @register_jitable(**COMPILE_OPTIONS)
+    @jitable
     def _log_parts(x):
         """(k, f) with x = 2^k (1 + f), 1 + f in [sqrt(1/2), sqrt(2)), for a positive x."""
         subnormal = x < _SMALLEST_NORMAL
@@ -247,7 +251,7 @@ if HAVE_NUMBA:
         above = m > 1.4142135623730951
         return np.float64(e + 1 if above else e), (m * 0.5 if above else m) - 1.0
 
-    @register_jitable(**COMPILE_OPTIONS)
+    @jitable
     def _log_from_parts(k, f):
         """k ln2 + log(1 + f) for |f| below about 0.41 (fdlibm's e_log.c)."""
         s = f / (2.0 + f)
@@ -259,19 +263,19 @@ if HAVE_NUMBA:
         half_f2 = 0.5 * f * f
         return k * _LN2_HI - ((half_f2 - (s * (half_f2 + r) + k * _LN2_LO)) - f)
 
-    @register_jitable(**COMPILE_OPTIONS)
+    @jitable
     def _log_special(x, y):
         """y where log(x) is finite; log's value at 0, infinity, negative numbers and NaN."""
         y = x if x == math.inf else y
         y = -math.inf if x == 0.0 else y
         return math.nan if (x < 0.0 or x != x) else y
 
-    @register_jitable(**COMPILE_OPTIONS)
+    @jitable
     def _log_scalar(x):
         k, f = _log_parts(x)
         return _log_special(x, _log_from_parts(k, f))
 
-    @register_jitable(**COMPILE_OPTIONS)
+    @jitable
     def _log1p_scalar(x):
         # where 1 + x needs no power of 2 (k = 0), f is x itself, without the rounding of 1 + x
         # (a correction term such as ((1 + x) - 1) - x would be reassociated to 0 under fast
@@ -289,12 +293,12 @@ if HAVE_NUMBA:
 
         return choose
 
-    overload(exp, jit_options=COMPILE_OPTIONS)(_scalar_or_array(_exp_scalar, np.exp))
-    overload(expm1, jit_options=COMPILE_OPTIONS)(_scalar_or_array(_expm1_scalar, np.expm1))
-    overload(log, jit_options=COMPILE_OPTIONS)(_scalar_or_array(_log_scalar, np.log))
-    overload(log1p, jit_options=COMPILE_OPTIONS)(_scalar_or_array(_log1p_scalar, np.log1p))
+    _compiled_overload(exp)(_scalar_or_array(_exp_scalar, np.exp))
+    _compiled_overload(expm1)(_scalar_or_array(_expm1_scalar, np.expm1))
+    _compiled_overload(log)(_scalar_or_array(_log_scalar, np.log))
+    _compiled_overload(log1p)(_scalar_or_array(_log1p_scalar, np.log1p))
 
-    @overload(fixed_tuple, jit_options=COMPILE_OPTIONS)
+    @_compiled_overload(fixed_tuple)
     def _fixed_tuple_compiled(array, length):
         if not isinstance(length, _nb_types.IntegerLiteral):
             raise numba.errors.TypingError("fixed_tuple's length must be a constant")
@@ -307,7 +311,7 @@ if HAVE_NUMBA:
 
         return constant_length_tuple
 
-    @overload(power, jit_options=COMPILE_OPTIONS)
+    @_compiled_overload(power)
     def _power_compiled(base, exponent):
         if isinstance(base, _nb_types.Float) and isinstance(exponent, (_nb_types.Float,
                                                                        _nb_types.Integer)):
@@ -325,7 +329,7 @@ if HAVE_NUMBA:
 
         return array_power
 
-    clip = register_jitable(**COMPILE_OPTIONS)(clip)
+    clip = jitable(clip)
 
 
 __all__ = ["ENV_SWITCH", "HAVE_NUMBA", "LLVM_OPTIONS", "clip", "exp", "expm1", "fixed_tuple",
