@@ -237,15 +237,15 @@ class NodeInputs:
         issues, muscles, entries = self._select(topic, names, length.size)
         if muscles is None or muscles.size == 0:
             return issues
-        driven = self.joint_driven[muscles] if self._any_joint_driven else None
-        if driven is not None and np.any(driven):
-            shown = ", ".join(self.names[i] for i in muscles[driven][:3])
-            issues.append(Issue("joint_driven_kinematics", f"{topic}: {shown} driven from "
-                                "joint_states", count=int(np.sum(driven))))
-            muscles, entries = muscles[~driven], [e for e, d in zip(entries, driven,
-                                                                    strict=True) if not d]
-            if muscles.size == 0:
-                return issues
+        if self._any_joint_driven:
+            driven = self.joint_driven[muscles]
+            if driven.any():
+                shown = ", ".join(self.names[i] for i in muscles[driven][:3])
+                issues.append(Issue("joint_driven_kinematics", f"{topic}: {shown} driven from "
+                                    "joint_states", count=int(driven.sum())))
+                muscles, entries = muscles[~driven], entries[~driven]
+                if muscles.size == 0:
+                    return issues
         lp = length if entries is self._order else length[entries]
         vp = (np.zeros(lp.size) if not velocity.size
               else velocity if entries is self._order else velocity[entries])
