@@ -679,7 +679,7 @@ def parallel_chunk(n: int, threads: int | None = None) -> int:
 
 def warm_up(parallel: bool = False) -> None:
     """Compile the kernel (step and run share it) or load it from Numba's disk cache now rather
-    than in the first step: about 13 s the first time on a machine, 0.3 s after; with
+    than in the first step: about 11-12 s the first time on a machine, 0.3 s after; with
     ``parallel`` its parallel build too."""
     if not AVAILABLE:
         return
