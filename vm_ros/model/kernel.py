@@ -642,7 +642,7 @@ if HAVE_NUMBA:
     set_llvm_options()
     with model_cache_directory():
         _options = {"cache": True, "nogil": True, "error_model": "numpy", "fastmath": FASTMATH,
-                    **COMPILE_OPTIONS, "no_cpython_wrapper": False}
+                    **COMPILE_OPTIONS}
         advance_series = numba.njit(**_options)(_advance_series)
         advance_series_parallel = numba.njit(parallel=True, **_options)(
             _renamed(_advance_series, "_advance_series_parallel"))
