@@ -253,7 +253,7 @@ def _kernel_rows(quick: bool) -> dict:
     parallel = model_bench.bench_run_vs_step(parallel_counts, repeats, parallel=True)
     if quick:
         return {"serial": serial, "parallel": parallel,
-                "cold_start": {"skipped": "--quick (compiles from an empty cache: ~13 s)"}}
+                "cold_start": {"skipped": "--quick (compiles from an empty cache: about 11-12 s)"}}
     _say("kernel: cold start (empty compilation cache) to the first run() ...")
     return {"serial": serial, "parallel": parallel,
             "cold_start": model_bench.cold_start_to_first_run()}

@@ -246,10 +246,12 @@ class NodeInputs:
                 muscles, entries = muscles[~driven], entries[~driven]
                 if muscles.size == 0:
                     return issues
-        lp = length if entries is self._order else length[entries]
-        vp = (np.zeros(lp.size) if not velocity.size
-              else velocity if entries is self._order else velocity[entries])
-        more, accepted = self.set_path_kinematics(topic, muscles, lp, vp, now_ns)
+        if entries is not self._order:  # (every muscle in order: the message's arrays as is)
+            length = length[entries]
+            velocity = velocity[entries] if velocity.size else velocity
+        if not velocity.size:
+            velocity = np.zeros(length.size)
+        more, accepted = self.set_path_kinematics(topic, muscles, length, velocity, now_ns)
         if accepted:
             self.last_kinematics_ns = now_ns
         return issues + more
