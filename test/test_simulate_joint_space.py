@@ -235,3 +235,124 @@ def test_bad_inputs_are_one_line_and_exit_2(tmp_path):
         line = _error_of([*args, "--out", out])
         assert line.startswith("vm-ros simulate: error:") and expected in line, line
     assert not Path(out).exists()
+
+
+def _controls(path: Path, times, vasti, rectus=None) -> Path:
+    """An OpenSim controls file (CMC's form: NAME columns) for the leg's two muscles."""
+    rectus = vasti if rectus is None else rectus
+    rows = "".join(f"{t!r}\t{u!r}\t{r!r}\n" for t, u, r in zip(times, vasti, rectus, strict=True))
+    path.write_text("controls\nversion=1\ninDegrees=no\nendheader\n"
+                    f"time\tvasti\trectus_femoris\n{rows}")
+    return path
+
+
+def _simulate(args) -> subprocess.CompletedProcess:
+    return subprocess.run([VM_ROS, "simulate", *args], capture_output=True, text=True,
+                          timeout=120)
+
+
+def test_excitations_that_miss_the_motion_are_an_error_and_a_partial_cover_warns(tmp_path):
+    """A controls file on another time axis than the motion (0.5-0.7 s against 0-0.2 s) used to
+    be held at its first row for the whole run; now it is an error. One that covers the run in
+    part (from 0.1 s) is used on the motion's axis, with a warning printed when found and again
+    after the summary; --strict makes that warning an error."""
+    geometry = write_geometry_file(tmp_path)
+    t = np.linspace(0.0, 0.2, 9)
+    motion = write_motion(tmp_path / "in_box.mot", t, {"hip_flexion": 30.0 * np.sin(
+        np.pi * t / 0.2), "knee_angle": 5.0 + 300.0 * t})
+    common = ["--motion", str(motion), "--geometry", str(geometry), "--telemetry-rate", "0"]
+    late = _controls(tmp_path / "late.sto", [0.5, 0.7], [0.2, 0.8])
+    line = _error_of([*common, "--excitations", str(late), "--out", str(tmp_path / "a.mcap")])
+    assert "cover 0.5-0.7 s, the run 0-0.2 s: no overlap" in line, line
+
+    part = _controls(tmp_path / "part.sto", [0.1, 0.3], [0.2, 0.6])
+    out = tmp_path / "part.mcap"
+    proc = _simulate([*common, "--excitations", str(part), "--out", str(out)])
+    assert proc.returncode == 0, proc.stderr
+    warning = "the drives hold their first row for the 0.1 s before 0.1 s"
+    assert f"vm-ros simulate: warning: excitations {part} cover 0.1-0.3 s" in proc.stderr
+    assert warning in proc.stderr
+    tail = proc.stdout.strip().splitlines()
+    assert tail[-2].startswith("1 input warning(s)") and warning in tail[-1], proc.stdout
+    logged = read_run(out).get("excitation")
+    t = read_run(out).model_time_ns(logged.time_ns) * 1e-9
+    expected = np.interp(t, [0.1, 0.3], [0.2, 0.6])  # held at 0.2 before 0.1 s
+    np.testing.assert_allclose(logged.fields["position"][:, 0], expected, atol=1e-12)
+
+    strict = _error_of([*common, "--excitations", str(part), "--strict", "--out",
+                        str(tmp_path / "s.mcap")])
+    assert warning in strict and strict.endswith("(an error with --strict)"), strict
+    assert not (tmp_path / "s.mcap").exists()
+
+
+def test_out_of_box_frames_are_reported_in_the_motions_unit_with_both_ends(tmp_path):
+    """leg_motion's knee starts at -5 deg, below the box [0, 2] rad = [0, 114.592] deg."""
+    geometry = write_geometry_file(tmp_path)
+    motion = leg_motion(tmp_path / "leg.mot")
+    proc = _simulate(["--motion", str(motion), "--geometry", str(geometry), "--telemetry-rate",
+                      "0", "--out", str(tmp_path / "x.mcap")])
+    assert proc.returncode == 0, proc.stderr
+    assert (f"motion {motion}: knee_angle outside the geometry's range 0 to "
+            f"{np.degrees(2.0):.6g} deg in 1 of 9 frames (at worst -5 deg)") in proc.stderr
+    assert "hip_flexion outside" not in proc.stderr
+    strict = _simulate(["--motion", str(motion), "--geometry", str(geometry), "--strict",
+                        "--out", str(tmp_path / "y.mcap")])
+    assert strict.returncode == 2 and "knee_angle outside" in strict.stderr
+
+
+def test_hold_takes_a_unit_and_a_value_inside_the_box(tmp_path):
+    geometry = write_geometry_file(tmp_path)
+    motion = write_motion(tmp_path / "hip.mot", [0.0, 0.1], {"hip_flexion": [0.0, 10.0]})
+    common = ["--motion", str(motion), "--geometry", str(geometry), "--duration", "0.01",
+              "--telemetry-rate", "0"]
+    for hold, expected in (("knee_angle=30", "no unit is given: a unit of knee_angle (rad); "
+                            "write it with one of rad, deg, e.g. knee_angle=30deg"),
+                           ("knee_angle=0.3m", "'m' is not a unit of knee_angle"),
+                           ("knee_angle=30rad", "outside the geometry's range of knee_angle, "
+                            "0 to 2 rad"),
+                           ("knee_angle=thirty", "expected COORDINATE=VALUE with a unit")):
+        line = _error_of([*common, "--hold", hold, "--out", str(tmp_path / "x.mcap")])
+        assert expected in line, line
+    for hold, radians in (("knee_angle=30deg", np.radians(30.0)), ("knee_angle=0.5rad", 0.5)):
+        out = tmp_path / f"{hold}.mcap"
+        _run(["simulate", *common, "--hold", hold, "--out", str(out)])
+        knee = read_run(out).get("joint_states").fields["position"][:, 1]
+        np.testing.assert_allclose(knee, radians, rtol=1e-15)
+
+
+def test_units_that_cannot_be_the_declared_ones_are_errors(tmp_path):
+    """Degrees in a file that says radians; drives in percent, in a file, a CSV of inputs and
+    --excitation."""
+    geometry = write_geometry_file(tmp_path)
+    t = np.linspace(0.0, 0.2, 9)
+    degrees_as_radians = write_motion(tmp_path / "rad.mot", t, {
+        "hip_flexion": 30.0 * np.sin(np.pi * t / 0.2), "knee_angle": 5.0 + 300.0 * t},
+        in_degrees=False)
+    motion = leg_motion(tmp_path / "leg.mot")
+    common = ["--geometry", str(geometry), "--out", str(tmp_path / "x.mcap")]
+    line = _error_of(["--motion", str(degrees_as_radians), *common])
+    assert ("says inDegrees=no but knee_angle reaches 65, beyond a full turn in radians: the "
+            "file is in degrees; set inDegrees=yes") in line, line
+    percent = _controls(tmp_path / "pct.sto", [0.0, 0.2], [2.0, 50.0], [1.0, 1.0])
+    line = _error_of(["--motion", str(motion), "--excitations", str(percent), *common])
+    assert ("drive 50 for vasti at 0.2 s: drives are fractions in [0, 1]; if the values are "
+            "percent, divide them by 100") in line, line
+    line = _error_of(["--motion", str(motion), "--excitation", "50", *common])
+    assert "--excitation: drive 50 for every muscle: drives are fractions in [0, 1]" in line
+    line = _error_of(["--motion", str(motion), "--excitation", "-0.1", *common])
+    assert "drive -0.1 for every muscle" in line and "percent" not in line
+    inputs = tmp_path / "inputs.csv"
+    inputs.write_text("time_s,vasti.excitation,vasti.path_length\n0,10,0.3\n1,20,0.3\n")
+    line = _error_of(["--inputs", str(inputs), "--out", str(tmp_path / "x.mcap")])
+    assert "drive 20 for vasti at 1 s" in line and "divide them by 100" in line, line
+
+
+def test_a_degrees_file_with_radian_sized_angles_warns(tmp_path):
+    geometry = write_geometry_file(tmp_path)
+    t = np.linspace(0.0, 0.2, 9)
+    motion = write_motion(tmp_path / "small.mot", t, {"hip_flexion": 0.5 * t,
+                                                      "knee_angle": 0.2 + 5.0 * t})
+    proc = _simulate(["--motion", str(motion), "--geometry", str(geometry), "--telemetry-rate",
+                      "0", "--out", str(tmp_path / "x.mcap")])
+    assert proc.returncode == 0, proc.stderr
+    assert "says inDegrees=yes but every rotational column stays within +-1.2 deg" in proc.stderr

@@ -5,9 +5,11 @@ from __future__ import annotations
 import argparse
 import math
 import signal
+import sys
 import time
 from pathlib import Path
 
+from vm_ros.errors import VmRosError
 from vm_ros.model import SCHEMES
 from vm_ros.model.params import DRIVE_LAWS, RECOVERY_MODES
 from vm_ros.recording.run_config import RunConfig, parse_overrides
@@ -104,6 +106,37 @@ def beside(log_path) -> tuple[Path, str]:
     if not path.name:  # ".", "/": name the folder itself
         path = path.resolve()
     return path.parent, path.stem
+
+
+class InputWarnings:
+    """Inputs a user may mean but that change the result (an excitation file that covers only
+    part of the run, motion frames outside the geometry's box, ...): each is printed on stderr
+    when found and repeated at the end of the summary (``closing_lines``); with ``strict``
+    (--strict) the first one is an error instead (VmRosError, exit 2)."""
+
+    def __init__(self, verb: str, strict: bool):
+        self.verb = verb
+        self.strict = strict
+        self.items: list[str] = []
+
+    def extend(self, texts) -> None:
+        for text in texts:
+            if self.strict:
+                raise VmRosError(f"{text} (an error with --strict)")
+            self.items.append(text)
+            print(f"vm-ros {self.verb}: warning: {text}", file=sys.stderr)
+
+    def closing_lines(self) -> list[str]:
+        if not self.items:
+            return []
+        return [f"{len(self.items)} input warning(s), the numbers above depend on them "
+                "(--strict makes them errors):", *(f"  {text}" for text in self.items)]
+
+
+def add_strict_option(parser) -> None:
+    parser.add_argument("--strict", action="store_true",
+                        help="make every input warning (inputs that cover only part of the run, "
+                             "values clamped to the geometry's box, ...) an error, exit 2")
 
 
 class StopOnSignal:

@@ -27,14 +27,22 @@ Values are interpolated linearly between rows; the muscles are those with column
 Joint space (--motion FILE.mot|.sto --geometry GEOMETRY.yaml):
   coordinates   the geometry's coordinates from the motion's columns by name (coordinate names
                 or /jointset/<joint>/<coordinate>/value; degrees when its header says
-                inDegrees=yes); a coordinate crossed by a muscle of the run that the motion lacks
-                is an error unless --hold COORDINATE=VALUE (rad or m) gives it a constant value
+                inDegrees=yes; a file saying inDegrees=no with angles beyond a full turn is an
+                error); a coordinate crossed by a muscle of the run that the motion lacks is an
+                error unless --hold COORDINATE=VALUE gives it a constant value with its unit
+                (30deg, 0.5rad, 0.9m; inside the geometry's box)
   muscles       the geometry's muscles that are in the muscle library (--library, e.g. the
                 muscles.yaml of `vm-ros import-osim`), or --muscles (each needs a path)
   drive         --excitations FILE (.sto/.mot: columns NAME, /forceset/NAME, NAME|excitation,
                 .../NAME/excitation, other columns ignored; .csv: time_s and one column per
-                muscle), on the motion's time axis; or a constant --excitation U; default 0:
-                passive (the torques come from the muscles' passive elasticity only)
+                muscle), on the motion's time axis (a file that does not overlap the run is an
+                error); or a constant --excitation U; default 0: passive (the torques come from
+                the muscles' passive elasticity only). Drives are fractions in [0, 1]: a value
+                outside is an error (percent: divide by 100)
+Input warnings (printed when found and repeated after the summary; --strict makes them errors):
+an excitation or input table that covers only part of the run (its first or last row is held),
+a run longer than its motion, motion frames outside the geometry's box (clamped), a motion whose
+header says degrees but whose angles all stay within +-3.14.
   joints        joint_states and joint_efforts name the coordinates through --joint-map (YAML
                 text or file, as muscle_node's joint_map: robot q = sign (q - offset)); the
                 joint outputs are the coordinates crossed by the run's muscles
@@ -65,9 +73,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from vm_ros.cli.runs import (
+    InputWarnings,
     StopOnSignal,
     add_model_options,
     add_output_options,
+    add_strict_option,
     apply_model_options,
     default_log_path,
     recorder_options,
@@ -79,13 +89,17 @@ from vm_ros.geometry import load_geometry
 from vm_ros.importers.motion import read_motion
 from vm_ros.joint_space import JointMap, JointSpace
 from vm_ros.model.params import load_muscle_library
-from vm_ros.node.motion_inputs import JointMotion, MotionInputs, parse_hold
+from vm_ros.node.motion_inputs import JointMotion, MotionInputs, box_warnings, parse_hold
 from vm_ros.node.params import NodeConfig
 from vm_ros.node.recording import INPUT_RULE as NODE_INPUT_RULE
 from vm_ros.node.replay import NODE_PARAMETERS_KEY, NodeConditioning
 from vm_ros.progress import Progress
 from vm_ros.recording.bag import shown_log_path
-from vm_ros.recording.excitations import constant_excitation, load_excitations
+from vm_ros.recording.excitations import (
+    COVERAGE_TOLERANCE_S,
+    constant_excitation,
+    load_excitations,
+)
 from vm_ros.recording.input_series import load_input_series
 from vm_ros.recording.offline import OfflineResult, OfflineRun, SampledInputs
 from vm_ros.recording.run_config import RunConfig
@@ -136,13 +150,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     joint.add_argument("--excitations", type=Path, metavar="FILE.sto|.csv",
                        help="drive per muscle over time (see above)")
     joint.add_argument("--excitation", type=float, metavar="U",
-                       help="constant drive of every muscle (default 0: passive)")
+                       help="constant drive of every muscle, in [0, 1] (default 0: passive)")
     joint.add_argument("--joint-map", metavar="YAML",
                        help="robot joints -> coordinates, YAML text or file (muscle_node's "
                             "joint_map; default: coordinates under their own names)")
     joint.add_argument("--hold", action="append", default=[], metavar="COORDINATE=VALUE",
-                       help="hold a coordinate at VALUE (rad or m) instead of the motion "
-                            "(repeatable)")
+                       help="hold a coordinate at VALUE, with its unit (30deg, 0.5rad, 0.9m), "
+                            "instead of the motion (repeatable)")
+    add_strict_option(parser)
     add_model_options(parser, "the scenario's settings, lumped recruitment")
     add_energetics_option(parser, "none")
     add_output_options(parser, "default out/<scenario or file>-<date>-<time>.mcap under the "
@@ -163,6 +178,8 @@ class _Source:
     publish_start: bool = False
     # (inputs, result) -> summary lines after the muscles'
     report: Callable = field(default=lambda inputs, result: [])
+    # run duration (s) -> input warnings (InputWarnings) for that span; VmRosError when unusable
+    check: Callable = field(default=lambda duration_s: [])
 
 
 def add_energetics_option(parser: argparse.ArgumentParser, default: str) -> None:
@@ -232,7 +249,17 @@ def _source(args) -> _Source:
     series = load_input_series(args.inputs)
     series = series.select(muscles or series.muscles)
     return _Source(series.path.stem, RunConfig(series.muscles), series.duration_s,
-                   {"inputs_file": str(series.path)}, _sampled(lambda bank: series))
+                   {"inputs_file": str(series.path)}, _sampled(lambda bank: series),
+                   check=lambda duration_s: held_after(f"inputs {series.path}",
+                                                        series.duration_s, duration_s))
+
+
+def held_after(what: str, table_s: float, duration_s: float) -> list[str]:
+    """A warning when the run goes on past the end of a table of inputs (its last row held)."""
+    if duration_s - table_s <= COVERAGE_TOLERANCE_S:
+        return []
+    return [f"{what} span {table_s:.6g} s, the run {duration_s:.6g} s: their last row is held "
+            f"for the last {duration_s - table_s:.6g} s"]
 
 
 def _check_options(args) -> None:
@@ -283,7 +310,7 @@ def _motion_muscles(args, geometry) -> tuple:
 def _motion_source(args) -> _Source:
     geometry = load_geometry(args.geometry)
     motion = read_motion(args.motion)
-    hold = parse_hold(args.hold)
+    hold = parse_hold(args.hold, geometry)
     text = _joint_map_text(args.joint_map)
     joint_map = JointMap.build(text, geometry, "--joint-map")
     muscles = _motion_muscles(args, geometry)
@@ -295,9 +322,18 @@ def _motion_source(args) -> _Source:
     node = NodeConfig.from_values(node_values)
     needed = [name for name in geometry.coordinate_names if name in crossed]
     joint_motion = JointMotion.from_motion(motion, geometry, needed, hold)
+    rotational = {c.name for c in geometry.coordinates if c.unit == "rad"}
+    warnings = motion.unit_warnings(rotational & set(joint_motion.coordinates))
+    warnings += box_warnings(joint_motion, geometry, motion.in_degrees)
     excitations = (load_excitations(args.excitations, muscles) if args.excitations else
                    constant_excitation(muscles, 0.0 if args.excitation is None
                                        else args.excitation))
+
+    def check(duration_s: float) -> list[str]:
+        start = joint_motion.start_s
+        return [*warnings, *held_after(f"motion {args.motion}", joint_motion.duration_s,
+                                       duration_s),
+                *excitations.coverage(start, start + duration_s)]
 
     def make_inputs(bank, offline, period_ns):
         space = JointSpace(geometry, joint_map, bank.names, joints, "--geometry")
@@ -329,7 +365,7 @@ def _motion_source(args) -> _Source:
              NODE_PARAMETERS_KEY: json.dumps(node_values, sort_keys=True),
              "input_hold": NODE_INPUT_RULE}
     return _Source(args.motion.stem, config, joint_motion.duration_s, extra, make_inputs,
-                   publish_start=True, report=report)
+                   publish_start=True, report=report, check=check)
 
 
 def _positive(name: str, value: float) -> float:
@@ -344,6 +380,8 @@ def run(args) -> int:
     source = _motion_source(args) if args.motion else _source(args)
     duration = _positive("--duration", source.duration_s if args.duration is None
                          else args.duration)
+    warnings = InputWarnings("simulate", args.strict)
+    warnings.extend(source.check(duration))
     timing = RunTiming(
         dt_s=_positive("--dt", args.dt),
         publish_rate_hz=_positive("--publish-rate", args.publish_rate or 100.0),
@@ -385,6 +423,8 @@ def run(args) -> int:
     print(f"log: {shown_log_path(out_path, status.path)} ({status.written} messages, "
           f"{status.bytes_written / 1e6:.2f} MB"
           f"{f', {status.dropped} dropped' if status.dropped else ''})")
+    for line in warnings.closing_lines():
+        print(line)
     if stop.signum:
         print(f"vm-ros simulate: stopped by signal {stop.signum} at t = "
               f"{result.steps * timing.dt_s:.3f} s; the log is complete up to there",

@@ -6,6 +6,12 @@ it decides the units), then a tab- or space-separated line of column labels star
 paths (``/jointset/knee_r/knee_angle_r/value``; ``.../speed`` and non-coordinate columns of a
 states file are skipped). Values stay as written; ``Motion.to_si`` converts the rotational columns
 from degrees when the header says so.
+
+The declared unit is checked where the values cannot be in it (``Motion.unit_warnings``): a
+rotational column beyond RADIAN_LIMIT (2 pi, a full turn) in a file that says ``inDegrees=no`` is
+an error (the file is in degrees); a file that says ``inDegrees=yes`` whose rotational columns all
+stay within +-DEGREE_SUSPECT (pi degrees, about 3 deg) while moving is a warning (the file may be
+in radians).
 """
 
 from __future__ import annotations
@@ -17,6 +23,9 @@ import numpy as np
 
 from vm_ros.errors import VmRosError
 from vm_ros.storage import numeric_rows, parse_storage
+
+RADIAN_LIMIT = 2.0 * np.pi   # rad: no joint angle in radians is beyond a full turn
+DEGREE_SUSPECT = np.pi       # deg: a moving motion that stays within +-pi "degrees" is in radians
 
 
 @dataclass(frozen=True)
@@ -36,6 +45,27 @@ class Motion:
             return self.values.copy()
         factor = np.array([np.pi / 180.0 if n in rotational else 1.0 for n in self.names])
         return self.values * factor
+
+    def unit_warnings(self, rotational) -> list[str]:
+        """Check the declared unit of the ``rotational`` columns (module docstring): VmRosError
+        when the values cannot be radians, a warning when they look like radians in a file
+        that says degrees."""
+        columns = [i for i, name in enumerate(self.names) if name in rotational]
+        if not columns:
+            return []
+        values = self.values[:, columns]
+        peak = np.abs(values).max(axis=0)
+        if not self.in_degrees and peak.max() > RADIAN_LIMIT:
+            worst = int(np.argmax(peak))
+            raise VmRosError(f"motion {self.path}: the header says inDegrees=no but "
+                             f"{self.names[columns[worst]]} reaches {peak[worst]:.6g}, beyond a "
+                             "full turn in radians: the file is in degrees; set inDegrees=yes")
+        moving = np.ptp(values, axis=0).max() > 0.0
+        if self.in_degrees and moving and peak.max() <= DEGREE_SUSPECT:
+            return [f"motion {self.path}: the header says inDegrees=yes but every rotational "
+                    f"column stays within +-{peak.max():.3g} deg; if the file is in radians, "
+                    "set inDegrees=no"]
+        return []
 
 
 def _label(label: str) -> str | None:

@@ -9,12 +9,13 @@ drives from an ExcitationSeries, conditioned as muscle_node conditions them.
 
 Coordinates come from the motion's columns by name (vm_ros.importers.motion: degrees converted
 when its header says ``inDegrees=yes``, rotational columns being the geometry's ``rad``
-coordinates); ``hold`` gives a constant value (rad or m) to a coordinate instead (for one the
-motion lacks, or to freeze one). A coordinate the run needs (crossed by a muscle of the run) that
-is neither is an error. Between frames positions are interpolated linearly and velocities are the
-frame-wise derivative (numpy.gradient) interpolated linearly, as for `simulate --inputs`; both are
-held outside the motion. The motion's first frame is at log time ``start_ns`` (the run's start,
-vm_ros.recording.run_log); the excitation files share the motion's time axis.
+coordinates); ``hold`` gives a constant value (rad or m, from ``parse_hold``'s text with a unit)
+to a coordinate instead (for one the motion lacks, or to freeze one). A coordinate the run needs
+(crossed by a muscle of the run) that is neither is an error. Between frames positions are
+interpolated linearly and velocities are the frame-wise derivative (numpy.gradient) interpolated
+linearly, as for `simulate --inputs`; both are held outside the motion. The motion's first frame
+is at log time ``start_ns`` (the run's start, vm_ros.recording.run_log); the excitation files
+share the motion's time axis. ``box_warnings`` names the frames outside the geometry's box.
 
 Every ``period_ns`` from ``start_ns`` an excitation message (the drives) and a joint_states
 message (every geometry coordinate the motion or ``hold`` gives, under its robot name, robot
@@ -25,6 +26,7 @@ reproduces the run.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -34,6 +36,7 @@ from vm_ros import telemetry as tm
 from vm_ros.errors import VmRosError
 from vm_ros.importers.motion import Motion
 from vm_ros.joint_space import JointMap
+from vm_ros.model.units import UNITS, units_for
 from vm_ros.node.replay import NodeConditioning
 from vm_ros.recording import messages as msgs
 from vm_ros.recording.excitations import ExcitationSeries
@@ -59,19 +62,14 @@ class JointMotion:
     @classmethod
     def from_motion(cls, motion: Motion, geometry, needed, hold: Mapping[str, float]
                     ) -> JointMotion:
-        """The geometry's coordinates found in ``motion`` or ``hold``; VmRosError for a
-        ``hold`` name that is not a coordinate of the geometry or a ``needed`` coordinate that is
-        in neither."""
+        """The geometry's coordinates found in ``motion`` or ``hold`` (``parse_hold``'s, rad or
+        m); VmRosError for a ``needed`` coordinate that is in neither."""
         names = geometry.coordinate_names
-        unknown = [name for name in hold if name not in names]
-        if unknown:
-            raise VmRosError(f"--hold {unknown[0]}: not a coordinate of the geometry (it has: "
-                             f"{', '.join(names)})")
         missing = [name for name in needed if name not in motion.names and name not in hold]
         if missing:
             raise VmRosError(f"motion {motion.path}: no column for coordinate(s) "
                              f"{', '.join(missing)} (columns: {', '.join(motion.names)}); give "
-                             "them with --hold NAME=VALUE")
+                             "them with --hold NAME=VALUE (with a unit: 0deg, 0.9m)")
         rotational = {c.name for c in geometry.coordinates if c.unit == "rad"}
         values = motion.to_si(rotational)
         time = motion.time - motion.time[0]
@@ -100,20 +98,62 @@ class JointMotion:
                 self.qdot[i] + w * (self.qdot[i + 1] - self.qdot[i]))
 
 
-def parse_hold(texts) -> dict[str, float]:
-    """``["knee_angle_r=0.2", ...]`` -> ``{"knee_angle_r": 0.2}`` (rad or m)."""
+_HOLD_VALUE = re.compile(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(\S*)\s*")
+
+
+def parse_hold(texts, geometry) -> dict[str, float]:
+    """``["knee_angle_r=30deg", "pelvis_ty=0.9m"]`` -> ``{"knee_angle_r": 0.5236, ...}`` in rad
+    or m. The unit is required (deg or rad for a rotational coordinate, m, cm or mm for a
+    translational one) and the value must lie in the geometry's box; VmRosError otherwise."""
     hold = {}
+    names = geometry.coordinate_names
     for text in texts or ():
-        name, sep, value = text.partition("=")
-        try:
-            number = float(value)
-        except ValueError:
-            number = float("nan")
-        if not sep or not name.strip() or not np.isfinite(number):
-            raise VmRosError(f"--hold {text!r}: expected COORDINATE=VALUE (rad or m), e.g. "
-                             "ankle_angle_r=0")
-        hold[name.strip()] = number
+        name, sep, value = (part.strip() for part in text.partition("="))
+        match = _HOLD_VALUE.fullmatch(value)
+        if not sep or not name or match is None:
+            raise VmRosError(f"--hold {text!r}: expected COORDINATE=VALUE with a unit, e.g. "
+                             "knee_angle_r=30deg or pelvis_ty=0.9m")
+        if name not in names:
+            raise VmRosError(f"--hold {name}: not a coordinate of the geometry (it has: "
+                             f"{', '.join(names)})")
+        coordinate = geometry.coordinates[names.index(name)]
+        accepted = units_for(coordinate.unit)
+        number, symbol = float(match.group(1)), match.group(2)
+        if symbol not in accepted:
+            given = f"{symbol!r} is not" if symbol else "no unit is given:"
+            raise VmRosError(f"--hold {text!r}: {given} a unit of {name} ({coordinate.unit}); "
+                             f"write it with one of {', '.join(accepted)}, e.g. "
+                             f"{name}={match.group(1)}{accepted[-1]}")
+        si = number * UNITS[symbol].factor
+        if not coordinate.lower <= si <= coordinate.upper:
+            raise VmRosError(f"--hold {text!r}: outside the geometry's range of {name}, "
+                             f"{shown_range(coordinate, symbol)}")
+        hold[name] = si
     return hold
+
+
+def shown_range(coordinate, symbol: str) -> str:
+    """A coordinate's box in the unit ``symbol`` (e.g. '-10 to 120 deg')."""
+    factor = UNITS[symbol].factor
+    return f"{coordinate.lower / factor:.6g} to {coordinate.upper / factor:.6g} {symbol}"
+
+
+def box_warnings(motion: JointMotion, geometry, in_degrees: bool) -> list[str]:
+    """One warning per motion coordinate with frames outside the geometry's box (clamped to
+    it as muscle_node clamps), in the motion's own unit, with both ends of the range."""
+    warnings = []
+    for j, name in enumerate(motion.coordinates):
+        coordinate = geometry.coordinates[geometry.coordinate_names.index(name)]
+        q = motion.q[:, j]
+        excess = np.maximum(coordinate.lower - q, q - coordinate.upper)  # > 0 outside
+        if not (excess > 0).any():
+            continue
+        symbol = "deg" if in_degrees and coordinate.unit == "rad" else coordinate.unit
+        extreme = q[np.argmax(excess)] / UNITS[symbol].factor
+        warnings.append(f"motion {motion.source}: {name} outside the geometry's range "
+                        f"{shown_range(coordinate, symbol)} in {int((excess > 0).sum())} of "
+                        f"{len(q)} frames (at worst {extreme:.6g} {symbol}): clamped to it")
+    return warnings
 
 
 class MotionInputs:
@@ -167,4 +207,5 @@ class MotionInputs:
         return self.conditioning.joint_efforts(force)
 
 
-__all__ = ["JointMotion", "MotionInputs", "parse_hold"]
+__all__ = ["JointMotion", "MotionInputs", "box_warnings",
+           "parse_hold", "shown_range"]

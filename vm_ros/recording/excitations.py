@@ -13,8 +13,14 @@ Files (the format by suffix):
 - ``.csv``: a header row ``time_s`` and one column per muscle (``NAME`` or ``NAME.excitation``),
   one row per sample. Here every column must be a muscle of the run (a misspelt name is an error).
 
-Every muscle of the run needs a column. Values are drives U (1; muscle_node clips them to [0, 1]
-and counts it), interpolated linearly in time and held constant outside the table.
+Every muscle of the run needs a column. Values are drives U, fractions in [0, 1]: a muscle's value
+outside [-DRIVE_TOLERANCE, 1 + DRIVE_TOLERANCE] is an error (a file in percent says so), since
+clipping it would change the result without a word. Values are interpolated linearly in time and
+held constant outside the table.
+
+The table's time axis is the motion's (`vm-ros simulate --motion`): a run whose span the table
+does not reach at all is an error; one it covers only in part holds the first or last row for the
+rest, and ``ExcitationSeries.coverage`` says so (a warning; ``--strict`` makes it an error).
 """
 
 from __future__ import annotations
@@ -30,6 +36,10 @@ from vm_ros.storage import numeric_rows, parse_storage
 
 STORAGE_SUFFIXES = (".sto", ".mot")
 _SUFFIXES = ("|excitation", "/excitation", ".excitation")
+# Drives are fractions in [0, 1]; values beyond by more than this are an error, not clipped.
+DRIVE_TOLERANCE = 1e-6
+# A gap between the run's span and a table's time axis shorter than this is not reported (s).
+COVERAGE_TOLERANCE_S = 1e-3
 
 
 @dataclass(frozen=True)
@@ -42,6 +52,28 @@ class ExcitationSeries:
     time_s: np.ndarray
     values: np.ndarray
     ignored: tuple = ()
+    constant: bool = False
+
+    def coverage(self, start_s: float, end_s: float) -> list[str]:
+        """Warnings for the run span [start_s, end_s] (s, on the table's axis) where the table
+        does not reach it and its first or last row is held; VmRosError when they do not
+        overlap at all. None for a constant."""
+        if self.constant:
+            return []
+        first, last = float(self.time_s[0]), float(self.time_s[-1])
+        span = f"excitations {self.source} cover {first:.6g}-{last:.6g} s"
+        if last < start_s or first > end_s:
+            raise VmRosError(f"{span}, the run {start_s:.6g}-{end_s:.6g} s: no overlap; they "
+                             "must be on the motion's time axis")
+        held = []
+        if first - start_s > COVERAGE_TOLERANCE_S:
+            held.append(f"their first row for the {first - start_s:.6g} s before {first:.6g} s")
+        if end_s - last > COVERAGE_TOLERANCE_S:
+            held.append(f"their last row for the {end_s - last:.6g} s after {last:.6g} s")
+        if not held:
+            return []
+        return [f"{span}, the run {start_s:.6g}-{end_s:.6g} s: the drives hold "
+                f"{' and '.join(held)}"]
 
     def at(self, t_s: float) -> np.ndarray:
         """(n,) drives at time ``t_s`` (linear between rows, held outside)."""
@@ -59,8 +91,27 @@ def constant_excitation(muscles, drive: float) -> ExcitationSeries:
     """The same drive for every muscle at every time."""
     if not np.isfinite(drive):
         raise VmRosError(f"--excitation must be a finite number (got {drive})")
+    check_drive_range(np.array([[drive]]), ["every muscle"], np.zeros(1), "--excitation")
     return ExcitationSeries(f"constant {drive:g}", tuple(muscles), np.zeros(1),
-                            np.full((1, len(muscles)), float(drive)))
+                            np.full((1, len(muscles)), float(drive)), constant=True)
+
+
+def check_drive_range(values, muscles, time_s, where: str) -> None:
+    """VmRosError when a drive in ``values`` (k, n), columns ``muscles``, rows at ``time_s``, is
+    outside [0, 1] by more than DRIVE_TOLERANCE: the message names the muscle, the time and the
+    likely fix (percent: divide by 100)."""
+    values = np.asarray(values, dtype=float)
+    low, high = -DRIVE_TOLERANCE, 1.0 + DRIVE_TOLERANCE
+    bad = (values < low) | (values > high)
+    if not bad.any():
+        return
+    row, col = np.argwhere(bad)[np.argmax(np.abs(values[bad] - 0.5))]
+    value = values[row, col]
+    hint = ("; if the values are percent, divide them by 100" if 1.0 < values.max() <= 100.0
+            and values.min() >= low else "")
+    at = f" at {time_s[row]:.6g} s" if len(time_s) > 1 else ""
+    raise VmRosError(f"{where}: drive {value:.6g} for {muscles[col]}{at}: drives are fractions "
+                     f"in [0, 1]{hint}")
 
 
 def excitation_muscle(label: str) -> str | None:
@@ -114,8 +165,9 @@ def load_excitations(path, muscles) -> ExcitationSeries:
     missing = [m for m in muscles if m not in columns]
     if missing:
         raise VmRosError(f"excitations {path}: no column for muscle(s) {', '.join(missing)}")
-    return ExcitationSeries(str(path), tuple(muscles), time,
-                            table[:, [columns[m] for m in muscles]], tuple(ignored))
+    values = table[:, [columns[m] for m in muscles]]
+    check_drive_range(values, muscles, time, f"excitations {path}")
+    return ExcitationSeries(str(path), tuple(muscles), time, values, tuple(ignored))
 
 
 def _storage_table(path: Path, text: str) -> tuple[list[str], list[list[str]]]:
@@ -130,4 +182,5 @@ def _csv_table(path: Path, text: str) -> tuple[list[str], list[list[str]]]:
     return [label.strip() for label in rows[0]], rows[1:]
 
 
-__all__ = ["ExcitationSeries", "constant_excitation", "excitation_muscle", "load_excitations"]
+__all__ = ["ExcitationSeries", "check_drive_range", "constant_excitation", "excitation_muscle",
+           "load_excitations"]

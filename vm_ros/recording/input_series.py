@@ -1,6 +1,7 @@
 """Input time series from a CSV file, as functions of time for an offline run.
 
-Columns: ``time_s`` (s, increasing), then per muscle ``<muscle>.excitation`` (drive U, 1) and
+Columns: ``time_s`` (s, increasing), then per muscle ``<muscle>.excitation`` (drive U, a fraction
+in [0, 1]: anything else is an error, see vm_ros.recording.excitations) and
 ``<muscle>.path_length`` (m), optionally ``<muscle>.path_velocity`` (m/s). Values between rows
 are interpolated linearly (held constant outside the table); a missing path velocity is the
 finite-difference derivative of the path length (numpy.gradient).
@@ -15,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from vm_ros.errors import ConfigError
+from vm_ros.recording.excitations import check_drive_range
 
 QUANTITIES = ("excitation", "path_length", "path_velocity")
 REQUIRED = ("excitation", "path_length")
@@ -105,4 +107,5 @@ def load_input_series(path) -> InputSeries:
                 lengths = table[:, header.index(f"{muscle}.path_length")]
                 columns.append(np.gradient(lengths, time_s))
         values[quantity] = np.stack(columns, axis=1)
+    check_drive_range(values["excitation"], muscles, time_s, f"inputs {path}")
     return InputSeries(path, tuple(muscles), time_s, values)
