@@ -89,7 +89,13 @@ from vm_ros.geometry import load_geometry
 from vm_ros.importers.motion import read_motion
 from vm_ros.joint_space import JointMap, JointSpace
 from vm_ros.model.params import load_muscle_library
-from vm_ros.node.motion_inputs import JointMotion, MotionInputs, box_warnings, parse_hold
+from vm_ros.node.motion_inputs import (
+    JointMotion,
+    MotionInputs,
+    box_warnings,
+    coupled_column_notes,
+    parse_hold,
+)
 from vm_ros.node.params import NodeConfig
 from vm_ros.node.recording import INPUT_RULE as NODE_INPUT_RULE
 from vm_ros.node.replay import NODE_PARAMETERS_KEY, NodeConditioning
@@ -357,7 +363,7 @@ def _motion_source(args) -> _Source:
             more = f" (+{len(excitations.ignored) - 5} more)" if len(excitations.ignored) > 5 \
                 else ""
             lines.append(f"excitations {excitations.source}: columns not used: {shown}{more}")
-        return lines
+        return lines + coupled_column_notes(motion, geometry)
 
     config = RunConfig(muscles, geometry=args.geometry, joint_map=text, joints=joints)
     extra = {"motion_file": str(args.motion), "excitations": excitations.source,

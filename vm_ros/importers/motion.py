@@ -3,9 +3,9 @@
 Format: header lines up to ``endheader`` (among them ``inDegrees=yes|no``, required here because
 it decides the units), then a tab- or space-separated line of column labels starting with
 ``time``, then one row of numbers per frame. Labels are coordinate names (IK output) or state
-paths (``/jointset/knee_r/knee_angle_r/value``; ``.../speed`` and non-coordinate columns of a
-states file are skipped). Values stay as written; ``Motion.to_si`` converts the rotational columns
-from degrees when the header says so.
+paths (``/jointset/knee_r/knee_angle_r/value``); a states file's ``.../speed`` columns are kept
+as the coordinates' speeds (``Motion.speeds``), its other columns skipped. Values stay as
+written; ``Motion.to_si`` converts the rotational columns from degrees when the header says so.
 
 The declared unit is checked where the values cannot be in it (``Motion.unit_warnings``): a
 rotational column beyond RADIAN_LIMIT (2 pi, a full turn) in a file that says ``inDegrees=no`` is
@@ -16,7 +16,7 @@ in radians).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -38,13 +38,22 @@ class Motion:
     time: np.ndarray
     values: np.ndarray
     in_degrees: bool
+    speeds: dict = field(default_factory=dict)
 
     def to_si(self, rotational) -> np.ndarray:
         """Values in rad (rotational columns, converted when the file is in degrees) and m."""
-        if not self.in_degrees:
-            return self.values.copy()
-        factor = np.array([np.pi / 180.0 if n in rotational else 1.0 for n in self.names])
-        return self.values * factor
+        return self.values * self._factors(self.names, rotational)
+
+    def speeds_to_si(self, rotational) -> dict[str, np.ndarray]:
+        """``speeds`` in rad/s (rotational, converted when the file is in degrees) or m/s."""
+        names = tuple(self.speeds)
+        factors = self._factors(names, rotational)
+        return {name: self.speeds[name] * factor for name, factor in zip(names, factors,
+                                                                          strict=True)}
+
+    def _factors(self, names, rotational) -> np.ndarray:
+        convert = np.pi / 180.0 if self.in_degrees else 1.0
+        return np.array([convert if n in rotational else 1.0 for n in names])
 
     def unit_warnings(self, rotational) -> list[str]:
         """Check the declared unit of the ``rotational`` columns (module docstring): VmRosError
@@ -68,12 +77,13 @@ class Motion:
         return []
 
 
-def _label(label: str) -> str | None:
-    """Coordinate name of a column label, or None for a column that is not a coordinate value."""
+def _label(label: str, kind: str = "value") -> str | None:
+    """Coordinate name of a column label holding the coordinate's ``kind`` (value or speed),
+    or None. A bare name is a value."""
     if "/" not in label:
-        return label
+        return label if kind == "value" else None
     parts = [p for p in label.split("/") if p]
-    if len(parts) >= 3 and parts[0] == "jointset" and parts[-1] == "value":
+    if len(parts) >= 3 and parts[0] == "jointset" and parts[-1] == kind:
         return parts[-2]
     return None
 
@@ -99,8 +109,10 @@ def read_motion(path) -> Motion:
     keep = [(i, name) for i, name in enumerate(map(_label, labels)) if i > 0 and name]
     if not keep:
         raise VmRosError(f"motion {path}: no coordinate columns")
+    speeds = {name: data[:, i] for i, label in enumerate(labels)
+              if i > 0 and (name := _label(label, "speed"))}
     return Motion(str(path), tuple(n for _, n in keep), data[:, 0],
-                  data[:, [i for i, _ in keep]], bool(in_degrees))
+                  data[:, [i for i, _ in keep]], bool(in_degrees), speeds)
 
 
 __all__ = ["Motion", "read_motion"]
