@@ -96,7 +96,7 @@ def test_step_by_step_equals_run_and_published_rates(backend):
 
 
 def test_run_in_pieces_equals_one_run_and_reset_clears():
-    bank = MuscleBank.from_config(MUSCLES, energetics_models=("umberger2010", "lichtwark_wilson"))
+    bank = MuscleBank.from_config(MUSCLES, energetics_models=("umberger2010", "lichtwark2005"))
     u, lp, vp = _inputs(bank, 300)
     bank.reset(lp[0])
     whole = bank.run(DT, u, lp, vp)
@@ -190,7 +190,7 @@ def test_block_and_stepwise_offline_runs_log_the_same_models(tmp_path):
     from vm_ros.scenarios import load_scenario
 
     scenario = load_scenario("knee_extension")
-    config = RunConfig(scenario.muscles, energetics_models=("lichtwark_wilson", "margaria1968"))
+    config = RunConfig(scenario.muscles, energetics_models=("lichtwark2005", "margaria1968"))
     timing = RunTiming(dt_s=DT, publish_rate_hz=200.0, telemetry_rate_hz=50.0, start_time_ns=0)
     data = []
     for block_steps in (0, 97):

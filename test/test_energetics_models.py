@@ -13,20 +13,25 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import types
 
 import numpy as np
 import pytest
 import yaml
 
+from vm_ros import energetics_models
 from vm_ros.energetics_models import (
     MuscleState,
     bhargava2004,
     load_bhargava_constants,
     load_umberger_constants,
     muscle_mass,
-    umberger,
+    probe_total,
+    umberger2003,
 )
+from vm_ros.energetics_models.in_bank import model_names
 from vm_ros.energetics_models.umberger import force_length_multiplier_from_state
+from vm_ros.energetics_models.vm_state import published_model
 from vm_ros.errors import ConfigError
 from vm_ros.resources import config_dir
 
@@ -63,6 +68,8 @@ BHARGAVA_OPTIONS = {
 }
 BHARGAVA_FLAGS = ("activation_rate_on", "maintenance_rate_on", "shortening_rate_on",
                   "mechanical_work_rate_on")
+BHARGAVA_MUSCLE_CONSTANTS = ("activation_constant_slow_twitch", "activation_constant_fast_twitch",
+                             "maintenance_constant_slow_twitch", "maintenance_constant_fast_twitch")
 BHARGAVA_COMPONENTS = {
     "activation_maintenance": ("activation_rate_on", "maintenance_rate_on"),
     "shortening_lengthening": ("shortening_rate_on",),
@@ -119,12 +126,22 @@ def _build(osim):
             _set(probe, "basal_rate_on", False)
             for flag in BHARGAVA_FLAGS:
                 _set(probe, flag, flag in flags)
-            probe.addMuscle("mus", SLOW_FRACTION, constants.activation_constant_slow_twitch,
-                            constants.activation_constant_fast_twitch,
-                            constants.maintenance_constant_slow_twitch,
-                            constants.maintenance_constant_fast_twitch)
+            probe.addMuscle("mus", SLOW_FRACTION, *(getattr(constants, f)
+                                                    for f in BHARGAVA_MUSCLE_CONSTANTS))
             model.addProbe(probe)
             probes["bhargava", option_set, component] = probe
+    for name, cls in (("umberger", osim.Umberger2010MuscleMetabolicsProbe),
+                      ("bhargava", osim.Bhargava2004MuscleMetabolicsProbe)):
+        probe = cls()  # OpenSim's defaults, basal_rate_on included: TOTAL = muscles + basal
+        probe.setName(f"{name}_with_basal")
+        probe.set_report_total_metabolics_only(False)
+        if name == "umberger":
+            probe.addMuscle("mus", SLOW_FRACTION)
+        else:
+            probe.addMuscle("mus", SLOW_FRACTION, *(getattr(load_bhargava_constants(), f)
+                                                    for f in BHARGAVA_MUSCLE_CONSTANTS))
+        model.addProbe(probe)
+        probes[name, "with_basal", "total"] = probe
     state = model.initSystem()
     muscle = osim.Millard2012EquilibriumMuscle.safeDownCast(model.getMuscles().get("mus"))
     return model, state, muscle, probes
@@ -157,6 +174,9 @@ def opensim_grid(osim):
         })
         for key, probe in probes.items():
             values = probe.getProbeOutputs(state).to_numpy()
+            if key[1] == "with_basal":
+                outputs[key].append(values[0])  # TOTAL: the muscle's rate plus the basal rate
+                continue
             assert values[1] == 0.0  # basal off
             outputs[key].append(values[2])  # the muscle's own rate (W)
     table = {name: np.array([row[name] for row in rows]) for name in rows[0]}
@@ -164,6 +184,7 @@ def opensim_grid(osim):
     assert len(masses) == 1
     table["mass"] = masses.pop()
     table["max_contraction_velocity"] = muscle.getMaxContractionVelocity()
+    table["body_mass"] = model.getTotalMass(state)
     return table, {key: np.array(values) for key, values in outputs.items()}
 
 
@@ -212,11 +233,12 @@ def test_umberger_equals_opensims_probe(opensim_grid, option_set):
     variant, overrides = UMBERGER_OPTIONS[option_set]
     constants = dataclasses.replace(load_umberger_constants(variant), **overrides)
     state = _muscle_state(table)
-    rates = umberger(state, constants, force_length_multiplier=table["force_length_multiplier"])
+    rates = umberger2003(state, constants, force_length_multiplier=table["force_length_multiplier"])
     for component in UMBERGER_COMPONENTS:
         _compare(component, getattr(rates, component), outputs["umberger", option_set, component])
     active = table["activation"] > 0.0  # there the multiplier follows from the state itself
-    derived = umberger(state, constants)
+    derived = umberger2003(state, constants,
+                           force_length_multiplier=force_length_multiplier_from_state(state))
     assert np.allclose(force_length_multiplier_from_state(state)[active],
                        table["force_length_multiplier"][active], rtol=1e-12, atol=0.0)
     _compare("total (F_iso from the state)", derived.total[active],
@@ -240,7 +262,7 @@ def test_bhargava_without_passive_force_differs_by_its_shortening_heat(opensim_g
     state = _muscle_state(table)
     shortening_only = dataclasses.replace(constants, forbid_negative_total_power=False)
     full = bhargava2004(state, shortening_only, passive_fibre_force=table["passive_fibre_force"])
-    without = bhargava2004(state, shortening_only)
+    without = bhargava2004(state, shortening_only, passive_fibre_force=0.0)
     expected = np.where(table["fibre_velocity"] <= 0.0,
                         -0.25 * table["passive_fibre_force"] * table["fibre_velocity"], 0.0)
     assert np.allclose(full.shortening_lengthening - without.shortening_lengthening, expected,
@@ -301,3 +323,41 @@ def test_the_shipped_file_holds_opensims_defaults():
             b.maintenance_constant_slow_twitch, b.maintenance_constant_fast_twitch) == (
         40.0, 133.0, 74.0, 111.0)
     assert b.maintenance_length_dependence_y == (0.5, 0.5, 1.0, 0.0, 0.0)
+
+
+@pytest.mark.parametrize("name", ["umberger", "bhargava"])
+def test_probe_total_with_basal_equals_opensims_total(opensim_grid, name):
+    """OpenSim's probes with their defaults (basal_rate_on true) report TOTAL = the muscles'
+    rates + basal_coefficient * body mass^basal_exponent, once: probe_total(include_basal=True)
+    gives the same; without the basal rate it is 1.2 W/kg x 1 kg short."""
+    table, outputs = opensim_grid
+    state = _muscle_state(table)
+    if name == "umberger":
+        constants = load_umberger_constants("uchida2016")
+        rates = umberger2003(state, constants,
+                             force_length_multiplier=table["force_length_multiplier"])
+    else:
+        constants = load_bhargava_constants()
+        rates = bhargava2004(state, constants, passive_fibre_force=table["passive_fibre_force"])
+    per_state = types.SimpleNamespace(total=rates.total[:, None])  # one muscle per grid state
+    theirs = outputs[name, "with_basal", "total"]
+    _compare("total with basal", probe_total(per_state, table["body_mass"], constants), theirs)
+    without = probe_total(per_state, table["body_mass"], constants, include_basal=False)
+    np.testing.assert_allclose(theirs - without, 1.2 * table["body_mass"], rtol=1e-9)
+    assert constants.basal_rate_on is False  # the shipped default: per muscle, no basal
+
+
+def test_former_model_names_still_work_for_one_release():
+    assert model_names("lichtwark_wilson, minetti_alexander") == ("lichtwark2005", "minetti1997")
+    assert published_model("lichtwark_wilson").name == "lichtwark2005"
+    state = _muscle_state({k: np.array([v]) for k, v in (
+        ("excitation", 0.5), ("activation", 0.5), ("fibre_length", L0), ("fibre_velocity", -0.1),
+        ("active_fibre_force", 300.0), ("force_length_multiplier", 1.0))} | {"mass": 0.5})
+    constants = load_umberger_constants()
+    with pytest.warns(DeprecationWarning, match="umberger is now umberger2003"):
+        old = energetics_models.umberger(state, constants, force_length_multiplier=1.0)
+    assert old.total == umberger2003(state, constants, force_length_multiplier=1.0).total
+    with pytest.raises(TypeError, match="force_length_multiplier"):
+        umberger2003(state, constants)  # required: no silent F_iso = 1 or state-derived value
+    with pytest.raises(TypeError, match="passive_fibre_force"):
+        bhargava2004(state, load_bhargava_constants())

@@ -26,15 +26,17 @@ import yaml
 
 from vm_ros.energetics_models import (
     MuscleState,
+    force_length_multiplier_from_state,
     houdijk2006,
-    lichtwark_wilson,
+    lichtwark2005,
     load_houdijk_constants,
     load_lichtwark_constants,
     load_margaria_constants,
     load_minetti_constants,
     margaria1968,
-    minetti_alexander,
+    minetti1997,
 )
+from vm_ros.energetics_models.lichtwark import force_velocity_multiplier_from_state
 from vm_ros.errors import ConfigError
 from vm_ros.resources import config_dir
 
@@ -212,18 +214,32 @@ def _one(a=1.0, length_l0=1.0, v=0.0, r=0.4, force=None):
                     "iso": a * fl * F0}])
 
 
+def _lichtwark(state, constants, t=0.0, **given):
+    """lichtwark2005 with the multipliers a Hill muscle's state determines, unless given."""
+    extras = {"force_length_multiplier": force_length_multiplier_from_state(state),
+              "force_velocity_multiplier": force_velocity_multiplier_from_state(state),
+              "stimulation_duration": t}
+    return lichtwark2005(state, constants, **{**extras, **given})
+
+
+def _houdijk(state, constants, **given):
+    """houdijk2006 with the force-length multiplier the state determines, unless given."""
+    return houdijk2006(state, constants, **{
+        "force_length_multiplier": force_length_multiplier_from_state(state), **given})
+
+
 def test_lichtwark_worked_points():
     """Lichtwark & Wilson 2007 supplement / 2005 eq. for gamma, at L0, full activation: the
     isometric maintenance heat is gamma Vmax / G^2 F0 L0 = 0.975 * 10 / 16 * 100 W = 60.9375 W
     (gamma(0) = 0.8 + 0.175); shortening at 1 L0/s adds v / G F0 L0 = 25 W of shortening heat;
     after long stimulation gamma falls to 0.175 exp(-0.022 t)."""
     c = load_lichtwark_constants()
-    rates = lichtwark_wilson(_one(), c)
+    rates = _lichtwark(_one(), c)
     assert rates.activation_maintenance[0] == pytest.approx(60.9375, rel=RTOL)
     assert rates.shortening_lengthening[0] == pytest.approx(0.0, abs=1e-12)
-    shortening = lichtwark_wilson(_one(v=-0.1), c, force_length_multiplier=1.0)
+    shortening = _lichtwark(_one(v=-0.1), c, force_length_multiplier=1.0)
     assert shortening.shortening_lengthening[0] == pytest.approx(25.0, rel=RTOL)
-    late = lichtwark_wilson(_one(), c, stimulation_duration=100.0)
+    late = _lichtwark(_one(), c, t=100.0)
     assert late.activation_maintenance[0] == pytest.approx(
         0.175 * math.exp(-2.2) * 10 / 16 * 100, rel=RTOL)
 
@@ -234,7 +250,7 @@ def test_houdijk_worked_points():
     shortening heat or work."""
     c = load_houdijk_constants()
     for r, per_kg in ((1.0, 24.4), (0.0, 150.0), (0.4, 0.4 * 24.4 + 0.6 * 150.0)):
-        rates = houdijk2006(_one(r=r), c)
+        rates = _houdijk(_one(r=r), c)
         assert rates.activation_maintenance[0] == pytest.approx(MASS * per_kg, rel=RTOL)
         assert rates.total[0] == pytest.approx(MASS * per_kg, rel=RTOL)
 
@@ -255,11 +271,11 @@ def test_minetti_phi_values():
     """Minetti & Alexander 1997 phi(v): 0.054 isometric (F0 Vmax a 0.054 = 54 W here), and
     3.02 / 11.03 at v = Vmax (hand-evaluated from the paper's coefficients)."""
     c = load_minetti_constants()
-    assert minetti_alexander(_one(), c).total[0] == pytest.approx(0.054 * F0 * VMAX * L0,
+    assert minetti1997(_one(), c).total[0] == pytest.approx(0.054 * F0 * VMAX * L0,
                                                                   rel=RTOL)
-    at_vmax = minetti_alexander(_one(v=-VMAX * L0, force=0.0), c).total[0]
+    at_vmax = minetti1997(_one(v=-VMAX * L0, force=0.0), c).total[0]
     assert at_vmax == pytest.approx(3.02 / 11.03 * F0 * VMAX * L0, rel=RTOL)
-    half = minetti_alexander(_one(a=0.5), c).total[0]
+    half = minetti1997(_one(a=0.5), c).total[0]
     assert half == pytest.approx(0.5 * 0.054 * F0 * VMAX * L0, rel=RTOL)
 
 
@@ -282,7 +298,7 @@ def test_lichtwark_equals_second_implementation(option, kwargs):
     c = load_lichtwark_constants()
     if option == "no_negative_work":
         c = dataclasses.replace(c, include_negative_mechanical_work=False)
-    rates = lichtwark_wilson(_state(), c, stimulation_duration=kwargs.get("t", 0.0))
+    rates = _lichtwark(_state(), c, t=kwargs.get("t", 0.0))
     reference = np.array([lichtwark_reference(row, **kwargs) for row in GRID])
     _assert_components_equal(rates, reference)
 
@@ -293,7 +309,7 @@ def test_houdijk_equals_second_implementation(forbid, implementation):
     """Against Koelewijn et al.'s and Luis et al.'s implementations, with and without
     forbid_negative_total_power (Luis et al.'s option 1)."""
     c = dataclasses.replace(load_houdijk_constants(), forbid_negative_total_power=forbid)
-    rates = houdijk2006(_state(), c)
+    rates = _houdijk(_state(), c)
     if implementation == "koelewijn2019":
         reference = [houdijk_reference(row, forbid_negative=forbid) for row in GRID]
     else:
@@ -314,9 +330,9 @@ def test_lichtwark_equals_luis_2024_with_their_gamma():
                                maintenance_decay_slow_amplitude=0.0)
     reference = np.array([lichtwark_luis(row) for row in GRID])
     for when in (0.0, 30.0):
-        rates = lichtwark_wilson(_state(), luis, stimulation_duration=when)
+        rates = _lichtwark(_state(), luis, t=when)
         _assert_components_equal(rates, reference)
-    default = lichtwark_wilson(_state(), load_lichtwark_constants())
+    default = _lichtwark(_state(), load_lichtwark_constants())
     assert _close(default.shortening_lengthening, reference[:, 1]) <= RTOL
     on = reference[:, 0] > 1.0
     assert np.allclose(default.activation_maintenance[on] / reference[on, 0], 0.975 / 1.5,
@@ -333,21 +349,21 @@ def test_margaria_equals_second_implementation(negative_work):
 
 def test_minetti_equals_second_implementation():
     reference = [minetti_reference(row) for row in GRID]
-    assert _close(minetti_alexander(_state(), load_minetti_constants()).total, reference) <= RTOL
+    assert _close(minetti1997(_state(), load_minetti_constants()).total, reference) <= RTOL
 
 
 def test_a_perturbed_constant_fails_the_comparison():
     """The comparisons can fail: each reference with one constant changed by a few per cent."""
     state = _state()
-    lichtwark = lichtwark_wilson(state, load_lichtwark_constants()).total
+    lichtwark = _lichtwark(state, load_lichtwark_constants()).total
     assert _close(lichtwark, [lichtwark_reference(r, g_curvature=4.2)[3] for r in GRID]) > 1e-3
-    houdijk = houdijk2006(state, load_houdijk_constants()).total
+    houdijk = _houdijk(state, load_houdijk_constants()).total
     assert _close(houdijk, [houdijk_reference(r, total_slow=25.0)[3] for r in GRID]) > 1e-3
     assert _close(lichtwark, [lichtwark_luis(r, gamma=0.975)[3] for r in GRID]) <= RTOL
     assert _close(lichtwark, [lichtwark_luis(r, gamma=1.0)[3] for r in GRID]) > 1e-3
     margaria = margaria1968(state, load_margaria_constants()).total
     assert _close(margaria, [margaria_reference(r, positive=0.26) for r in GRID]) > 1e-3
-    minetti = minetti_alexander(state, load_minetti_constants()).total
+    minetti = minetti1997(state, load_minetti_constants()).total
     assert _close(minetti, [minetti_reference(r, c1=0.055) for r in GRID]) > 1e-3
 
 
@@ -356,13 +372,13 @@ def test_explicit_multipliers_equal_the_derived_ones_where_activation_is_on():
     fl = np.array([row["fl"] for row in GRID])
     fv = np.array([row["fv"] for row in GRID])
     on = state.activation > 0.0
-    derived = lichtwark_wilson(state, load_lichtwark_constants())
-    given = lichtwark_wilson(state, load_lichtwark_constants(), force_length_multiplier=fl,
-                             force_velocity_multiplier=fv)
+    derived = _lichtwark(state, load_lichtwark_constants())
+    given = _lichtwark(state, load_lichtwark_constants(), force_length_multiplier=fl,
+                       force_velocity_multiplier=fv)
     assert _close(derived.total[on], given.total[on]) <= 1e-12
     assert np.array_equal(derived.total[~on], given.total[~on])
     assert _close(houdijk2006(state, load_houdijk_constants(), force_length_multiplier=fl).total,
-                  houdijk2006(state, load_houdijk_constants()).total) <= 1e-12
+                  _houdijk(state, load_houdijk_constants()).total) <= 1e-12
 
 
 # --- the loaders ----------------------------------------------------------------------------------

@@ -514,7 +514,7 @@ def test_energetics_models_are_published_and_logged(ros, lengths, tmp_path):
     from vm_ros.node.params import NodeConfig
     from vm_ros.recording import read_run
 
-    models = ["umberger2010", "bhargava2004", "minetti_alexander"]
+    models = ["umberger2010", "bhargava2004", "minetti1997"]
     path = tmp_path / "run.mcap"
     node, probe = sim_node(ros, lengths, batch_steps=0, energetics_models=models,
                            mcap__enabled=True, mcap__path=str(path))

@@ -60,19 +60,20 @@ def piecewise_linear(x, xp, fp):
     return np.where(x < xp[0], below, np.where(x > xp[-1], above, inside))
 
 
-def bhargava2004(state: MuscleState, constants: BhargavaConstants,
-                 passive_fibre_force=None) -> HeatRates:
+def bhargava2004(state: MuscleState, constants: BhargavaConstants, *,
+                 passive_fibre_force) -> HeatRates:
     """Heat and work rates (W per muscle) of Bhargava et al. 2004 (equations in the module
     docstring). ``passive_fibre_force`` (N, OpenSim's getPassiveFiberForce) enters F_total; it is
-    not in MuscleState, and without it F_total is the active force alone (docs/energetics_models.md
-    section 3). ``basal`` is 0: the basal rate is whole-body (constants.basal_rate)."""
+    not in MuscleState and is required (0 makes F_total the active force alone,
+    docs/energetics_models.md section 3). ``basal`` is 0: the basal rate is whole-body
+    (constants.basal_rate, probe_total)."""
     c = constants
     k = c.muscle_effort_scaling_factor
     u = k * np.asarray(state.excitation, dtype=float)
     mass = np.asarray(state.mass, dtype=float)
     velocity = np.asarray(state.fibre_velocity, dtype=float)
     f_active = k * np.asarray(state.active_fibre_force, dtype=float)
-    passive = 0.0 if passive_fibre_force is None else np.asarray(passive_fibre_force, dtype=float)
+    passive = np.asarray(passive_fibre_force, dtype=float)
     f_total = f_active + passive
     f_iso = k * np.asarray(state.isometric_force, dtype=float)
     length_norm = np.asarray(state.fibre_length, dtype=float) / state.optimal_fibre_length

@@ -12,7 +12,9 @@ import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
-from vm_ros.errors import ConfigError
+import numpy as np
+
+from vm_ros.errors import ConfigError, InputError
 from vm_ros.model.params import _holds, _load_yaml, _read_section, _section  # model.yaml's
 from vm_ros.resources import config_dir
 
@@ -234,9 +236,20 @@ def muscle_mass(max_isometric_force, optimal_fibre_length, specific_tension: flo
     return max_isometric_force / specific_tension * density * optimal_fibre_length
 
 
-def basal_rate(body_mass: float, constants) -> float:
+def basal_rate(body_mass: float, constants, include_basal: bool | None = None) -> float:
     """Whole-body basal rate (W), once per body, never per muscle: basal_coefficient *
-    body_mass ** basal_exponent when ``constants.basal_rate_on``, else 0 (OpenSim 4.6 probes)."""
-    if not constants.basal_rate_on:
+    body_mass ** basal_exponent (body_mass in kg, > 0) when ``include_basal`` (None: the
+    constants' ``basal_rate_on``, off in the shipped config), else 0 (OpenSim 4.6 probes)."""
+    if not (constants.basal_rate_on if include_basal is None else include_basal):
         return 0.0
+    if not (np.isfinite(body_mass) and body_mass > 0.0):
+        raise InputError("body_mass", body_mass, "must be a finite mass > 0 kg")
     return constants.basal_coefficient * body_mass ** constants.basal_exponent
+
+
+def probe_total(rates, body_mass: float, constants, include_basal: bool = True):
+    """Whole-body metabolic rate (W) as OpenSim 4.6's Umberger2010 and Bhargava2004 probes report
+    it (their first output, TOTAL): the muscles' ``rates.total`` summed over the last axis (the
+    muscles), plus, with ``include_basal`` (the probes' basal_rate_on, on by default in OpenSim),
+    the basal rate once (:func:`basal_rate`). Shape: ``rates.total`` without its last axis."""
+    return np.sum(rates.total, axis=-1) + basal_rate(body_mass, constants, include_basal)

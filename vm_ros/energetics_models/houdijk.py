@@ -37,22 +37,20 @@ from vm_ros.energetics_models.state import (
     mechanical_work_rate,
     shortening_heat_for_nonnegative_total,
 )
-from vm_ros.energetics_models.umberger import force_length_multiplier_from_state
 
 
-def houdijk2006(state: MuscleState, constants: HoudijkConstants,
-                force_length_multiplier=None) -> HeatRates:
+def houdijk2006(state: MuscleState, constants: HoudijkConstants, *,
+                force_length_multiplier) -> HeatRates:
     """Heat and work rates (W per muscle) of Houdijk et al. 2006 (equations in the module
-    docstring). ``force_length_multiplier`` F_iso (1) defaults to what the state determines
-    (umberger.force_length_multiplier_from_state). ``basal`` is 0."""
+    docstring). ``force_length_multiplier`` F_iso (1) is required (for a Hill muscle,
+    umberger.force_length_multiplier_from_state gives it from the state). ``basal`` is 0."""
     c = constants
     a = np.asarray(state.activation, dtype=float)
     mass = np.asarray(state.mass, dtype=float)
     velocity = np.asarray(state.fibre_velocity, dtype=float)
     slow = np.asarray(state.slow_fraction, dtype=float)
     fast = 1.0 - slow
-    f_iso = (force_length_multiplier_from_state(state) if force_length_multiplier is None
-             else np.asarray(force_length_multiplier, dtype=float))
+    f_iso = np.asarray(force_length_multiplier, dtype=float)
 
     g_slow = c.activation_fraction_slow_twitch * c.total_heat_slow_twitch
     g_fast = c.activation_fraction_fast_twitch * c.total_heat_fast_twitch

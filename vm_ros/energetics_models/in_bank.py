@@ -27,6 +27,7 @@ import numpy as np
 from vm_ros.energetics_models.vm_state import (
     MODEL_NAMES,
     VmMuscleConstants,
+    current_model_name,
     published_model,
     vm_model_inputs,
 )
@@ -42,13 +43,14 @@ CHUNK_MUSCLE_STEPS = 10_000
 
 def model_names(selection) -> tuple:
     """The models of ``selection``: names (a sequence, or one string of names separated by
-    commas), ``"all"`` for every published model, empty or None for none. InputError naming
-    the known models for an unknown or repeated name."""
+    commas), ``"all"`` for every published model, empty or None for none; a former name
+    (vm_state.RENAMED) gives the current one. InputError naming the known models for an unknown
+    or repeated name."""
     if selection is None:
         return ()
     if isinstance(selection, str):
         selection = [part.strip() for part in selection.split(",") if part.strip()]
-    names = tuple(str(name) for name in selection)
+    names = tuple(current_model_name(str(name)) for name in selection)
     if names == ("all",):
         return MODEL_NAMES
     for name in names:

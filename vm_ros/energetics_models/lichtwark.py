@@ -28,7 +28,6 @@ import numpy as np
 
 from vm_ros.energetics_models.constants import LichtwarkConstants
 from vm_ros.energetics_models.state import HeatRates, MuscleState, mechanical_work_rate
-from vm_ros.energetics_models.umberger import force_length_multiplier_from_state
 
 
 def force_velocity_multiplier_from_state(state: MuscleState):
@@ -50,24 +49,23 @@ def maintenance_decay(stimulation_duration, constants: LichtwarkConstants):
             + c.maintenance_decay_slow_amplitude * np.exp(-c.maintenance_decay_slow_rate * t))
 
 
-def lichtwark_wilson(state: MuscleState, constants: LichtwarkConstants,
-                     force_length_multiplier=None, force_velocity_multiplier=None,
-                     stimulation_duration=0.0) -> HeatRates:
+def lichtwark2005(state: MuscleState, constants: LichtwarkConstants, *,
+                  force_length_multiplier, force_velocity_multiplier,
+                  stimulation_duration) -> HeatRates:
     """Heat and work rates (W per muscle) of Lichtwark & Wilson (equations in the module
-    docstring). ``force_length_multiplier`` F_iso (1) and ``force_velocity_multiplier`` g (1)
-    default to what the state determines (umberger.force_length_multiplier_from_state,
-    :func:`force_velocity_multiplier_from_state`); ``stimulation_duration`` t (s, default 0: the
-    unfatigued gamma 0.975) is not in MuscleState. ``basal`` is 0."""
+    docstring). Required, since MuscleState does not hold them: ``force_length_multiplier``
+    F_iso (1) and ``force_velocity_multiplier`` g (1) (for a Hill muscle,
+    umberger.force_length_multiplier_from_state and :func:`force_velocity_multiplier_from_state`
+    give them from the state), ``stimulation_duration`` t (s; 0 gives the unfatigued gamma
+    0.975). ``basal`` is 0."""
     c = constants
     a = np.asarray(state.activation, dtype=float)
     l0 = np.asarray(state.optimal_fibre_length, dtype=float)
     f0 = np.asarray(state.max_isometric_force, dtype=float)
     velocity = np.asarray(state.fibre_velocity, dtype=float)
     shortening_velocity = -velocity / l0
-    f_iso = (force_length_multiplier_from_state(state) if force_length_multiplier is None
-             else np.asarray(force_length_multiplier, dtype=float))
-    g = (force_velocity_multiplier_from_state(state) if force_velocity_multiplier is None
-         else np.asarray(force_velocity_multiplier, dtype=float))
+    f_iso = np.asarray(force_length_multiplier, dtype=float)
+    g = np.asarray(force_velocity_multiplier, dtype=float)
     vmax = c.max_contraction_velocity
     curvature = c.force_velocity_curvature
     shortening = shortening_velocity > 0.0

@@ -32,7 +32,7 @@ def phi(normalised_shortening_velocity, constants: MinettiConstants):
     return numerator / denominator
 
 
-def minetti_alexander(state: MuscleState, constants: MinettiConstants) -> HeatRates:
+def minetti1997(state: MuscleState, constants: MinettiConstants) -> HeatRates:
     """Metabolic rate (W per muscle) of Minetti & Alexander 1997 (equations in the module
     docstring). ``basal`` is 0; the other components are NaN."""
     vmax = constants.max_contraction_velocity * np.asarray(state.optimal_fibre_length,

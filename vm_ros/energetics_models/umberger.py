@@ -68,12 +68,15 @@ def recruited_slow_fraction(excitation, slow_fraction):
                      where=(np.asarray(excitation) != 0.0) & (both != 0.0))
 
 
-def umberger(state: MuscleState, constants: UmbergerConstants,
-             force_length_multiplier=None) -> HeatRates:
-    """Heat and work rates (W per muscle) of Umberger 2003/2010 (equations in the module
-    docstring; the variant is in ``constants``). ``force_length_multiplier`` (1) is F_iso; when
-    None it is derived from the state (:func:`force_length_multiplier_from_state`). ``basal`` is
-    0: the basal rate is whole-body (constants.basal_rate)."""
+def umberger2003(state: MuscleState, constants: UmbergerConstants, *,
+                 force_length_multiplier) -> HeatRates:
+    """Heat and work rates (W per muscle) of Umberger 2003, and its 2010 and Uchida 2016
+    revisions (equations in the module docstring; the variant is in ``constants``).
+    ``force_length_multiplier`` (1) is F_iso, required: MuscleState does not determine it for
+    every muscle (for a Hill muscle, :func:`force_length_multiplier_from_state` gives it; for
+    Virtual Muscle, whose active force is not proportional to activation, it gave 1.43x
+    OpenSim's activation heat at 1.3 L0). ``basal`` is 0: the basal rate is whole-body
+    (constants.basal_rate, probe_total)."""
     c = constants
     k = c.muscle_effort_scaling_factor
     a = k * np.asarray(state.activation, dtype=float)
@@ -83,8 +86,7 @@ def umberger(state: MuscleState, constants: UmbergerConstants,
     velocity_norm = velocity / state.optimal_fibre_length
     length_norm = np.asarray(state.fibre_length, dtype=float) / state.optimal_fibre_length
     f_active = np.maximum(k * np.asarray(state.active_fibre_force, dtype=float), 0.0)
-    f_iso = (force_length_multiplier_from_state(state) if force_length_multiplier is None
-             else np.asarray(force_length_multiplier, dtype=float))
+    f_iso = np.asarray(force_length_multiplier, dtype=float)
     effective = np.where(u > a, u, (u + a) / 2.0)
     slow = np.asarray(state.slow_fraction, dtype=float)
     if c.use_Bhargava_recruitment_model:

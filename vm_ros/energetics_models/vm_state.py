@@ -44,11 +44,11 @@ from vm_ros.energetics_models.constants import (
     load_umberger_constants,
 )
 from vm_ros.energetics_models.houdijk import houdijk2006
-from vm_ros.energetics_models.lichtwark import lichtwark_wilson
+from vm_ros.energetics_models.lichtwark import lichtwark2005
 from vm_ros.energetics_models.margaria import margaria1968
-from vm_ros.energetics_models.minetti import minetti_alexander
+from vm_ros.energetics_models.minetti import minetti1997
 from vm_ros.energetics_models.state import HeatRates, MuscleState
-from vm_ros.energetics_models.umberger import umberger
+from vm_ros.energetics_models.umberger import umberger2003
 from vm_ros.errors import InputError
 from vm_ros.model import curves
 from vm_ros.model.params import FibreTypeParams, GenericParams
@@ -225,32 +225,43 @@ class PublishedModel:
 
 # The registry: model names, in the order tables and plots list them.
 PUBLISHED_MODELS = (
-    PublishedModel("umberger2003", umberger, partial(load_umberger_constants, "umberger2003"),
+    PublishedModel("umberger2003", umberger2003, partial(load_umberger_constants,
+                                                         "umberger2003"),
                    ("force_length_multiplier",), "Umberger et al. 2003"),
-    PublishedModel("umberger2010", umberger, partial(load_umberger_constants, "umberger2010"),
+    PublishedModel("umberger2010", umberger2003, partial(load_umberger_constants,
+                                                         "umberger2010"),
                    ("force_length_multiplier",), "Umberger 2010"),
-    PublishedModel("uchida2016", umberger, partial(load_umberger_constants, "uchida2016"),
+    PublishedModel("uchida2016", umberger2003, partial(load_umberger_constants, "uchida2016"),
                    ("force_length_multiplier",), "Uchida et al. 2016 (OpenSim defaults)"),
     PublishedModel("bhargava2004", bhargava2004, load_bhargava_constants,
                    ("passive_fibre_force",), "Bhargava et al. 2004"),
-    PublishedModel("lichtwark_wilson", lichtwark_wilson, load_lichtwark_constants,
+    PublishedModel("lichtwark2005", lichtwark2005, load_lichtwark_constants,
                    ("force_length_multiplier", "force_velocity_multiplier",
                     "stimulation_duration"), "Lichtwark & Wilson 2005/2007"),
     PublishedModel("houdijk2006", houdijk2006, load_houdijk_constants,
                    ("force_length_multiplier",), "Houdijk et al. 2006"),
     PublishedModel("margaria1968", margaria1968, load_margaria_constants, (), "Margaria 1968"),
-    PublishedModel("minetti_alexander", minetti_alexander, load_minetti_constants, (),
+    PublishedModel("minetti1997", minetti1997, load_minetti_constants, (),
                    "Minetti & Alexander 1997"),
 )
 MODELS = {model.name: model for model in PUBLISHED_MODELS}
 MODEL_NAMES = tuple(MODELS)
+# Former names (before every name became author + year), accepted for one release: old logs
+# and scripts name them. RENAMED[old] is the current name.
+RENAMED = {"lichtwark_wilson": "lichtwark2005", "minetti_alexander": "minetti1997"}
+
+
+def current_model_name(name: str) -> str:
+    """``name``, or its current name when it is a former one (RENAMED)."""
+    return RENAMED.get(name, name)
 
 
 def published_model(name: str) -> PublishedModel:
     """The registry entry ``name``; InputError naming the known models otherwise."""
-    if name not in MODELS:
+    current = current_model_name(name)
+    if current not in MODELS:
         raise InputError("energetics model", name, f"unknown; known: {', '.join(MODEL_NAMES)}")
-    return MODELS[name]
+    return MODELS[current]
 
 
 def rates_from_inputs(inputs: VmModelInputs, models=MODEL_NAMES, constants=None) -> dict:
@@ -277,8 +288,10 @@ __all__ = [
     "MODEL_NAMES",
     "PUBLISHED_MODELS",
     "PublishedModel",
+    "RENAMED",
     "VmModelInputs",
     "VmMuscleConstants",
+    "current_model_name",
     "fibre_curves",
     "fibre_curves_by_type",
     "published_model",
