@@ -28,6 +28,7 @@ VERBS = {
     "closed-loop": "closed_loop",
     "params": "params",
     "compare-energetics": "compare_energetics",
+    "bag": "bag",
 }
 
 

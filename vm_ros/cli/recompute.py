@@ -226,6 +226,8 @@ def run(args) -> int:
               "what it holds", file=sys.stderr)
     if recorded.skipped:  # copied, not applied: the node dropped them too
         print(f"vm-ros recompute: {recorded.skipped_note()}", file=sys.stderr)
+    if recorded.unlisted_note:
+        print(f"vm-ros recompute: {recorded.unlisted_note}", file=sys.stderr)
     timing = RunTiming(
         dt_s=args.dt or info.timing.dt_s,
         publish_rate_hz=args.publish_rate or info.timing.publish_rate_hz,

@@ -23,7 +23,7 @@ from pathlib import Path
 import yaml
 
 from vm_ros.errors import VmRosError
-from vm_ros.recording.reader import ChannelInfo, log_channels
+from vm_ros.recording.reader import ChannelInfo, log_channels, unlisted_note
 from vm_ros.recording.replay import is_offline_type, replay
 from vm_ros.recording.run_log import resolve_topic
 from vm_ros.recording.schema import MESSAGE_ENCODING, full_type_name
@@ -113,6 +113,9 @@ def select_topics(log: Path, requested: str | None) -> dict:
     """``{topic: ChannelInfo}`` of the channels to publish. Raises VmRosError (one line) when
     a requested topic is missing or cannot be published, or nothing can be."""
     channels = log_channels(log)
+    note = unlisted_note(log)
+    if note:
+        print(f"vm-ros replay: {note}", file=sys.stderr)
     if requested:
         names = [resolve_topic(t.strip()) for t in requested.split(",") if t.strip()]
         unknown = [t for t in names if t not in channels]

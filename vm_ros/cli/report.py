@@ -169,6 +169,8 @@ def run(args) -> int:
               "holds")
     if log.skipped:
         print(f"note: {log.skipped_note()}")
+    if log.unlisted_note:
+        print(f"note: {log.unlisted_note}")
     written = []
     if plt is not None:
         bin_s, reason = report_bin(log, *_span_and_interval(tables), args.bin)

@@ -24,11 +24,30 @@ from typing import NamedTuple
 from mcap.data_stream import ReadDataStream
 from mcap.opcode import Opcode
 from mcap.reader import make_reader
-from mcap.records import Attachment, Channel, Chunk, Footer, Header, Metadata, Schema
+from mcap.records import (
+    Attachment,
+    Channel,
+    Chunk,
+    DataEnd,
+    Footer,
+    Header,
+    Metadata,
+    Schema,
+)
 from mcap.stream_reader import StreamReader, get_chunk_data_stream
 
 from vm_ros.errors import VmRosError
-from vm_ros.recording.bag import BagError, bag_log_files
+from vm_ros.recording.bag import (
+    SUFFIX,
+    BagError,
+    BagFiles,
+    FileStats,
+    bag_files,
+    check_numbering,
+    directory_files,
+    summary_stats,
+    write_bag_metadata,
+)
 from vm_ros.recording.schema import MESSAGE_ENCODING
 
 
@@ -103,7 +122,9 @@ class LogReader:
     now and then while reading."""
 
     def __init__(self, path, progress: Callable[[int, int], None] | None = None):
-        self.files = log_files(path)
+        bag = _log_bag(path)
+        self.files = bag.files
+        self.unlisted_note = bag.note()  # other .mcap files of a bag directory, not read
         self.path = self.files[0] if len(self.files) == 1 else Path(path)
         self.size = sum(f.stat().st_size for f in self.files)
         self._progress = progress
@@ -193,18 +214,29 @@ class LogReader:
             self.complete = True
 
 
-def log_files(path) -> list[Path]:
-    """The MCAP files of a log path, in order: the file itself, or a bag directory's files
-    (vm_ros.recording.bag). Raises LogReadError when there is none."""
+def _log_bag(path) -> BagFiles:
     path = Path(path)
     if path.is_dir():
         try:
-            return bag_log_files(path)
+            return bag_files(path)
         except BagError as exc:
             raise LogReadError(path, exc.reason) from exc
     if not path.is_file():
         raise LogReadError(path, "no such file")
-    return [path]
+    return BagFiles([path])
+
+
+def log_files(path) -> list[Path]:
+    """The MCAP files of a log path, in order: the file itself, or a bag directory's files
+    (vm_ros.recording.bag). Raises LogReadError (one line) when there is none or the bag
+    directory cannot be used."""
+    return _log_bag(path).files
+
+
+def unlisted_note(path) -> str | None:
+    """For a bag directory, the line naming its ``.mcap`` files that metadata.yaml does not list
+    (not read); else None. Raises LogReadError as log_files."""
+    return _log_bag(path).note()
 
 
 def log_channels(path) -> dict[str, ChannelInfo]:
@@ -233,3 +265,125 @@ def _file_channels(path: Path) -> dict[str, ChannelInfo]:
         pass
     return {c.topic: ChannelInfo(reader._type_name(c), dict(c.metadata), c.message_encoding)
             for c in reader.channels.values()}
+
+
+# --- reindexing a bag directory (``vm-ros bag reindex``) -------------------------------------
+
+_MAGIC = b"\x89MCAP0\r\n"
+_DATA_END = struct.pack("<BQI", Opcode.DATA_END, 4, 0)  # data section CRC 0: not computed
+# no summary section (summary start 0, summary offset start 0, CRC 0), then the closing magic
+_FOOTER = struct.pack("<BQQQI", Opcode.FOOTER, 20, 0, 0, 0) + _MAGIC
+
+
+class _Scan(NamedTuple):
+    """One pass over an MCAP file: what a cut-short file keeps and metadata.yaml needs."""
+
+    stats: FileStats
+    end: int  # bytes up to the end of the last complete record (data section only)
+    footer: bool  # a footer was read: the file is finished
+    data_end: bool  # the data section's DataEnd record is among the complete records
+
+
+def _scan(path: Path) -> _Scan:
+    """Read ``path`` front to back as LogReader does (chunk CRCs checked; a message of an
+    undeclared channel is counted by its channel id but has no topic). Raises BagError when not
+    even the header is readable (an empty file too)."""
+    channels: dict[int, Channel] = {}
+    schemas: dict[int, str] = {}
+    counts: dict[int, int] = {}
+    first, last = None, 0
+    end, footer, data_end = 0, False, False
+    if path.stat().st_size == 0:
+        raise BagError(path.parent, f"{path.name} cannot be indexed: empty (the recorder was "
+                                    "killed as it created it; remove it and reindex again)")
+    with open(path, "rb") as stream:
+        records = _Records(stream).records
+        while not footer:
+            try:
+                record = next(records)
+                inside = _chunk_records(record) if isinstance(record, Chunk) else [record]
+            except StopIteration:
+                break
+            except Exception as exc:  # truncated or corrupt: the file ends at ``end``
+                if end == 0:
+                    raise BagError(path.parent, f"{path.name} cannot be indexed: not an MCAP "
+                                                f"file ({type(exc).__name__})") from exc
+                break
+            for item in inside:
+                if isinstance(item, tuple):
+                    channel_id, log_time = item[0], item[1]
+                    counts[channel_id] = counts.get(channel_id, 0) + 1
+                    first = log_time if first is None else min(first, log_time)
+                    last = max(last, log_time)
+                elif isinstance(item, Schema):
+                    schemas[item.id] = item.name
+                elif isinstance(item, Channel):
+                    channels[item.id] = item
+            footer = isinstance(record, Footer)
+            if not data_end and not footer:  # a cut summary section is left out
+                end = stream.tell()
+                data_end = isinstance(record, DataEnd)
+    return _Scan(FileStats([(c, schemas.get(c.schema_id, ""), counts.get(i, 0))
+                            for i, c in sorted(channels.items())],
+                           sum(counts.values()), first or 0, last), end, footer, data_end)
+
+
+class Reindexed(NamedTuple):
+    """What reindex_bag did: the files indexed, their messages, and the file finished (its name
+    and the bytes after its last complete record, moved to ``<name>.cut``), if one was."""
+
+    files: list
+    message_count: int
+    finished: tuple | None
+
+
+def _finish(path: Path, scan: _Scan) -> tuple[str, int]:
+    """End a cut-short file after its last complete record with a DataEnd record and a footer
+    without summary (a valid MCAP file: readers scan it, as rosbags does), the bytes after that
+    record moved to ``<name>.cut``. Returns (name, bytes moved). Raises BagError."""
+    size = path.stat().st_size
+    try:
+        if size > scan.end:
+            with open(path, "rb") as source:
+                source.seek(scan.end)
+                path.with_name(path.name + ".cut").write_bytes(source.read())
+        with open(path, "r+b") as target:
+            target.truncate(scan.end)
+            target.seek(scan.end)
+            target.write(_FOOTER if scan.data_end else _DATA_END + _FOOTER)
+    except OSError as exc:
+        raise BagError(path.parent, f"cannot finish {path.name}: {exc.strerror or exc}") from exc
+    return path.name, size - scan.end
+
+
+def reindex_bag(directory) -> Reindexed:
+    """Write ``directory/metadata.yaml`` from the directory's ``.mcap`` files (in name order,
+    NAME_2 before NAME_10), as ``ros2 bag reindex`` does, so that rosbag2 readers open a bag
+    whose recorder was killed. A cut-short last file (no footer: the recorder was killed while
+    writing it) is first finished after its last complete record (_finish), so that it holds
+    what every vm_ros reader reads of it. Raises BagError (one line, naming the file) when there
+    is no file, the numbered files have a gap, a file before the last is cut short, or a file is
+    not MCAP."""
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise BagError(directory, "not a directory")
+    files = directory_files(directory)
+    if not files:
+        raise BagError(directory, f"no {SUFFIX} file in the bag directory")
+    check_numbering(directory, files)
+    stats: dict[Path, FileStats] = {}
+    finished = None
+    for path in files:
+        try:
+            stats[path] = summary_stats(path)
+            continue
+        except BagError:  # no summary: read the records
+            scan = _scan(path)
+        if not scan.footer:
+            if path != files[-1]:
+                raise BagError(directory, f"{path.name} is cut short but is not the last file "
+                                          "(only a recorder's last file can be cut by a kill)")
+            finished = _finish(path, scan)
+        stats[path] = scan.stats
+    write_bag_metadata(directory, files, file_stats=stats.__getitem__)
+    return Reindexed(files, sum(s.message_count for s in stats.values()), finished)

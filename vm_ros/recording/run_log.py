@@ -391,7 +391,9 @@ class RunLog:
     finds a base name such as ``muscle_force`` as the run recorded it (RunInfo.log_topic).
     ``complete`` is False for a file cut short (the series then end at the last complete chunk;
     ``stop_reason`` says why). ``skipped``: per recorded topic, the messages that did not decode
-    (left out of ``series``; ``skipped_note()`` says so in one line)."""
+    (left out of ``series``; ``skipped_note()`` says so in one line). ``unlisted_note``: for a
+    bag directory whose metadata.yaml leaves out some of its ``.mcap`` files (not read), the
+    line naming them (LogReader)."""
 
     path: Path
     info: RunInfo | None
@@ -402,6 +404,7 @@ class RunLog:
     complete: bool
     stop_reason: str | None
     skipped: dict = field(default_factory=dict)
+    unlisted_note: str | None = None
 
     def log_topic(self, name: str) -> str:
         """The recorded name of a base or full topic name."""
@@ -501,7 +504,8 @@ def read_run(path, topics: Iterable[str] | None = None, raw: Iterable[str] = (),
         skipped[f"<channel {channel_id}>"] = SkippedMessages(count, "no channel record")
     return RunLog(Path(path), info, reader.metadata, reader.attachments,
                   {topic: b.build() for topic, b in builders.items() if len(b)},
-                  reader.topic_types(), reader.complete, reader.stop_reason, skipped)
+                  reader.topic_types(), reader.complete, reader.stop_reason, skipped,
+                  reader.unlisted_note)
 
 
 def _run_info(reader: LogReader, path) -> RunInfo | None:
