@@ -1,11 +1,12 @@
 """OpenSim motion files (.mot, .sto) without OpenSim: a time column and coordinate columns.
 
 Format: header lines up to ``endheader`` (among them ``inDegrees=yes|no``, required here because
-it decides the units), then a tab- or space-separated line of column labels starting with
-``time``, then one row of numbers per frame. Labels are coordinate names (IK output) or state
-paths (``/jointset/knee_r/knee_angle_r/value``; ``.../speed`` and non-coordinate columns of a
-states file are skipped). Values stay as written; ``Motion.to_si`` converts the rotational columns
-from degrees when the header says so.
+it decides the units; any other value is an error: OpenSim's Storage reads ``yes`` in any case as
+degrees and every other word, ``true`` included, silently as radians), then a tab- or
+space-separated line of column labels starting with ``time``, then one row of numbers per frame.
+Labels are coordinate names (IK output) or state paths (``/jointset/knee_r/knee_angle_r/value``;
+``.../speed`` and non-coordinate columns of a states file are skipped). Values stay as written;
+``Motion.to_si`` converts the rotational columns from degrees when the header says so.
 """
 
 from __future__ import annotations
@@ -17,6 +18,8 @@ import numpy as np
 
 from vm_ros.errors import VmRosError
 from vm_ros.storage import numeric_rows, parse_storage
+
+IN_DEGREES = {"yes": True, "no": False}  # the header's inDegrees values (case-insensitive)
 
 
 @dataclass(frozen=True)
@@ -60,7 +63,10 @@ def read_motion(path) -> Motion:
     if in_degrees is None:
         raise VmRosError(f"motion {path}: the header has no 'inDegrees=yes|no' line, so the "
                          "units are unknown; add it")
-    in_degrees = in_degrees.lower() in ("yes", "true", "1")
+    if in_degrees.lower() not in IN_DEGREES:
+        raise VmRosError(f"motion {path}: header 'inDegrees={in_degrees}' is neither yes "
+                         "(degrees) nor no (radians); write one of them")
+    in_degrees = IN_DEGREES[in_degrees.lower()]
     labels = table.labels
     data = numeric_rows(path, labels, table.rows, "motion")
     if np.any(np.diff(data[:, 0]) <= 0):
@@ -70,7 +76,7 @@ def read_motion(path) -> Motion:
     if not keep:
         raise VmRosError(f"motion {path}: no coordinate columns")
     return Motion(str(path), tuple(n for _, n in keep), data[:, 0],
-                  data[:, [i for i, _ in keep]], bool(in_degrees))
+                  data[:, [i for i, _ in keep]], in_degrees)
 
 
 __all__ = ["Motion", "read_motion"]
