@@ -97,6 +97,27 @@ def test_paths_match_opensim(osim, models, imported, model, muscles):
         assert not geometry.muscles[geometry.muscle_names.index(name)].fit.flags
 
 
+def test_moment_arm_sign_is_opensims(osim, models, imported):
+    """The written geometry's r (-dL/dq, the --help's convention) against OpenSim's own
+    computeMomentArm, on paths without wrapping: same sign and value."""
+    import osim_models
+
+    geometry = imported["hip_knee"].geometry
+    model = osim.Model(str(models["hip_knee"]))
+    state = model.initSystem()
+    hip = model.getCoordinateSet().get("hip_flexion")
+    knee = model.getCoordinateSet().get("knee_angle")
+    for q in ([0.3, -0.4], [1.2, -1.5], [-0.2, -0.1]):
+        osim_models.set_pose(model, state, {"hip_flexion": q[0], "knee_angle": q[1]})
+        arm = geometry.evaluate(np.array(q)).moment_arm
+        for name in ("ilio", "ham"):
+            muscle = model.getMuscles().get(name)
+            row = geometry.muscle_names.index(name)
+            theirs = [muscle.computeMomentArm(state, c) for c in (hip, knee)]
+            np.testing.assert_allclose(arm[row], theirs, atol=1e-4, err_msg=name)
+    assert arm[geometry.muscle_names.index("ilio"), 0] > 0.005  # a hip flexor: r > 0
+
+
 def test_crossed_coordinates(imported):
     crossed = {m.name: m.coordinates for m in imported["hip_knee"].geometry.muscles}
     assert crossed == {"rf": ("hip_flexion", "knee_angle"), "vas": ("knee_angle",),
