@@ -277,18 +277,18 @@ def test_cli_without_opensim_says_how_to_install(tmp_path, capsys, monkeypatch):
 # ------------------------------------------------------------------ held coordinates
 
 
-def held_variant(osim, build, path, locked=(), zero_range=None, default=None):
-    """A test model (osim_models ``build``) with the coordinates ``locked`` locked, and
-    ``zero_range`` (name, value) given the range [value, value]; ``default`` (name, value)."""
+def held_variant(osim, build, path, locked=(), ranges=None, default=None):
+    """A test model (osim_models ``build``) with the coordinates ``locked`` locked, ``ranges``
+    ({name: (min, max)}) given those ranges; ``default`` (name, value)."""
     model = osim.Model(str(build(path.with_name(f"{path.stem}-base.osim"))))
     coordinates = model.updCoordinateSet()
     for name, value in [default] if default else []:
         coordinates.get(name).setDefaultValue(value)
     for name in locked:
         coordinates.get(name).setDefaultLocked(True)
-    for name, value in [zero_range] if zero_range else []:
-        coordinates.get(name).setRangeMin(value)
-        coordinates.get(name).setRangeMax(value)
+    for name, (lower, upper) in (ranges or {}).items():
+        coordinates.get(name).setRangeMin(lower)
+        coordinates.get(name).setRangeMax(upper)
     model.finalizeConnections()
     model.initSystem()
     model.printToXML(str(path))
@@ -319,6 +319,18 @@ def test_cli_coupled_coordinate_of_a_locked_one_is_one_line(osim, tmp_path, caps
             "patella_coupler") in err
 
 
+def test_cli_reversed_range_is_one_line(osim, tmp_path, capsys):
+    import osim_models
+
+    path = held_variant(osim, osim_models.build_hip_knee, tmp_path / "reversed.osim",
+                        ranges={"knee_angle": (0.1, -2.0)})
+    code, _, err = run_cli(["import-osim", str(path), "--out", str(tmp_path / "o"),
+                            "--samples", "40"], capsys)
+    assert code == 2 and err.strip().splitlines() == [
+        "vm-ros import-osim: error: coordinate knee_angle: its range in the model [0.1, -2] is "
+        "not an interval to sample; give it <range>min max</range> with finite min < max"]
+
+
 @pytest.mark.parametrize("held", ["locked", "zero_range"])
 def test_held_knee_imports_the_hip_at_the_held_knee_angle(osim, tmp_path, held):
     """Knee locked at its default -0.7 rad, or given the range [-0.7, -0.7] (its default 0
@@ -330,7 +342,7 @@ def test_held_knee_imports_the_hip_at_the_held_knee_angle(osim, tmp_path, held):
 
     knee = -0.7
     options = ({"locked": ("knee_angle",), "default": ("knee_angle", knee)} if held == "locked"
-               else {"zero_range": ("knee_angle", knee)})
+               else {"ranges": {"knee_angle": (knee, knee)}})
     path = held_variant(osim, osim_models.build_hip_knee, tmp_path / "held.osim", **options)
     printed = io.StringIO()
     result = import_osim(path, tmp_path / "out", OsimOptions(samples=200, seed=2),

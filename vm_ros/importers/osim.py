@@ -309,7 +309,8 @@ def _motion_box(paths: OsimPaths, columns, motions, options: OsimOptions) -> _Bo
     for name, lo, hi in zip(names, lower, upper, strict=True):
         if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
             raise VmRosError(f"coordinate {name}: its range in the model [{lo:g}, {hi:g}] is not "
-                             "an interval to sample")
+                             "an interval to sample; give it <range>min max</range> with finite "
+                             "min < max")
     margin = np.array([math.radians(options.margin_deg) if u == "rad" else options.margin_m
                        for u in units])
     if not motions:
