@@ -161,3 +161,77 @@ def test_wrap_jump_is_flagged(tmp_path, capsys):
     assert "!! m_a:" in capsys.readouterr().out
     fit = load_geometry(tmp_path / "out" / "geometry.yaml").muscles[0].fit
     assert "discontinuous" in fit.flags
+
+
+# --- joints held at one value, and zero-width ranges ----------------------------------------
+
+FIX_WRIST = '<joint joint1="wrist" polycoef="0.8 0 0 0 0"/>'   # wrist = qpos0 + 0.8 rad
+FIX_FLEX = '<joint joint1="flex" polycoef="0.1 0 0 0 0"/>'
+
+
+def _variant(tmp_path, text, name="variant.xml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_every_crossed_joint_held_is_one_line(tmp_path, capsys):
+    path = _variant(tmp_path, COUPLED_MJCF.replace("</equality>",
+                                                   FIX_FLEX + FIX_WRIST + "</equality>"))
+    assert main(["import-mjcf", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1, err
+    assert "every joint its muscles cross is held, none is left to sample" in err
+    assert "flex: fixed by joint equality 'equality1' (no joint2)" in err
+    assert "follow: follows the held flex (joint equality 'equality0')" in err
+    assert "wrist: fixed by joint equality 'equality2'" in err
+
+
+def test_zero_width_range_is_one_line(tmp_path, capsys):
+    """MuJoCo compiles range="0.3 0.3" as an unlimited joint: refused, not sampled over a turn."""
+    path = _variant(tmp_path, COUPLED_MJCF.replace('range="-1 1.8" ref="0.2"',
+                                                   'range="0.3 0.3" ref="0.2"'))
+    assert not mujoco.MjModel.from_xml_path(str(path)).jnt_limited[0]
+    assert main(["import-mjcf", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1, err
+    assert "joint 'flex' has the range [0.3, 0.3], which MuJoCo reads as no range" in err
+
+
+def _tendon_lengths(model, flex, wrist):
+    """MuJoCo's ten_length with flex at each value, follow set from its equality (the test's own
+    polynomial), wrist at ``wrist``: independent of the importer and its backend."""
+    data = mujoco.MjData(model)
+    coefficients = model.eq_data[0, :5]
+    out = []
+    for q in flex:
+        qpos = model.qpos0.copy()
+        qpos[0] = q
+        qpos[1] = model.qpos0[1] + np.polynomial.polynomial.polyval(q - model.qpos0[0],
+                                                                    coefficients)
+        qpos[2] = wrist
+        data.qpos[:] = qpos
+        mujoco.mj_fwdPosition(model, data)
+        out.append(data.ten_length.copy())
+    return np.array(out)
+
+
+def test_held_wrist_imports_flex_at_the_held_wrist_angle(tmp_path, capsys):
+    path = _variant(tmp_path, COUPLED_MJCF.replace("</equality>", FIX_WRIST + "</equality>"))
+    out = tmp_path / "out"
+    assert main(["import-mjcf", str(path), "--out", str(out), "--samples", "300"]) == 0
+    assert "held at one value, not inputs: wrist: fixed by joint equality 'equality1'" \
+        in capsys.readouterr().out
+    geometry = load_geometry(out / "geometry.yaml")
+    assert geometry.coordinate_names == ("flex",)
+    assert geometry.muscle_names == ("m_a", "m_b", "m_c")
+    assert "wrist" in geometry.source["held_joints"]
+    model = mujoco.MjModel.from_xml_path(str(path))
+    assert [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(3)] == [
+        "flex", "follow", "wrist"]
+    flex = np.random.default_rng(3).uniform(-1.0, 1.8, 50)
+    truth = _tendon_lengths(model, flex, 0.8)[:, 2]            # t_c, m_c's tendon
+    fitted = np.array([geometry.evaluate([q]).length_m[2] for q in flex])
+    assert np.sqrt(np.mean((fitted - truth) ** 2)) <= 1e-4
+    # the wrist matters to m_c: held at qpos0 (0 rad) instead, it would be > 1 mm off
+    assert np.min(np.abs(_tendon_lengths(model, flex, 0.0)[:, 2] - truth)) > 1e-3

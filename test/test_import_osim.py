@@ -97,6 +97,27 @@ def test_paths_match_opensim(osim, models, imported, model, muscles):
         assert not geometry.muscles[geometry.muscle_names.index(name)].fit.flags
 
 
+def test_moment_arm_sign_is_opensims(osim, models, imported):
+    """The written geometry's r (-dL/dq, the --help's convention) against OpenSim's own
+    computeMomentArm, on paths without wrapping: same sign and value."""
+    import osim_models
+
+    geometry = imported["hip_knee"].geometry
+    model = osim.Model(str(models["hip_knee"]))
+    state = model.initSystem()
+    hip = model.getCoordinateSet().get("hip_flexion")
+    knee = model.getCoordinateSet().get("knee_angle")
+    for q in ([0.3, -0.4], [1.2, -1.5], [-0.2, -0.1]):
+        osim_models.set_pose(model, state, {"hip_flexion": q[0], "knee_angle": q[1]})
+        arm = geometry.evaluate(np.array(q)).moment_arm
+        for name in ("ilio", "ham"):
+            muscle = model.getMuscles().get(name)
+            row = geometry.muscle_names.index(name)
+            theirs = [muscle.computeMomentArm(state, c) for c in (hip, knee)]
+            np.testing.assert_allclose(arm[row], theirs, atol=1e-4, err_msg=name)
+    assert arm[geometry.muscle_names.index("ilio"), 0] > 0.005  # a hip flexor: r > 0
+
+
 def test_crossed_coordinates(imported):
     crossed = {m.name: m.coordinates for m in imported["hip_knee"].geometry.muscles}
     assert crossed == {"rf": ("hip_flexion", "knee_angle"), "vas": ("knee_angle",),
@@ -253,6 +274,100 @@ def test_cli_without_opensim_says_how_to_install(tmp_path, capsys, monkeypatch):
                            'pip install ".[opensim]"')
 
 
+# ------------------------------------------------------------------ held coordinates
+
+
+def held_variant(osim, build, path, locked=(), ranges=None, default=None):
+    """A test model (osim_models ``build``) with the coordinates ``locked`` locked, ``ranges``
+    ({name: (min, max)}) given those ranges; ``default`` (name, value)."""
+    model = osim.Model(str(build(path.with_name(f"{path.stem}-base.osim"))))
+    coordinates = model.updCoordinateSet()
+    for name, value in [default] if default else []:
+        coordinates.get(name).setDefaultValue(value)
+    for name in locked:
+        coordinates.get(name).setDefaultLocked(True)
+    for name, (lower, upper) in (ranges or {}).items():
+        coordinates.get(name).setRangeMin(lower)
+        coordinates.get(name).setRangeMax(upper)
+    model.finalizeConnections()
+    model.initSystem()
+    model.printToXML(str(path))
+    return path
+
+
+def test_cli_every_coordinate_locked_is_one_line(osim, tmp_path, capsys):
+    import osim_models
+
+    path = held_variant(osim, osim_models.build_hip_knee, tmp_path / "locked.osim",
+                        locked=("hip_flexion", "knee_angle"))
+    code, _, err = run_cli(["import-osim", str(path), "--out", str(tmp_path / "o")], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "every coordinate is held, none is left to sample" in err
+    assert "hip_flexion: locked at 0 rad, unlock it (<locked>false</locked>)" in err
+    assert "knee_angle: locked at 0 rad" in err
+
+
+def test_cli_coupled_coordinate_of_a_locked_one_is_one_line(osim, tmp_path, capsys):
+    """The knee model's patella follows the knee angle: with the knee locked nothing is free."""
+    import osim_models
+
+    path = held_variant(osim, osim_models.build_knee, tmp_path / "knee.osim",
+                        locked=("knee_angle",))
+    code, _, err = run_cli(["import-osim", str(path), "--out", str(tmp_path / "o")], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert ("patella_angle: follows the held knee_angle through CoordinateCouplerConstraint "
+            "patella_coupler") in err
+
+
+def test_cli_reversed_range_is_one_line(osim, tmp_path, capsys):
+    import osim_models
+
+    path = held_variant(osim, osim_models.build_hip_knee, tmp_path / "reversed.osim",
+                        ranges={"knee_angle": (0.1, -2.0)})
+    code, _, err = run_cli(["import-osim", str(path), "--out", str(tmp_path / "o"),
+                            "--samples", "40"], capsys)
+    assert code == 2 and err.strip().splitlines() == [
+        "vm-ros import-osim: error: coordinate knee_angle: its range in the model [0.1, -2] is "
+        "not an interval to sample; give it <range>min max</range> with finite min < max"]
+
+
+@pytest.mark.parametrize("held", ["locked", "zero_range"])
+def test_held_knee_imports_the_hip_at_the_held_knee_angle(osim, tmp_path, held):
+    """Knee locked at its default -0.7 rad, or given the range [-0.7, -0.7] (its default 0
+    outside it): the hip muscles are fitted with the knee at -0.7 rad, checked against OpenSim
+    with the knee set there; vas (knee only) is skipped, naming the held knee."""
+    import osim_models
+
+    from vm_ros.importers.osim import OsimOptions, import_osim
+
+    knee = -0.7
+    options = ({"locked": ("knee_angle",), "default": ("knee_angle", knee)} if held == "locked"
+               else {"ranges": {"knee_angle": (knee, knee)}})
+    path = held_variant(osim, osim_models.build_hip_knee, tmp_path / "held.osim", **options)
+    printed = io.StringIO()
+    result = import_osim(path, tmp_path / "out", OsimOptions(samples=200, seed=2),
+                         progress=False, file=printed)
+    geometry = result.geometry
+    assert geometry.coordinate_names == ("hip_flexion",)
+    assert result.skipped == {"vas": "crosses no free coordinate (constant length with "
+                                     "knee_angle held)"}
+    assert "held at one value, not inputs: knee_angle: " in printed.getvalue()
+    assert list(geometry.source["held_coordinates"]) == ["knee_angle"]
+    muscles = ["rf", "ham", "ilio"]
+    hip = np.random.default_rng(5).uniform(*osim_models.HIP_RANGE, 40)
+    q, length, arm = opensim_reference(osim, path, {"hip_flexion": hip,
+                                                    "knee_angle": np.full(40, knee)}, muscles)
+    rows = [geometry.muscle_names.index(m) for m in muscles]
+    for k, values in enumerate(q):
+        ours, gradient = geometry.lengths_and_gradients(values[:1])
+        np.testing.assert_allclose(ours[rows], length[k], atol=1e-4)
+        np.testing.assert_allclose(-gradient[rows, 0], arm[k, :, 0], atol=1e-3)
+    # the knee angle matters to rf: held at 0 rad instead, rf would be > 5 mm off
+    _, straight, _ = opensim_reference(osim, path.with_name("held-base.osim"),
+                                       {"hip_flexion": hip[:1], "knee_angle": [0.0]}, ["rf"])
+    assert abs(straight[0, 0] - length[0, 0]) > 5e-3
+
+
 # ------------------------------------------------------------------ motion files (no OpenSim)
 
 
@@ -264,6 +379,26 @@ def test_motion_reader_state_paths_and_radians(tmp_path):
     motion = read_motion(path)
     assert motion.names == ("knee_angle",) and not motion.in_degrees
     assert motion.to_si({"knee_angle"}).ravel().tolist() == [-0.5, -0.4]
+
+
+@pytest.mark.parametrize("word, degrees", [("YES", True), ("Yes", True), ("No", False)])
+def test_motion_reader_in_degrees_ignores_case(tmp_path, word, degrees):
+    path = tmp_path / "ik.mot"
+    path.write_text(f"ik\ninDegrees={word}\nendheader\ntime q\n0 90\n")
+    assert read_motion(path).to_si({"q"}).item() == (math.pi / 2 if degrees else 90.0)
+
+
+def test_cli_motion_in_degrees_maybe_is_one_line(tmp_path, capsys):
+    """Read before OpenSim is loaded: the model file only has to exist."""
+    model = tmp_path / "m.osim"
+    model.write_text("<OpenSimDocument><Model/></OpenSimDocument>")
+    motion = tmp_path / "ik.mot"
+    motion.write_text("ik\ninDegrees=maybe\nendheader\ntime\tknee_angle\n0\t-30\n")
+    code, _, err = run_cli(["import-osim", str(model), "--out", str(tmp_path / "o"),
+                            "--motion", str(motion)], capsys)
+    assert code == 2 and err.strip().splitlines() == [
+        f"vm-ros import-osim: error: motion {motion}: header 'inDegrees=maybe' is neither yes "
+        "(degrees) nor no (radians); write one of them"]
 
 
 def test_motion_reader_degrees_convert_rotational_only(tmp_path):
@@ -278,6 +413,10 @@ def test_motion_reader_degrees_convert_rotational_only(tmp_path):
     ("inDegrees=no\ntime\tq\n0\t1\n", "endheader"),
     ("inDegrees=no\nendheader\nq\ttime\n0\t1\n", "first column must be 'time'"),
     ("inDegrees=no\nendheader\ntime\tq\n0\tx\n", "not numbers"),
+    ("inDegrees=maybe\nendheader\ntime\tq\n0\t1\n", "'inDegrees=maybe' is neither yes"),
+    # OpenSim's Storage reads 'true' as radians: ambiguous, refused rather than guessed
+    ("inDegrees=true\nendheader\ntime\tq\n0\t1\n", "'inDegrees=true' is neither yes"),
+    ("inDegrees=\nendheader\ntime\tq\n0\t1\n", "'inDegrees=' is neither yes"),
 ])
 def test_motion_reader_errors(tmp_path, text, expected):
     from vm_ros.errors import VmRosError

@@ -141,3 +141,94 @@ def test_log_with_an_older_model_file_says_how_to_recompute(tmp_path, capsys):
     assert "--params config/model.yaml" in message and "\n" not in message
     # today's file, as the message says, builds the bank
     assert _bank_of(RunConfig(("vasti",)), tmp_path / "old.mcap", attached).n == 1
+
+
+# --- the verdict and the printed differences come from one comparison ----------------------
+
+
+def _without_one_force_message(log, out):
+    """A copy of ``log`` without the middle muscle_force message (a recorder that lost one)."""
+    from vm_ros.recording import McapRecorder
+    from vm_ros.recording.reader import LogReader
+
+    reader = LogReader(log)
+    messages = [(m.topic, m.data, m.log_time_ns) for m in reader.messages()]
+    forces = [i for i, m in enumerate(messages) if m[0] == "/muscle_force"]
+    del messages[forces[len(forces) // 2]]
+    with McapRecorder(out, metadata=reader.metadata, attachments=reader.attachments) as rec:
+        for topic, type_name in reader.topic_types().items():
+            rec.add_channel(topic, type_name)
+        for message in messages:
+            assert rec.write(*message)
+    return out
+
+
+def test_verdict_agrees_with_the_printed_difference(tmp_path, capsys):
+    """A node-conditioned log that lost one output message: its stamps show a gap in model time,
+    so the recompute is approximate, but every common stamp is equal (0 N printed). The verdict
+    used to say 'differ' there; it now says what the comparison found."""
+    from test_simulate_joint_space import simulate_leg
+
+    log, _ = simulate_leg(tmp_path, "--excitation", "0.3")
+    gap = _without_one_force_message(log, tmp_path / "gap.mcap")
+    capsys.readouterr()
+    assert main(["recompute", str(gap), "--out", str(tmp_path / "again.mcap")]) == 0
+    printed = capsys.readouterr().out
+    assert "approximate: the node's model time left its step grid (1 gap(s)" in printed
+    assert "tendon force vs recorded: max |difference| 0 N over 20 samples\n" in printed
+    assert "joint effort vs recorded: max |difference| 0 (N m or N) over 21 samples" in printed
+    assert printed.count("exact") == 1 and ("not exact: equal at every common stamp, but the "
+                                            "recorded model time left the step grid") in printed
+    assert "differ from" not in printed   # the old verdict: "... outputs differ from the ..."
+
+
+class _Recorded:
+    """A recorded effort series as RunLog.get returns it (stamp_ns, effort, names)."""
+
+    def __init__(self, stamps, effort, names=None):
+        self.fields = {"stamp_ns": np.asarray(stamps), "effort": np.asarray(effort, float)}
+        self.names = names
+
+    def __len__(self):
+        return len(self.fields["stamp_ns"])
+
+
+class _Run:
+    def __init__(self, series):
+        self.series = series
+
+    def get(self, topic):
+        return self.series
+
+
+@pytest.mark.parametrize(("recorded", "recomputed", "max_abs", "verdict"), [
+    ([[1.0, np.nan]], [[1.0, np.nan]], 0.0, "exact:"),           # equal NaNs (a model reset)
+    ([[1.0, np.nan]], [[1.0, 2.0]], np.nan, "not exact: the tendon forces cannot be compared"),
+    ([[1.0, 2.0]], [[1.0, 2.5]], 0.5, "not exact: the tendon forces differ by up to 0.5 N"),
+])
+def test_comparison_counts_nan_and_differences_once(recorded, recomputed, max_abs, verdict):
+    from vm_ros.cli.recompute import _difference
+    from vm_ros.cli.recompute import verdict as make_verdict
+
+    found = _difference(_Run(_Recorded([7], recorded)), tm.TOPIC_FORCE, "tendon force", "N",
+                        np.array([7]), np.array(recomputed))
+    np.testing.assert_equal(found.max_abs, max_abs)
+    assert (found.common, found.recorded) == (1, 1)
+    assert make_verdict([found], []).startswith(verdict)
+    assert f"max |difference| {max_abs:.3g} N over 1 samples" in found.line()
+
+
+def test_comparison_names_recorded_stamps_left_out():
+    from vm_ros.cli.recompute import _difference, verdict
+
+    found = _difference(_Run(_Recorded([5, 7, 9], [[1.0], [2.0], [3.0]])), tm.TOPIC_FORCE,
+                        "tendon force", "N", np.array([7, 9, 11]), np.array([[2.0], [3.0], [4.0]]))
+    assert found.line() == ("tendon force vs recorded: max |difference| 0 N over 2 samples (of "
+                            "3 recorded)")
+    assert verdict([found], []).startswith("exact:")
+    assert verdict([found], ["1 gap(s) in model time"]).startswith(
+        "not exact: equal at every common stamp")
+    apart = _difference(_Run(_Recorded([5], [[1.0]])), tm.TOPIC_FORCE, "tendon force", "N",
+                        np.array([6]), np.array([[1.0]]))
+    assert verdict([apart], []) == ("not exact: recorded and recomputed tendon forces share no "
+                                    "model time")

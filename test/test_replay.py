@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -106,3 +107,40 @@ def test_replay_without_rclpy_is_a_clear_error(log, capsys, monkeypatch):
 def test_replay_unknown_topic(log, capsys):
     assert main(["replay", str(log), "--topics", "nope"]) == 2
     assert "no topic /nope" in capsys.readouterr().err
+
+
+@pytest.mark.ros
+def test_undecodable_messages_are_one_line_per_cause(tmp_path):
+    """rosidl's C typesupport prints 'sequence size exceeds remaining buffer' on stderr twice for
+    each of these Float64MultiArray messages (220 lines before): captured, and summed up in one
+    line per cause with its counts and the first occurrence."""
+    from conftest import require_ros
+
+    from vm_ros.recording import RunInfo, RunTiming, open_run_log
+    from vm_ros.recording.run_config import RunConfig
+
+    require_ros()  # the replay subprocess starts rclpy
+    malformed = b"\x00\x01\x00\x00" + b"\xfa" * 24    # CDR header, then no valid message
+    big_endian = b"\x00\x00\x00\x00" + b"\x01" * 40
+    path = tmp_path / "malformed.mcap"
+    with open_run_log(path, RunInfo(RunConfig(("vasti", "rectus_femoris")), RunTiming(),
+                                    "test")) as rec:
+        for k in range(100):
+            rec.write("/excitation_array", malformed, 1000 + k)
+            rec.write("/excitation", malformed, 1000 + k)
+        for k in range(10):
+            rec.write("/excitation_array", big_endian, 5000 + k)
+    proc = subprocess.run([str(Path(sys.executable).with_name("vm-ros")), "replay", str(path),
+                           "--topics", "excitation_array,excitation"], capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "replayed 0 messages" in proc.stdout
+    lines = [line for line in proc.stderr.splitlines() if "[INFO]" not in line]
+    assert len(lines) == 2, proc.stderr
+    assert lines[0] == ("vm-ros replay: skipped 110 undecodable messages on /excitation_array: "
+                        "sequence size exceeds remaining buffer (first: /excitation_array at log "
+                        "time 0.000001000 s)")
+    # rclpy's own text for the JointState: "failed to deserialize ROS message: Fast CDR ..."
+    assert lines[1].startswith("vm-ros replay: skipped 100 undecodable messages on /excitation: "
+                               "failed to deserialize ROS message")
+    assert lines[1].endswith("(first: /excitation at log time 0.000001000 s)")

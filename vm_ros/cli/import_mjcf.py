@@ -9,6 +9,11 @@ MuJoCo stores no optimal fibre length or tendon slack length: they are derived t
 from each muscle's operating range and compiled lengthrange, and are often unusable (tendons of a
 few mm, or negative); such muscles are listed loudly. Give real parameters with --library FILE
 (a VM muscle library; its entries replace the derived ones by name). Needs the mujoco extra.
+
+Units and signs of the written geometry: coordinates in rad (hinge) or m (slide), path lengths L
+in m; the moment arm is r = -dL/dq (m, or m/m), positive where the tendon shortens as the joint
+coordinate grows, so that the joint torque is r * F (MuJoCo's actuator_moment is +dL/dq, with
+negative muscle forces: the same torque).
 """
 
 from __future__ import annotations

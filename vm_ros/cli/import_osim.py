@@ -7,6 +7,10 @@ parameters, every number with its source note) and summary.txt (the summary prin
 Needs the opensim extra (pip install ".[opensim]"). With --function-based-paths FILE.xml the
 polynomials are OpenSim's own (PolynomialPathFitter output) and the model supplies coordinates and
 muscle parameters. Details and every parameter choice: docs/geometry.md.
+
+Units and signs of the written geometry: coordinates in rad (rotational) or m (translational),
+path lengths L in m; the moment arm is r = -dL/dq (m, or m/m), as OpenSim's, positive where the
+muscle shortens as the coordinate grows, so that the joint torque is r * F.
 """
 
 from __future__ import annotations

@@ -24,7 +24,10 @@ left its step grid (skipped or paused time, a backward clock jump): the summary 
 result is approximate and why.
 
 At the end the recomputed tendon forces (and joint efforts) are compared with the recorded ones
-at equal model time (header stamps); "exact" when they are equal at every common stamp.
+at equal model time (header stamps), once: the printed max |difference| and the verdict come from
+that one comparison. "exact" when they are equal at every common stamp (equal NaNs count as
+equal) and the recorded model time stayed on the step grid; else "not exact" and which of these
+failed, with the same numbers.
 
 Times: the new log keeps the original's start time (start_time_ns) and time line: inputs are
 copied at their recorded log times, outputs logged and stamped at start + model time, so the two
@@ -46,6 +49,7 @@ from __future__ import annotations
 import argparse
 import sys
 import tempfile
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -120,62 +124,91 @@ def _start_and_end_ns(run: RunLog, timing: RunTiming) -> tuple[int, int]:
     return int(start), end
 
 
-def _difference(run: RunLog, topic: str, sample_times_ns, values, names=None):
-    """(max |recomputed - recorded| effort at equal stamps, common samples), or None when either
-    side is empty; NaN where the two share no stamp (or no column)."""
+@dataclass(frozen=True)
+class Comparison:
+    """One recomputed output against the recorded one at equal model time (header stamps); the
+    printed line and the verdict are both made from it.
+
+    | field | meaning |
+    | --- | --- |
+    | what, unit | e.g. "tendon force", "N" |
+    | max_abs | max |recomputed - recorded| over the common stamps (equal NaNs count as equal;
+      NaN where they cannot be compared: a NaN on one side, other columns) |
+    | common | stamps in both |
+    | recorded | recorded stamps |
+    """
+
+    what: str
+    unit: str
+    max_abs: float
+    common: int
+    recorded: int
+
+    @property
+    def equal(self) -> bool:
+        return self.common > 0 and self.max_abs == 0.0
+
+    def unequal(self) -> str:
+        """Why it is not equal, in words and the same number as ``line``."""
+        if not self.common:
+            return f"recorded and recomputed {self.what}s share no model time"
+        if np.isnan(self.max_abs):
+            return f"the {self.what}s cannot be compared (NaN on one side, or other columns)"
+        return f"the {self.what}s differ by up to {self.max_abs:.3g} {self.unit}"
+
+    def line(self) -> str:
+        if not self.common:
+            return self.unequal()
+        of = f" (of {self.recorded} recorded)" if self.common < self.recorded else ""
+        return (f"{self.what} vs recorded: max |difference| {self.max_abs:.3g} {self.unit} over "
+                f"{self.common} samples{of}")
+
+
+def _difference(run: RunLog, topic: str, what: str, unit: str, sample_times_ns, values,
+                names=None) -> Comparison | None:
+    """Recomputed ``values`` (n_samples, n) at ``sample_times_ns`` against the efforts recorded
+    on ``topic`` at equal stamps (joint columns by ``names``), or None when either is empty."""
     recorded = run.get(topic)
     if recorded is None or not len(recorded) or not len(sample_times_ns):
         return None
     common, mine, theirs = np.intersect1d(sample_times_ns, recorded.fields["stamp_ns"],
                                           return_indices=True)
-    if not len(common):
-        return float("nan"), 0
+    found = Comparison(what, unit, float("nan"), len(common), len(recorded))
     theirs_values = recorded.fields["effort"][theirs]
     if names is not None:  # joint columns by name
         if not all(n in (recorded.names or ()) for n in names):
-            return float("nan"), len(common)
+            return found
         theirs_values = theirs_values[:, [recorded.names.index(n) for n in names]]
-    if theirs_values.shape != values[mine].shape:
-        return float("nan"), len(common)
-    return float(np.max(np.abs(values[mine] - theirs_values))), len(common)
+    if not len(common) or theirs_values.shape != values[mine].shape:
+        return found
+    difference = np.abs(values[mine] - theirs_values)
+    difference[np.isnan(values[mine]) & np.isnan(theirs_values)] = 0.0
+    return replace(found, max_abs=float(np.max(difference)))
 
 
-def compare_forces(run: RunLog, sample_times_ns, forces) -> str | None:
-    """'max |difference|' line for the recomputed vs recorded tendon forces at equal stamps."""
-    found = _difference(run, tm.TOPIC_FORCE, sample_times_ns, forces)
-    if found is None:
-        return None
-    if not found[1]:
-        return "recorded and recomputed forces share no model time"
-    return f"tendon force vs recorded: max |difference| {found[0]:.3g} N over {found[1]} samples"
-
-
-def compare_joint_efforts(run: RunLog, result) -> str | None:
-    """The same line for the generalized forces of joint_efforts (None without them)."""
-    if not len(result.joints):
-        return None
-    found = _difference(run, tm.TOPIC_JOINT_EFFORTS, result.sample_times_ns,
-                        result.joint_samples[:, 2, :], result.joints)
-    if found is None:
-        return None
-    if not found[1]:
-        return "recorded and recomputed joint efforts share no model time"
-    return (f"joint effort vs recorded: max |difference| {found[0]:.3g} (N m or N) over "
-            f"{found[1]} samples")
-
-
-def _verdict(run: RunLog, result, irregular: list) -> str | None:
-    """'exact' when every recomputed output compared equals the recorded one."""
-    found = [_difference(run, tm.TOPIC_FORCE, result.sample_times_ns, result.force_samples)]
+def compare_outputs(run: RunLog, result) -> list[Comparison]:
+    """The recomputed tendon forces (and joint efforts) against the recorded ones."""
+    found = [_difference(run, tm.TOPIC_FORCE, "tendon force", "N", result.sample_times_ns,
+                         result.force_samples)]
     if len(result.joints):
-        found.append(_difference(run, tm.TOPIC_JOINT_EFFORTS, result.sample_times_ns,
-                                 result.joint_samples[:, 2, :], result.joints))
-    found = [f for f in found if f is not None]
-    if not found:
+        found.append(_difference(run, tm.TOPIC_JOINT_EFFORTS, "joint effort", "(N m or N)",
+                                 result.sample_times_ns, result.joint_samples[:, 2, :],
+                                 result.joints))
+    return [f for f in found if f is not None]
+
+
+def verdict(comparisons: list[Comparison], irregular: list) -> str | None:
+    """'exact' when every comparison is equal at every common stamp and the recorded model time
+    stayed on the step grid; else 'not exact' and why, from the same comparisons."""
+    if not comparisons:
         return None
-    if not irregular and all(count and diff == 0.0 for diff, count in found):
-        return "exact: the recomputed outputs equal the recorded ones at every common stamp"
-    return "not exact: the recomputed outputs differ from the recorded ones"
+    unequal = [c for c in comparisons if not c.equal]
+    if unequal:
+        return "not exact: " + "; ".join(c.unequal() for c in unequal)
+    if irregular:
+        return ("not exact: equal at every common stamp, but the recorded model time left the "
+                "step grid (approximate, above)")
+    return "exact: the recomputed outputs equal the recorded ones at every common stamp"
 
 
 def _joint_geometry(recorded: RunLog, config, node, bank, tmp: Path):
@@ -292,11 +325,10 @@ def run(args) -> int:
         print(joint_summary_table(summarize_joints(
             result.joints, units, result.joint_samples[:, 2, :], result.joint_work,
             conditioning.clamped[space.output])))
-    for comparison in (compare_forces(recorded, result.sample_times_ns, result.force_samples),
-                       compare_joint_efforts(recorded, result),
-                       _verdict(recorded, result, irregular)):
-        if comparison:
-            print(comparison)
+    comparisons = compare_outputs(recorded, result)
+    for line in [c.line() for c in comparisons] + [verdict(comparisons, irregular)]:
+        if line:
+            print(line)
     if bank.energetics_models and status.ok and status.written:
         print(model_totals_table(logged_model_totals(out_path), bank.names))
     print(f"log: {shown_log_path(out_path, status.path)} ({status.written} messages, "

@@ -8,16 +8,22 @@ offline definitions (muscle_telemetry) cannot be published without a colcon buil
 skipped, and so are channels that are not ROS 2 messages (schema name not pkg/msg/Type, or an
 encoding other than CDR). A recorded message that does not decode as its type (muscle_node
 records inputs as received, malformed or not) is not published, since subscribers would fail on
-it; a line on stderr counts those per topic. Names may be given with or without the leading
-slash.
+it; at the end one line on stderr per cause counts those per topic and names the first (what the
+C typesupport prints on stderr for each of them is captured into that line). Names may be given
+with or without the leading slash.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
+import re
 import sys
+import tempfile
 import time
+from collections import Counter
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import yaml
@@ -27,11 +33,12 @@ from vm_ros.recording.reader import ChannelInfo, log_channels, unlisted_note
 from vm_ros.recording.replay import is_offline_type, replay
 from vm_ros.recording.run_log import resolve_topic
 from vm_ros.recording.schema import MESSAGE_ENCODING, full_type_name
-from vm_ros.recording.series import SkippedMessages, skipped_line
+from vm_ros.recording.series import skipped_line
 
 HELP = "republish a log's topics over ROS 2 at the recorded pace"
 NODE_NAME = "vm_ros_replay"
 ACK_WAIT_S = 5.0  # longest wait for subscribers to acknowledge the last reliable messages
+_LOCATION = re.compile(r", at \S+:\d+$")  # rclpy's source location after an error message
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -134,15 +141,60 @@ def select_topics(log: Path, requested: str | None) -> dict:
     return selected
 
 
-def _decodes(data: bytes, message_type) -> bool:
-    """True when ``data`` deserialises as ``message_type`` (as a subscriber would)."""
-    from rclpy.serialization import deserialize_message
+@dataclass
+class _Cause:
+    """Undecodable messages with one cause: count per topic, and the first (topic, log time)."""
 
-    try:
-        deserialize_message(data, message_type)
-    except Exception:  # malformed bytes: rclpy raises whatever its typesupport meets
+    topics: Counter = field(default_factory=Counter)
+    first: tuple[str, int] | None = None
+
+
+class DecodeCheck:
+    """Whether recorded bytes deserialise as their type, as a subscriber would (rclpy), and the
+    failures counted by cause. The C typesupport prints some causes itself on the process's
+    stderr (rosidl's "sequence size exceeds remaining buffer", once or twice per malformed
+    message, and rclpy then raises "error not set"): file descriptor 2 is captured during each
+    deserialisation, and that text, else the exception's, is the cause. ``lines()``: one line
+    per cause with its counts per topic and the first occurrence; ``close()`` when done."""
+
+    def __init__(self):
+        self.causes: dict[str, _Cause] = {}
+        self._capture = tempfile.TemporaryFile()  # noqa: SIM115 - closed by close()
+
+    def close(self) -> None:
+        self._capture.close()
+
+    def __call__(self, topic: str, data: bytes, message_type, log_time_ns: int) -> bool:
+        from rclpy.serialization import deserialize_message
+
+        error = None
+        sys.stderr.flush()
+        saved = os.dup(2)
+        os.dup2(self._capture.fileno(), 2)
+        try:
+            deserialize_message(data, message_type)
+        except Exception as exc:  # malformed bytes: rclpy raises whatever its typesupport meets
+            error = exc
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        self._capture.seek(0)
+        printed = self._capture.read().decode("utf-8", errors="replace")
+        self._capture.seek(0)
+        self._capture.truncate()
+        if error is None:
+            return True
+        lines = dict.fromkeys(line.strip() for line in printed.splitlines() if line.strip())
+        text = "; ".join(lines) or _LOCATION.sub("", str(error).strip().splitlines()[0]
+                                                 if str(error).strip() else type(error).__name__)
+        cause = self.causes.setdefault(text, _Cause())
+        cause.topics[topic] += 1
+        cause.first = cause.first or (topic, log_time_ns)
         return False
-    return True
+
+    def lines(self) -> list[str]:
+        return [f"{skipped_line(dict(c.topics))}: {text} (first: {c.first[0]} at log time "
+                f"{c.first[1] * 1e-9:.9f} s)" for text, c in self.causes.items()]
 
 
 def run(args) -> int:
@@ -157,7 +209,7 @@ def run(args) -> int:
     rclpy.init(args=None)
     node = rclpy.create_node(NODE_NAME)
     count = 0
-    skipped: dict[str, SkippedMessages] = {}
+    check = DecodeCheck()
     publishers = {}
     try:
         types = {topic: message_class(full_type_name(c.type_name))
@@ -170,8 +222,7 @@ def run(args) -> int:
             node.get_logger().warning(f"not every topic has a subscriber after {args.wait:g} s")
         for message in replay(args.log, topics=set(publishers), rate=args.rate, loop=args.loop):
             data = bytes(message.data)
-            if not _decodes(data, types[message.topic]):
-                skipped.setdefault(message.topic, SkippedMessages()).count += 1
+            if not check(message.topic, data, types[message.topic], message.log_time_ns):
                 continue
             publishers[message.topic].publish(data)
             count += 1
@@ -185,8 +236,8 @@ def run(args) -> int:
                 publisher.wait_for_all_acked(Duration(seconds=ACK_WAIT_S))
         node.destroy_node()
         rclpy.try_shutdown()
+        check.close()
     print(f"replayed {count} messages")
-    note = skipped_line(skipped)
-    if note:
-        print(f"vm-ros replay: {note}", file=sys.stderr)
+    for line in check.lines():
+        print(f"vm-ros replay: {line}", file=sys.stderr)
     return 0

@@ -253,6 +253,63 @@ def print_parameter_flags(library: DerivedLibrary, file=None) -> None:
               f"F0 {d.f0_n:.1f} N: {'; '.join(d.flags)} -> {what}", file=file)
 
 
+# ---------------------------------------------------------------------------- held joints
+
+
+def held_joints(exact) -> dict[str, dict[str, str]]:
+    """Per muscle of ``exact`` (a MujocoGeometry), ``{joint name: why}`` of the joints its
+    tendon crosses that stay at one value and are no coordinates: fixed by a joint equality
+    without joint2, or driven through joint equalities by such a joint."""
+    import mujoco
+
+    from vm_ros.geometry.mujoco_backend import tendon_joints
+
+    m = exact.model
+    coupling = {c.joint: c for c in exact.couplings}
+
+    def name(joint):
+        return mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, int(joint)) or f"joint{joint}"
+
+    def root(joint):
+        while joint in coupling:
+            joint = coupling[joint].driver
+        return joint
+
+    out = {}
+    for muscle, tendon in zip(exact.muscle_names, exact.tendon_ids, strict=True):
+        out[muscle] = {}
+        for joint in sorted(tendon_joints(m, int(tendon))):
+            if joint not in coupling or root(joint) >= 0:
+                continue
+            c = coupling[joint]
+            out[muscle][name(joint)] = (
+                f"fixed by joint equality {c.equality!r} (no joint2)" if c.driver < 0 else
+                f"follows the held {name(c.driver)} (joint equality {c.equality!r})")
+    return out
+
+
+def held_text(held: dict) -> str:
+    """The held joints of every muscle, each once, in one line."""
+    joints = {name: why for per_muscle in held.values() for name, why in per_muscle.items()}
+    return "; ".join(f"{name}: {why}" for name, why in joints.items())
+
+
+def check_ranges(exact) -> None:
+    """VmRosError for a crossed joint whose range has zero width (min == max, not 0 0):
+    MuJoCo reads it as no range, and the import would sample a hinge over [-pi, pi]."""
+    import mujoco
+
+    m = exact.model
+    for joint in exact.joint_ids:
+        lower, upper = (float(v) for v in m.jnt_range[joint])
+        if not m.jnt_limited[joint] and lower == upper != 0.0:
+            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, int(joint))
+            raise VmRosError(f"model {exact.source['model']!r}: joint {name!r} has the range "
+                             f"[{lower:g}, {upper:g}], which MuJoCo reads as no range (it would "
+                             "be sampled over [-pi, pi]); give it a range with min < max, or "
+                             "fix it with a joint equality without joint2")
+
+
 # ---------------------------------------------------------------------------- the import
 
 
@@ -314,6 +371,14 @@ def import_mjcf(model, out_dir, options: MjcfOptions | None = None,
     file = file or sys.stdout
     started = time.monotonic()
     exact = MujocoGeometry(model, muscles=options.muscles or None)
+    check_ranges(exact)
+    held = held_joints(exact)
+    if not exact.coordinates:
+        raise VmRosError(f"model {exact.source['model']!r}: "
+                         + (f"every joint its muscles cross is held, none is left to sample: "
+                            f"{held_text(held)}; deactivate (active=\"false\") or remove those "
+                            "equalities to make the joints inputs" if any(held.values())
+                            else "no muscle crosses a hinge or slide joint"))
     rng = np.random.default_rng(options.seed)
     q_fit = latin_hypercube(exact, options.samples, rng)
     q_test = latin_hypercube(exact, options.n_held_out, rng)
@@ -326,7 +391,8 @@ def import_mjcf(model, out_dir, options: MjcfOptions | None = None,
     for i, name in enumerate(exact.muscle_names):
         cols = np.flatnonzero(crossing[i])
         if not len(cols):
-            skipped[name] = "crosses no coordinate (|r| <= 1 mm everywhere)"
+            skipped[name] = "crosses no coordinate (|r| <= 1 mm everywhere)" + (
+                f"; held: {', '.join(held[name])}" if held[name] else "")
             continue
         flags = ["discontinuous"] if np.any(worst[i, cols] > DISCONTINUITY_M) else []
         path = fit_path(name, [names[k] for k in cols], exact.lower[cols], exact.upper[cols],
@@ -347,6 +413,8 @@ def import_mjcf(model, out_dir, options: MjcfOptions | None = None,
         source["muscles_skipped"] = skipped
     if exact.notes:
         source["notes"] = list(exact.notes)
+    if any(held.values()):
+        source["held_joints"] = held_text(held)
     geometry = PolynomialGeometry(coordinates, paths, coupled, source=source,
                                   options=_options_record(options))
     lengths = np.concatenate([l_fit, l_test])
@@ -372,6 +440,8 @@ def import_mjcf(model, out_dir, options: MjcfOptions | None = None,
             if library.overridden:
                 print(f"replaced from {user_library}: {', '.join(library.overridden)}",
                       file=stream)
+            if any(held.values()):
+                print(f"held at one value, not inputs: {held_text(held)}", file=stream)
             if skipped:
                 print(f"skipped {len(skipped)} muscle(s) that cross no coordinate: "
                       f"{', '.join(skipped)}", file=stream)

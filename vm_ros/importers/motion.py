@@ -1,11 +1,13 @@
 """OpenSim motion files (.mot, .sto) without OpenSim: a time column and coordinate columns.
 
 Format: header lines up to ``endheader`` (among them ``inDegrees=yes|no``, required here because
-it decides the units), then a tab- or space-separated line of column labels starting with
-``time``, then one row of numbers per frame. Labels are coordinate names (IK output) or state
-paths (``/jointset/knee_r/knee_angle_r/value``); a states file's ``.../speed`` columns are kept
-as the coordinates' speeds (``Motion.speeds``), its other columns skipped. Values stay as
-written; ``Motion.to_si`` converts the rotational columns from degrees when the header says so.
+it decides the units; any other value is an error: OpenSim's Storage reads ``yes`` in any case as
+degrees and every other word, ``true`` included, silently as radians), then a tab- or
+space-separated line of column labels starting with ``time``, then one row of numbers per frame.
+Labels are coordinate names (IK output) or state paths (``/jointset/knee_r/knee_angle_r/value``);
+a states file's ``.../speed`` columns are kept as the coordinates' speeds (``Motion.speeds``), its
+other columns skipped. Values stay as written; ``Motion.to_si`` converts the rotational columns
+from degrees when the header says so.
 
 The declared unit is checked where the values cannot be in it (``Motion.unit_warnings``): a
 rotational column beyond RADIAN_LIMIT (2 pi, a full turn) in a file that says ``inDegrees=no`` is
@@ -24,6 +26,7 @@ import numpy as np
 from vm_ros.errors import VmRosError
 from vm_ros.storage import numeric_rows, parse_storage
 
+IN_DEGREES = {"yes": True, "no": False}  # the header's inDegrees values (case-insensitive)
 RADIAN_LIMIT = 2.0 * np.pi   # rad: no joint angle in radians is beyond a full turn
 DEGREE_SUSPECT = np.pi       # deg: a moving motion that stays within +-pi "degrees" is in radians
 
@@ -100,7 +103,10 @@ def read_motion(path) -> Motion:
     if in_degrees is None:
         raise VmRosError(f"motion {path}: the header has no 'inDegrees=yes|no' line, so the "
                          "units are unknown; add it")
-    in_degrees = in_degrees.lower() in ("yes", "true", "1")
+    if in_degrees.lower() not in IN_DEGREES:
+        raise VmRosError(f"motion {path}: header 'inDegrees={in_degrees}' is neither yes "
+                         "(degrees) nor no (radians); write one of them")
+    in_degrees = IN_DEGREES[in_degrees.lower()]
     labels = table.labels
     data = numeric_rows(path, labels, table.rows, "motion")
     if np.any(np.diff(data[:, 0]) <= 0):
@@ -112,7 +118,7 @@ def read_motion(path) -> Motion:
     speeds = {name: data[:, i] for i, label in enumerate(labels)
               if i > 0 and (name := _label(label, "speed"))}
     return Motion(str(path), tuple(n for _, n in keep), data[:, 0],
-                  data[:, [i for i, _ in keep]], bool(in_degrees), speeds)
+                  data[:, [i for i, _ in keep]], in_degrees, speeds)
 
 
 __all__ = ["Motion", "read_motion"]

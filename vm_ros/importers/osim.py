@@ -2,10 +2,12 @@
 
 OpenSim (the ``opensim`` extra) is imported here only, inside the functions. Steps:
 
-1. Load the model; classify its coordinates: locked ones stay at their default value; dependent
-   coordinates of CoordinateCouplerConstraints (patella-style) are set from the coupling function
-   at every sample (value = scale_factor * f(independent values)) and recorded as
-   CoupledCoordinate; the rest are candidate inputs.
+1. Load the model; classify its coordinates: held ones are no inputs and stay at one value
+   (locked: its default value; range min == max: that value; a coupler dependent all of whose
+   independent coordinates are held); dependent coordinates of CoordinateCouplerConstraints
+   (patella-style) are set from the coupling function at every sample (value = scale_factor *
+   f(independent values)) and recorded as CoupledCoordinate; the rest are candidate inputs. A
+   model with no candidate left is an error naming the held coordinates and why.
 2. Screening: at SCREEN_POSES random poses over every candidate's range, dL/dq of every muscle by
    central differences; a muscle crosses a coordinate where |dL/dq| > CROSSING_THRESHOLD (1 mm per
    rad, or 1 mm per m for translational coordinates) somewhere. Only crossed coordinates are
@@ -164,16 +166,52 @@ class OsimPaths:
         self._order_couplers()
         dependent = {c.dependent.getName() for c in self.couplers}
         self.locked = tuple(c.getName() for c in all_coords if c.getDefaultLocked())
+        self.held = self._held(all_coords, dependent)
         self.independent = [c for c in all_coords
-                            if c.getName() not in dependent and not c.getDefaultLocked()]
-        self.units = ["m" if int(c.getMotionType()) == int(osim.Coordinate.Translational)
-                      else "rad" for c in self.independent]
+                            if c.getName() not in dependent and c.getName() not in self.held]
+        if not self.independent:
+            raise VmRosError(f"{self.path}: every coordinate is held, none is left to sample: "
+                             f"{self.held_text()}")
+        self.units = [self._unit(c) for c in self.independent]
         self.defaults = np.array([c.getDefaultValue() for c in self.independent])
         self.ranges = np.array([[c.getRangeMin(), c.getRangeMax()] for c in self.independent])
         muscles = model.getMuscles()
         self.muscles = [muscles.get(i) for i in range(muscles.getSize())]
         self.muscle_names = tuple(m.getName() for m in self.muscles)
         self.evaluations = 0
+
+    def _held(self, all_coords, dependent) -> dict:
+        """{name: why} of the coordinates that are no inputs and stay at one value: locked
+        (at its default value, as OpenSim holds it), range min == max (set to that value), and
+        coupler dependents whose independent coordinates are all held. Each reason says what to
+        change in the model to make the coordinate an input."""
+        held = {}
+        for c in all_coords:
+            name, unit = c.getName(), self._unit(c)
+            if name in dependent:
+                continue
+            if c.getDefaultLocked():
+                held[name] = (f"locked at {c.getDefaultValue():g} {unit}, unlock it "
+                              "(<locked>false</locked>)")
+            elif c.getRangeMin() == c.getRangeMax():
+                c.setValue(self.state, c.getRangeMin(), False)
+                held[name] = (f"range [{c.getRangeMin():g}, {c.getRangeMax():g}] {unit}, held "
+                              "there, give it a range (<range>min max</range>)")
+        for c in self.couplers:  # in order: a chain's dependents after their drivers
+            drivers = [a.getName() for a in c.independent]
+            if all(d in held for d in drivers):
+                held[c.dependent.getName()] = (f"follows the held {', '.join(drivers)} through "
+                                               f"CoordinateCouplerConstraint {c.name}, free "
+                                               f"{' or '.join(drivers)}")
+        return held
+
+    def held_text(self) -> str:
+        """The held coordinates and why, in one line ('' when none)."""
+        return "; ".join(f"{name}: {why}" for name, why in self.held.items())
+
+    def _unit(self, coordinate) -> str:
+        translational = int(coordinate.getMotionType()) == int(self.osim.Coordinate.Translational)
+        return "m" if translational else "rad"
 
     def _order_couplers(self) -> None:
         """Couplers ordered so that one whose argument is another's dependent comes after it."""
@@ -271,7 +309,8 @@ def _motion_box(paths: OsimPaths, columns, motions, options: OsimOptions) -> _Bo
     for name, lo, hi in zip(names, lower, upper, strict=True):
         if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
             raise VmRosError(f"coordinate {name}: its range in the model [{lo:g}, {hi:g}] is not "
-                             "an interval to sample")
+                             "an interval to sample; give it <range>min max</range> with finite "
+                             "min < max")
     margin = np.array([math.radians(options.margin_deg) if u == "rad" else options.margin_m
                        for u in units])
     if not motions:
@@ -379,6 +418,8 @@ def _source(osim, paths: OsimPaths, model_path: Path, motions, extra=None) -> di
         "opensim_version": osim.GetVersion(),
         "locked_coordinates": list(paths.locked),
     }
+    if paths.held:
+        source["held_coordinates"] = dict(paths.held)
     if motions:
         source["motions"] = [{"file": Path(m.path).name, "sha256": content_hash(m.path),
                               "in_degrees": m.in_degrees} for m in motions]
@@ -425,10 +466,14 @@ def import_osim(model_path, out_dir, options: OsimOptions | None = None,
     peak = _screen(paths, rng, progress)[chosen]
     columns = [j for j in range(len(paths.independent))
                if np.any(peak[:, j] > CROSSING_THRESHOLD)]
-    skipped = {paths.muscle_names[i]: "crosses no coordinate (constant length)"
+    free = "free " if paths.held else ""
+    held = f" with {', '.join(paths.held)} held" if paths.held else ""
+    constant = f"crosses no {free}coordinate (constant length{held})"
+    skipped = {paths.muscle_names[i]: constant
                for i, row in zip(chosen, peak, strict=True) if not np.any(row > CROSSING_THRESHOLD)}
     if not columns:
-        raise VmRosError(f"{model_path}: no muscle crosses an unlocked coordinate")
+        raise VmRosError(f"{model_path}: no muscle crosses a free coordinate"
+                         + (f" (held: {paths.held_text()})" if paths.held else ""))
     box = _motion_box(paths, columns, motions, options)
     q_fit = _poses(box, options.samples, rng)
     q_test = _poses(box, options.n_held_out, rng)
@@ -477,8 +522,10 @@ def import_osim(model_path, out_dir, options: OsimOptions | None = None,
                                   options=_options_record(options, box))
     result = _finish(osim, paths, model_path, "", geometry, imported, out_dir, choices, started,
                      file)
+    if paths.held:
+        print(f"held at one value, not inputs: {paths.held_text()}", file=file or sys.stdout)
     if skipped:
-        print(f"skipped {len(skipped)} muscle(s) that cross no coordinate: "
+        print(f"skipped {len(skipped)} muscle(s) that cross no {free}coordinate: "
               f"{', '.join(skipped)}", file=file or sys.stdout)
     result.skipped.update(skipped)
     return result
@@ -546,11 +593,10 @@ def import_function_based_paths(model_path, xml_path, out_dir, options: OsimOpti
     coordinates = [Coordinate(c.getName(), u, float(lo), float(hi)) for c, u, lo, hi in
                    zip(paths.independent, paths.units, box.lower, box.upper, strict=True)]
     dependent = {c.dependent.getName() for c in paths.couplers}
-    locked = set(paths.locked)
     for path in parse_function_based_paths(xml_path).paths:
-        odd = [c for c in path.coordinates if c in dependent or c in locked]
+        odd = [c for c in path.coordinates if c in dependent or c in paths.held]
         if odd:
-            raise VmRosError(f"{xml_path}: path {path.name!r} takes the coupled or locked "
+            raise VmRosError(f"{xml_path}: path {path.name!r} takes the coupled or held "
                              f"coordinate {odd[0]!r} as an argument; vm_ros inputs are the "
                              "independent coordinates only")
     raw = function_based_paths_geometry(xml_path, coordinates, paths.coupled_coordinates())
