@@ -188,13 +188,15 @@ class JointInputs:
                                    f"{TOPIC}: position or velocity is not finite")]
         q, qdot, seen = self.q.copy(), self.qdot.copy(), self.seen.copy()
         q_time = self.q_time_ns.copy()
-        q[index], qdot[index] = self.space.map.to_model(index, robot_q, robot_qdot)
+        with np.errstate(over="ignore"):  # an overflow is reported as an issue below
+            q[index], qdot[index] = self.space.map.to_model(index, robot_q, robot_qdot)
         seen[index] = True
         q_time[index] = now_ns
         if not np.isfinite(q[index]).all():  # a position near 1.8e308 plus joint_map's offset
             return issues + [_overflow("with joint_map's offset")]
         if np.all(seen[self.space.needed]):
-            q_now, qdot_now = self._extrapolated(q, qdot, seen, q_time, now_ns)
+            with np.errstate(over="ignore"):
+                q_now, qdot_now = self._extrapolated(q, qdot, seen, q_time, now_ns)
             if not np.isfinite(q_now[seen]).all():  # the geometry would refuse it (check_pose)
                 return issues + [_overflow("moved on by its velocity")]
             sample, more = self._evaluate(q_now, qdot_now, seen, index, now_ns)
