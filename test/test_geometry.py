@@ -361,3 +361,27 @@ def test_fitted_geometries_and_their_ranges_load(tmp_path):
     geometry = random_geometry(fitted=True)
     again = load_geometry(write_geometry(geometry, tmp_path / "ok.yaml"))
     assert dumps(again) == dumps(geometry)
+
+
+def test_simulate_motion_with_a_non_physical_geometry_exits_2_with_one_line(tmp_path):
+    """`vm-ros simulate --motion` reads the geometry with the same loader: one line, exit 2,
+    no run log."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    geometry = write_geometry(elbow_geometry(-0.014, 0.017), tmp_path / "elbow.yaml")
+    motion = tmp_path / "elbow.mot"
+    motion.write_text("elbow\nversion=1\nnRows=2\nnColumns=2\ninDegrees=yes\nendheader\n"
+                      "time\telbow_flexion\n0.0\t30.0\n0.1\t90.0\n")
+    out = tmp_path / "run.mcap"
+    vm_ros = str(Path(sys.executable).with_name("vm-ros"))
+    proc = subprocess.run([vm_ros, "simulate", "--motion", str(motion), "--geometry",
+                           str(geometry), "--out", str(out)], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("vm-ros simulate: error: "), proc.stderr
+    assert str(geometry) in lines[0] and \
+        "muscle TRIlong: path length -0.014 m at elbow_flexion=0.5 rad" in lines[0]
+    assert not out.exists()
