@@ -7,6 +7,7 @@ from the formula, central finite differences, closed-form polynomials, and the p
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -42,13 +43,17 @@ def scalar_length(path: MusclePath, values: dict) -> float:
     return total
 
 
-def random_geometry(seed=0, n_muscles=12, backend="numpy") -> PolynomialGeometry:
+def random_geometry(seed=0, n_muscles=12, backend="numpy",
+                    fitted=False) -> PolynomialGeometry:
+    """Random polynomials; ``fitted``: each maps its box onto x in [-1, 1] as a fit does, so
+    that the paths stay physical (0.3-0.4 m give or take ~0.1 m: a file that loads)."""
     rng = np.random.default_rng(seed)
     coordinates = [Coordinate("hip_flexion", "rad", -0.5, 1.8),
                    Coordinate("knee_angle", "rad", -2.0, 0.1),
                    Coordinate("ankle_angle", "rad", -0.7, 0.5),
                    Coordinate("pelvis_tx", "m", -0.2, 0.2)]
     names = [c.name for c in coordinates]
+    boxes = {c.name: (c.lower, c.upper) for c in coordinates}
     muscles = []
     for i in range(n_muscles):
         k = 1 + i % 3
@@ -58,6 +63,9 @@ def random_geometry(seed=0, n_muscles=12, backend="numpy") -> PolynomialGeometry
         coefficients[0] = 0.3 + 0.1 * rng.random()
         offset = tuple(rng.normal(scale=0.3, size=k))
         scale = tuple(0.5 + rng.random(k))
+        if fitted:
+            offset = tuple((boxes[c][0] + boxes[c][1]) / 2 for c in crossed)
+            scale = tuple((boxes[c][1] - boxes[c][0]) / 2 for c in crossed)
         muscles.append(MusclePath(f"muscle_{i}", crossed, offset, scale, exponents,
                                   coefficients))
     return PolynomialGeometry(coordinates, muscles, backend=backend)
@@ -224,7 +232,7 @@ def with_fit_reports(geometry: PolynomialGeometry) -> PolynomialGeometry:
 
 
 def test_geometry_file_round_trips_exactly(tmp_path):
-    geometry = with_fit_reports(random_geometry())
+    geometry = with_fit_reports(random_geometry(fitted=True))
     path = write_geometry(geometry, tmp_path / "geometry.yaml")
     again = load_geometry(path)
     assert again.coordinates == geometry.coordinates
@@ -262,7 +270,7 @@ def test_geometry_file_round_trips_exactly(tmp_path):
 def test_bad_geometry_files_name_the_field(mutate, field):
     import yaml
 
-    data = yaml.safe_load(dumps(random_geometry()))
+    data = yaml.safe_load(dumps(random_geometry(fitted=True)))
     mutate(data)
     with pytest.raises(ConfigError) as info:
         loads(yaml.safe_dump(data), "bad.yaml")
@@ -276,3 +284,104 @@ def test_unreadable_geometry_files(tmp_path):
     (tmp_path / "bad.yaml").write_text("muscles: [\n")
     with pytest.raises(ConfigError, match="not valid YAML"):
         load_geometry(tmp_path / "bad.yaml")
+
+
+# --- the load check: every path physical over the whole box --------------------------------------
+
+ELBOW = Coordinate("elbow_flexion", "rad", 0.5, 2.0)
+
+
+def elbow_geometry(trilong_low: float, trilong_high: float) -> PolynomialGeometry:
+    """BIClong L = 0.3 - 0.05 q (0.2-0.275 m); TRIlong linear in q through ``trilong_low`` m at
+    q = 0.5 rad and ``trilong_high`` m at q = 2.0 rad (the box's ends)."""
+    slope = (trilong_high - trilong_low) / 1.5
+    return PolynomialGeometry([ELBOW], [
+        MusclePath("BIClong", ("elbow_flexion",), (0.0,), (1.0,), [[0], [1]], [0.3, -0.05]),
+        MusclePath("TRIlong", ("elbow_flexion",), (0.0,), (1.0,), [[0], [1]],
+                   [trilong_low - 0.5 * slope, slope])])
+
+
+def load_error(geometry, path) -> ConfigError:
+    write_geometry(geometry, path)
+    with pytest.raises(ConfigError) as info:
+        load_geometry(path)
+    assert "\n" not in str(info.value) and str(path) in str(info.value)
+    return info.value
+
+
+@pytest.mark.parametrize(("low", "high", "shown"), [
+    (-0.014, 0.017, "path length -0.014 m at elbow_flexion=0.5 rad"),  # bad at one end only
+    (-0.03, -0.01, "path length -0.03 m at elbow_flexion=0.5 rad"),    # bad everywhere
+    (0.2, 0.0, "path length 0 m at elbow_flexion=2 rad"),
+    (0.0005, 0.3, "path length 0.0005 m at elbow_flexion=0.5 rad"),    # > 0 but within 1 mm
+    (0.3, 150.0, "path length 150 m at elbow_flexion=2 rad"),
+], ids=["negative-at-one-end", "negative", "zero", "below-1-mm", "150-m"])
+def test_a_geometry_with_a_non_physical_path_somewhere_in_its_box_is_refused(tmp_path, low,
+                                                                              high, shown):
+    """The node's model needs every path length > 0 m; the file is refused naming the muscle
+    and the pose, in one line."""
+    error = load_error(elbow_geometry(low, high), tmp_path / "elbow.yaml")
+    assert error.field == "muscles[1]" and error.value == "TRIlong"
+    assert f"muscle TRIlong: {shown}; must be in [0.001, 100] m" in str(error)
+
+
+def test_absurd_coefficients_are_refused(tmp_path):
+    """1e308 m coefficients evaluate to inf: the file is refused at the coefficient."""
+    geometry = elbow_geometry(0.1, 0.2)
+    huge = MusclePath("TRIlong", ("elbow_flexion",), (0.0,), (1.0,), [[0], [1]], [1e308, 1e308])
+    error = load_error(PolynomialGeometry([ELBOW], [geometry.muscles[0], huge]),
+                       tmp_path / "huge.yaml")
+    assert error.field == "muscles[1]"
+    assert "muscle TRIlong: coefficient 0 is 1e+308 m; each must be finite with abs(c) <= " \
+        "1000 m" in str(error)
+    within = MusclePath("TRIlong", ("elbow_flexion",), (0.0,), (1.0,), [[0], [1]], [1000.0, -1.0])
+    error = load_error(PolynomialGeometry([ELBOW], [geometry.muscles[0], within]),
+                       tmp_path / "long.yaml")
+    assert "path length 999.5 m at elbow_flexion=0.5 rad" in str(error)  # coefficients pass
+
+
+def test_the_check_names_every_coordinate_of_the_pose(tmp_path):
+    """A muscle over two coordinates, shortest at (hip 1.5, knee 0): only the end poses of
+    each coordinate and random poses are sampled, so the reported pose is the sampled one
+    nearest that corner, and it names both coordinates."""
+    coordinates = [Coordinate("hip_flexion", "rad", -0.5, 1.5),
+                   Coordinate("knee_angle", "rad", 0.0, 2.0)]
+    path = MusclePath("vasti", ("hip_flexion", "knee_angle"), (0.0, 0.0), (1.0, 1.0),
+                      [[0, 0], [1, 0], [0, 1]], [-0.1, -0.1, 0.1])   # L = 0.1 (knee - hip - 1)
+    error = load_error(PolynomialGeometry(coordinates, [path]), tmp_path / "two.yaml")
+    pose = re.search(r"path length (\S+) m at hip_flexion=(\S+) rad, knee_angle=(\S+) rad",
+                     str(error))
+    length, hip, knee = (float(v) for v in pose.groups())
+    assert length == pytest.approx(0.1 * (knee - hip - 1.0), abs=1e-6) and length < 0
+    assert length <= 0.1 * (0.0 - 0.5 - 1.0) + 1e-9  # no better than the hip's end pose
+
+
+def test_fitted_geometries_and_their_ranges_load(tmp_path):
+    """The check passes physical files unchanged (the same object as without it)."""
+    geometry = random_geometry(fitted=True)
+    again = load_geometry(write_geometry(geometry, tmp_path / "ok.yaml"))
+    assert dumps(again) == dumps(geometry)
+
+
+def test_simulate_motion_with_a_non_physical_geometry_exits_2_with_one_line(tmp_path):
+    """`vm-ros simulate --motion` reads the geometry with the same loader: one line, exit 2,
+    no run log."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    geometry = write_geometry(elbow_geometry(-0.014, 0.017), tmp_path / "elbow.yaml")
+    motion = tmp_path / "elbow.mot"
+    motion.write_text("elbow\nversion=1\nnRows=2\nnColumns=2\ninDegrees=yes\nendheader\n"
+                      "time\telbow_flexion\n0.0\t30.0\n0.1\t90.0\n")
+    out = tmp_path / "run.mcap"
+    vm_ros = str(Path(sys.executable).with_name("vm-ros"))
+    proc = subprocess.run([vm_ros, "simulate", "--motion", str(motion), "--geometry",
+                           str(geometry), "--out", str(out)], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("vm-ros simulate: error: "), proc.stderr
+    assert str(geometry) in lines[0] and \
+        "muscle TRIlong: path length -0.014 m at elbow_flexion=0.5 rad" in lines[0]
+    assert not out.exists()

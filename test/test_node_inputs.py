@@ -275,3 +275,162 @@ def test_stale_reports_say_what_the_policy_does(bank, policy, excitation, kinema
     assert excitation in issues["stale_excitation"].behaviour
     assert kinematics in issues["stale_kinematics"].behaviour
     assert f"stale_input_policy {policy}" in issues["stale_kinematics"].behaviour
+
+
+# --- every input check of the model, from every input path ---------------------------------------
+# MuscleBank.check_inputs (and the compiled kernel, which checks the same) raises on: a drive
+# that is not finite, a path length that is not finite or <= 0 m, a path velocity that is not
+# finite. The node's input paths: excitation, excitation_array, muscle_kinematics, joint_states.
+MODEL_CHECKS = ("drive finite", "length finite", "length > 0", "velocity finite")
+JOINT_MUSCLES = ("vasti", "rectus_femoris", "soleus")  # soleus: from muscle_kinematics
+HIP_KNEE_ANKLE = ["hip_flexion", "knee_angle", "ankle_angle"]
+
+
+def dipping_geometry():
+    """The small leg geometry (test_joint_space) with vasti over hip and knee, x = q - (0.5, 1):
+
+        vasti  L = 0.11 + 0.1 x_knee - 0.015 (x_hip x_knee)^20
+
+    0.01-0.21 m at the poses the loader samples (it loads), so the node's widened range
+    (geometry_length_range) starts at 0.01 - 0.1 x 0.2 = -0.01 m; but at the unsampled corners
+    (hip 1.5, knee 0) and (hip -0.5, knee 0) L = 0.11 - 0.1 - 0.015 = -0.005 m."""
+    from test_joint_space import small_geometry
+
+    from vm_ros.geometry import MusclePath, PolynomialGeometry
+
+    leg = small_geometry()
+    vasti = MusclePath("vasti", ("hip_flexion", "knee_angle"), (0.5, 1.0), (1.0, 1.0),
+                       [[0, 0], [0, 1], [20, 20]], [0.11, 0.1, -0.015])
+    return PolynomialGeometry(leg.coordinates, [vasti, *leg.muscles[1:]], leg.coupled)
+
+
+@pytest.fixture(scope="module")
+def joint_bank():
+    return MuscleBank.from_config(list(JOINT_MUSCLES))
+
+
+def joint_inputs(bank, geometry, joint_map=""):
+    """(JointInputs, NodeInputs) for ``geometry``, the node's default limits and input times
+    that never go stale."""
+    from vm_ros.joint_space import JointMap, JointSpace
+    from vm_ros.node.joint_inputs import JointInputs
+
+    space = JointSpace(geometry, JointMap.build(joint_map, geometry, "test"), JOINT_MUSCLES, (),
+                       "test")
+    config = NodeConfig.from_values({"muscles": list(JOINT_MUSCLES), "input_timeout_s": 1000.0})
+    inputs = NodeInputs(bank.names, InputLimits.for_bank(bank, config), joint_driven=space.driven)
+    return JointInputs(space, inputs), inputs
+
+
+def test_the_dipping_geometry_loads_and_its_widened_range_reaches_below_zero(tmp_path):
+    """The premise of the tests below: the loader's check passes it and, without the node's
+    1 mm floor, a joint_states message at the corner would be accepted."""
+    from vm_ros.geometry import load_geometry, write_geometry
+    from vm_ros.node.joint_inputs import geometry_length_range
+
+    geometry = load_geometry(write_geometry(dipping_geometry(), tmp_path / "dip.yaml"))
+    lo, _ = geometry_length_range(geometry, [0])
+    assert lo[0] == pytest.approx(-0.01)
+    assert geometry.evaluate([1.5, 0.0, 0.0]).length_m[0] == pytest.approx(-0.005)
+
+
+def model_check_cases(bank):
+    """(input path, model check it would break if passed on, message sender, issue kinds)."""
+    lengths = mid_lengths(bank)
+    soleus = float(lengths[2])
+    nan, inf = float("nan"), float("inf")
+
+    def kinematics(length, velocity=()):
+        return lambda j, i, t: i.on_kinematics(["soleus"], [length], list(velocity), t)
+
+    def joints(position, velocity=(), names=HIP_KNEE_ANKLE):
+        return lambda j, i, t: j.on_joint_states(names, position, list(velocity), t)
+
+    return [
+        ("excitation", "drive finite",
+         lambda j, i, t: i.on_excitation(["vasti"], [nan], t), ["non_finite"]),
+        ("excitation", "drive finite",
+         lambda j, i, t: i.on_excitation([], [0.5, inf, 0.5], t), ["non_finite"]),
+        ("excitation_array", "drive finite",
+         lambda j, i, t: i.on_excitation_array([0.5, 0.5, -inf], t), ["non_finite"]),
+        ("muscle_kinematics", "length finite", kinematics(nan), ["non_finite"]),
+        ("muscle_kinematics", "length finite", kinematics(inf), ["non_finite"]),
+        ("muscle_kinematics", "length > 0", kinematics(0.0), ["non_physical_length"]),
+        ("muscle_kinematics", "length > 0", kinematics(-soleus), ["non_physical_length"]),
+        ("muscle_kinematics", "length > 0", kinematics(1e-300), ["non_physical_length"]),
+        ("muscle_kinematics", "velocity finite", kinematics(soleus, [nan]), ["non_finite"]),
+        ("muscle_kinematics", "velocity finite", kinematics(soleus, [1e308]),
+         ["non_physical_velocity"]),  # would overflow when extrapolated
+        ("joint_states", "length finite", joints([0.5, nan, 0.0]), ["joint_non_finite"]),
+        ("joint_states", "velocity finite", joints([0.5, 1.0, 0.0], [0.0, -inf, 0.0]),
+         ["joint_non_finite"]),
+        ("joint_states", "length > 0", joints([1.5, 0.0, 0.0]), ["non_physical_length"]),
+        ("joint_states", "length > 0", joints([-0.5, 0.0, 0.0]), ["non_physical_length"]),
+        ("joint_states", "length > 0", joints([9.0, -3.0, 0.0]),  # clamped to the corner
+         ["joint_clamped", "non_physical_length"]),
+        # a coordinate past 1.8e308 once moved on by its velocity (the knee, when a later
+        # message names the hip only)
+        ("joint_states", "length finite", joints([1.79e308], [1.79e308], ["knee_angle"]),
+         ["joint_clamped"]),
+        ("joint_states", "length finite", joints([0.5], [], ["hip_flexion"]),
+         ["joint_non_finite"]),
+    ]
+
+
+def test_no_input_path_can_hand_the_model_an_input_it_refuses(joint_bank):
+    """Every check of the model, from every input path that can reach it: the message is
+    dropped and reported as its issue kind, nothing is stored, and what the next model steps get
+    passes the model's checks (MuscleBank.check_inputs and a compiled run)."""
+    bank = joint_bank
+    joints, inputs = joint_inputs(bank, dipping_geometry())
+    t = 0
+    assert joints.on_joint_states(HIP_KNEE_ANKLE, [0.5, 2.0, 0.0], [], t) == []
+    assert inputs.on_kinematics(["soleus"], [mid_lengths(bank)[2]], [], t) == []
+    assert inputs.on_excitation_array([0.5, 0.5, 0.5], t) == []
+    bank.reset(inputs.sample(t)[1])
+    cases = model_check_cases(bank)
+    assert {(path, check) for path, check, _, _ in cases} == {
+        ("excitation", "drive finite"), ("excitation_array", "drive finite"),
+        *(("muscle_kinematics", c) for c in MODEL_CHECKS[1:]),
+        *(("joint_states", c) for c in MODEL_CHECKS[1:])}
+    for path, check, send, expected in cases:
+        t += 10 * MS
+        stored = (inputs.drive.copy(), inputs.length_m.copy(), inputs.velocity_m_per_s.copy())
+        issues = send(joints, inputs, t)
+        assert kinds(issues) == expected, (path, check, issues)
+        assert all(i.count >= 1 for i in issues)
+        if expected != ["joint_clamped"]:  # the first half of the overflow case is used
+            for before, now in zip(stored, (inputs.drive, inputs.length_m,
+                                            inputs.velocity_m_per_s), strict=True):
+                np.testing.assert_array_equal(now, before, err_msg=f"{path}: {check}")
+        u, lp, vp = inputs.sample_many(t + np.arange(0, 100 * MS, MS))
+        for row in range(len(u)):
+            bank.check_inputs(u[row], lp[row], vp[row])
+        bank.run(1e-3, u, lp, vp)
+
+
+def test_the_path_lengths_accepted_never_reach_zero(bank):
+    """A widened range that reaches 0 m (allow_path_range) is floored at the loader's 1 mm:
+    a muscle_kinematics length of 0.5 mm is refused, 1 mm is taken, and extrapolation towards
+    0 stops at 1 mm."""
+    from vm_ros.geometry.checks import MIN_PATH_LENGTH_M
+
+    inputs = make_inputs(bank)
+    inputs.allow_path_range(np.array([0, 1]), np.array([-1.0, -1.0]), np.array([0.5, 0.6]))
+    assert inputs.path_bounds()[0].tolist() == [MIN_PATH_LENGTH_M, MIN_PATH_LENGTH_M]
+    assert kinds(inputs.on_kinematics(MUSCLES, [0.0005, 0.3], [], 0)) == ["non_physical_length"]
+    assert inputs.on_kinematics(MUSCLES, [0.001, 0.3], [-10.0, 0.0], 0) == []
+    _, lp, vp = inputs.sample(40 * MS)
+    assert lp.tolist() == [0.001, 0.3] and vp.tolist() == [0.0, 0.0]
+
+
+def test_an_offset_that_overflows_a_position_drops_the_message(joint_bank):
+    joints, inputs = joint_inputs(joint_bank, dipping_geometry(),
+                                  joint_map="{knee: {coordinate: knee_angle, offset: 1.0e+308}}")
+    issues = joints.on_joint_states(["hip_flexion", "knee", "ankle_angle"], [0.5, 1e308, 0.0],
+                                    [], 0)
+    assert kinds(issues) == ["joint_non_finite"] and "overflow" in issues[0].text
+    assert not joints.seen.any() and not inputs.length_seen.any()
+    assert joints.on_joint_states(["hip_flexion", "knee", "ankle_angle"], [0.5, -1e308, 0.0],
+                                  [], MS) == []   # knee 0 rad
+    assert joints.ready and joints.sample.q.tolist() == [0.5, 0.0, 0.0]

@@ -244,6 +244,60 @@ def test_bad_joint_inputs_are_counted_and_the_node_keeps_running(ros, geometry_f
     assert np.all(np.isfinite(probe.efforts[-1].effort)) and np.any(probe.efforts[-1].effort)
 
 
+def test_inputs_the_model_would_refuse_are_counted_and_the_node_keeps_running(ros, tmp_path):
+    """A geometry that loads (its paths are 0.01-0.21 m at every pose the loader samples) but
+    reaches -0.005 m at an unsampled corner of its box, with the node's accepted range widened
+    to the geometry's own (which starts below 0 m): joint_states at that corner, a pose clamped
+    onto it, an overflowing coordinate, and muscle_kinematics and excitation values that the
+    model refuses are each dropped and counted; the node keeps stepping (an exception in the
+    timer callback would stop this in-process spin)."""
+    from test_node_inputs import dipping_geometry
+
+    geometry = str(write_geometry(dipping_geometry(), tmp_path / "dip.yaml"))
+    node, probe = joint_node(ros, geometry, diagnostics_period_s=0.1, input_timeout_s=1000.0,
+                             stale_input_policy="hold")
+    names = ["hip_flexion", "knee_angle", "ankle_angle"]
+    probe.base.send_kinematics(["soleus"], [SOLEUS_LENGTH])
+    probe.send_joints(names, [0.5, 2.0, 0.0])
+    probe.base.send_excitation_array([0.5, 0.5, 0.5])
+    assert ros.spin_until(lambda: node.scheduler.started and len(probe.efforts) > 2)
+    lengths = node.inputs.length_m.copy()
+    cases = [
+        (lambda: probe.send_joints(names, [1.5, 0.0, 0.0]), {"non_physical_length": 1}),
+        (lambda: probe.send_joints(names, [9.0, -3.0, 0.0]),
+         {"non_physical_length": 1, "joint_clamped": 2}),
+        (lambda: probe.base.send_kinematics(["soleus"], [0.0]), {"non_physical_length": 1}),
+        (lambda: probe.base.send_kinematics(["soleus"], [-0.3]), {"non_physical_length": 1}),
+        (lambda: probe.base.send_kinematics(["soleus"], [SOLEUS_LENGTH], [float("nan")]),
+         {"non_finite": 1}),
+        (lambda: probe.base.send_excitation(["vasti"], [float("inf")]), {"non_finite": 1}),
+        (lambda: probe.base.send_excitation_array([0.5, float("nan"), 0.5]), {"non_finite": 1}),
+        # the knee past 1.8e308 (clamped, used), then moved on by its velocity: overflow
+        (lambda: probe.send_joints(["knee_angle"], [1.79e308], [1.79e308]), {"joint_clamped": 1}),
+        (lambda: probe.send_joints(["hip_flexion"], [0.5]), {"joint_non_finite": 1}),
+    ]
+    for send, expected in cases:
+        before = {kind: node.issues.counts[kind] for kind in expected}
+        n = len(probe.efforts)
+        send()
+        assert ros.spin_until(lambda e=expected, b=before: all(
+            node.issues.counts[k] == b[k] + c for k, c in e.items()), timeout_s=3), expected
+        if "joint_clamped" not in expected:
+            np.testing.assert_array_equal(node.inputs.length_m, lengths, err_msg=str(expected))
+        assert ros.spin_until(lambda n=n: len(probe.efforts) > n + 2)  # still stepping
+    labels = {kind: label for kind, (label, _) in ISSUE_KINDS.items()}
+    counts = {kind: node.issues.counts[kind] for kind in (
+        "non_physical_length", "non_finite", "joint_non_finite", "joint_clamped")}
+    assert counts["non_physical_length"] == 4 and counts["joint_non_finite"] == 1
+
+    def reported():
+        diag = probe.base.last_diagnostics()
+        return bool(diag) and all(diag.get(labels[k]) == str(v) for k, v in counts.items())
+    assert ros.spin_until(reported, timeout_s=3)
+    assert probe.base.last_diagnostics()["state"] == "running"
+    assert np.all(np.isfinite(probe.efforts[-1].effort))
+
+
 def test_unknown_joints_alone_do_not_raise_a_warning(ros, geometry_file):
     """A robot's joint_states usually carries more joints than the geometry: counted, not WARN."""
     node, probe = joint_node(ros, geometry_file, diagnostics_period_s=0.05,
@@ -385,6 +439,34 @@ def test_bad_joint_parameters_exit_2_with_one_line(installed_node, geometry_file
     lines = [line for line in proc.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and lines[0].startswith("muscle_node: error: "), proc.stderr
     assert expected in lines[0], lines[0]
+
+
+@pytest.mark.parametrize(("trilong", "expected"), [
+    ((-0.014, 0.017), "muscle TRIlong: path length -0.014 m at elbow_flexion=0.5 rad"),
+    ((-0.03, -0.01), "muscle TRIlong: path length -0.03 m at elbow_flexion=0.5 rad"),
+    (None, "muscle TRIlong: coefficient 0 is 1e+308 m"),
+], ids=["negative-at-one-end", "negative-everywhere", "1e308"])
+def test_a_geometry_with_non_physical_paths_stops_the_node_at_start(installed_node, tmp_path,
+                                                                    trilong, expected):
+    """Refused when loaded, in one line naming the muscle and the pose (exit 2), instead of a
+    node that dies at the first joint sample there, or waits for ever (1e308)."""
+    from test_geometry import elbow_geometry
+
+    from vm_ros.geometry import MusclePath, PolynomialGeometry
+
+    geometry = elbow_geometry(*(trilong or (0.1, 0.2)))
+    if trilong is None:
+        huge = MusclePath("TRIlong", ("elbow_flexion",), (0.0,), (1.0,), [[0], [1]],
+                          [1e308, 1e308])
+        geometry = PolynomialGeometry(geometry.coordinates, [geometry.muscles[0], huge])
+    path = write_geometry(geometry, tmp_path / "elbow.yaml")
+    proc = subprocess.run([installed_node, "--ros-args", "-p", "muscles:=[vasti, soleus]",
+                           "-p", f'geometry:="{path}"'], capture_output=True, text=True,
+                          timeout=60, env={**os.environ, "AMENT_PREFIX_PATH": sys.prefix})
+    assert proc.returncode == 2, proc.stderr
+    lines = [line for line in proc.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("muscle_node: error: "), proc.stderr
+    assert "'geometry'" in lines[0] and expected in lines[0], lines[0]
 
 
 def test_help_lists_the_joint_parameters(installed_node):

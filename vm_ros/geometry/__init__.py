@@ -5,6 +5,7 @@ muscle forces back to joint torques (NumPy only at run time).
   ``generalized_forces``; sign conventions.
 - ``polynomial``: the basis and its vectorised evaluation; ``kernel``: the compiled evaluator.
 - ``file``: the versioned geometry file (YAML); ``fit``: fitting polynomials to sampled paths.
+- ``checks``: what a geometry must give over its coordinate box to be loaded (paths > 1 mm).
 - importers (build time only, optional extras): ``vm-ros import-osim``, ``vm-ros import-mjcf``.
 """
 

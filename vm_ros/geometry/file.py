@@ -22,7 +22,10 @@ Format ``vm_ros.geometry``, version 1 (documented in docs/geometry.md)::
               ..., poses_fit: N, poses_held_out: N, flags: [...]}
 
 Floats are written with Python's shortest round-trip repr, so write -> read gives back the same
-numbers bit for bit. Every problem reading a file is a ConfigError naming the file and field.
+numbers bit for bit. Every problem reading a file is a ConfigError naming the file and field;
+a file whose paths break the rules of vm_ros.geometry.checks over the coordinate box (a path
+shorter than 1 mm or not finite at some pose, an absurd coefficient) is refused naming the muscle
+and the pose.
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ import numpy as np
 import yaml
 
 from vm_ros.errors import ConfigError
+from vm_ros.geometry.checks import path_problem
 from vm_ros.geometry.paths import (
     Coordinate,
     CoupledCoordinate,
@@ -134,10 +138,15 @@ def geometry_from_dict(data, path="<geometry>", backend: str = "auto") -> Polyno
         if not isinstance(data.get(key) or {}, dict):
             raise ConfigError(path, key, type(data[key]).__name__, "must be a mapping")
     try:
-        return PolynomialGeometry(coordinates, muscles, coupled, source=data.get("source"),
-                                  options=data.get("options"), backend=backend)
+        geometry = PolynomialGeometry(coordinates, muscles, coupled, source=data.get("source"),
+                                      options=data.get("options"), backend=backend)
     except (ValueError, TypeError) as exc:
         raise ConfigError(path, "muscles", None, str(exc)) from exc
+    problem = path_problem(geometry)
+    if problem is not None:
+        i, reason = problem
+        raise ConfigError(path, f"muscles[{i}]", geometry.muscle_names[i], reason)
+    return geometry
 
 
 def _muscle(entry: dict) -> MusclePath:

@@ -26,7 +26,8 @@ ISSUE_KINDS = {
                        "message dropped: a muscle is named twice"),
     "non_physical_length": ("rejected: non-physical length (messages)",
                             "message dropped: a path length lies outside the muscle's physical "
-                            "range (library range widened by path_length_margin_l0)"),
+                            "range (library range widened by path_length_margin_l0, for a "
+                            "joint-driven muscle also by its geometry's range; never below 1 mm)"),
     "non_physical_velocity": ("rejected: non-physical velocity (messages)",
                               "message dropped: |path velocity| > path_speed_max_m_per_s"),
     "undecodable": ("rejected: undecodable (messages)",
@@ -40,7 +41,8 @@ ISSUE_KINDS = {
                          "message dropped: name/position/velocity sizes differ, or an unnamed "
                          "message is not one position per joint of the joints parameter"),
     "joint_non_finite": ("rejected: joint_states NaN or inf (messages)",
-                         "message dropped: a position or velocity of a known joint is NaN or inf"),
+                         "message dropped: a position or velocity of a known joint is NaN or "
+                         "inf, or a coordinate overflows to inf (joint_map offset, extrapolation)"),
     "joint_duplicate_name": ("rejected: joint_states duplicate joint (messages)",
                              "message dropped: a joint is named twice"),
     "joint_unknown_name": ("ignored: joint_states unknown joints (entries)",

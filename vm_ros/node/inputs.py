@@ -12,7 +12,14 @@ is clamped to the physical range.
 
 Physical path-length range per muscle: [lo - m L0, hi + m L0] with lo = library
 ``path_length_min_m`` (else 0.97 L0T + 0.6 L0, the library's slack convention), hi = library
-``path_length_max_m`` (else L0T + Lmax L0), m = ``path_length_margin_l0``.
+``path_length_max_m`` (else L0T + Lmax L0), m = ``path_length_margin_l0``; for a joint-driven
+muscle widened to its geometry's range over the box (allow_path_range); lo never below
+``vm_ros.geometry.checks.MIN_PATH_LENGTH_M`` (1 mm).
+
+So whatever :meth:`NodeInputs.sample_many` hands a model step passes the model's input checks
+(MuscleBank.check_inputs: drive, path length and velocity finite, path length > 0 m): drive is
+checked finite and clipped to [0, 1], lengths and velocities are checked against these bounds
+before they are stored, and extrapolated lengths are clamped into them.
 """
 
 from __future__ import annotations
@@ -23,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vm_ros.geometry.checks import MIN_PATH_LENGTH_M
 from vm_ros.node.health import Issue
 from vm_ros.node.params import NodeConfig
 
@@ -270,7 +278,10 @@ class NodeInputs:
         return self._bounds
 
     def _path_bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        lo = np.minimum(self.limits.path_length_min_m, self._allowed_lo)
+        # never below MIN_PATH_LENGTH_M: the model needs L > 0 (MuscleBank.check_inputs), and a
+        # geometry's widened range (allow_path_range) can reach 0
+        lo = np.maximum(np.minimum(self.limits.path_length_min_m, self._allowed_lo),
+                        MIN_PATH_LENGTH_M)
         hi = np.maximum(self.limits.path_length_max_m, self._allowed_hi)
         lo.flags.writeable = hi.flags.writeable = False
         return lo, hi

@@ -16,6 +16,7 @@ message):
   (rad or m), velocity[] optional: empty means 0 for every named joint, as muscle_kinematics
   treats missing velocities; otherwise one per position.
 - sizes that do not match, a joint named twice, NaN or inf in a named joint's position or
+  velocity, or a coordinate that overflows to inf with joint_map's offset or moved on by its
   velocity: message dropped. Names not in the map: those entries ignored, counted per entry.
 - A message may name some joints only: the others are taken where their latest position and
   velocity put them now (moved on for at most extrapolation_max_s, then held with velocity 0),
@@ -43,6 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vm_ros.geometry import JointGeometry, generalized_forces
+from vm_ros.geometry.checks import box_poses
 from vm_ros.joint_space import JointEfforts, JointSpace
 from vm_ros.node.health import Issue
 
@@ -69,27 +71,22 @@ class JointSample:
     moment_arm: np.ndarray
 
 
-RANGE_POSES = 512        # random poses (fixed seed) sampled for geometry_length_range
 RANGE_MARGIN = 0.1       # of the sampled length range, added on each side (poses miss extremes)
 
 
 def geometry_length_range(geometry: JointGeometry, rows) -> tuple[np.ndarray, np.ndarray]:
-    """(lo, hi) path length (m) of the geometry's muscles ``rows`` over its box: sampled at the
-    box's centre, each coordinate's two ends (others at the centre) and RANGE_POSES random poses
-    (fixed seed, so the node and a recompute agree), widened by RANGE_MARGIN of the range."""
-    lower, upper = geometry.lower, geometry.upper
-    centre = (lower + upper) / 2
-    poses = [centre]
-    for j in range(len(lower)):
-        for end in (lower[j], upper[j]):
-            pose = centre.copy()
-            pose[j] = end
-            poses.append(pose)
-    rng = np.random.default_rng(0)
-    poses += list(lower + (upper - lower) * rng.random((RANGE_POSES, len(lower))))
+    """(lo, hi) path length (m) of the geometry's muscles ``rows`` over its box: sampled at
+    vm_ros.geometry.checks.box_poses (the poses the loader checked: fixed seed, so the node and a
+    recompute agree), widened by RANGE_MARGIN of the range. NodeInputs floors lo at
+    MIN_PATH_LENGTH_M."""
+    poses = box_poses(geometry.lower, geometry.upper)
     lengths = np.array([geometry.evaluate(pose).length_m[rows] for pose in poses])
     lo, hi = lengths.min(axis=0), lengths.max(axis=0)
     return lo - RANGE_MARGIN * (hi - lo), hi + RANGE_MARGIN * (hi - lo)
+
+
+def _overflow(how: str) -> Issue:
+    return Issue("joint_non_finite", f"{TOPIC}: a coordinate is not finite {how} (overflow)")
 
 
 class JointInputs:
@@ -191,11 +188,17 @@ class JointInputs:
                                    f"{TOPIC}: position or velocity is not finite")]
         q, qdot, seen = self.q.copy(), self.qdot.copy(), self.seen.copy()
         q_time = self.q_time_ns.copy()
-        q[index], qdot[index] = self.space.map.to_model(index, robot_q, robot_qdot)
+        with np.errstate(over="ignore"):  # an overflow is reported as an issue below
+            q[index], qdot[index] = self.space.map.to_model(index, robot_q, robot_qdot)
         seen[index] = True
         q_time[index] = now_ns
+        if not np.isfinite(q[index]).all():  # a position near 1.8e308 plus joint_map's offset
+            return issues + [_overflow("with joint_map's offset")]
         if np.all(seen[self.space.needed]):
-            q_now, qdot_now = self._extrapolated(q, qdot, seen, q_time, now_ns)
+            with np.errstate(over="ignore"):
+                q_now, qdot_now = self._extrapolated(q, qdot, seen, q_time, now_ns)
+            if not np.isfinite(q_now[seen]).all():  # the geometry would refuse it (check_pose)
+                return issues + [_overflow("moved on by its velocity")]
             sample, more = self._evaluate(q_now, qdot_now, seen, index, now_ns)
             issues += more
             if sample is None:  # NodeInputs rejected the paths: nothing is stored
