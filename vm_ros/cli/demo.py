@@ -507,7 +507,7 @@ def run_closed_loop(args) -> int:
     print(f"closed loop over ROS 2: {args.model}, {len(muscles)} muscles "
           f"({', '.join(muscles)}), joints {', '.join(log.joints)}")
     print(f"drive: {drive.description}")
-    print(format_loop_summary(log, args.accept_skips))
+    print(format_loop_summary(log))
     print(f"wall time: {loop_wall_s:.2f} s closed loop, {time.monotonic() - wall_start:.2f} s "
           "from starting the nodes to stopping them")
     print(f"MCAP log: {mcap_path}")
@@ -517,4 +517,5 @@ def run_closed_loop(args) -> int:
         print(f"plot: {png}")
     except ModuleNotFoundError:
         print("matplotlib is not installed: no plot (pip install 'vm_ros[plot]')")
+    print("\n".join(log.validity.lines(args.accept_skips)))  # last: the verdict on the above
     return log.validity.exit_status(args.accept_skips)

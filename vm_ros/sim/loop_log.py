@@ -193,7 +193,7 @@ def loop_numbers(log: LoopLog) -> dict:
     }
 
 
-def format_loop_summary(log: LoopLog, accepted: bool = False) -> str:
+def format_loop_summary(log: LoopLog) -> str:
     n = loop_numbers(log)
     lines = [f"{log.duration_s:.2f} s of model time; {len(log.q.time_s)} joint_states in, "
              f"{len(log.tau.time_s)} joint_efforts out"]
@@ -210,7 +210,7 @@ def format_loop_summary(log: LoopLog, accepted: bool = False) -> str:
     lines.append(f"muscle_node: {n['step_rate_hz']:.0f} model steps/s (median of {windows} "
                  f"diagnostics window{'s' if windows != 1 else ''}), skipped model time "
                  f"{n['skipped_s']:.3g} s")
-    return "\n".join(lines + log.validity.lines(accepted))
+    return "\n".join(lines)
 
 
 def _drive_groups(log: LoopLog) -> list[list[int]]:
