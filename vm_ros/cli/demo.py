@@ -78,8 +78,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--startup-timeout", type=float, default=30.0, metavar="S",
                         help="longest wait for muscle_node's first output (default 30)")
     parser.add_argument("--accept-skips", action="store_true",
-                        help="exit 0 even when the run is not valid (model time skipped or "
-                             "inputs late: the summary says so; default: exit status 3)")
+                        help="exit 0 even when the run is not valid (model time skipped, "
+                             "inputs applied off their time or far apart: the summary says so; "
+                             "default: exit status 3)")
     loop = parser.add_argument_group("closed loop (--closed-loop)")
     loop.add_argument("--closed-loop", action="store_true",
                       help="muscle_node drives mujoco_sim_node over ROS 2 (extra mujoco)")
@@ -213,8 +214,8 @@ def demo_summary(names, stamps_ns, efforts, rates, totals, duration_s: float,
 
 def format_summary(summary: DemoSummary, mcap_path: Path | None, description: str = "",
                    accepted: bool = False) -> str:
-    """The demo's report: forces, energies by muscle, fibre type and component, one total."""
-    from vm_ros.telemetry import COMPONENT_LABELS, FIBRE_LABELS
+    """The demo's report: forces, energies by muscle, fibre type and component, one total; last
+    the validity (``accepted``: --accept-skips)."""
 
     width = max(len(n) for n in (*summary.names, "muscle", "all muscles"))
     lines = textwrap.wrap(f"{SCENARIO}: {description}", 100) if description else [SCENARIO]
@@ -224,10 +225,10 @@ def format_summary(summary: DemoSummary, mcap_path: Path | None, description: st
     for i, name in enumerate(summary.names):
         lines.append(f"{name:<{width}}  {summary.peak_force[i]:14.1f}  "
                      f"{summary.mean_force[i]:14.1f}")
-    header = "  ".join(f"{c:>12}" for c in COMPONENT_LABELS)
+    header = "  ".join(f"{c:>12}" for c in tm.COMPONENT_LABELS)
     lines += ["", f"{'energy (J)':<{width}}  {'fibre':<5}  {header}"]  # (n, fibre, component)
     for i, name in enumerate(summary.names):
-        for j, fibre in enumerate(FIBRE_LABELS):
+        for j, fibre in enumerate(tm.FIBRE_LABELS):
             cells = "  ".join(f"{e:12.3f}" for e in summary.energy[i, j])
             lines.append(f"{name if j == 0 else '':<{width}}  {fibre:<5}  {cells}")
     cells = "  ".join(f"{e:12.3f}" for e in summary.energy[:, -1].sum(axis=0))
