@@ -9,7 +9,8 @@ import pytest
 from conftest import require_ros
 
 from vm_ros.child_process import module_command
-from vm_ros.cli.demo import CATCH_UP_S, _node_command, demo_summary, format_summary, split_energy
+from vm_ros.cli.demo import CATCH_UP_S, _node_command, demo_summary, format_summary
+from vm_ros.recording.summary import split_energy
 from vm_ros.telemetry import COMPONENT_LABELS, FIBRE_LABELS
 
 
@@ -68,6 +69,9 @@ def test_summary_prints_one_total_and_the_skipped_time():
     total = f"{totals[-1] - totals[0]:.3f}"
     assert text.count(total) == 2  # the table's all-muscles cell and the total line: one number
     assert "skipped 0.25 s" in text and "30 us median" in text and "1000 us per step" in text
+    assert "NOT VALID" in text and "exit status 3" in text
+    assert summary.validity.exit_status(accepted=False) == 3
+    assert summary.validity.exit_status(accepted=True) == 0
 
 
 def test_demo_node_catches_up_on_a_stall_and_runs_the_installed_package():
@@ -88,9 +92,9 @@ def test_demo_runs_and_logs(tmp_path):
 
     path = tmp_path / "demo.mcap"
     proc = subprocess.run(module_command("vm_ros.cli", "demo", "--duration", "2",
-                                         "--mcap", str(path)),
+                                         "--mcap", str(path), "--accept-skips"),
                           capture_output=True, text=True, timeout=120, cwd=tmp_path)
-    assert proc.returncode == 0, proc.stderr
+    assert proc.returncode == 0, proc.stderr  # valid or not: that depends on the load
     out = proc.stdout
     assert "knee_extension" in out and "rectus_femoris" in out and "vasti" in out
     assert "peak force (N)" in out and "cross_bridge" in out and f"MCAP log: {path}" in out

@@ -28,6 +28,9 @@ With a geometry (vm_ros.joint_space):
   tau = r^T F (N m or N, robot convention), stamped with model time |
 | joint_effort_commands | std_msgs/msg/Float64MultiArray | out: tau ordered by the joints
   parameter (ros2_control forward_command_controller effort convention); layout.dim[0] "joint" |
+| joint_work | std_msgs/msg/Float64MultiArray | logged by offline runs only (simulate,
+  recompute), not published by muscle_node: per joint of joint_efforts, the work of the joint
+  torques since the start, sum over the model steps of tau qdot dt (J); layout.dim[0] "joint" |
 
 energy_rate layout: ``data[i*12 + j*4 + k]`` = muscle i (order of the ``muscles`` parameter),
 fibre j in FIBRE_LABELS = (slow, fast, all), component k in COMPONENT_LABELS = (activation,
@@ -64,6 +67,7 @@ TOPIC_DIAGNOSTICS = "/diagnostics"
 TOPIC_JOINT_STATES = "joint_states"
 TOPIC_JOINT_EFFORTS = "joint_efforts"
 TOPIC_JOINT_EFFORT_COMMANDS = "joint_effort_commands"
+TOPIC_JOINT_WORK = "joint_work"  # logged by offline runs only (vm_ros.recording.offline)
 
 TYPE_JOINT_STATE = "sensor_msgs/msg/JointState"
 TYPE_FLOAT64_MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
@@ -83,6 +87,7 @@ TOPIC_TYPES = {
     TOPIC_JOINT_STATES: TYPE_JOINT_STATE,
     TOPIC_JOINT_EFFORTS: TYPE_JOINT_STATE,
     TOPIC_JOINT_EFFORT_COMMANDS: TYPE_FLOAT64_MULTI_ARRAY,
+    TOPIC_JOINT_WORK: TYPE_FLOAT64_MULTI_ARRAY,
 }
 
 FIBRE_LABELS = ("slow", "fast", "all")
@@ -180,6 +185,16 @@ def joint_efforts_fields(efforts, time_ns: int, frame_id: str = "") -> dict:
 
 def joint_effort_commands_fields(efforts) -> dict:
     """std_msgs/Float64MultiArray fields of joint_effort_commands: tau in ``joints`` order."""
-    n = len(efforts.names)
+    return _joint_array_fields(efforts.effort)
+
+
+def joint_work_fields(work_j) -> dict:
+    """std_msgs/Float64MultiArray fields of joint_work: per joint of joint_efforts (same order)
+    the work of the joint torques since the start, sum over the model steps of tau qdot dt (J)."""
+    return _joint_array_fields(work_j)
+
+
+def _joint_array_fields(values) -> dict:
+    n = len(values)
     return {"layout": {"dim": [{"label": "joint", "size": n, "stride": n}], "data_offset": 0},
-            "data": efforts.effort.tolist()}
+            "data": np.asarray(values, dtype=float).tolist()}

@@ -6,7 +6,9 @@ never a source tree in the working folder: vm_ros.child_process), so that it has
 interpreter lock of its own, as in real use, and so that the demo also exercises its clean
 shutdown: it is stopped with SIGINT, which finishes its MCAP file. This process runs the driver
 (excitation and muscle_kinematics from the scenario, in real time) and a monitor that subscribes
-to muscle_force, energy_rate and energy_total; the table is computed from those messages.
+to muscle_force, energy_rate and energy_total; with a log (the default) the table is computed from
+muscle_node's MCAP log once it is finished (its outputs on model time, and its inputs at the
+model time that applied them), with --no-mcap from the monitor's messages, by their stamps.
 
 Every run covers the same model time: the scenario starts with the model (the driver holds the
 scenario's t = 0 until the first muscle_force, whose stamp is the model's start) and the table
@@ -18,6 +20,13 @@ messages is interpolated. A busy machine can stop muscle_node for tens of millis
 catches up on up to CATCH_UP_S of model time after such a stall (the default
 max_catch_up_steps, 50 ms, is for controllers that would rather skip than run late), so that no
 model time is skipped and the run does not depend on the load.
+
+Validity (vm_ros.recording.validity): when muscle_node skipped model time, or applied its
+excitation or muscle_kinematics more than 20 ms off their time, or received them further apart
+than its extrapolation_max_s, the summary says the numbers are not valid and the demo exits with
+status 3 (EXIT_NOT_VALID); --accept-skips prints the same and exits 0. On a busy machine the
+peaks are such numbers: the model's own output at an input applied off its time (a path-length
+step, a drive switch moved), not a message that arrived late.
 
 rclpy runs in a loopback-only network namespace: inside scripts/netns-run (VM_ROS_NETNS=1) the
 demo runs directly, otherwise it starts one for itself (unshare -n; needs root).
@@ -38,10 +47,13 @@ from pathlib import Path
 
 import numpy as np
 
+from vm_ros import telemetry as tm
 from vm_ros.child_process import module_command, module_environment
 from vm_ros.errors import VmRosError
 from vm_ros.model.params import load_muscle_library
-from vm_ros.sim.loop_log import diagnostics_number
+from vm_ros.recording.summary import split_energy
+from vm_ros.recording.validity import DEFAULT_INPUT_BOUND_S, Validity, run_validity
+from vm_ros.sim.loop_log import diagnostics_number, node_diagnostics
 
 HELP = ("run muscle_node with a knee-extension driver and print forces and energies; "
         "--closed-loop: muscle_node driving a MuJoCo arm over ROS 2, plotted")
@@ -65,6 +77,10 @@ def add_arguments(parser) -> None:
                         default="lumped", help="recruitment scheme (default lumped)")
     parser.add_argument("--startup-timeout", type=float, default=30.0, metavar="S",
                         help="longest wait for muscle_node's first output (default 30)")
+    parser.add_argument("--accept-skips", action="store_true",
+                        help="exit 0 even when the run is not valid (model time skipped, "
+                             "inputs applied off their time or far apart: the summary says so; "
+                             "default: exit status 3)")
     loop = parser.add_argument_group("closed loop (--closed-loop)")
     loop.add_argument("--closed-loop", action="store_true",
                       help="muscle_node drives mujoco_sim_node over ROS 2 (extra mujoco)")
@@ -83,7 +99,8 @@ def _command_line(args) -> list[str]:
     for flag, value in (("--mcap", args.mcap), ("--out", args.out)):
         if value is not None:
             argv += [flag, str(value)]
-    for flag, on in (("--no-mcap", args.no_mcap), ("--closed-loop", args.closed_loop)):
+    for flag, on in (("--no-mcap", args.no_mcap), ("--closed-loop", args.closed_loop),
+                     ("--accept-skips", args.accept_skips)):
         if on:
             argv.append(flag)
     return argv
@@ -152,7 +169,7 @@ class DemoSummary:
     | peak_force, mean_force | (n,) | N, over the k messages |
     | energy | (n, 3 fibres, 4 components) | J, from message 0 to k-1 (demo_summary) |
     | energy_total | () | J, change of energy_total from message 0 to k-1 |
-    | skipped_s | () | s, model time muscle_node skipped (its diagnostics) |
+    | validity | Validity | skipped model time and input gaps (vm_ros.recording.validity) |
     | diagnostics | dict | the node's last /diagnostics values (key -> text) |
     """
 
@@ -163,51 +180,42 @@ class DemoSummary:
     mean_force: np.ndarray
     energy: np.ndarray
     energy_total: float
-    skipped_s: float
+    validity: Validity
     diagnostics: dict
 
 
-def split_energy(rates, totals) -> np.ndarray:
-    """Energy (J, n x 3 fibres x 4 components) from message 0 to the last: each interval's
-    energy is the change of ``totals`` (J, the model's energy_total), split in the proportions
-    of the mean of ``rates`` (W, n x 3 x 4, energy_rate) at its two ends over muscles, the slow
-    and fast fibres and the activation, cross-bridge and recovery components. The result adds
-    up to totals[-1] - totals[0]."""
-    rates = np.asarray(rates, dtype=float)
-    parts = rates[:, :, :2, :3]  # (k, n, slow/fast, activation/cross_bridge/recovery)
-    mean = 0.5 * (parts[1:] + parts[:-1])
-    weight = mean.sum(axis=(1, 2, 3))
-    energy_j = np.diff(np.asarray(totals, dtype=float))
-    share = np.divide(mean, weight[:, None, None, None],
-                      out=np.zeros_like(mean), where=weight[:, None, None, None] != 0)
-    cells = np.tensordot(energy_j, share, axes=1)  # (n, 2, 3)
-    cells = np.concatenate([cells, cells.sum(axis=1, keepdims=True)], axis=1)  # all fibres
-    return np.concatenate([cells, cells.sum(axis=2, keepdims=True)], axis=2)  # total
-
-
 def demo_summary(names, stamps_ns, efforts, rates, totals, duration_s: float,
-                 diagnostics: dict) -> DemoSummary:
-    """The table's numbers from muscle_node's messages in arrival order (published together, so
-    the i-th of each belong together), over the messages stamped within ``duration_s`` of the
-    first."""
+                 diagnostics: dict, inputs=(),
+                 gap_bound_s: float = DEFAULT_INPUT_BOUND_S) -> DemoSummary:
+    """The table's numbers from muscle_node's outputs (the i-th of each published together,
+    stamped ``stamps_ns`` on model time), over those stamped within ``duration_s`` of the
+    first, in the order of their stamps; ``inputs``: (topic, log times, header stamps) of the
+    inputs as muscle_node logged them (() when not known), checked against ``gap_bound_s``
+    (vm_ros.recording.validity.run_validity)."""
     k = min(len(stamps_ns), len(efforts), len(rates), len(totals))
     if k < 2:
         raise VmRosError(f"too few messages from muscle_node ({k})")
     stamps = np.asarray(stamps_ns[:k], dtype=np.int64)
+    order = np.argsort(stamps, kind="stable")
+    stamps = stamps[order]
     k = int(np.searchsorted(stamps, stamps[0] + round(duration_s * 1e9), side="right"))
-    force = np.asarray(efforts[:k], dtype=float)
+    order, stamps = order[:k], stamps[:k]
+    force = np.asarray(efforts, dtype=float)[order]
+    totals = np.asarray(totals, dtype=float)[order]
     return DemoSummary(
-        names=tuple(names), duration_s=float((stamps[k - 1] - stamps[0]) * 1e-9), messages=k,
+        names=tuple(names), duration_s=float((stamps[-1] - stamps[0]) * 1e-9), messages=k,
         peak_force=force.max(axis=0), mean_force=force.mean(axis=0),
-        energy=split_energy(rates[:k], totals[:k]),
-        energy_total=float(totals[k - 1] - totals[0]),
-        skipped_s=diagnostics_number(diagnostics, "skipped model time (s)"),
+        energy=split_energy(np.asarray(rates, dtype=float)[order], totals),
+        energy_total=float(totals[-1] - totals[0]),
+        validity=run_validity(stamps, diagnostics_number(diagnostics, "skipped model time (s)"),
+                              inputs, gap_bound_s),
         diagnostics=dict(diagnostics))
 
 
-def format_summary(summary: DemoSummary, mcap_path: Path | None, description: str = "") -> str:
-    """The demo's report: forces, energies by muscle, fibre type and component, one total."""
-    from vm_ros.telemetry import COMPONENT_LABELS, FIBRE_LABELS
+def format_summary(summary: DemoSummary, mcap_path: Path | None, description: str = "",
+                   accepted: bool = False) -> str:
+    """The demo's report: forces, energies by muscle, fibre type and component, one total; last
+    the validity (``accepted``: --accept-skips)."""
 
     width = max(len(n) for n in (*summary.names, "muscle", "all muscles"))
     lines = textwrap.wrap(f"{SCENARIO}: {description}", 100) if description else [SCENARIO]
@@ -217,10 +225,10 @@ def format_summary(summary: DemoSummary, mcap_path: Path | None, description: st
     for i, name in enumerate(summary.names):
         lines.append(f"{name:<{width}}  {summary.peak_force[i]:14.1f}  "
                      f"{summary.mean_force[i]:14.1f}")
-    header = "  ".join(f"{c:>12}" for c in COMPONENT_LABELS)
+    header = "  ".join(f"{c:>12}" for c in tm.COMPONENT_LABELS)
     lines += ["", f"{'energy (J)':<{width}}  {'fibre':<5}  {header}"]  # (n, fibre, component)
     for i, name in enumerate(summary.names):
-        for j, fibre in enumerate(FIBRE_LABELS):
+        for j, fibre in enumerate(tm.FIBRE_LABELS):
             cells = "  ".join(f"{e:12.3f}" for e in summary.energy[i, j])
             lines.append(f"{name if j == 0 else '':<{width}}  {fibre:<5}  {cells}")
     cells = "  ".join(f"{e:12.3f}" for e in summary.energy[:, -1].sum(axis=0))
@@ -228,9 +236,6 @@ def format_summary(summary: DemoSummary, mcap_path: Path | None, description: st
     lines.append("")
     lines.append(f"total energy: {summary.energy_total:.3f} J (muscle_node's energy_total; the "
                  "table splits it by energy_rate)")
-    if summary.skipped_s > 0:
-        lines.append(f"muscle_node fell behind real time and skipped {summary.skipped_s:.3g} s of "
-                     "model time (CPU starved; see its /diagnostics and max_catch_up_steps)")
     diag = summary.diagnostics
     if diag:
         p50 = diagnostics_number(diag, "step time p50 (ms)")
@@ -240,6 +245,7 @@ def format_summary(summary: DemoSummary, mcap_path: Path | None, description: st
                      f"99th percentile (real time allows {budget:.0f} us per step)")
     if mcap_path is not None:
         lines.append(f"MCAP log: {mcap_path}")
+    lines += summary.validity.lines(accepted)
     return "\n".join(lines)
 
 
@@ -301,11 +307,45 @@ def run(args) -> int:
         rclpy.try_shutdown(context=context)
     if status != 0:
         raise VmRosError(f"muscle_node ended with status {status}")
-    summary = demo_summary(monitor.names, monitor.stamps_ns, monitor.efforts,
-                           monitor.energy_rates, monitor.energy_totals, args.duration,
-                           monitor.diagnostics)
-    print(format_summary(summary, mcap_path, scenario.description))
-    return 0
+    if mcap_path is None:  # the monitor's messages, by their stamps; input timing not known
+        summary = demo_summary(monitor.names, monitor.stamps_ns, monitor.efforts,
+                               monitor.energy_rates, monitor.energy_totals, args.duration,
+                               monitor.diagnostics)
+    else:
+        summary = logged_summary(mcap_path, args.duration, monitor.diagnostics)
+    print(format_summary(summary, mcap_path, scenario.description, args.accept_skips))
+    return summary.validity.exit_status(args.accept_skips)
+
+
+def logged_summary(path: Path, duration_s: float, diagnostics: dict) -> DemoSummary:
+    """:func:`demo_summary` of muscle_node's finished log: muscle_force, energy_rate and
+    energy_total on model time (the stamps they were logged at), excitation and
+    muscle_kinematics as logged, the node's extrapolation_max_s and its last /diagnostics (else
+    ``diagnostics``, the monitor's)."""
+    from vm_ros.recording import read_run
+    from vm_ros.recording.run_log import logged_node_parameters
+
+    run = read_run(path, topics=(tm.TOPIC_FORCE, tm.TOPIC_ENERGY_RATE, tm.TOPIC_ENERGY_TOTAL,
+                                 tm.TOPIC_EXCITATION, tm.TOPIC_KINEMATICS,
+                                 tm.TOPIC_DIAGNOSTICS))
+    series = [run.get(t) for t in (tm.TOPIC_FORCE, tm.TOPIC_ENERGY_RATE, tm.TOPIC_ENERGY_TOTAL)]
+    if any(s is None or len(s) < 2 for s in series):
+        raise VmRosError(f"{path}: fewer than 2 outputs of muscle_node logged")
+    force, rate, total = series
+    common = np.intersect1d(np.intersect1d(force.time_ns, rate.time_ns), total.time_ns)
+    rows = [np.searchsorted(s.time_ns, common) for s in series]
+    n = len(force.names)
+    rates = rate.fields["data"][rows[1]].reshape(len(common), n, 3, 4)
+    logged = node_diagnostics(run)
+    diagnostics = logged[-1] if logged else diagnostics
+    inputs = [(topic, s.time_ns, s.fields.get("stamp_ns"))
+              for topic in (tm.TOPIC_EXCITATION, tm.TOPIC_KINEMATICS)
+              if (s := run.get(topic)) is not None and len(s)]
+    bound = (logged_node_parameters(run) or {}).get("extrapolation_max_s",
+                                                     DEFAULT_INPUT_BOUND_S)
+    return demo_summary(force.names, common, force.fields["effort"][rows[0]], rates,
+                        total.fields["data"][rows[2]], duration_s, diagnostics,
+                        inputs, float(bound))
 
 
 # ---------------------------------------------------------------------------- --closed-loop
@@ -478,4 +518,5 @@ def run_closed_loop(args) -> int:
         print(f"plot: {png}")
     except ModuleNotFoundError:
         print("matplotlib is not installed: no plot (pip install 'vm_ros[plot]')")
-    return 0
+    print("\n".join(log.validity.lines(args.accept_skips)))  # last: the verdict on the above
+    return log.validity.exit_status(args.accept_skips)

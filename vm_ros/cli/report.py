@@ -2,7 +2,8 @@
 energy per muscle and fibre type, whole-body totals and, for joint-space runs, joint torques.
 
 Files written to --out (default: <log name>-report/ beside the log):
-  summary.csv        per muscle and fibre type: peak and mean force (N), energy per component (J),
+  summary.csv        per muscle and fibre type: peak and mean force (N), energy per component (J:
+                     the model's sum over its steps, vm_ros.recording.tables.run_energy),
                      mechanical work (J), efficiency; also printed
   forces.csv         time_s, <muscle>.force_N, .fascicle_length_m, .fascicle_velocity_m_per_s
   energy_rate.csv    time_s, <muscle>.<slow|fast|all>.<component>_W
@@ -16,9 +17,10 @@ Files written to --out (default: <log name>-report/ beside the log):
                      _N for translational coordinates): joint_efforts, robot convention (joint-space
                      runs)
   joint_states.csv   time_s, <joint>.position_rad: the joint angles received (before clamping)
-  joint_summary.csv  per joint: peak and mean generalized force, joint work (J, trapezoidal
-                     integral of tau qdot over the published samples), joint_states samples
-                     outside the geometry's box; also printed
+  joint_summary.csv  per joint: peak and mean generalized force, joint work (J, the model's sum
+                     of tau qdot dt over its steps, logged on joint_work by simulate and
+                     recompute; from the published samples for muscle_node's logs),
+                     joint_states samples outside the geometry's box; also printed
   summary.png        one page: the run, its totals, force per muscle, the Fig. 7 style energy
                      rate, cumulative energy and partition per muscle, joint torques or drive
   force.png, kinematics.png, drive.png   one panel per muscle (kinematics: two); runs longer
@@ -70,6 +72,7 @@ from vm_ros.recording.tables import (
     model_totals,
     muscle_names,
     run_joint_summary,
+    run_joint_work,
     run_summary,
     telemetry_table,
     totals_table,
@@ -133,7 +136,7 @@ def run(args) -> int:
                                          tm.TOPIC_ENERGY_RATE_TOTAL, tm.TOPIC_ENERGY_TOTAL,
                                          tm.TOPIC_EXCITATION, TOPIC_TELEMETRY,
                                          tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_JOINT_STATES,
-                                         tm.TOPIC_ENERGY_RATE_MODELS),
+                                         tm.TOPIC_JOINT_WORK, tm.TOPIC_ENERGY_RATE_MODELS),
                        progress=lambda done, size: p.update(done / max(size, 1)))
     if not muscle_names(log):
         raise VmRosError(f"{log_path}: not a vm_ros run log (no '{METADATA_NAME}' metadata "
@@ -157,7 +160,7 @@ def run(args) -> int:
     joint_rows = joint_summary_records(joint_summary)
     if joint_rows:
         write_csv(out / "joint_summary.csv", list(joint_rows[0]), [r.values() for r in joint_rows])
-        print(joint_summary_table(joint_summary))
+        print(joint_summary_table(joint_summary, run_joint_work(log)[1]))
     totals, model_rows = model_totals(log), []
     if totals:
         model_muscles = energy_models_axes(log)[0]

@@ -18,7 +18,8 @@ bank starts at rest, at static equilibrium for the path length held at the start
 Inputs with a ``joint_efforts(force)`` method (joint space: NodeReplayInputs, MotionInputs) also
 give joint_efforts and joint_effort_commands with every output, the step's tendon forces through
 the moment arms of the joint sample the step used; the joint work is summed step by step
-(tau . qdot dt, robot convention, with the joint velocities of that sample).
+(tau . qdot dt, robot convention, with the joint velocities of that sample) and logged with
+every output on joint_work (cumulative, J per joint): the one joint work every summary prints.
 
 Without joint efforts the run goes by blocks: the inputs of a few thousand steps are taken at
 once (SampledInputs.block samples them and builds their messages in bulk; other inputs are
@@ -411,7 +412,7 @@ class OfflineRun:
         self.timing = timing
         self.sink = LogSink(recorder, log_topic)
 
-    def _publish(self, out: StepOutput, time_ns: int, efforts=None) -> None:
+    def _publish(self, out: StepOutput, time_ns: int, efforts=None, joint_work=None) -> None:
         names, write = self.bank.names, self.sink.write_fields
         write(tm.TOPIC_FORCE, tm.TYPE_JOINT_STATE, tm.force_fields(out, names, time_ns), time_ns)
         write(tm.TOPIC_ENERGY_RATE, tm.TYPE_FLOAT64_MULTI_ARRAY, tm.energy_rate_fields(out),
@@ -428,6 +429,8 @@ class OfflineRun:
                   tm.joint_efforts_fields(efforts, time_ns), time_ns)
             write(tm.TOPIC_JOINT_EFFORT_COMMANDS, tm.TYPE_FLOAT64_MULTI_ARRAY,
                   tm.joint_effort_commands_fields(efforts), time_ns)
+            write(tm.TOPIC_JOINT_WORK, tm.TYPE_FLOAT64_MULTI_ARRAY,
+                  tm.joint_work_fields(joint_work), time_ns)
 
     def run(self, inputs, n_steps: int, should_stop: Callable[[], bool] = lambda: False,
             progress: Callable[[int, int], None] | None = None,
@@ -443,7 +446,7 @@ class OfflineRun:
         forces, times = [], []
         if publish_start and t.steps_per(t.publish_rate_hz):
             efforts = joint_efforts(initial.force) if joint_efforts is not None else None
-            self._publish(initial, start, efforts)
+            self._publish(initial, start, efforts, joints.work_so_far(efforts))
             joints.sample(efforts)
             forces.append(initial.force.copy())
             times.append(start)
@@ -474,7 +477,7 @@ class OfflineRun:
             efforts = joint_efforts(out.force) if joint_efforts is not None else None
             joints.step(efforts)
             if per_publish and (k + 1) % per_publish == 0:
-                self._publish(out, end_ns, efforts)
+                self._publish(out, end_ns, efforts, joints.work_so_far(efforts))
                 joints.sample(efforts)
                 forces.append(out.force.copy())
                 times.append(end_ns)
@@ -647,6 +650,13 @@ class _JointRecord:
         self.names = tuple(efforts.names)
         power = efforts.effort * efforts.velocity
         self.work = power * self.dt_s if self.work is None else self.work + power * self.dt_s
+
+    def work_so_far(self, efforts) -> np.ndarray | None:
+        """The work summed over the steps so far (J per joint; zeros before any step), None
+        without joint efforts."""
+        if efforts is None:
+            return None
+        return np.zeros(len(efforts.names)) if self.work is None else self.work.copy()
 
     def sample(self, efforts) -> None:
         if efforts is not None:

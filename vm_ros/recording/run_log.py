@@ -74,12 +74,14 @@ INPUT_TOPICS = (tm.TOPIC_EXCITATION, tm.TOPIC_EXCITATION_ARRAY, tm.TOPIC_KINEMAT
                 tm.TOPIC_JOINT_STATES)
 OUTPUT_TOPICS = (tm.TOPIC_FORCE, tm.TOPIC_ENERGY_RATE, tm.TOPIC_ENERGY_RATE_TOTAL,
                  tm.TOPIC_ENERGY_TOTAL, tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_JOINT_EFFORT_COMMANDS)
-# channels of a run with a geometry only (vm_ros.joint_space)
-JOINT_TOPICS = (tm.TOPIC_JOINT_STATES, tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_JOINT_EFFORT_COMMANDS)
+# channels of a run with a geometry only (vm_ros.joint_space); joint_work: offline runs only
+JOINT_TOPICS = (tm.TOPIC_JOINT_STATES, tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_JOINT_EFFORT_COMMANDS,
+                tm.TOPIC_JOINT_WORK)
 # channels of a run with published energetics models only (RunConfig.energetics_models)
 MODEL_TOPICS = (tm.TOPIC_ENERGY_RATE_MODELS,)
 LOG_TOPIC_TYPES = {
-    **{topic: tm.TOPIC_TYPES[topic] for topic in INPUT_TOPICS + OUTPUT_TOPICS + MODEL_TOPICS},
+    **{topic: tm.TOPIC_TYPES[topic]
+       for topic in INPUT_TOPICS + OUTPUT_TOPICS + JOINT_TOPICS + MODEL_TOPICS},
     TOPIC_TELEMETRY: TYPE_MUSCLE_TELEMETRY,
     tm.TOPIC_DIAGNOSTICS: tm.TYPE_DIAGNOSTIC_ARRAY,
 }

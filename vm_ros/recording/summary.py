@@ -48,6 +48,25 @@ def net_efficiency(work_j: float, energy_j: float) -> float:
     return work_j / energy_j if work_j > 0 and energy_j > 0 else float("nan")
 
 
+def split_energy(rates, totals) -> np.ndarray:
+    """Energy (J, n x 3 fibres x 4 components) from sample 0 to the last: each interval's
+    energy is the change of ``totals`` (J, the model's energy_total: its own sum over its steps,
+    exact), split in the proportions of the mean of ``rates`` (W, k x n x 3 x 4, energy_rate) at
+    its two ends over muscles, the slow and fast fibres and the activation, cross-bridge and
+    recovery components. The result adds up to totals[-1] - totals[0]; only the split between
+    samples is interpolated."""
+    rates = np.asarray(rates, dtype=float)
+    parts = rates[:, :, :2, :3]  # (k, n, slow/fast, activation/cross_bridge/recovery)
+    mean = 0.5 * (parts[1:] + parts[:-1])
+    weight = mean.sum(axis=(1, 2, 3))
+    energy_j = np.diff(np.asarray(totals, dtype=float))
+    share = np.divide(mean, weight[:, None, None, None],
+                      out=np.zeros_like(mean), where=weight[:, None, None, None] != 0)
+    cells = np.tensordot(energy_j, share, axes=1)  # (n, 2, 3)
+    cells = np.concatenate([cells, cells.sum(axis=1, keepdims=True)], axis=1)  # all fibres
+    return np.concatenate([cells, cells.sum(axis=2, keepdims=True)], axis=2)  # total
+
+
 def run_totals(rows: list[MuscleSummary]) -> tuple[np.ndarray, float, float]:
     """All muscles: (energy per component (4,) J, mechanical work J, net efficiency 1)."""
     energy = sum(row.energy[-1] for row in rows) if rows else np.zeros(4)
@@ -134,7 +153,8 @@ class ModelTotals:
     | field | unit |
     | model | name (vm_ros.energetics_models.MODEL_NAMES; "tsianos2012" for vm_ros's own) |
     | energy | J, (n muscles,) the model's total rate integrated over the published samples |
-    | tsianos | J, (n,) Tsianos 2012's total energy integrated the same way |
+    | tsianos | J, (n,) Tsianos 2012's total energy: the model's sum over its steps (the summary
+      table's E total) |
     """
 
     model: str
@@ -182,8 +202,9 @@ def model_totals_table(rows: list[ModelTotals], names) -> str:
     if len(names) > len(shown):
         lines.append(f"(first {len(shown)} of {len(names)} muscles shown; model_totals.csv "
                      "has every muscle)")
-    lines.append("energies: trapezoidal integral of each model's total rate and of Tsianos "
-                 "2012's over the published samples")
+    lines.append("energies: Tsianos 2012 the model's sum over its steps (E total above); the "
+                 "published models the trapezoidal integral of their total rates over the "
+                 "published samples")
     return "\n".join(lines)
 
 
@@ -226,6 +247,21 @@ def summarize_joints(names, units, effort_samples, work, clamped=None) -> list[J
     return rows
 
 
+JOINT_WORK_STEPS = "W joint: sum over the model steps of tau qdot dt"
+JOINT_WORK_SAMPLED = ("W joint: sum over the published joint_efforts samples of tau qdot times the "
+                      "interval since the previous sample (the log has no joint_work channel; "
+                      "the sum over the model steps when they were published at every step)")
+
+
+def joint_work_increments(time_s, effort, velocity) -> np.ndarray:
+    """(k - 1, n_joints) J: the work of each published joint_efforts sample after the first,
+    tau qdot (robot convention, NaN as 0) times the interval since the previous sample. Each
+    sample holds the step that ended at its time (its force, the velocity that step used), so at
+    one sample per model step they are the steps' tau qdot dt."""
+    power = np.nan_to_num(np.asarray(effort, dtype=float) * np.asarray(velocity, dtype=float))
+    return power[1:] * np.diff(np.asarray(time_s, dtype=float))[:, None]
+
+
 def joint_summary_records(rows: list[JointSummary]) -> list[dict]:
     """One flat dict per joint (for CSV)."""
     return [{"joint": row.name, "unit": row.unit,
@@ -235,8 +271,9 @@ def joint_summary_records(rows: list[JointSummary]) -> list[dict]:
             for row in rows]
 
 
-def joint_summary_table(rows: list[JointSummary]) -> str:
-    """Fixed-width text: per joint peak and mean generalized force, joint work, clamping."""
+def joint_summary_table(rows: list[JointSummary], work_note: str = JOINT_WORK_STEPS) -> str:
+    """Fixed-width text: per joint peak and mean generalized force, joint work, clamping; then
+    ``work_note``, how the joint work was obtained."""
     header = (f"{'joint':<22}{'peak tau':>12}{'mean tau':>12}{'unit':>6}{'W joint':>11}"
               f"{'clamped':>11}")
     units = f"{'':<22}{'':>12}{'':>12}{'':>6}{'(J)':>11}{'(samples)':>11}"
@@ -245,4 +282,4 @@ def joint_summary_table(rows: list[JointSummary]) -> str:
         clamped = "-" if row.clamped is None else str(row.clamped)
         lines.append(f"{row.name:<22}{row.peak_effort:>12.3f}{row.mean_effort:>12.3f}"
                      f"{EFFORT_UNITS.get(row.unit, '?'):>6}{row.work:>11.3f}{clamped:>11}")
-    return "\n".join(lines)
+    return "\n".join([*lines, work_note])

@@ -22,9 +22,13 @@ from vm_ros.recording.run_log import (
     read_run,
 )
 from vm_ros.recording.summary import (
+    JOINT_WORK_SAMPLED,
+    JOINT_WORK_STEPS,
     JointSummary,
     ModelTotals,
     MuscleSummary,
+    joint_work_increments,
+    split_energy,
     summarize,
     summarize_joints,
 )
@@ -145,30 +149,26 @@ TSIANOS = "tsianos2012"  # vm_ros's own energetics in tables beside the publishe
 
 
 def logged_model_totals(path) -> list[ModelTotals]:
-    """:func:`model_totals` of a finished log, reading only its energy_rate and
-    energy_rate_models channels ([] without the latter)."""
-    return model_totals(read_run(path, topics=[tm.TOPIC_ENERGY_RATE,
-                                               tm.TOPIC_ENERGY_RATE_MODELS]))
+    """:func:`model_totals` of a finished log, reading only the channels it needs ([] without
+    energy_rate_models)."""
+    return model_totals(read_run(path, topics=[tm.TOPIC_ENERGY_RATE, tm.TOPIC_ENERGY_TOTAL,
+                                               TOPIC_TELEMETRY, tm.TOPIC_ENERGY_RATE_MODELS]))
 
 
 def model_totals(run: RunLog) -> list[ModelTotals]:
-    """Tsianos 2012 (first row, the reference), then per published model of
-    energy_rate_models its total rate integrated per muscle, Tsianos 2012's total rate
-    (energy_rate, all fibres) integrated the same way over the same samples beside it ([]
-    without the channel)."""
+    """Tsianos 2012 (first row, the reference): run_energy's total per muscle, the number the
+    summary table prints; then per published model of energy_rate_models its total rate
+    integrated per muscle over the published samples (trapezoid; the log has no running sum of
+    theirs) ([] without the channel)."""
     axes = energy_models_axes(run)
-    rates = energy_rate_table(run)
     if axes is None:
         return []
     muscles, models, components = axes
+    energy_all = run_energy(run)[:, -1, -1]
+    own = dict(zip(muscle_names(run), energy_all, strict=True))
+    tsianos = np.array([own.get(m, np.nan) for m in muscles])
     table = energy_rate_models_table(run)
     t = table.column("time_s")
-    if rates is not None and len(rates.data):
-        own = np.column_stack([np.interp(t, rates.column("time_s"),
-                                         rates.column(f"{m}.all.total_W")) for m in muscles])
-        tsianos = trapezoid(t, own)
-    else:
-        tsianos = np.full(len(muscles), np.nan)
     data = table.data[:, 1:].reshape(len(t), len(muscles), len(models), len(components))
     energy = trapezoid(t, data[..., components.index("total")])  # (n, M)
     return [ModelTotals(TSIANOS, tsianos, tsianos)] + [
@@ -194,26 +194,39 @@ def telemetry_table(run: RunLog) -> Table | None:
     return Table("telemetry", columns, np.hstack(blocks))
 
 
+def run_energy(run: RunLog) -> np.ndarray:
+    """Energy per muscle over the run (J, n x 3 fibres x 4 components): the model's own sum over
+    its steps, as the summary of the run that wrote the log printed it. From the last
+    muscle_telemetry record (cumulative per muscle); without telemetry (muscle_node's logs) the
+    last energy_total (cumulative, whole bank) split over muscles, fibres and components by
+    energy_rate (split_energy; the energy before the first sample in the proportions of the first
+    rate), NaN without those channels."""
+    n = len(muscle_names(run))
+    telemetry = run.get(TOPIC_TELEMETRY)
+    if telemetry is not None and len(telemetry):
+        return telemetry.fields["energy"][-1].reshape(n, 3, 4)
+    rate, total = run.get(tm.TOPIC_ENERGY_RATE), run.get(tm.TOPIC_ENERGY_TOTAL)
+    if rate is None or total is None or not len(rate) or rate.fields["data"].shape[1] != n * 12:
+        return np.full((n, 3, 4), np.nan)
+    common, i, j = np.intersect1d(rate.time_ns, total.time_ns, return_indices=True)
+    if not len(common):
+        return np.full((n, 3, 4), np.nan)
+    rates = rate.fields["data"][i].reshape(len(common), n, 3, 4)
+    return split_energy(np.concatenate([rates[:1], rates]),
+                        np.concatenate([[0.0], total.fields["data"][j]]))
+
+
 def run_summary(run: RunLog) -> list[MuscleSummary]:
-    """Per-muscle summary. Energies and work from the last telemetry record; without telemetry
-    the energy is the trapezoidal integral of energy_rate and the work is unknown (NaN)."""
+    """Per-muscle summary: force over the published samples, energy from run_energy, work from
+    the last telemetry record (unknown, NaN, without telemetry)."""
     names = muscle_names(run)
     n = len(names)
     force = run.get(tm.TOPIC_FORCE)
     forces = force.fields["effort"] if force is not None and len(force) else np.zeros((0, n))
     telemetry = run.get(TOPIC_TELEMETRY)
-    if telemetry is not None and len(telemetry):
-        energy = telemetry.fields["energy"][-1].reshape(n, 3, 4)
-        work = telemetry.fields["mechanical_work"][-1]
-    else:
-        rates = energy_rate_table(run)
-        energy = np.full((n, 3, 4), np.nan)
-        if rates is not None and len(rates.data) > 1:
-            t, y = rates.data[:, 0], rates.data[:, 1:]
-            integral = (0.5 * (y[1:] + y[:-1]) * np.diff(t)[:, None]).sum(axis=0)
-            energy = integral.reshape(n, 3, 4)
-        work = np.full(n, np.nan)
-    return summarize(names, forces, energy, work)
+    work = (telemetry.fields["mechanical_work"][-1] if telemetry is not None and len(telemetry)
+            else np.full(n, np.nan))
+    return summarize(names, forces, run_energy(run), work)
 
 
 def bin_means(time_s: np.ndarray, values: np.ndarray, bin_s: float):
@@ -289,20 +302,32 @@ def joint_states_table(run: RunLog) -> Table | None:
                                                      series.fields["position"]]))
 
 
+def run_joint_work(run: RunLog) -> tuple[np.ndarray, str]:
+    """Per joint of joint_efforts (J) and how it was obtained (JOINT_WORK_STEPS or
+    JOINT_WORK_SAMPLED): the joint_work channel's last value, the model's own sum over its steps
+    (offline runs log it), else the sum of joint_work_increments over the published samples
+    (muscle_node's logs). Empty for a log without joint_efforts."""
+    series = run.get(tm.TOPIC_JOINT_EFFORTS)
+    if series is None or not len(series) or not series.names:
+        return np.zeros(0), JOINT_WORK_STEPS
+    logged = run.get(tm.TOPIC_JOINT_WORK)
+    if logged is not None and len(logged) and logged.fields["data"].shape[1] == len(series.names):
+        return np.asarray(logged.fields["data"][-1], dtype=float), JOINT_WORK_STEPS
+    increments = joint_work_increments(_times(run, series), series.fields["effort"],
+                                       series.fields["velocity"])
+    return increments.sum(axis=0), JOINT_WORK_SAMPLED
+
+
 def run_joint_summary(run: RunLog) -> list[JointSummary]:
-    """Per joint of joint_efforts: peak and mean generalized force, joint work (trapezoidal
-    integral of tau qdot over the published samples) and the joint_states samples outside the
-    geometry's box. Empty for a log without joint_efforts."""
+    """Per joint of joint_efforts: peak and mean generalized force, joint work (run_joint_work)
+    and the joint_states samples outside the geometry's box. Empty for a log without
+    joint_efforts."""
     series = run.get(tm.TOPIC_JOINT_EFFORTS)
     if series is None or not len(series) or not series.names:
         return []
     names = series.names
-    effort = series.fields["effort"]
-    power = np.nan_to_num(effort * series.fields["velocity"])
-    t = _times(run, series)
-    work = (0.5 * (power[1:] + power[:-1]) * np.diff(t)[:, None]).sum(axis=0)
-    return summarize_joints(names, joint_units(run, names), effort, work,
-                            _clamped_samples(run, names))
+    return summarize_joints(names, joint_units(run, names), series.fields["effort"],
+                            run_joint_work(run)[0], _clamped_samples(run, names))
 
 
 def _clamped_samples(run: RunLog, names) -> np.ndarray | None:

@@ -22,7 +22,9 @@ import numpy as np
 from vm_ros import telemetry as tm
 from vm_ros.geometry.file import loads as load_geometry_text
 from vm_ros.recording import read_run
-from vm_ros.recording.run_log import ATTACHMENT_GEOMETRY, RunLogError
+from vm_ros.recording.run_log import ATTACHMENT_GEOMETRY, RunLogError, logged_node_parameters
+from vm_ros.recording.summary import joint_work_increments
+from vm_ros.recording.validity import DEFAULT_INPUT_BOUND_S, Validity, run_validity
 
 TOPICS = (tm.TOPIC_JOINT_STATES, tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_FORCE, tm.TOPIC_EXCITATION,
           tm.TOPIC_ENERGY_RATE_TOTAL, tm.TOPIC_ENERGY_TOTAL, tm.TOPIC_DIAGNOSTICS)
@@ -54,6 +56,7 @@ class LoopLog:
     | energy_rate | Series (k,) | W, energy_rate_total |
     | energy | Series (k,) | J, energy_total |
     | diagnostics | list of dict | muscle_node's /diagnostics values (key -> text), in order |
+    | validity | Validity | skipped model time, joint_states gaps (vm_ros.recording.validity) |
     """
 
     path: Path
@@ -70,6 +73,7 @@ class LoopLog:
     energy_rate: Series
     energy: Series
     diagnostics: list
+    validity: Validity
 
     @property
     def duration_s(self) -> float:
@@ -77,13 +81,12 @@ class LoopLog:
         return float(self.force.time_s[-1]) if len(self.force.time_s) else 0.0
 
     def joint_work_j(self) -> tuple[float, float]:
-        """(net, positive) work of the joint torques on the joints (J): sum of tau . qdot dt
-        over the joint_efforts samples (rectangle rule at the publish rate)."""
-        t = self.tau.time_s
-        if len(t) < 2:
-            return 0.0, 0.0
-        power = np.nansum(self.tau.values * self.effort_qdot.values, axis=1)[:-1] * np.diff(t)
-        return float(power.sum()), float(power[power > 0].sum())
+        """(net, positive) work of the joint torques on the joints (J): the sum over the
+        joint_efforts samples of vm_ros.recording.summary.joint_work_increments (published at
+        every model step here: the model-step sum of tau . qdot dt), the positive samples'."""
+        work = joint_work_increments(self.tau.time_s, self.tau.values,
+                                     self.effort_qdot.values).sum(axis=1)
+        return float(work.sum()), float(work[work > 0].sum())
 
 
 def _series(run, topic: str, field: str, t0_ns: int, columns=None) -> Series:
@@ -95,6 +98,14 @@ def _series(run, topic: str, field: str, t0_ns: int, columns=None) -> Series:
         index = [list(series.names).index(c) for c in columns]
         values = values[:, index]
     return Series((series.time_ns - t0_ns) * 1e-9, values)
+
+
+def node_diagnostics(run) -> list[dict]:
+    """muscle_node's /diagnostics values (key -> text) logged in ``run``, in order."""
+    series = run.get(tm.TOPIC_DIAGNOSTICS)
+    return [{kv.key: kv.value for kv in status.values}
+            for msg in ((series.messages or []) if series is not None else [])
+            for status in msg.status if status.hardware_id == "vm_ros"]
 
 
 def read_loop_log(path) -> LoopLog:
@@ -125,12 +136,13 @@ def read_loop_log(path) -> LoopLog:
                 :, geometry.coordinate_index(moving)]
             by_name = dict(zip(geometry.muscle_names, r, strict=True))
             sign = np.array([np.sign(by_name.get(m, 0.0)) for m in muscles])
-    diagnostics = []
-    series = run.get(tm.TOPIC_DIAGNOSTICS)
-    for msg in (series.messages or []) if series is not None else []:
-        for status in msg.status:
-            if status.hardware_id == "vm_ros":
-                diagnostics.append({kv.key: kv.value for kv in status.values})
+    diagnostics = node_diagnostics(run)
+    bound = (logged_node_parameters(run) or {}).get("extrapolation_max_s",
+                                                     DEFAULT_INPUT_BOUND_S)
+    validity = run_validity(
+        forces.time_ns, diagnostics_number(diagnostics[-1], "skipped model time (s)")
+        if diagnostics else float("nan"),
+        [(tm.TOPIC_JOINT_STATES, states.time_ns, states.fields.get("stamp_ns"))], float(bound))
     return LoopLog(
         Path(path), joints, rotational, q,
         _series(run, tm.TOPIC_JOINT_EFFORTS, "position", t0),
@@ -141,7 +153,7 @@ def read_loop_log(path) -> LoopLog:
         _series(run, tm.TOPIC_EXCITATION, "position", t0, muscles),
         _series(run, tm.TOPIC_ENERGY_RATE_TOTAL, "data", t0),
         _series(run, tm.TOPIC_ENERGY_TOTAL, "data", t0),
-        diagnostics)
+        diagnostics, validity)
 
 
 def diagnostics_number(diagnostics: dict, key: str) -> float:
@@ -177,8 +189,7 @@ def loop_numbers(log: LoopLog) -> dict:
                                           for d in running]))
                          if running else float("nan")),
         "step_rate_windows": len(running),
-        "skipped_s": diagnostics_number(log.diagnostics[-1], "skipped model time (s)")
-        if log.diagnostics else float("nan"),
+        "skipped_s": log.validity.skipped_s,
     }
 
 

@@ -1,0 +1,150 @@
+"""Whether the numbers of a real-time run are valid: the model ran on every step of its time, with
+inputs that kept up.
+
+A run of muscle_node in real time is not valid when
+
+- it skipped model time: it fell behind by more than max_catch_up_steps and jumped ahead (its
+  /diagnostics ``skipped model time (s)``; or a gap between two consecutive output stamps longer
+  than 1.5 publish periods, counted beyond one period, which catches a skip the last diagnostics
+  did not report yet); the state then jumps with no steps between, and the forces and torques
+  after the jump are not the model's response to the motion;
+- an input was applied off its own time by more than INPUT_JITTER_BOUND_S: muscle_node logs each
+  input at the model time of the first step that uses it (the model time when it arrived), so
+  its log time minus its header stamp is how far the model's input timeline sat from the
+  publisher's. A constant offset is harmless (it is the transport delay); the jitter is its
+  largest departure from the run's median. It grows when the node's ticks are late (a burst of
+  newer samples is applied at an old model time: the path length steps ahead at once) or the
+  publisher's are (the samples come late): a path-length step stretches the tendon within one
+  step and shows as a force spike, and a drive switch moved by a few ms moves the steep force
+  decay after it by hundreds of newtons. The bound, 20 ms, is two publish periods of the default
+  100 Hz: up to one is the node's own placement (it runs one publish period of steps per tick),
+  one is left for delivery;
+- an input arrived more than ``extrapolation_max_s`` after the previous one (muscle_node's
+  parameter, 0.05 s by default) while the model ran: for that long the node extrapolated the
+  last sample, then held it, so the model's input left the motion.
+
+Both are facts of the run log (output stamps on model time, inputs on their receipt time) or of
+the node's diagnostics, never of when a message reached a monitor. A run that is not valid ends
+its command with EXIT_NOT_VALID unless the caller accepts it (``vm-ros demo --accept-skips``),
+and its summary says so in either case. Offline runs (``vm-ros simulate``, ``recompute``,
+``closed-loop``) step every dt of model time by construction and have no arrival times: there is
+nothing to check.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+EXIT_NOT_VALID = 3  # exit status of a real-time command whose run is not valid
+GAP_PERIODS = 1.5  # an output gap longer than this many publish periods is skipped model time
+DEFAULT_INPUT_BOUND_S = 0.05  # muscle_node's default extrapolation_max_s
+INPUT_JITTER_BOUND_S = 0.02  # s, two default publish periods (module docstring)
+
+
+def skipped_from_stamps(stamps_ns) -> float:
+    """Model time (s) missing between consecutive output stamps: each gap longer than
+    GAP_PERIODS times the median gap counts beyond one median gap."""
+    stamps = np.asarray(stamps_ns, dtype=np.int64)
+    if len(stamps) < 3:
+        return 0.0
+    gaps = np.diff(stamps)
+    period = float(np.median(gaps))
+    late = gaps[gaps > GAP_PERIODS * period]
+    return float((late - period).sum() * 1e-9)
+
+
+@dataclass(frozen=True)
+class InputTiming:
+    """One input of a run while the model ran: its largest interval between two messages and
+    its jitter (module docstring), s; NaN when not known."""
+
+    topic: str
+    gap_s: float
+    jitter_s: float
+
+
+def input_timing(topic: str, log_ns, stamp_ns, start_ns: int, end_ns: int) -> InputTiming:
+    """InputTiming of the messages of ``topic`` logged (``log_ns``, the model time that applied
+    them) from ``start_ns`` to ``end_ns``, with header stamps ``stamp_ns`` (None or all zero:
+    jitter not known); the interval before the first and after the last count as gaps."""
+    log = np.asarray(log_ns, dtype=np.int64)
+    inside = (log >= start_ns) & (log <= end_ns)
+    if not inside.any():
+        return InputTiming(topic, float("nan"), float("nan"))
+    edges = np.concatenate([[start_ns], log[inside], [end_ns]])
+    gap = float(np.diff(edges).max() * 1e-9)
+    jitter = float("nan")
+    if stamp_ns is not None:
+        stamps = np.asarray(stamp_ns, dtype=np.int64)[inside]
+        if np.all(stamps > 0):
+            lag = (log[inside] - stamps) * 1e-9
+            jitter = float(np.abs(lag - np.median(lag)).max())
+    return InputTiming(topic, gap, jitter)
+
+
+@dataclass(frozen=True)
+class Validity:
+    """| field | unit |
+    | skipped_s | s, model time skipped (the larger of the node's count and the stamp gaps) |
+    | inputs | InputTiming per input checked (() when the run's inputs are not known) |
+    | gap_bound_s | s, bound on an input's gap (muscle_node's extrapolation_max_s) |
+    """
+
+    skipped_s: float
+    inputs: tuple = ()
+    gap_bound_s: float = DEFAULT_INPUT_BOUND_S
+
+    @property
+    def problems(self) -> list[str]:
+        found = []
+        if self.skipped_s > 0:
+            found.append(f"muscle_node skipped {self.skipped_s:.3g} s of model time")
+        for timing in self.inputs:
+            if timing.jitter_s > INPUT_JITTER_BOUND_S:
+                found.append(f"{timing.topic} applied up to {1e3 * timing.jitter_s:.0f} ms off "
+                             f"its time (bound {1e3 * INPUT_JITTER_BOUND_S:.0f} ms)")
+            if timing.gap_s > self.gap_bound_s:
+                found.append(f"{timing.topic} arrived {timing.gap_s:.3g} s apart (bound: "
+                             f"muscle_node's extrapolation_max_s, {self.gap_bound_s:g} s)")
+        return found
+
+    @property
+    def valid(self) -> bool:
+        return not self.problems
+
+    def lines(self, accepted: bool) -> list[str]:
+        """The summary's closing lines: what was checked, and a verdict when not valid."""
+        checked = [f"{t.topic} jitter {1e3 * t.jitter_s:.0f} ms (bound "
+                   f"{1e3 * INPUT_JITTER_BOUND_S:.0f}), largest gap {1e3 * t.gap_s:.0f} ms "
+                   f"(bound {1e3 * self.gap_bound_s:.0f})" for t in self.inputs]
+        lines = [f"validity: skipped model time {self.skipped_s:.3g} s; "
+                 + ("; ".join(checked) if checked else
+                    "input timing not checked (no log of the inputs: --no-mcap)")]
+        if not self.valid:
+            lines.append("NOT VALID: " + "; ".join(self.problems) + ". The numbers above are "
+                         "not the model's response to the intended inputs (CPU starved: rerun "
+                         "on an idle machine)"
+                         + ("; accepted (--accept-skips)" if accepted else
+                            f"; exit status {EXIT_NOT_VALID} (--accept-skips: 0)"))
+        return lines
+
+    def exit_status(self, accepted: bool) -> int:
+        return 0 if self.valid or accepted else EXIT_NOT_VALID
+
+
+def run_validity(stamps_ns, diagnostics_skipped_s: float, inputs=(),
+                 gap_bound_s: float = DEFAULT_INPUT_BOUND_S) -> Validity:
+    """Validity of a run from its output stamps (ns, model time), the node's own count of
+    skipped time (s; NaN when not known) and its inputs: (topic, log times ns, header stamps ns
+    or None) each, checked over the span of the outputs."""
+    stamps = np.asarray(stamps_ns, dtype=np.int64)
+    skipped = max(skipped_from_stamps(stamps), np.nan_to_num(diagnostics_skipped_s, nan=0.0))
+    timings = tuple(input_timing(topic, log, stamp, int(stamps[0]), int(stamps[-1]))
+                    for topic, log, stamp in inputs) if len(stamps) else ()
+    return Validity(float(skipped), timings, float(gap_bound_s))
+
+
+__all__ = ["DEFAULT_INPUT_BOUND_S", "EXIT_NOT_VALID", "INPUT_JITTER_BOUND_S", "InputTiming",
+           "Validity", "input_timing", "run_validity", "skipped_from_stamps"]
