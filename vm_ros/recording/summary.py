@@ -112,11 +112,18 @@ def summary_records(rows: list[MuscleSummary]) -> list[dict]:
     return records
 
 
+def name_width(names, minimum: int = 22) -> int:
+    """Width of a table's name column: ``minimum``, or the longest name and two spaces."""
+    return max([minimum, *(len(name) + 2 for name in names)])
+
+
 def summary_table(rows: list[MuscleSummary]) -> str:
-    """A fixed-width text table: one line per muscle and fibre type, then the totals."""
-    header = (f"{'muscle':<22}{'fibre':<6}{'peak F':>10}{'mean F':>10}{'E act':>11}{'E xb':>11}"
+    """A fixed-width text table: one line per muscle and fibre type, then the totals; the name
+    column as wide as the longest name (never cut)."""
+    w = name_width(row.name for row in rows)
+    header = (f"{'muscle':<{w}}{'fibre':<6}{'peak F':>10}{'mean F':>10}{'E act':>11}{'E xb':>11}"
               f"{'E rec':>11}{'E total':>11}{'W mech':>10}{'eff':>7}")
-    units = (f"{'':<22}{'':<6}{'(N)':>10}{'(N)':>10}{'(J)':>11}{'(J)':>11}{'(J)':>11}"
+    units = (f"{'':<{w}}{'':<6}{'(N)':>10}{'(N)':>10}{'(J)':>11}{'(J)':>11}{'(J)':>11}"
              f"{'(J)':>11}{'(J)':>10}{'(%)':>7}")
     lines = [header, units, "-" * len(header)]
     for row in rows:
@@ -127,14 +134,14 @@ def summary_table(rows: list[MuscleSummary]) -> str:
             energies = "".join(f"{row.energy[j, k]:>11.2f}" for k in range(4))
             tail = (f"{row.mechanical_work:>10.2f}{_efficiency_cell(row.efficiency, 7)}"
                     if whole else "")
-            lines.append(f"{name:<22}{fibre:<6}{force}{energies}{tail}")
+            lines.append(f"{name:<{w}}{fibre:<6}{force}{energies}{tail}")
     total = sum(row.energy for row in rows)
     work = sum(row.mechanical_work for row in rows)
     if len(rows) > 1:
         lines.append("-" * len(header))
         energies = "".join(f"{total[-1, k]:>11.2f}" for k in range(4))
         efficiency = net_efficiency(work, float(total[-1, -1]))
-        lines.append(f"{'all muscles':<22}{'all':<6}{'':>20}{energies}{work:>10.2f}"
+        lines.append(f"{'all muscles':<{w}}{'all':<6}{'':>20}{energies}{work:>10.2f}"
                      f"{_efficiency_cell(efficiency, 7)}")
     if any(row.mechanical_work <= 0 for row in rows) or (len(rows) > 1 and work <= 0):
         lines.append("eff n/a: net mechanical work not positive (isometric, or the muscle was "
@@ -191,14 +198,15 @@ def model_totals_table(rows: list[ModelTotals], names) -> str:
     """Fixed-width text: per model its energy over the run (J) for all muscles and each, and
     all muscles' relative to Tsianos 2012."""
     shown = list(names)[:4]  # wider tables wrap; the CSV has every muscle
+    c = name_width(shown, 13)  # muscle columns: whole names
     header = (f"{'energetics model':<20}{'E all':>11}{'vs Tsianos':>11}"
-              + "".join(f"{name[:12]:>13}" for name in shown))
-    units = f"{'':<20}{'(J)':>11}{'(x)':>11}" + "".join(f"{'(J)':>13}" for _ in shown)
+              + "".join(f"{name:>{c}}" for name in shown))
+    units = f"{'':<20}{'(J)':>11}{'(x)':>11}" + "".join(f"{'(J)':>{c}}" for _ in shown)
     lines = [header, units, "-" * len(header)]
     for row in rows:
         ratio = f"{row.relative:>11.3f}" if np.isfinite(row.relative) else f"{'n/a':>11}"
         lines.append(f"{row.model:<20}{row.total:>11.2f}{ratio}"
-                     + "".join(f"{row.energy[i]:>13.2f}" for i in range(len(shown))))
+                     + "".join(f"{row.energy[i]:>{c}.2f}" for i in range(len(shown))))
     if len(names) > len(shown):
         lines.append(f"(first {len(shown)} of {len(names)} muscles shown; model_totals.csv "
                      "has every muscle)")
@@ -274,12 +282,13 @@ def joint_summary_records(rows: list[JointSummary]) -> list[dict]:
 def joint_summary_table(rows: list[JointSummary], work_note: str = JOINT_WORK_STEPS) -> str:
     """Fixed-width text: per joint peak and mean generalized force, joint work, clamping; then
     ``work_note``, how the joint work was obtained."""
-    header = (f"{'joint':<22}{'peak tau':>12}{'mean tau':>12}{'unit':>6}{'W joint':>11}"
+    w = name_width(row.name for row in rows)
+    header = (f"{'joint':<{w}}{'peak tau':>12}{'mean tau':>12}{'unit':>6}{'W joint':>11}"
               f"{'clamped':>11}")
-    units = f"{'':<22}{'':>12}{'':>12}{'':>6}{'(J)':>11}{'(samples)':>11}"
+    units = f"{'':<{w}}{'':>12}{'':>12}{'':>6}{'(J)':>11}{'(samples)':>11}"
     lines = [header, units, "-" * len(header)]
     for row in rows:
         clamped = "-" if row.clamped is None else str(row.clamped)
-        lines.append(f"{row.name:<22}{row.peak_effort:>12.3f}{row.mean_effort:>12.3f}"
+        lines.append(f"{row.name:<{w}}{row.peak_effort:>12.3f}{row.mean_effort:>12.3f}"
                      f"{EFFORT_UNITS.get(row.unit, '?'):>6}{row.work:>11.3f}{clamped:>11}")
     return "\n".join([*lines, work_note])
