@@ -17,7 +17,8 @@ What is what:
 - coupling: MuJoCo's joint equality holds q1 - q1_ref = a0 + a1 x + a2 x^2 + a3 x^3 + a4 x^4 with
   x = q2 - q2_ref (q_ref: the model's qpos0; obj1 the dependent joint, obj2 the driver; no obj2:
   q1 fixed at q1_ref + a0). Every evaluation sets the dependent joints from it, so
-  dL/dq_indep = J_indep + J_dep * dq_dep/dq_indep (chains of dependent joints resolved in order).
+  dL/dq_indep = J_indep + J_dep * dq_dep/dq_indep (chains of dependent joints resolved in order;
+  a chain that starts at a fixed-value equality is set from it, constant).
 - boxes: the joint range where the joint is limited; an unlimited hinge gets [-pi, pi]; an
   unlimited slide joint crossed by a muscle is an error (no natural box: give it a range).
 - every other joint (free and ball joints, joints no muscle crosses) stays at the model's qpos0.
@@ -350,12 +351,13 @@ class MujocoGeometry(JointGeometry):
         position = {int(j): i for i, j in enumerate(self.joint_ids)}
         self.crossed = {n: tuple(names[position[j]] for j in sorted(c))
                         for n, c in zip(self.muscle_names, crossed_joints, strict=True)}
-        # dependent joints driven (through chains) by a coordinate, in evaluation order
-        self._dependents = [c for c in self.couplings if root(c.joint) in position
-                            or c.driver < 0]
+        # dependent joints driven (through chains) by a coordinate or held by a fixed-value
+        # equality (root -1), in evaluation order
+        self._dependents = [c for c in self.couplings
+                            if root(c.joint) in position or root(c.joint) < 0]
         self.coupled = tuple(
             CoupledCoordinate(_name(m, mujoco.mjtObj.mjOBJ_JOINT, c.joint),
-                              (names[position[root(c.joint)]],) if c.driver >= 0 else (),
+                              (names[position[root(c.joint)]],) if root(c.joint) >= 0 else (),
                               self._coupling_note(c))
             for c in self._dependents)
         self._qadr = m.jnt_qposadr[self.joint_ids]
