@@ -132,6 +132,26 @@ def test_coupled_coordinate_is_not_an_input(imported):
     assert "CoordinateCouplerConstraint" in coupled.note
 
 
+def test_coupling_function_is_stored_over_the_drivers_box(imported):
+    """patella_angle = 0.02 q^2 + 0.55 q (osim_models.PATELLA_COUPLING), at 201 points over
+    the knee's box, read back from the written file."""
+    from osim_models import PATELLA_COUPLING
+
+    from vm_ros.geometry.file import load_geometry
+
+    geometry = load_geometry(imported["knee"].written["geometry"])
+    (coupled,) = geometry.coupled
+    (knee,) = geometry.coordinates
+    assert coupled.unit == "rad" and len(coupled.follows_values) == 201
+    assert (coupled.follows_values[0], coupled.follows_values[-1]) == (knee.lower, knee.upper)
+    q = np.array(coupled.follows_values)
+    np.testing.assert_allclose(coupled.values, np.polyval(PATELLA_COUPLING, q), rtol=0,
+                               atol=1e-12)
+    between = (q[:-1] + q[1:]) / 2   # linear in between: within h^2/8 * 0.04 of the quadratic
+    assert np.abs(coupled.value(between) - np.polyval(PATELLA_COUPLING, between)).max() \
+        <= (q[1] - q[0]) ** 2 / 8 * 0.04 * 1.001
+
+
 def test_jumping_path_is_flagged(imported):
     geometry = imported["knee"].geometry
     fit = geometry.muscles[geometry.muscle_names.index("cond")].fit
