@@ -220,6 +220,26 @@ def test_fit_of_a_smooth_nonpolynomial_path_meets_the_issue_tolerances():
     assert path.fit.moment_arm_rms_m <= 1e-3
 
 
+def knee_tx_table():
+    """A coupling table over knee_angle's box: knee_tx = 0.004 sin(knee_angle) m."""
+    knee = np.linspace(-2.0, 0.1, 201)
+    return tuple(knee), tuple(0.004 * np.sin(knee))
+
+
+def test_coupling_table_is_linear_between_its_points_and_nan_outside():
+    knee, tx = knee_tx_table()
+    coupled = CoupledCoordinate("knee_tx", ("knee_angle",), "", "m", knee, tx)
+    assert coupled.has_function
+    assert not CoupledCoordinate("patella_angle", ("knee_angle",)).has_function
+    np.testing.assert_array_equal(coupled.value(knee), tx)
+    middle = (knee[10] + knee[11]) / 2
+    assert coupled.value(middle) == pytest.approx((tx[10] + tx[11]) / 2, rel=1e-12)
+    # linear interpolation of 0.004 sin at a 0.0105 rad spacing: within h^2/8 * 0.004
+    q = np.linspace(-2.0, 0.1, 999)
+    assert np.abs(coupled.value(q) - 0.004 * np.sin(q)).max() <= 0.0105 ** 2 / 8 * 0.004
+    assert np.isnan(coupled.value([-2.01, 0.11])).all()
+
+
 def with_fit_reports(geometry: PolynomialGeometry) -> PolynomialGeometry:
     muscles = [MusclePath(m.name, m.coordinates, m.offset, m.scale, m.exponents, m.coefficients,
                           FitReport(1e-6 * i, 2e-6, 3e-5, 1e-4, 100, 50,
@@ -227,7 +247,9 @@ def with_fit_reports(geometry: PolynomialGeometry) -> PolynomialGeometry:
                for i, m in enumerate(geometry.muscles)]
     return PolynomialGeometry(
         geometry.coordinates, muscles,
-        coupled=[CoupledCoordinate("patella_angle", ("knee_angle",), "coupler: spline")],
+        coupled=[CoupledCoordinate("patella_angle", ("knee_angle",), "coupler: spline"),
+                 CoupledCoordinate("knee_tx", ("knee_angle",), "coupler: table", "m",
+                                   *knee_tx_table())],
         source={"model": "test", "sha256": "00ff"}, options={"degree": 6, "samples": 1000})
 
 
@@ -266,6 +288,21 @@ def test_geometry_file_round_trips_exactly(tmp_path):
     (lambda d: d.update(source=[1, 2]), "source"),
     (lambda d: d.update(coupled_coordinates=[{"name": "knee_angle", "follows": []}]), "muscles"),
     (lambda d: d.update(coupled_coordinates=[{"name": "p", "follows": ["nope"]}]), "muscles"),
+    (lambda d: d.update(coupled_coordinates=[
+        {"name": "p", "follows": ["knee_angle"], "unit": "rad", "follows_values": [0.0, 1.0],
+         "values": [0.0]}]), "coupled_coordinates[0]"),
+    (lambda d: d.update(coupled_coordinates=[
+        {"name": "p", "follows": ["knee_angle"], "unit": "rad", "follows_values": [1.0, 0.0],
+         "values": [0.0, 1.0]}]), "coupled_coordinates[0]"),
+    (lambda d: d.update(coupled_coordinates=[
+        {"name": "p", "follows": ["knee_angle"], "unit": "deg", "follows_values": [0.0, 1.0],
+         "values": [0.0, 1.0]}]), "coupled_coordinates[0]"),
+    (lambda d: d.update(coupled_coordinates=[
+        {"name": "p", "follows": ["knee_angle", "hip_flexion"], "unit": "rad",
+         "follows_values": [0.0, 1.0], "values": [0.0, 1.0]}]), "coupled_coordinates[0]"),
+    (lambda d: d.update(coupled_coordinates=[
+        {"name": "p", "follows": ["knee_angle"], "values": [0.0, 1.0]}]),
+     "coupled_coordinates[0]"),
 ])
 def test_bad_geometry_files_name_the_field(mutate, field):
     import yaml

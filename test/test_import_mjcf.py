@@ -128,6 +128,13 @@ def test_coupled_model_flags_and_user_library(coupled_path, tmp_path, capsys):
     geometry = load_geometry(out / "geometry.yaml")
     assert geometry.coordinate_names == ("flex", "wrist")
     assert [(c.name, c.follows) for c in geometry.coupled] == [("follow", ("flex",))]
+    # the coupling written with it: follow = 0.01 + sum a_k (flex - 0.2)^k (refs, polycoef)
+    (follow,) = geometry.coupled
+    flex = np.array(follow.follows_values)
+    assert follow.unit == "m" and (flex[0], flex[-1], len(flex)) == (-1.0, 1.8, 201)
+    expected = 0.01 + np.polynomial.polynomial.polyval(flex - 0.2,
+                                                       [0.004, 0.02, -0.01, 0.003, 0.0005])
+    np.testing.assert_allclose(follow.values, expected, rtol=0, atol=1e-15)
     # m_b crosses flex only through the coupled slide joint: smooth, fitted to MuJoCo closely;
     # m_a (wrapping onset) and m_c (an unlimited hinge, full turn) as well as their reports say
     exact = MujocoGeometry(coupled_path)

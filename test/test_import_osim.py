@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import io
 import math
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -130,6 +131,64 @@ def test_coupled_coordinate_is_not_an_input(imported):
     (coupled,) = geometry.coupled
     assert coupled.name == "patella_angle" and coupled.follows == ("knee_angle",)
     assert "CoordinateCouplerConstraint" in coupled.note
+
+
+def test_coupling_function_is_stored_over_the_drivers_box(imported):
+    """patella_angle = 0.02 q^2 + 0.55 q (osim_models.PATELLA_COUPLING), at 201 points over
+    the knee's box, read back from the written file."""
+    from osim_models import PATELLA_COUPLING
+
+    from vm_ros.geometry.file import load_geometry
+
+    geometry = load_geometry(imported["knee"].written["geometry"])
+    (coupled,) = geometry.coupled
+    (knee,) = geometry.coordinates
+    assert coupled.unit == "rad" and len(coupled.follows_values) == 201
+    assert (coupled.follows_values[0], coupled.follows_values[-1]) == (knee.lower, knee.upper)
+    q = np.array(coupled.follows_values)
+    np.testing.assert_allclose(coupled.values, np.polyval(PATELLA_COUPLING, q), rtol=0,
+                               atol=1e-12)
+    between = (q[:-1] + q[1:]) / 2   # linear in between: within h^2/8 * 0.04 of the quadratic
+    assert np.abs(coupled.value(between) - np.polyval(PATELLA_COUPLING, between)).max() \
+        <= (q[1] - q[0]) ** 2 / 8 * 0.04 * 1.001
+
+
+def test_simulate_checks_a_patella_column_against_the_coupling(imported, tmp_path):
+    """A motion whose patella column is the coupler's function of its knee column: no warning,
+    the note that the column is not an input; the same with the patella 2 deg off in one frame:
+    the warning, and with --strict exit 2 with that one line."""
+    from osim_models import PATELLA_COUPLING
+
+    written = imported["knee"].written
+    t = np.linspace(0.0, 0.2, 11)
+    knee = np.linspace(-1.5, -0.2, 11)
+    patella = np.degrees(np.polyval(PATELLA_COUPLING, knee))
+    header = "knee\nversion=1\ninDegrees=yes\nendheader\ntime\tknee_angle\tpatella_angle\n"
+    good, bad = tmp_path / "good.mot", tmp_path / "bad.mot"
+    for path, column in ((good, patella), (bad, patella + np.where(np.arange(11) == 4, 2, 0))):
+        rows = np.column_stack([t, np.degrees(knee), column])
+        path.write_text(header + "".join("\t".join(repr(float(v)) for v in row) + "\n"
+                                         for row in rows))
+    common = ["simulate", "--geometry", str(written["geometry"]), "--library",
+              str(written["library"]), "--muscles", "vas_pat,flex", "--telemetry-rate", "0"]
+    ok = subprocess.run([VM_ROS, *common, "--motion", str(good), "--strict", "--out",
+                         str(tmp_path / "good.mcap")], capture_output=True, text=True,
+                        timeout=120)
+    assert ok.returncode == 0 and "warning" not in ok.stderr, ok.stderr
+    assert (f"motion {good}: column patella_angle is a dependent coordinate of the geometry (it "
+            "follows knee_angle): not an input, its values are not used (it agrees with the "
+            "coupling within 1 deg)") in ok.stdout
+    strict = subprocess.run([VM_ROS, *common, "--motion", str(bad), "--strict", "--out",
+                             str(tmp_path / "bad.mcap")], capture_output=True, text=True,
+                            timeout=120)
+    assert strict.returncode == 2 and len(strict.stderr.strip().splitlines()) == 1, strict.stderr
+    found = re.search(f"motion {re.escape(str(bad))}: column patella_angle disagrees with the "
+                      r"geometry's coupling to knee_angle by up to (\S+) deg \(more than 1 deg\): "
+                      r"at 0.08 s it has (\S+) deg, the coupling (\S+) deg", strict.stderr)
+    assert found, strict.stderr
+    # the table is linear between its points: within 5.5e-7 rad (3.2e-5 deg) of the quadratic
+    expected = (2.0, patella[4] + 2.0, patella[4])
+    np.testing.assert_allclose([float(v) for v in found.groups()], expected, rtol=0, atol=1e-4)
 
 
 def test_jumping_path_is_flagged(imported):

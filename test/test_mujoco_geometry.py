@@ -167,6 +167,55 @@ def test_coupled_model_follows_the_equality(coupled_path):
     check_against_mujoco(g, n_poses=8)
 
 
+FOLLOW_POLYCOEF = (0.004, 0.02, -0.01, 0.003, 0.0005)   # COUPLED_MJCF's equality, a0..a4
+
+
+def test_coupling_table_is_the_equality_polynomial(coupled_path, legs):
+    """follow = 0.01 + sum a_k (flex - 0.2)^k (refs 0.01 m and 0.2 rad), at 201 points over
+    flex's box; myolegs' knee couplings against mujoco_pose's evaluation of eq_data."""
+    (follow,) = MujocoGeometry(coupled_path).coupled
+    assert follow.unit == "m" and len(follow.follows_values) == 201
+    flex = np.array(follow.follows_values)
+    assert (flex[0], flex[-1]) == (-1.0, 1.8)
+    expected = 0.01 + sum(a * (flex - 0.2) ** k for k, a in enumerate(FOLLOW_POLYCOEF))
+    np.testing.assert_allclose(follow.values, expected, rtol=0, atol=1e-15)
+    knee = legs.coordinate_index("knee_angle_r")
+    model = legs.model
+    for c in legs.coupled:
+        if c.follows != ("knee_angle_r",):
+            continue
+        assert c.unit == ("rad" if "rotation" in c.name else "m"), c.name
+        adr = model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, c.name)]
+        for i in (0, 77, 200):
+            q = (legs.lower + legs.upper) / 2
+            q[knee] = c.follows_values[i]
+            assert c.values[i] == pytest.approx(mujoco_pose(model, legs, q)[0][adr], abs=1e-15)
+
+
+def test_a_joint_driven_by_a_fixed_joint_is_set_from_its_polynomial(tmp_path):
+    """flex fixed at qpos0 + 0.1 by a driverless equality, follow driven by flex: follow sits at
+    0.01 + p(0.1), not at qpos0, and t_b's length is MuJoCo's at that pose."""
+    path = tmp_path / "fixed_driver.xml"
+    path.write_text(COUPLED_MJCF.replace(
+        "</equality>", '<joint joint1="flex" polycoef="0.1 0 0 0 0"/></equality>'))
+    g = MujocoGeometry(path)
+    assert g.coordinate_names == ("wrist",)
+    assert {c.name: c.follows for c in g.coupled} == {"flex": (), "follow": ()}
+    model, data = g.model, mujoco.MjData(g.model)
+    follow = 0.01 + sum(a * 0.1 ** k for k, a in enumerate(FOLLOW_POLYCOEF))
+    for wrist in (-1.0, 0.5):
+        data.qpos[:] = [0.3, follow, wrist]
+        mujoco.mj_fwdPosition(model, data)
+        out = g.evaluate([wrist])
+        np.testing.assert_allclose(out.length_m, data.ten_length[g.tendon_ids], rtol=0,
+                                   atol=1e-12)
+        assert g.data.qpos[1] == pytest.approx(follow, abs=1e-15)
+    # follow left at qpos0 (0.01 m) would put t_b more than 1 mm off
+    data.qpos[:] = [0.3, 0.01, 0.5]
+    mujoco.mj_fwdPosition(model, data)
+    assert abs(data.ten_length[g.tendon_ids[1]] - out.length_m[1]) > 1e-3
+
+
 def test_legs_knee_couplings(legs):
     names = legs.coordinate_names
     assert "knee_angle_r" in names and "knee_angle_translation2_r" not in names

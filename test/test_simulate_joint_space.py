@@ -402,3 +402,33 @@ def test_a_column_for_a_dependent_coordinate_is_named_as_not_used(tmp_path):
                     "--telemetry-rate", "0", "--out", str(tmp_path / "m.mcap")])
     assert (f"motion {motion}: column patella_angle is a dependent coordinate of the geometry "
             "(it follows knee_angle): not an input, its values are not used") in printed
+
+
+def test_a_dependent_column_that_disagrees_with_the_coupling_warns(tmp_path):
+    """patella_angle = knee_angle / 2 (a table over the knee's box); a radians motion whose
+    patella column is 0.05 rad off at t = 0.1 s: one input warning in rad, repeated after the
+    summary; the column still is not an input (the run's joint_states hold the knee only)."""
+    geometry = make_geometry()
+    knee = np.linspace(*BOX["knee_angle"], 201)
+    coupled = PolynomialGeometry(geometry.coordinates, geometry.muscles, [CoupledCoordinate(
+        "patella_angle", ("knee_angle",), "half the knee", "rad", tuple(knee),
+        tuple(knee / 2))], backend="numpy")
+    geometry_file = write_geometry(coupled, tmp_path / "coupled.yaml")
+    t = np.linspace(0.0, 0.2, 5)
+    knee_motion = 0.2 + 4.0 * t
+    motion = write_motion(tmp_path / "m.mot", t, {
+        "hip_flexion": 0 * t, "knee_angle": knee_motion,
+        "patella_angle": knee_motion / 2 + np.where(t == 0.1, 0.05, 0.0)}, in_degrees=False)
+    out = tmp_path / "m.mcap"
+    proc = _simulate(["--motion", str(motion), "--geometry", str(geometry_file),
+                      "--telemetry-rate", "0", "--out", str(out)])
+    assert proc.returncode == 0, proc.stderr
+    warning = (f"motion {motion}: column patella_angle disagrees with the geometry's coupling to "
+               "knee_angle by up to 0.05 rad (more than 0.0174533 rad): at 0.1 s it has 0.35 "
+               "rad, the coupling 0.3 rad; the column is not used, the paths follow the "
+               "coupling")
+    assert f"vm-ros simulate: warning: {warning}" in proc.stderr
+    tail = proc.stdout.strip().splitlines()
+    assert tail[-2].startswith("1 input warning(s)") and warning in tail[-1], proc.stdout
+    assert "is a dependent coordinate" not in proc.stdout
+    assert read_run(out).get("joint_states").names == ("hip_flexion", "knee_angle")

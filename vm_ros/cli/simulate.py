@@ -93,7 +93,7 @@ from vm_ros.node.motion_inputs import (
     JointMotion,
     MotionInputs,
     box_warnings,
-    coupled_column_notes,
+    coupled_columns,
     parse_hold,
 )
 from vm_ros.node.params import NodeConfig
@@ -331,6 +331,8 @@ def _motion_source(args) -> _Source:
     rotational = {c.name for c in geometry.coordinates if c.unit == "rad"}
     warnings = motion.unit_warnings(rotational & set(joint_motion.coordinates))
     warnings += box_warnings(joint_motion, geometry, motion.in_degrees)
+    coupler_warnings, coupled_notes = coupled_columns(motion, geometry)
+    warnings += coupler_warnings
     excitations = (load_excitations(args.excitations, muscles) if args.excitations else
                    constant_excitation(muscles, 0.0 if args.excitation is None
                                        else args.excitation))
@@ -363,7 +365,7 @@ def _motion_source(args) -> _Source:
             more = f" (+{len(excitations.ignored) - 5} more)" if len(excitations.ignored) > 5 \
                 else ""
             lines.append(f"excitations {excitations.source}: columns not used: {shown}{more}")
-        return lines + coupled_column_notes(motion, geometry)
+        return lines + coupled_notes
 
     config = RunConfig(muscles, geometry=args.geometry, joint_map=text, joints=joints)
     extra = {"motion_file": str(args.motion), "excitations": excitations.source,

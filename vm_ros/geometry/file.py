@@ -9,7 +9,8 @@ Format ``vm_ros.geometry``, version 1 (documented in docs/geometry.md)::
     coordinates:                                   # the independent inputs, in this order
       - {name: knee_angle_r, unit: rad, lower: -2.0944, upper: 0.1745}
     coupled_coordinates:                           # dependent coordinates: not inputs
-      - {name: patella_angle, follows: [knee_angle_r], note: CoordinateCouplerConstraint ...}
+      - {name: patella_angle, follows: [knee_angle_r], note: CoordinateCouplerConstraint ...,
+         unit: rad, follows_values: [...], values: [...]}   # coupling table (optional)
     muscles:
       - name: vasti_r
         coordinates: [knee_angle_r]
@@ -76,8 +77,7 @@ def geometry_to_dict(geometry: PolynomialGeometry) -> dict:
         "source": plain_data(geometry.source), "options": plain_data(geometry.options),
         "coordinates": [{"name": c.name, "unit": c.unit, "lower": float(c.lower),
                          "upper": float(c.upper)} for c in geometry.coordinates],
-        "coupled_coordinates": [{"name": c.name, "follows": list(c.follows), "note": c.note}
-                                for c in geometry.coupled],
+        "coupled_coordinates": [_coupled_entry(c) for c in geometry.coupled],
         "muscles": muscles,
     }
 
@@ -127,9 +127,8 @@ def geometry_from_dict(data, path="<geometry>", backend: str = "auto") -> Polyno
     coordinates = [_item(path, f"coordinates[{i}]", lambda e: Coordinate(
         str(e["name"]), str(e["unit"]), float(e["lower"]), float(e["upper"])), entry)
         for i, entry in enumerate(_list(path, data, "coordinates"))]
-    coupled = [_item(path, f"coupled_coordinates[{i}]", lambda e: CoupledCoordinate(
-        str(e["name"]), tuple(str(n) for n in e.get("follows", ())), str(e.get("note", ""))),
-        entry) for i, entry in enumerate(data.get("coupled_coordinates") or [])]
+    coupled = [_item(path, f"coupled_coordinates[{i}]", _coupled, entry)
+               for i, entry in enumerate(data.get("coupled_coordinates") or [])]
     muscles = [_item(path, f"muscles[{i}]", _muscle, entry)
                for i, entry in enumerate(_list(path, data, "muscles"))]
     if not muscles:
@@ -147,6 +146,24 @@ def geometry_from_dict(data, path="<geometry>", backend: str = "auto") -> Polyno
         i, reason = problem
         raise ConfigError(path, f"muscles[{i}]", geometry.muscle_names[i], reason)
     return geometry
+
+
+_COUPLING_KEYS = ("unit", "follows_values", "values")   # the coupling table, when stored
+
+
+def _coupled_entry(c: CoupledCoordinate) -> dict:
+    entry = {"name": c.name, "follows": list(c.follows), "note": c.note}
+    if c.has_function:
+        entry.update({k: plain_data(getattr(c, k)) for k in _COUPLING_KEYS})
+    return entry
+
+
+def _coupled(entry: dict) -> CoupledCoordinate:
+    table = {k: entry.get(k) for k in _COUPLING_KEYS}
+    if table["unit"] is not None:
+        table["unit"] = str(table["unit"])
+    return CoupledCoordinate(str(entry["name"]), tuple(str(n) for n in entry.get("follows", ())),
+                             str(entry.get("note", "")), **table)
 
 
 def _muscle(entry: dict) -> MusclePath:

@@ -17,7 +17,10 @@ What is what:
 - coupling: MuJoCo's joint equality holds q1 - q1_ref = a0 + a1 x + a2 x^2 + a3 x^3 + a4 x^4 with
   x = q2 - q2_ref (q_ref: the model's qpos0; obj1 the dependent joint, obj2 the driver; no obj2:
   q1 fixed at q1_ref + a0). Every evaluation sets the dependent joints from it, so
-  dL/dq_indep = J_indep + J_dep * dq_dep/dq_indep (chains of dependent joints resolved in order).
+  dL/dq_indep = J_indep + J_dep * dq_dep/dq_indep (chains of dependent joints resolved in order;
+  a chain that starts at a fixed-value equality is set from it, constant). Each
+  ``CoupledCoordinate`` a coordinate drives holds its value over that coordinate's box
+  (COUPLING_POINTS points).
 - boxes: the joint range where the joint is limited; an unlimited hinge gets [-pi, pi]; an
   unlimited slide joint crossed by a muscle is an error (no natural box: give it a range).
 - every other joint (free and ball joints, joints no muscle crosses) stays at the model's qpos0.
@@ -40,6 +43,7 @@ import numpy as np
 
 from vm_ros.errors import VmRosError
 from vm_ros.geometry.paths import (
+    COUPLING_POINTS,
     Coordinate,
     CoupledCoordinate,
     GeometryOutput,
@@ -350,14 +354,10 @@ class MujocoGeometry(JointGeometry):
         position = {int(j): i for i, j in enumerate(self.joint_ids)}
         self.crossed = {n: tuple(names[position[j]] for j in sorted(c))
                         for n, c in zip(self.muscle_names, crossed_joints, strict=True)}
-        # dependent joints driven (through chains) by a coordinate, in evaluation order
-        self._dependents = [c for c in self.couplings if root(c.joint) in position
-                            or c.driver < 0]
-        self.coupled = tuple(
-            CoupledCoordinate(_name(m, mujoco.mjtObj.mjOBJ_JOINT, c.joint),
-                              (names[position[root(c.joint)]],) if c.driver >= 0 else (),
-                              self._coupling_note(c))
-            for c in self._dependents)
+        # dependent joints driven (through chains) by a coordinate or held by a fixed-value
+        # equality (root -1), in evaluation order
+        self._dependents = [c for c in self.couplings
+                            if root(c.joint) in position or root(c.joint) < 0]
         self._qadr = m.jnt_qposadr[self.joint_ids]
         self._dofadr = m.jnt_dofadr[self.joint_ids]
         self._dep_qadr = np.array([m.jnt_qposadr[c.joint] for c in self._dependents], np.int64)
@@ -365,6 +365,29 @@ class MujocoGeometry(JointGeometry):
         self._position = position
         self.tendons = MuscleTendons(m, self.tendon_ids)
         self._lower, self._upper = self.lower, self.upper
+        self.coupled = self._coupled_coordinates(root)
+
+    def _coupled_coordinates(self, root) -> tuple[CoupledCoordinate, ...]:
+        """One per dependent joint; for one a coordinate drives, its value over that
+        coordinate's box (COUPLING_POINTS points; the polynomials composed along a chain)."""
+        m = self.model
+        grid = np.linspace(self._lower, self._upper, COUPLING_POINTS)  # (points, n_q)
+        table = np.empty((len(grid), len(self._dependents)))
+        for i, q in enumerate(grid):
+            self.set_pose(q)
+            table[i] = self.data.qpos[self._dep_qadr]
+        out = []
+        for k, c in enumerate(self._dependents):
+            name = _name(m, mujoco.mjtObj.mjOBJ_JOINT, c.joint)
+            if root(c.joint) < 0:
+                out.append(CoupledCoordinate(name, (), self._coupling_note(c)))
+                continue
+            j = self._position[root(c.joint)]
+            hinge = m.jnt_type[c.joint] == mujoco.mjtJoint.mjJNT_HINGE
+            out.append(CoupledCoordinate(name, (self.coordinate_names[j],),
+                                         self._coupling_note(c), "rad" if hinge else "m",
+                                         tuple(grid[:, j]), tuple(table[:, k])))
+        return tuple(out)
 
     def _coordinate(self, joint: int) -> Coordinate:
         m = self.model

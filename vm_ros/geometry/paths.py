@@ -47,16 +47,58 @@ class Coordinate:
                              "is not a finite interval")
 
 
+COUPLING_POINTS = 201   # samples of a coupling function over its driver's box (importers)
+
+
 @dataclass(frozen=True)
 class CoupledCoordinate:
     """A dependent coordinate of the source model (OpenSim coordinate coupler, MuJoCo joint
     equality): not an input. Its effect on every path is inside the fitted polynomials, which
     are functions of the independent coordinates only. ``follows`` names them; ``note`` says how
-    the source model couples them."""
+    the source model couples them.
+
+    The coupling function, when the importer could store it (one driver): ``values`` (in
+    ``unit``, rad or m) at ``follows_values`` (increasing, the driver's unit, over its box),
+    linear in between (``value``); all three None when it is not stored."""
 
     name: str
     follows: tuple[str, ...]
     note: str = ""
+    unit: str | None = None
+    follows_values: tuple[float, ...] | None = None
+    values: tuple[float, ...] | None = None
+
+    def __post_init__(self):
+        table = (self.unit, self.follows_values, self.values)
+        if all(v is None for v in table):
+            return
+        x = np.asarray(self.follows_values if self.follows_values is not None else [], float)
+        y = np.asarray(self.values if self.values is not None else [], float)
+        if self.unit not in UNITS:
+            raise ValueError(f"coupled coordinate {self.name!r}: unit {self.unit!r} is not one "
+                             f"of {', '.join(UNITS)}")
+        if len(self.follows) != 1:
+            raise ValueError(f"coupled coordinate {self.name!r}: a coupling table needs one "
+                             f"driver, it follows {len(self.follows)}")
+        if not (x.ndim == 1 and x.shape == y.shape and len(x) >= 2 and np.all(np.isfinite(x))
+                and np.all(np.isfinite(y)) and np.all(np.diff(x) > 0)):
+            raise ValueError(f"coupled coordinate {self.name!r}: follows_values and values must "
+                             "be equally long lists (at least 2) of finite numbers, "
+                             "follows_values increasing")
+        object.__setattr__(self, "follows_values", tuple(float(v) for v in x))
+        object.__setattr__(self, "values", tuple(float(v) for v in y))
+
+    @property
+    def has_function(self) -> bool:
+        return self.values is not None
+
+    def value(self, driver) -> np.ndarray:
+        """The coupling function at driver values (the driver's unit): linear between the
+        table's points, NaN outside its range (the driver's box)."""
+        driver = np.asarray(driver, dtype=float)
+        x = self.follows_values
+        inside = (driver >= x[0]) & (driver <= x[-1])
+        return np.where(inside, np.interp(driver, x, self.values), np.nan)
 
 
 @dataclass(frozen=True)
@@ -265,5 +307,6 @@ class PolynomialGeometry(JointGeometry):
                               clamped)
 
 
-__all__ = ["Coordinate", "CoupledCoordinate", "FitReport", "GeometryOutput", "JointGeometry",
-           "MusclePath", "PolynomialGeometry", "UNITS", "clamp_to_box", "generalized_forces"]
+__all__ = ["COUPLING_POINTS", "Coordinate", "CoupledCoordinate", "FitReport", "GeometryOutput",
+           "JointGeometry", "MusclePath", "PolynomialGeometry", "UNITS", "clamp_to_box",
+           "generalized_forces"]

@@ -43,7 +43,13 @@ import numpy as np
 from vm_ros.errors import VmRosError
 from vm_ros.geometry.file import content_hash
 from vm_ros.geometry.fit import errors, evaluate_path, fit_path
-from vm_ros.geometry.paths import Coordinate, CoupledCoordinate, FitReport, PolynomialGeometry
+from vm_ros.geometry.paths import (
+    COUPLING_POINTS,
+    Coordinate,
+    CoupledCoordinate,
+    FitReport,
+    PolynomialGeometry,
+)
 from vm_ros.importers.common import (
     LENGTH_WARNING_M,
     FitOptions,
@@ -227,13 +233,32 @@ class OsimPaths:
             pending = [c for c in pending if c not in ready]
         self.couplers = ordered
 
-    def coupled_coordinates(self) -> list[CoupledCoordinate]:
-        return [CoupledCoordinate(
-            c.dependent.getName(), tuple(a.getName() for a in c.independent),
-            f"OpenSim CoordinateCouplerConstraint {c.name}: {c.dependent.getName()} = "
-            f"{c.scale:g} * {c.function.getConcreteClassName()}"
-            f"({', '.join(a.getName() for a in c.independent)}); set from the coupling at every "
-            "sample, so the fitted paths include its effect") for c in self.couplers]
+    def coupled_coordinates(self, coordinates=()) -> list[CoupledCoordinate]:
+        """The couplers' dependents; for one whose single argument is among ``coordinates``
+        (the geometry's, with their boxes) the coupling function sampled at COUPLING_POINTS
+        points over that box, through OpenSim's function."""
+        boxes = {c.name: c for c in coordinates}
+        out = []
+        for c in self.couplers:
+            follows = tuple(a.getName() for a in c.independent)
+            table = {}
+            if len(follows) == 1 and follows[0] in boxes:
+                box = boxes[follows[0]]
+                grid = np.linspace(box.lower, box.upper, COUPLING_POINTS)
+                table = {"unit": self._unit(c.dependent), "follows_values": tuple(grid),
+                         "values": tuple(self._coupled_value(c, [x]) for x in grid)}
+            out.append(CoupledCoordinate(
+                c.dependent.getName(), follows,
+                f"OpenSim CoordinateCouplerConstraint {c.name}: {c.dependent.getName()} = "
+                f"{c.scale:g} * {c.function.getConcreteClassName()}({', '.join(follows)}); set "
+                "from the coupling at every sample, so the fitted paths include its effect",
+                **table))
+        return out
+
+    def _coupled_value(self, coupler: _Coupler, args) -> float:
+        """The dependent's value (rad or m) at its arguments' values: scale * f(args)."""
+        return coupler.scale * coupler.function.calcValue(self.osim.Vector(
+            [float(a) for a in args]))
 
     def lengths(self, columns, q) -> np.ndarray:
         """Path lengths (n_muscles,) with independent coordinates ``columns`` (indices into
@@ -242,8 +267,8 @@ class OsimPaths:
         for j, value in zip(columns, q, strict=True):
             self.independent[j].setValue(state, float(value), False)
         for c in self.couplers:
-            args = self.osim.Vector([a.getValue(state) for a in c.independent])
-            c.dependent.setValue(state, c.scale * c.function.calcValue(args), False)
+            c.dependent.setValue(state, self._coupled_value(
+                c, [a.getValue(state) for a in c.independent]), False)
         self.model.realizePosition(state)
         self.evaluations += 1
         return np.array([m.getLength(state) for m in self.muscles])
@@ -515,7 +540,7 @@ def import_osim(model_path, out_dir, options: OsimOptions | None = None,
     used = {c for m in muscles for c in m.coordinates}
     coordinates = [Coordinate(n, paths.units[columns[k]], float(box.lower[k]),
                               float(box.upper[k])) for k, n in enumerate(names) if n in used]
-    coupled = [c for c in paths.coupled_coordinates() if set(c.follows) <= used]
+    coupled = [c for c in paths.coupled_coordinates(coordinates) if set(c.follows) <= used]
     source = _source(osim, paths, model_path, motions,
                      {"muscles_skipped": skipped} if skipped else None)
     geometry = PolynomialGeometry(coordinates, muscles, coupled, source=source,
@@ -599,7 +624,8 @@ def import_function_based_paths(model_path, xml_path, out_dir, options: OsimOpti
             raise VmRosError(f"{xml_path}: path {path.name!r} takes the coupled or held "
                              f"coordinate {odd[0]!r} as an argument; vm_ros inputs are the "
                              "independent coordinates only")
-    raw = function_based_paths_geometry(xml_path, coordinates, paths.coupled_coordinates())
+    raw = function_based_paths_geometry(xml_path, coordinates,
+                                        paths.coupled_coordinates(coordinates))
     unknown = [m.name for m in raw.muscles if m.name not in paths.muscle_names]
     if unknown:
         raise VmRosError(f"{xml_path}: path {unknown[0]!r} names no muscle of the model")

@@ -168,13 +168,53 @@ def shown_range(coordinate, symbol: str) -> str:
     return f"{coordinate.lower / factor:.6g} to {coordinate.upper / factor:.6g} {symbol}"
 
 
-def coupled_column_notes(motion: Motion, geometry) -> list[str]:
-    """A note for each motion column that is a dependent coordinate of the geometry: it is
-    not an input (the geometry's paths follow it from the coordinates it couples to), so its
-    values are not used, and the geometry holds no coupling function to check them against."""
-    return [f"motion {motion.path}: column {c.name} is a dependent coordinate of the geometry "
-            f"(it follows {', '.join(c.follows)}): not an input, its values are not used"
-            for c in geometry.coupled if c.name in motion.names]
+# |column - coupling| (rad, m) above which a dependent coordinate's motion column warns: an
+# IK solution that enforces the coupler matches it to solver precision (far below), a column
+# from another model or a wrong unit is off by degrees; 1 deg / 1 mm is also far above the
+# coupling table's own interpolation error (linear between COUPLING_POINTS points)
+COUPLER_TOLERANCE = {"rad": np.radians(1.0), "m": 1e-3}
+
+
+def coupled_columns(motion: Motion, geometry) -> tuple[list[str], list[str]]:
+    """(warnings, notes) for the motion columns that are dependent coordinates of the geometry:
+    not inputs (the geometry's paths follow them from the coordinates they couple to), so their
+    values are not used. Where the geometry holds the coupling function and the motion has the
+    driver's column, the column is compared with the function of the driver's values (frames
+    with the driver inside its box, in SI); a difference beyond COUPLER_TOLERANCE is a warning
+    naming the worst frame's time and both values in the motion's unit, else a note."""
+    rotational = {c.name for c in (*geometry.coordinates, *geometry.coupled)
+                  if c.unit == "rad"}
+    values = motion.to_si(rotational)
+    warnings, notes = [], []
+    for c in geometry.coupled:
+        if c.name not in motion.names:
+            continue
+        how = f"it follows {', '.join(c.follows)}" if c.follows else "held at one value"
+        note = (f"motion {motion.path}: column {c.name} is a dependent coordinate of the "
+                f"geometry ({how}): not an input, its values are not used")
+        if not c.has_function or c.follows[0] not in motion.names:
+            notes.append(note)
+            continue
+        column = values[:, motion.names.index(c.name)]
+        coupled = c.value(values[:, motion.names.index(c.follows[0])])
+        difference = np.abs(column - coupled)   # NaN where the driver is outside its box
+        symbol = "deg" if motion.in_degrees and c.unit == "rad" else c.unit
+        factor = UNITS[symbol].factor
+        tolerance = COUPLER_TOLERANCE[c.unit]
+        if not np.isfinite(difference).any():
+            notes.append(f"{note} (not checked: {c.follows[0]} stays outside its box)")
+        elif np.nanmax(difference) <= tolerance:
+            notes.append(f"{note} (it agrees with the coupling within "
+                         f"{tolerance / factor:.6g} {symbol})")
+        else:
+            i = int(np.nanargmax(difference))
+            warnings.append(
+                f"motion {motion.path}: column {c.name} disagrees with the geometry's coupling "
+                f"to {c.follows[0]} by up to {difference[i] / factor:.6g} {symbol} (more than "
+                f"{tolerance / factor:.6g} {symbol}): at {motion.time[i]:.6g} s it has "
+                f"{column[i] / factor:.6g} {symbol}, the coupling {coupled[i] / factor:.6g} "
+                f"{symbol}; the column is not used, the paths follow the coupling")
+    return warnings, notes
 
 
 def box_warnings(motion: JointMotion, geometry, in_degrees: bool) -> list[str]:
@@ -246,5 +286,5 @@ class MotionInputs:
         return self.conditioning.joint_efforts(force)
 
 
-__all__ = ["JointMotion", "MotionInputs", "box_warnings", "coupled_column_notes", "parse_hold",
-           "shown_range", "velocity_from_positions"]
+__all__ = ["COUPLER_TOLERANCE", "JointMotion", "MotionInputs", "box_warnings", "coupled_columns",
+           "parse_hold", "shown_range", "velocity_from_positions"]
