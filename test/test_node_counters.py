@@ -15,6 +15,7 @@ import pytest
 from vm_ros.model import MuscleBank
 from vm_ros.node.health import ISSUE_KINDS, lost_key
 from vm_ros.node.inputs import physical_path_length_range
+from vm_ros.recording import read_run
 
 pytestmark = pytest.mark.ros
 
@@ -87,14 +88,17 @@ def _reliable_publisher(ros, participant, depth: int):
     return publisher
 
 
-def test_messages_lost_in_a_burst_are_counted(ros, lengths, other_participant, executor):
+def test_messages_lost_in_a_burst_are_counted(ros, lengths, other_participant, executor,
+                                              tmp_path):
     """2000 messages at once into a queue of 10: what the node took plus what it counted as
     lost is every message sent (a last message after the burst shows a loss at the end), and
-    /diagnostics gives the count for the topic."""
+    /diagnostics gives the count for the topic, the run log's last one too."""
     from std_msgs.msg import Float64MultiArray
 
+    path = tmp_path / "run.mcap"
     node, taken = _counting_node(ros, lengths, executor, qos_depth=10,
-                                 diagnostics_period_s=0.1)
+                                 diagnostics_period_s=0.1, mcap__enabled=True,
+                                 mcap__path=str(path))
     probe = ros.probe()
     publisher = _reliable_publisher(ros, other_participant, depth=10)
     publisher.publish(Float64MultiArray(data=[0.5, 0.0]))  # the publisher's stream starts
@@ -113,6 +117,9 @@ def test_messages_lost_in_a_burst_are_counted(ros, lengths, other_participant, e
     key = lost_key("excitation_array")
     assert ros.spin_until(lambda: probe.last_diagnostics().get(key) == str(lost), timeout_s=5), \
         probe.last_diagnostics()
+    node.close_run_log()
+    last = read_run(path).get("/diagnostics").messages[-1]
+    assert {kv.key: kv.value for kv in last.status[0].values}[key] == str(lost)
 
 
 def test_no_loss_is_counted_for_a_steady_stream_or_a_restarted_publisher(

@@ -718,15 +718,19 @@ class MuscleNode(Node):
             return DiagnosticStatus.WARN, f"input or timing issues: {kinds}"
         return DiagnosticStatus.OK, "running"
 
-    def _publish_diagnostics(self) -> None:
+    def _diagnostics(self, now) -> bytes:
+        """The serialised /diagnostics message of health() stamped ``now`` (an rclpy Time)."""
         level, message, values = self.health()
         status = DiagnosticStatus(level=level, name=f"{self.get_name()}: muscle model",
                                   message=message, hardware_id="vm_ros",
                                   values=[KeyValue(key=k, value=v) for k, v in values])
         array = DiagnosticArray(status=[status])
-        now = self.get_clock().now()
         array.header.stamp = now.to_msg()
-        self._send_bytes(tm.TOPIC_DIAGNOSTICS, serialize_message(array), now.nanoseconds,
+        return serialize_message(array)
+
+    def _publish_diagnostics(self) -> None:
+        now = self.get_clock().now()
+        self._send_bytes(tm.TOPIC_DIAGNOSTICS, self._diagnostics(now), now.nanoseconds,
                          now.nanoseconds)
         self._reported_counts = dict(self.issues.counts)
         self._step_times.clear()
@@ -737,13 +741,21 @@ class MuscleNode(Node):
     # --- shutdown ---------------------------------------------------------------------------
 
     def close_run_log(self) -> None:
-        """Finish the MCAP file (idempotent)."""
+        """Finish the MCAP file (idempotent), its last record a /diagnostics message with the
+        final counters (not published: the context may be shut down already); log the
+        messages written and dropped, and the input messages lost."""
         if self.run_log is not None and not self.run_log.closed:
+            now = self.get_clock().now()
+            self.run_log.write(tm.TOPIC_DIAGNOSTICS, self._diagnostics(now), now.nanoseconds,
+                               now.nanoseconds)
             self.run_log.close()
             st = self.run_log.status
+            lost = ", ".join(f"{topic} {gaps.lost}" for topic, gaps in self._gaps.items()
+                             if gaps.lost)
             log = self.get_logger().info if st.ok else self.get_logger().error
             log(f"MCAP {st.path}: {st.written} messages, {st.dropped} dropped"
-                + ("" if st.ok else f", {st.error}"))
+                + ("" if st.ok else f", {st.error}")
+                + (f"; input messages lost before the node took them: {lost}" if lost else ""))
 
     def destroy_node(self):
         self.close_run_log()
