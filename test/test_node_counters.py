@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 from vm_ros.model import MuscleBank
-from vm_ros.node.health import ISSUE_KINDS
+from vm_ros.node.health import ISSUE_KINDS, lost_key
 from vm_ros.node.inputs import physical_path_length_range
+from vm_ros.recording import read_run
 
 pytestmark = pytest.mark.ros
 
@@ -55,21 +56,51 @@ def test_a_publisher_of_another_type_is_counted_and_named(ros, lengths, other_pa
     assert node.issues.counts["wrong_type_publisher"] == 1
 
 
-def test_messages_lost_in_a_burst_are_counted(ros, lengths, other_participant):
-    """2000 messages at once into a queue of 10: what the node took plus what it counted as
-    lost is every message sent (a last message after the burst shows a loss at the end)."""
-    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-    from std_msgs.msg import Float64MultiArray
+@pytest.fixture(params=["events", "single_threaded"])
+def executor(request, ros):
+    """The node's executor kind, and the harness spinning with that executor (the node's own
+    main uses make_executor too)."""
+    from vm_ros.node.shell import make_executor
 
+    ros.executor.shutdown(timeout_sec=1.0)
+    ros.executor = make_executor(request.param, ros.context)
+    return request.param
+
+
+def _counting_node(ros, lengths, executor, **params):
+    """A muscle_node whose accepted excitation_array messages are also counted in ``taken``."""
     node = ros.muscle_node(muscles=MUSCLES, initial_path_length_m=list(lengths),
-                           executor="single_threaded", qos_depth=10)
+                           executor=executor, **params)
     taken = []
     original = node.inputs.on_excitation_array
     node.inputs.on_excitation_array = lambda drive, now: taken.append(1) or original(drive, now)
-    qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
+    return node, taken
+
+
+def _reliable_publisher(ros, participant, depth: int):
+    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import Float64MultiArray
+
+    qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
                      reliability=ReliabilityPolicy.RELIABLE)
-    publisher = other_participant.create_publisher(Float64MultiArray, "excitation_array", qos)
+    publisher = participant.create_publisher(Float64MultiArray, "excitation_array", qos)
     assert ros.spin_until(lambda: publisher.get_subscription_count() == 1, timeout_s=10)
+    return publisher
+
+
+def test_messages_lost_in_a_burst_are_counted(ros, lengths, other_participant, executor,
+                                              tmp_path):
+    """2000 messages at once into a queue of 10: what the node took plus what it counted as
+    lost is every message sent (a last message after the burst shows a loss at the end), and
+    /diagnostics gives the count for the topic, the run log's last one too."""
+    from std_msgs.msg import Float64MultiArray
+
+    path = tmp_path / "run.mcap"
+    node, taken = _counting_node(ros, lengths, executor, qos_depth=10,
+                                 diagnostics_period_s=0.1, mcap__enabled=True,
+                                 mcap__path=str(path))
+    probe = ros.probe()
+    publisher = _reliable_publisher(ros, other_participant, depth=10)
     publisher.publish(Float64MultiArray(data=[0.5, 0.0]))  # the publisher's stream starts
     assert ros.spin_until(lambda: len(taken) == 1, timeout_s=10)
     sent = 2001
@@ -80,7 +111,37 @@ def test_messages_lost_in_a_burst_are_counted(ros, lengths, other_participant):
     sent += 1
     assert ros.spin_until(lambda: len(taken) + node.issues.counts["input_lost"] == sent,
                           timeout_s=10), (len(taken), node.issues.counts["input_lost"])
+    lost = node.issues.counts["input_lost"]
+    assert lost > 0
     assert np.array_equal(node.inputs.drive, [0.5, 0.5])
+    key = lost_key("excitation_array")
+    assert ros.spin_until(lambda: probe.last_diagnostics().get(key) == str(lost), timeout_s=5), \
+        probe.last_diagnostics()
+    node.close_run_log()
+    last = read_run(path).get("/diagnostics").messages[-1]
+    assert {kv.key: kv.value for kv in last.status[0].values}[key] == str(lost)
+
+
+def test_no_loss_is_counted_for_a_steady_stream_or_a_restarted_publisher(
+        ros, lengths, other_participant, executor):
+    """Messages one at a time (each taken before the next is sent), then the publisher
+    destroyed and created again (its sequence numbers start again at 1): none lost."""
+    from std_msgs.msg import Float64MultiArray
+
+    node, taken = _counting_node(ros, lengths, executor, diagnostics_period_s=0.1)
+    probe = ros.probe()
+    for _ in range(2):
+        publisher = _reliable_publisher(ros, other_participant, depth=10)
+        for _ in range(30):
+            sent = len(taken) + 1
+            publisher.publish(Float64MultiArray(data=[0.5, 0.5]))
+            assert ros.spin_until(lambda sent=sent: len(taken) == sent, timeout_s=10)
+        other_participant.destroy_publisher(publisher)
+    assert len(taken) == 60
+    assert node.issues.counts["input_lost"] == 0
+    n = len(probe.diagnostics)
+    assert ros.spin_until(lambda: len(probe.diagnostics) > n, timeout_s=5)
+    assert probe.last_diagnostics()[lost_key("excitation_array")] == "0"
 
 
 def test_oversized_payloads_are_counted_without_stderr_lines(ros, lengths, capfd):

@@ -167,17 +167,22 @@ class DurationWindow:
 
 class SequenceGaps:
     """Messages lost between the publishers of one topic and the node, from the publication
-    sequence number each message carries (rmw message info: consecutive per publisher).
+    sequence number each message carries (rmw message info: 1, 2, 3... per publisher).
 
-    rclpy's message info gives no publisher id, so messages are assigned to publisher streams:
-    a message continues the stream whose last number is the largest below its own (a gap of
-    ``seq - last - 1`` lost); one with no such stream starts a new stream (a new or restarted
-    publisher). Counting starts at a stream's first message: what a publisher sent before that
-    (before the node matched it, or lost before anything of it arrived) is not counted. Exact
-    for one publisher per topic; with several, a loss is counted on the nearest stream. The
-    rmw's MESSAGE_LOST event is not used: rmw_fastrtps accepts it but never raised it for queue
-    overflow (measured: 0 events for 4940 messages lost in a burst). Header stamps are not a
-    loss measure (publishers leave them 0 or repeat them)."""
+    A DDS reader hands on each publisher's messages in the order sent (reliable: in order;
+    best effort: a message older than one already received is discarded, so it is lost to the
+    node), so within one publisher only gaps mean loss. rclpy's message info gives no publisher
+    id, so messages are assigned to publisher streams: a message continues the stream whose last
+    number is the largest below its own (a gap of ``seq - last - 1`` lost); one with no such
+    stream starts a new stream, lossless: a restarted publisher (its numbers start again at 1),
+    a new one, or messages of several publishers arriving interleaved. Counting starts at a
+    stream's first message: what a publisher sent before that (before the node matched it, or
+    lost before anything of it arrived) is not counted. Exact for one publisher per topic; with
+    several, a loss is counted on the nearest stream (a new publisher whose first number lies
+    above another's last shows that difference as lost). The rmw's MESSAGE_LOST event is not
+    used: rmw_fastrtps accepts it but never raised it for queue overflow (measured: 0 events for
+    4940 messages lost in a burst). Header stamps are not a loss measure (publishers leave them
+    0 or repeat them)."""
 
     def __init__(self, max_streams: int = 16):
         self.max_streams = max_streams
@@ -192,6 +197,9 @@ class SequenceGaps:
             self.supported = False
             return 0
         self.supported = True
+        if self._last and self._last[-1] == seq - 1:  # the latest stream's next message
+            self._last[-1] = seq
+            return 0
         below = [i for i, last in enumerate(self._last) if last < seq]
         if not below:
             self._last.append(seq)
@@ -202,6 +210,11 @@ class SequenceGaps:
         self._last.append(seq)
         self.lost += lost
         return lost
+
+
+def lost_key(topic: str) -> str:
+    """The diagnostics key of the messages lost on one input topic (SequenceGaps.lost)."""
+    return f"lost: {topic} (messages)"
 
 
 def format_seconds(ns: int) -> str:
@@ -224,4 +237,4 @@ def format_value(value) -> str:
 
 
 __all__ = ["ISSUE_KINDS", "QUIET_KINDS", "DurationWindow", "Issue", "IssueLog", "SequenceGaps",
-           "format_seconds", "format_value"]
+           "format_seconds", "format_value", "lost_key"]

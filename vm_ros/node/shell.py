@@ -32,6 +32,7 @@ from __future__ import annotations
 import argparse
 import gc
 import importlib
+import inspect
 import math
 import re
 import sys
@@ -78,6 +79,7 @@ from vm_ros.node.health import (
     SequenceGaps,
     format_seconds,
     format_value,
+    lost_key,
 )
 from vm_ros.node.inputs import InputLimits, NodeInputs
 from vm_ros.node.joint_inputs import JointInputs
@@ -96,6 +98,9 @@ NODE_NAME = "muscle_node"
 RCLError = _rclpy.RCLError
 LOG_THROTTLE_S = 2.0
 GRAPH_CHECK_PERIOD_S = 1.0  # steady clock: how often input topics' publishers are type-checked
+# the signature that makes rclpy hand a subscription callback the message info (_receiver)
+_WITH_MESSAGE_INFO = inspect.Signature(
+    [inspect.Parameter(name, inspect.Parameter.POSITIONAL_OR_KEYWORD) for name in ("data", "info")])
 
 # (topic, message type, description); joint topics only with a geometry
 INPUT_TOPICS = (
@@ -400,14 +405,13 @@ class MuscleNode(Node):
         # per oversized payload and then returned a garbage message
         decode = input_decoder(_type_name(msg_type))
 
-        def receive_counted(data: bytes, info) -> None:
+        def receive(data, info=None) -> None:
+            if info is None:  # the EventsExecutor's call: one (data, info) tuple, see below
+                data, info = data
             lost = gaps.add(info.get("publication_sequence_number"))
             if lost:
                 self._report([Issue("input_lost", f"{topic}: {lost} message(s) lost before "
                                     "the node took them", count=lost)])
-            receive(data)
-
-        def receive(data: bytes) -> None:
             now_ns = self.get_clock().now().nanoseconds
             # the model time of the first step that will use this message (vm_ros.node.recording)
             effective_ns = self.scheduler.model_time_ns if self.scheduler.started else now_ns
@@ -420,9 +424,13 @@ class MuscleNode(Node):
                 return
             self._report(handle(msg, effective_ns))
 
-        # rclpy 7.1.6's EventsExecutor cannot call a callback that takes the message info
-        # (SystemError: null argument): with it, losses are not counted (diagnostics say so)
-        return receive if self.config.executor == "events" else receive_counted
+        # rclpy passes the message info (its publication sequence number) to a callback whose
+        # signature takes two arguments: SingleThreadedExecutor as receive(data, info), rclpy
+        # 7.1.6's EventsExecutor as receive((data, info)) (a callback that needs both arguments
+        # failed there: SystemError). receive takes either; its declared signature makes rclpy
+        # pass the info.
+        receive.__signature__ = _WITH_MESSAGE_INFO
+        return receive
 
     def _on_excitation(self, msg: JointState, now_ns: int):
         return self.inputs.on_excitation(msg.name, msg.position, now_ns)
@@ -659,11 +667,9 @@ class MuscleNode(Node):
         ]
         if self.joint_inputs is not None:
             values += [("joint_states age (s)", self.joint_inputs.age_s(now_ns))]
-        if self.config.executor == "events":
-            values += [("lost input messages", "not counted with executor events (it passes no "
-                        "message info; executor single_threaded counts them)")]
-        elif any(g.supported is False for g in self._gaps.values()):
-            values += [("lost input messages", "not counted: the rmw gives no sequence numbers")]
+        values += [(lost_key(topic), gaps.lost if gaps.supported is not False else
+                    "not counted: the rmw gives no sequence numbers")
+                   for topic, gaps in self._gaps.items()]
         values += [(ISSUE_KINDS[kind][0], count) for kind, count in self.issues.counts.items()]
         values += self._recorder_values()
         level, message = self._level(stale)
@@ -712,15 +718,19 @@ class MuscleNode(Node):
             return DiagnosticStatus.WARN, f"input or timing issues: {kinds}"
         return DiagnosticStatus.OK, "running"
 
-    def _publish_diagnostics(self) -> None:
+    def _diagnostics(self, now) -> bytes:
+        """The serialised /diagnostics message of health() stamped ``now`` (an rclpy Time)."""
         level, message, values = self.health()
         status = DiagnosticStatus(level=level, name=f"{self.get_name()}: muscle model",
                                   message=message, hardware_id="vm_ros",
                                   values=[KeyValue(key=k, value=v) for k, v in values])
         array = DiagnosticArray(status=[status])
-        now = self.get_clock().now()
         array.header.stamp = now.to_msg()
-        self._send_bytes(tm.TOPIC_DIAGNOSTICS, serialize_message(array), now.nanoseconds,
+        return serialize_message(array)
+
+    def _publish_diagnostics(self) -> None:
+        now = self.get_clock().now()
+        self._send_bytes(tm.TOPIC_DIAGNOSTICS, self._diagnostics(now), now.nanoseconds,
                          now.nanoseconds)
         self._reported_counts = dict(self.issues.counts)
         self._step_times.clear()
@@ -731,13 +741,21 @@ class MuscleNode(Node):
     # --- shutdown ---------------------------------------------------------------------------
 
     def close_run_log(self) -> None:
-        """Finish the MCAP file (idempotent)."""
+        """Finish the MCAP file (idempotent), its last record a /diagnostics message with the
+        final counters (not published: the context may be shut down already); log the
+        messages written and dropped, and the input messages lost."""
         if self.run_log is not None and not self.run_log.closed:
+            now = self.get_clock().now()
+            self.run_log.write(tm.TOPIC_DIAGNOSTICS, self._diagnostics(now), now.nanoseconds,
+                               now.nanoseconds)
             self.run_log.close()
             st = self.run_log.status
+            lost = ", ".join(f"{topic} {gaps.lost}" for topic, gaps in self._gaps.items()
+                             if gaps.lost)
             log = self.get_logger().info if st.ok else self.get_logger().error
             log(f"MCAP {st.path}: {st.written} messages, {st.dropped} dropped"
-                + ("" if st.ok else f", {st.error}"))
+                + ("" if st.ok else f", {st.error}")
+                + (f"; input messages lost before the node took them: {lost}" if lost else ""))
 
     def destroy_node(self):
         self.close_run_log()
