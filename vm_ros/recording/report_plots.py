@@ -146,6 +146,7 @@ BARS_PER_ROW = 40  # bar charts: wrapped into rows of at most this many bars
 LANES_AFTER = 4  # per-muscle figures of more muscles: one lane per muscle in shared axes
 LANE_IN = 0.42  # height of a lane (in)
 OTHERS_COLOR = "0.6"
+NAMED_COLORS = [f"C{k}" for k in (0, 1, 2, 3, 4, 5, 6, 8, 9)]  # C7 is grey, as the others
 LEGEND = {"fontsize": 7, "frameon": False}
 OUTSIDE_RIGHT = {"loc": "upper left", "bbox_to_anchor": (1.01, 1.0), **LEGEND}
 
@@ -610,7 +611,7 @@ def _muscle_lines(ax, t, columns: dict, named, others) -> None:
     """One line per named muscle (its colour) and thin grey lines for the others (one legend
     entry); columns: muscle -> values."""
     for n, m in enumerate(named):
-        ax.plot(t, columns[m], color=f"C{n}", label=m, lw=1.2)
+        ax.plot(t, columns[m], color=NAMED_COLORS[n % len(NAMED_COLORS)], label=m, lw=1.2)
     for k, m in enumerate(others):
         ax.plot(t, columns[m], color=OTHERS_COLOR, lw=0.6, zorder=1,
                 label=f"others ({len(others)})" if k == 0 else None)
@@ -649,7 +650,8 @@ def summary_figure(plt, run: RunLog, tables: dict, bin_s: float, bin_reason: str
         handles = ax.get_legend_handles_labels()[0]
         if bin_s > 0:
             for n, m in enumerate(named):
-                ax.plot(centres, peaks[m], "--", color=f"C{n}", lw=0.9)
+                ax.plot(centres, peaks[m], "--", color=NAMED_COLORS[n % len(NAMED_COLORS)],
+                        lw=0.9)
             handles += [Line2D([], [], color="k", lw=1.2, label="bin mean"),
                         Line2D([], [], color="k", lw=0.9, ls="--", label="bin peak")]
         ax.legend(handles=handles, **OUTSIDE_RIGHT)
