@@ -41,8 +41,8 @@ def test_report_writes_documented_tables_and_plots(logs, tmp_path, capsys):
     out = tmp_path / "report"
     assert main(["report", str(logs[0]), "--out", str(out), "--bin", "0.1"]) == 0
     assert "rectus_femoris" in capsys.readouterr().out
-    for name in ("force", "drive", "kinematics", "energy_rectus_femoris", "energy_vasti",
-                 "energy_rate", "energy_partition", "totals", "summary"):
+    for name in ("force", "drive", "kinematics", "energy_muscles", "energy_rate",
+                 "energy_partition", "totals", "summary"):
         data = (out / f"{name}.png").read_bytes()
         assert data.startswith(PNG_MAGIC) and len(data) > 5000, name
     header, rows = _csv(out / "forces.csv")

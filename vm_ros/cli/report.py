@@ -23,9 +23,13 @@ Files written to --out (default: <log name>-report/ beside the log):
                      joint_states samples outside the geometry's box; also printed
   summary.png        one page: the run, its totals, force per muscle, the Fig. 7 style energy
                      rate, cumulative energy and partition per muscle, joint torques or drive
-  force.png, kinematics.png, drive.png   one panel per muscle (kinematics: two); runs longer
-                     than 20 s add a column with their last 5 s as published
-  energy_<muscle>.png  stacked energy rate components per fibre type
+                     (more than 9 muscles: the 8 with the most energy by name, the rest as
+                     "others")
+  force.png, kinematics.png, drive.png, energy_muscles.png   one panel per muscle (more than 4
+                     muscles: one lane per muscle, scaled to its range); energy_muscles: the
+                     energy rate components of slow and fast fibres, stacked ("not recruited"
+                     where a fibre type has none); runs longer than 20 s add their last 5 s as
+                     published; at most 40 muscles a file, more in force-2.png, ...
   energy_rate.png    Tsianos 2012 Fig. 7 style: all muscles' activation, cross-bridge, recovery
                      and total energy rate in time bins
   energy_models.png  each published model's total energy rate beside Tsianos 2012's, one panel

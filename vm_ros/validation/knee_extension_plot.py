@@ -50,7 +50,7 @@ def plot_fig7_table(ax, d: dict) -> None:
 def plot_fig7(result: CheckResult, path: Path) -> None:
     d = result.data
     with_table = bool(d.get("table"))
-    fig, axes = plt.subplots(1, 3 + with_table, figsize=(15 + 5 * with_table, 4.8),
+    fig, axes = plt.subplots(1, 3 + with_table, figsize=(15 + 5 * with_table, 5.8),
                              gridspec_kw={"width_ratios": [1.4, 1, 1] + [1.3] * with_table})
     ax, ax_act, ax_v = axes[:3]
     if with_table:
@@ -75,7 +75,8 @@ def plot_fig7(result: CheckResult, path: Path) -> None:
     ax.set_title(f"model, {run_s:g} s: total {d['total_energy_j'] / 1e3:.1f} kJ\n{versus}\n"
                  f"net fascicle work {work / 1e3:.2f} kJ ({work / run_s:.0f} W); "
                  f"quadriceps {np.sum(d['mass_kg']):.2f} kg", fontsize=9)
-    ax.legend(fontsize=7, loc="center right")
+    # below the panel: inside, it covered the total energy rate
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
     c = d["cycle"]
     t = c["time_s"] - c["time_s"][0]
     colours = ("tab:purple", "tab:green")

@@ -3,6 +3,7 @@ Agg backend; imported only when plotting)."""
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -255,7 +256,13 @@ def plot_cost(result: CheckResult, path: Path) -> None:
                     (n, 1e6 * s[("natural", n)]), fontsize=8, xytext=(-8, 6),
                     textcoords="offset points")
     ax.set(xlabel="muscles in the bank", ylabel="median step time (us)")
-    ax.set_title("labels: natural / lumped step time", fontsize=9)
+    load = result.data.get("load_average")
+    title = "labels: natural / lumped step time"
+    if load is not None:
+        title += "\n" + textwrap.fill(
+            f"measured under load {load:.1f} (1-minute load average, "
+            f"{result.data.get('cpus', '?')} CPUs): other work slows both and skews the ratio", 75)
+    ax.set_title(title, fontsize=8)
     ax.legend(fontsize=8)
     finish(fig, result, path)
 
