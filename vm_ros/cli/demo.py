@@ -43,8 +43,6 @@ from vm_ros.errors import VmRosError
 from vm_ros.model.params import load_muscle_library
 from vm_ros.sim.loop_log import diagnostics_number
 
-HELP = ("run muscle_node with a knee-extension driver and print forces and energies; "
-        "--closed-loop: muscle_node driving a MuJoCo arm over ROS 2, plotted")
 SCENARIO = "knee_extension"
 CATCH_UP_S = 1.0  # s of model time muscle_node catches up on after a stall (module docstring)
 LOOP_MCAP = "closed_loop.mcap"

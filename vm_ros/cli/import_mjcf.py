@@ -13,8 +13,6 @@ few mm, or negative); such muscles are listed loudly. Give real parameters with 
 
 from __future__ import annotations
 
-HELP = "import a MuJoCo model's (MJCF or myo-sim name) muscle paths and parameters"
-
 
 def add_arguments(parser) -> None:
     from vm_ros.importers.common import add_fit_arguments, add_parameter_arguments
