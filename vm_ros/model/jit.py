@@ -75,9 +75,11 @@ def cache_root() -> Path:
 
 @functools.cache
 def sources_hash(py_file: str) -> str:
-    """A hash of every model source file and of ``py_file``: Numba checks a cached function
-    against its own file only, not against the modules whose functions it inlines."""
-    digest = hashlib.sha256()
+    """A hash of every model source file, of ``py_file`` and of Numba's version: Numba checks a
+    cached function against its own file only, not against the modules whose functions it
+    inlines; and two Numba versions (a venv's, a ROS workspace's) would each find the other's
+    index stale and compile again, over and over."""
+    digest = hashlib.sha256(numba.__version__.encode() if HAVE_NUMBA else b"")
     for path in sorted({*_MODEL_DIR.glob("*.py"), Path(py_file).resolve()}):
         digest.update(path.name.encode())
         digest.update(path.read_bytes())
