@@ -26,7 +26,7 @@ setup(
     zip_safe=False,
     install_requires=[
         "numpy>=1.24",
-        "scipy>=1.15",  # scipy.optimize.elementwise.find_root
+        "scipy>=1.10",  # test_roots.py: every name used exists in SciPy 1.10 (Debian 12)
         "pyyaml>=6.0",
         "mcap>=1.1",
         "mcap-ros2-support>=0.5",

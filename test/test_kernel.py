@@ -426,7 +426,7 @@ def test_numba_cache_folder_follows_the_model_sources_even_if_numba_came_first()
         "import numba\n"
         "from vm_ros.model import kernel, jit\n"
         "path = kernel.advance_series.stats.cache_path\n"
-        "assert jit._sources_hash() in path, path\n"
+        "assert jit.sources_hash(kernel.__file__) in path, path\n"
     )
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                             timeout=120)

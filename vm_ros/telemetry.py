@@ -1,7 +1,8 @@
 """What the node publishes and the logs record: topic names, message types and array layouts.
 
-Defined once here; the node (rclpy messages) and the offline recorder (CDR from dicts, no ROS)
-both build their messages from these functions, so live and offline logs have the same channels.
+Topic and type names are declared in vm_ros.topics (and re-exported here), layouts once here; the
+node (rclpy messages) and the offline recorder (CDR from dicts, no ROS) both build their messages
+from these functions, so live and offline logs have the same channels.
 
 Topics (relative names, so namespaces and remapping apply):
 
@@ -53,42 +54,8 @@ from __future__ import annotations
 import numpy as np
 
 from vm_ros.energetics_models.in_bank import COMPONENTS as MODEL_COMPONENTS
-from vm_ros.model.bank import ENERGY_COMPONENTS, StepOutput
-
-TOPIC_EXCITATION = "excitation"
-TOPIC_EXCITATION_ARRAY = "excitation_array"
-TOPIC_KINEMATICS = "muscle_kinematics"
-TOPIC_FORCE = "muscle_force"
-TOPIC_ENERGY_RATE = "energy_rate"
-TOPIC_ENERGY_RATE_TOTAL = "energy_rate_total"
-TOPIC_ENERGY_TOTAL = "energy_total"
-TOPIC_ENERGY_RATE_MODELS = "energy_rate_models"
-TOPIC_DIAGNOSTICS = "/diagnostics"
-TOPIC_JOINT_STATES = "joint_states"
-TOPIC_JOINT_EFFORTS = "joint_efforts"
-TOPIC_JOINT_EFFORT_COMMANDS = "joint_effort_commands"
-TOPIC_JOINT_WORK = "joint_work"  # logged by offline runs only (vm_ros.recording.offline)
-
-TYPE_JOINT_STATE = "sensor_msgs/msg/JointState"
-TYPE_FLOAT64_MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
-TYPE_FLOAT64 = "std_msgs/msg/Float64"
-TYPE_DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
-
-TOPIC_TYPES = {
-    TOPIC_EXCITATION: TYPE_JOINT_STATE,
-    TOPIC_EXCITATION_ARRAY: TYPE_FLOAT64_MULTI_ARRAY,
-    TOPIC_KINEMATICS: TYPE_JOINT_STATE,
-    TOPIC_FORCE: TYPE_JOINT_STATE,
-    TOPIC_ENERGY_RATE: TYPE_FLOAT64_MULTI_ARRAY,
-    TOPIC_ENERGY_RATE_TOTAL: TYPE_FLOAT64,
-    TOPIC_ENERGY_TOTAL: TYPE_FLOAT64,
-    TOPIC_ENERGY_RATE_MODELS: TYPE_FLOAT64_MULTI_ARRAY,
-    TOPIC_DIAGNOSTICS: TYPE_DIAGNOSTIC_ARRAY,
-    TOPIC_JOINT_STATES: TYPE_JOINT_STATE,
-    TOPIC_JOINT_EFFORTS: TYPE_JOINT_STATE,
-    TOPIC_JOINT_EFFORT_COMMANDS: TYPE_FLOAT64_MULTI_ARRAY,
-    TOPIC_JOINT_WORK: TYPE_FLOAT64_MULTI_ARRAY,
-}
+from vm_ros.model.records import ENERGY_COMPONENTS, StepOutput
+from vm_ros.topics import *  # noqa: F403 - the topic and type names, declared there
 
 FIBRE_LABELS = ("slow", "fast", "all")
 COMPONENT_LABELS = ENERGY_COMPONENTS  # activation, cross_bridge, recovery, total

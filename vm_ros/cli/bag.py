@@ -13,9 +13,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-HELP = "bag directories: reindex (write metadata.yaml from the .mcap files, as ros2 bag does)"
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     actions = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
     reindex = actions.add_parser("reindex", help="write DIR/metadata.yaml from its .mcap files")

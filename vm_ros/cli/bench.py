@@ -64,7 +64,6 @@ from pathlib import Path
 from vm_ros.child_process import module_command, module_environment
 from vm_ros.errors import VmRosError
 
-HELP = "benchmark the model, offline runs and muscle_node; write JSON/CSV and print a table"
 SECTIONS = ("model", "natural", "offline", "node", "joint", "node-memory")
 DEFAULT_SECTIONS = ("model", "natural", "offline", "node", "joint")  # node-memory: when named
 MEMORY_DURATION_S, MEMORY_QUICK_DURATION_S = 600.0, 60.0  # node-memory window

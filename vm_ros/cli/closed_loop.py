@@ -33,8 +33,6 @@ import numpy as np
 
 from vm_ros.errors import VmRosError
 
-HELP = "drive a MuJoCo model with vm_ros muscle forces (one process); energy balance, plot"
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from vm_ros.importers.common import add_parameter_arguments

@@ -39,8 +39,6 @@ from vm_ros.energetics_models.compare import (
 from vm_ros.energetics_models.vm_state import MODEL_NAMES
 from vm_ros.errors import VmRosError
 
-HELP = ("every published muscle energetics model against Tsianos 2012 on the same runs "
-        "(table and figures)")
 TABLE_NAME = "energetics_comparison.csv"
 
 
@@ -123,4 +121,4 @@ def run(args) -> int:
     return 0
 
 
-__all__ = ["HELP", "TABLE_NAME", "TSIANOS", "add_arguments", "run", "settings_from_args"]
+__all__ = ["TABLE_NAME", "TSIANOS", "add_arguments", "run", "settings_from_args"]

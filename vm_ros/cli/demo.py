@@ -55,8 +55,6 @@ from vm_ros.recording.summary import split_energy
 from vm_ros.recording.validity import DEFAULT_INPUT_BOUND_S, Validity, run_validity
 from vm_ros.sim.loop_log import diagnostics_number, node_diagnostics
 
-HELP = ("run muscle_node with a knee-extension driver and print forces and energies; "
-        "--closed-loop: muscle_node driving a MuJoCo arm over ROS 2, plotted")
 SCENARIO = "knee_extension"
 CATCH_UP_S = 1.0  # s of model time muscle_node catches up on after a stall (module docstring)
 LOOP_MCAP = "closed_loop.mcap"

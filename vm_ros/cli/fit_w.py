@@ -32,8 +32,6 @@ from vm_ros.model.lumped_fit import (
 from vm_ros.model.params import DRIVE_LAWS, resolve_muscles
 from vm_ros.resources import config_dir
 
-HELP = "refit the lumped weighting W (and drive filter) from natural units"
-
 
 def add_arguments(parser) -> None:
     parser.add_argument("--ur", type=float, default=0.8,

@@ -18,8 +18,6 @@ negative muscle forces: the same torque).
 
 from __future__ import annotations
 
-HELP = "import a MuJoCo model's (MJCF or myo-sim name) muscle paths and parameters"
-
 
 def add_arguments(parser) -> None:
     from vm_ros.importers.common import add_fit_arguments, add_parameter_arguments

@@ -19,8 +19,6 @@ from pathlib import Path
 
 from vm_ros.errors import VmRosError
 
-HELP = "import an OpenSim .osim model's muscle paths and parameters (needs the opensim extra)"
-
 
 def add_arguments(parser) -> None:
     from vm_ros.importers.common import add_fit_arguments, add_parameter_arguments

@@ -33,8 +33,6 @@ from vm_ros.model.params import (
 )
 from vm_ros.model.units import UNITS
 
-HELP = "print the model's (or a muscle's) parameters: value in SI, unit as written, tag, source"
-
 COLUMNS = ("parameter", "value", "SI unit", "unit in file", "tag", "source")
 
 

@@ -95,8 +95,6 @@ from vm_ros.recording.summary import (
 from vm_ros.recording.tables import logged_model_totals
 from vm_ros.telemetry import energy_partition
 
-HELP = "re-run the model from a log's recorded inputs (other parameters optional) into a new MCAP"
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", type=Path, metavar="FILE.mcap", help="run log to recompute")

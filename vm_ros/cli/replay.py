@@ -35,7 +35,6 @@ from vm_ros.recording.run_log import resolve_topic
 from vm_ros.recording.schema import MESSAGE_ENCODING, full_type_name
 from vm_ros.recording.series import skipped_line
 
-HELP = "republish a log's topics over ROS 2 at the recorded pace"
 NODE_NAME = "vm_ros_replay"
 ACK_WAIT_S = 5.0  # longest wait for subscribers to acknowledge the last reliable messages
 _LOCATION = re.compile(r", at \S+:\d+$")  # rclpy's source location after an error message

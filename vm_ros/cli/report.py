@@ -82,8 +82,6 @@ from vm_ros.recording.tables import (
     totals_table,
 )
 
-HELP = "CSV tables and PNG plots of forces and partitioned energy from a run log"
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", type=Path, metavar="FILE.mcap", help="run log")

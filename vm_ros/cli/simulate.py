@@ -121,8 +121,6 @@ from vm_ros.recording.tables import logged_model_totals
 from vm_ros.scenarios import load_scenario, scenario_names
 from vm_ros.telemetry import energy_partition
 
-HELP = ("run the model offline on a scenario, CSV inputs or an OpenSim motion (joint space); "
-        "write MCAP and print a summary")
 JOINT_OPTIONS = ("geometry", "excitations", "excitation", "joint_map", "hold")
 DEFAULT_SCENARIO = "knee_extension"  # the paper's headline run (Fig. 7), also the demo's
 # metadata time_base of a simulate log

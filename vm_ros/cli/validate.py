@@ -20,9 +20,6 @@ from vm_ros.progress import Progress
 from vm_ros.validation import CHECKS, CheckSkippedError
 from vm_ros.validation.knee_extension import FIG7_NATURAL_UNITS_PER_TYPE
 
-HELP = ("reproduce the paper's checks and figures; non-zero exit on a failure that is not a "
-        "known, explained gap")
-
 
 def add_arguments(parser) -> None:
     parser.add_argument("--out", type=Path, default=Path("out/validate"),

@@ -7,12 +7,9 @@ uses the NumPy evaluator; test_geometry holds the two equal to rounding.
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
-
 import numpy as np
 
-from vm_ros.model.jit import HAVE_NUMBA, numba
+from vm_ros.model.jit import HAVE_NUMBA, model_cache_directory, numba
 
 _evaluate = None
 
@@ -25,10 +22,8 @@ def _compile():
     global _evaluate
     if _evaluate is not None:
         return _evaluate
-    saved = numba.config.CACHE_DIR
-    home = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache"))
-    numba.config.CACHE_DIR = str(Path(saved) if saved else home / "vm_ros" / "numba" / "geometry")
-    try:
+    with model_cache_directory():  # vm_ros.model.jit.cache_root()/<hash>/geometry
+
         @numba.njit(cache=True, fastmath=False, error_model="numpy")
         def evaluate(q, slot_coordinate, slot_offset, slot_scale, term_muscle, term_exponent,
                      term_coefficient, max_degree):
@@ -73,8 +68,6 @@ def _compile():
                     if c < n_q:
                         gradient[current, c] += dl_dx[j] / slot_scale[current, j]
             return length, gradient
-    finally:
-        numba.config.CACHE_DIR = saved
     _evaluate = evaluate
     return evaluate
 

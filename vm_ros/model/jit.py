@@ -22,9 +22,14 @@ NumPy's values at 0, infinity, NaN and negative arguments.
 
 from __future__ import annotations
 
+import functools
 import hashlib
+import importlib.metadata
 import math
 import os
+import signal
+import sys
+import threading
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -38,9 +43,44 @@ def _numba_wanted() -> bool:
     return os.environ.get(ENV_SWITCH, "1").strip().lower() not in ("0", "false", "no", "off")
 
 
-def _sources_hash() -> str:
-    digest = hashlib.sha256()
-    for path in sorted(_MODEL_DIR.glob("*.py")):
+numba = None
+if _numba_wanted():
+    try:
+        import numba
+        from numba.core import caching as _caching
+        from numba.core import types as _nb_types
+        from numba.extending import overload, register_jitable
+    except ImportError:  # pragma: no cover - exercised where numba is absent
+        numba = None
+
+HAVE_NUMBA = numba is not None
+
+
+# --- Numba's disk cache: one per machine, Python and vm_ros version ------------------------------
+
+
+def cache_root() -> Path:
+    """The folder of vm_ros's Numba cache: NUMBA_CACHE_DIR where it is set (Numba reads it when
+    it is imported), else ``$XDG_CACHE_HOME/vm_ros/numba-py<X.Y>-<vm_ros version>`` (XDG_CACHE_HOME
+    defaults to ~/.cache)."""
+    if HAVE_NUMBA and numba.config.CACHE_DIR:
+        return Path(numba.config.CACHE_DIR)
+    try:
+        version = importlib.metadata.version("vm_ros")
+    except importlib.metadata.PackageNotFoundError:  # run from a source tree
+        version = "source"
+    home = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return home / "vm_ros" / f"numba-py{sys.version_info[0]}.{sys.version_info[1]}-{version}"
+
+
+@functools.cache
+def sources_hash(py_file: str) -> str:
+    """A hash of every model source file, of ``py_file`` and of Numba's version: Numba checks a
+    cached function against its own file only, not against the modules whose functions it
+    inlines; and two Numba versions (a venv's, a ROS workspace's) would each find the other's
+    index stale and compile again, over and over."""
+    digest = hashlib.sha256(numba.__version__.encode() if HAVE_NUMBA else b"")
+    for path in sorted({*_MODEL_DIR.glob("*.py"), Path(py_file).resolve()}):
         digest.update(path.name.encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()[:16]
@@ -48,31 +88,75 @@ def _sources_hash() -> str:
 
 @contextmanager
 def model_cache_directory():
-    """Numba's on-disk cache is checked against the kernel module's own file only, not against the
-    modules whose functions it inlines. Functions decorated with ``cache=True`` inside this block
-    cache in ``<NUMBA_CACHE_DIR or ~/.cache/vm_ros/numba>/<hash of every model source file>``, so
-    any edit to an equation starts a fresh cache. Numba picks the folder when a function is
-    decorated, so this works whether or not numba was imported before."""
-    saved = numba.config.CACHE_DIR
-    home = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache"))
-    base = Path(saved) if saved else home / "vm_ros" / "numba"
-    numba.config.CACHE_DIR = str(base / _sources_hash())
+    """Functions decorated with ``cache=True`` inside this block cache in
+    ``cache_root()/<sources_hash>/<folder of their file>`` (``model`` or ``geometry``): the same
+    folder for every install of the same sources (Numba's own folder is keyed by the absolute
+    path of the installed file, one compile per install location), and a fresh one after any edit
+    to a model source. Numba picks the folder when a function is decorated, so this works
+    whether or not numba was imported before. Where that folder cannot be written, Numba's own
+    locations apply."""
+    saved = _CacheImpl._locator_classes
+    _CacheImpl._locator_classes = [_SourcesCacheLocator, *saved]
     try:
         yield
     finally:
-        numba.config.CACHE_DIR = saved
+        _CacheImpl._locator_classes = saved
 
 
-numba = None
-if _numba_wanted():
+def in_disk_cache(dispatcher) -> bool:
+    """Whether Numba's disk cache holds a fresh compile of ``dispatcher`` (a function decorated
+    with ``cache=True``): its index file exists, is of this Numba and of these sources. (Numba's
+    cache classes have no public interface for this; False if theirs changed.)"""
     try:
-        import numba
-        from numba.core import types as _nb_types
-        from numba.extending import overload, register_jitable
-    except ImportError:  # pragma: no cover - exercised where numba is absent
-        numba = None
+        return bool(dispatcher._cache._cache_file._load_index())
+    except Exception:  # noqa: BLE001 - any change in Numba's private classes: "not cached"
+        return False
 
-HAVE_NUMBA = numba is not None
+
+# The main thread's wait between two checks of a compiling thread (its signals are handled then)
+COMPILE_POLL_S = 0.05
+
+
+def compile_interruptibly(compile_now, what: str, expected: str) -> None:
+    """Run ``compile_now()`` after one line on stderr (``what`` compiles, taking ``expected``,
+    and where it is cached). On the main thread it runs in a worker thread while this thread
+    waits, so that SIGINT or SIGTERM ends the process within COMPILE_POLL_S: one line on stderr
+    and exit status 128 + the signal's number (``os._exit``: a compile cannot be stopped half
+    way, and it has started nothing to finish). Numba's compile otherwise holds the main thread
+    for its whole time, and a handler that only sets a flag (muscle_node's) is seen after it."""
+    print(f"vm_ros: compiling {what} with Numba, once per machine, Python and vm_ros version "
+          f"({expected}; cached in {cache_root()})", file=sys.stderr, flush=True)
+    if threading.current_thread() is not threading.main_thread():
+        compile_now()
+        return
+    outcome = []
+
+    def work():
+        try:
+            compile_now()
+        except BaseException as exc:  # noqa: BLE001 - raised again on the calling thread
+            outcome.append(exc)
+
+    def stop(signum, frame):
+        print(f"vm_ros: {signal.Signals(signum).name} while compiling {what}: stopped",
+              file=sys.stderr, flush=True)
+        os._exit(128 + signum)
+
+    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    for sig, handler in previous.items():
+        if handler is not None:  # None: a handler not set from Python, left alone
+            signal.signal(sig, stop)
+    try:
+        worker = threading.Thread(target=work, name="vm_ros-compile", daemon=True)
+        worker.start()
+        while worker.is_alive():
+            worker.join(COMPILE_POLL_S)
+    finally:
+        for sig, handler in previous.items():
+            if handler is not None:
+                signal.signal(sig, handler)
+    if outcome:
+        raise outcome[0]
 # a loop over a tuple that Numba unrolls, each pass with its element as a constant
 literal_unroll = numba.literal_unroll if HAVE_NUMBA else (lambda iterable: iterable)
 
@@ -188,6 +272,26 @@ if HAVE_NUMBA:
         return array_where
 
     from numba.np.unsafe.ndarray import to_fixed_tuple
+
+    # CacheImpl and its list of locators: _CacheImpl before Numba 0.68
+    _CacheImpl = getattr(_caching, "CacheImpl", None) or _caching._CacheImpl
+
+    class _SourcesCacheLocator(_caching._SourceFileBackedLocatorMixin, _caching._CacheLocator):
+        """Numba's cache locator for model_cache_directory: the folder there, and the sources'
+        hash as the stamp that Numba checks the cached index against (Numba's is the file's
+        own hash since 0.68, its time and size before, which every install changes)."""
+
+        def __init__(self, py_func, py_file):
+            self._py_file = py_file
+            self._lineno = py_func.__code__.co_firstlineno
+            self._stamp = sources_hash(py_file)
+            self._cache_path = str(cache_root() / self._stamp / Path(py_file).parent.name)
+
+        def get_cache_path(self):
+            return self._cache_path
+
+        def get_source_stamp(self):
+            return self._stamp
 
     @jitable
     def _bits_as_float(bits):
@@ -332,5 +436,7 @@ if HAVE_NUMBA:
     clip = jitable(clip)
 
 
-__all__ = ["ENV_SWITCH", "HAVE_NUMBA", "LLVM_OPTIONS", "clip", "exp", "expm1", "fixed_tuple",
-           "jitable", "literal_unroll", "log", "log1p", "power", "set_llvm_options", "where"]
+__all__ = ["COMPILE_POLL_S", "ENV_SWITCH", "HAVE_NUMBA", "LLVM_OPTIONS", "cache_root", "clip",
+           "compile_interruptibly", "exp", "expm1", "fixed_tuple", "in_disk_cache", "jitable",
+           "literal_unroll", "log", "log1p", "model_cache_directory", "power", "set_llvm_options",
+           "sources_hash", "where"]

@@ -29,7 +29,9 @@ from vm_ros.model.jit import (
     COMPILE_OPTIONS,
     HAVE_NUMBA,
     clip,
+    compile_interruptibly,
     fixed_tuple,
+    in_disk_cache,
     jitable,
     literal_unroll,
     model_cache_directory,
@@ -677,19 +679,36 @@ def parallel_chunk(n: int, threads: int | None = None) -> int:
     return -(-n // threads)
 
 
+# The kernel's first compile, for the line warm_up prints: 11-12 s on an idle machine (README,
+# "cold start"), up to 40 s measured with both cores busy
+COMPILE_TIME = "about 10-40 s"
+
+
 def warm_up(parallel: bool = False) -> None:
     """Compile the kernel (step and run share it) or load it from Numba's disk cache now rather
-    than in the first step: about 11-12 s the first time on a machine, 0.3 s after; with
-    ``parallel`` its parallel build too."""
+    than in the first step: about 11-12 s the first time on a machine (for a Python and vm_ros
+    version: vm_ros.model.jit.cache_root), 0.3 s after; with ``parallel`` its parallel build too.
+    A compile says so on stderr first, and SIGINT/SIGTERM end the process during it
+    (jit.compile_interruptibly)."""
     if not AVAILABLE:
         return
-    for wanted, function in ((True, advance_series), (parallel, advance_series_parallel)):
-        if wanted and not function.signatures:
+    pending = [function for wanted, function in ((True, advance_series),
+                                                 (parallel, advance_series_parallel))
+               if wanted and not function.signatures]
+
+    def compile_now():
+        for function in pending:
             function(*layout.dummy_arguments(LUMPED))
+
+    if all(in_disk_cache(function) for function in pending):
+        compile_now()
+    else:
+        compile_interruptibly(compile_now, "the model step", COMPILE_TIME)
 
 
 __all__ = [
     "AVAILABLE",
+    "COMPILE_TIME",
     "PARALLEL_ENV",
     "PARALLEL_MIN_MUSCLES",
     "advance_series",

@@ -21,9 +21,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import elementwise
 
-from vm_ros.model import curves
+from vm_ros.model import curves, roots
 from vm_ros.model.jit import jitable, where
 from vm_ros.model.params import FibreTypeParams, GenericParams, MuscleSpec
 
@@ -273,15 +272,15 @@ def equilibrium_fascicle_length(
     """Fascicle length (m) at which F_SE = F_CE with zero velocity, per muscle.
 
     ``activity_at(l, index)`` gives the (k, 2) effective activation of muscles ``index`` at
-    normalised lengths ``l`` (k,). Solved with scipy's elementwise bracketing root finder on
-    [l_min L0, the length at which the tendon is slack]; where the bracket holds no sign change
-    (a path length outside the muscle's range) the end with the smaller imbalance is returned.
+    normalised lengths ``l`` (k,). Solved with a bracketing root finder over arrays
+    (vm_ros.model.roots, Chandrupatla's method) on [l_min L0, the length at which the tendon is
+    slack]; where the bracket holds no sign change (a path length outside the muscle's range)
+    the end with the smaller imbalance is returned.
     """
     n = geometry.f0.shape[0]
     index = np.arange(n)
 
     def imbalance(x, idx):
-        idx = idx.astype(int)
         l0, l0t = geometry.l0[idx], geometry.l0t[idx]
         f_se = curves.tendon_force_cheng2000((path_length[idx] - x) / l0t, g.ct, g.kt, g.lrt)
         l = x / l0
@@ -293,15 +292,12 @@ def equilibrium_fascicle_length(
     slack = path_length - geometry.l0t * (g.lrt - 30.0 * g.kt)
     upper = np.minimum(slack, geometry.lmax * geometry.l0 * 1.5)
     lower = np.minimum(l_min * geometry.l0, upper - 1e-6 * geometry.l0)
-    g_low, g_up = imbalance(lower, index.astype(float)), imbalance(upper, index.astype(float))
+    g_low, g_up = imbalance(lower, index), imbalance(upper, index)
     bracketed = np.sign(g_low) != np.sign(g_up)
     result = np.where(np.abs(g_low) < np.abs(g_up), lower, upper)
     if np.any(bracketed):
-        sol = elementwise.find_root(
-            imbalance,
-            (lower[bracketed], upper[bracketed]),
-            args=(index[bracketed].astype(float),),
-            tolerances={"xatol": 1e-12, "xrtol": 1e-12},
-        )
-        result[bracketed] = sol.x
+        muscles = index[bracketed]
+        result[bracketed] = roots.find_root(
+            lambda x, i: imbalance(x, muscles[i]), lower[bracketed], upper[bracketed],
+            xatol=1e-12, xrtol=1e-12)
     return result

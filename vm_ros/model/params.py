@@ -336,6 +336,9 @@ class ModelParams:
         return getattr(getattr(self, SECTIONS[section][0]), field_name)
 
 
+# recruitment schemes (vm_ros.model.recruitment: lumped Tsianos 2012, natural Song 2008 units,
+# continuous); named here, with the other option names, for readers that need no equations
+SCHEMES = ("lumped", "natural", "continuous")
 RECOVERY_MODES = ("static", "dynamic")
 # Dynamic recovery kernels (docs/model.md section 7), each with <name>_tau_rise/_tau_decay fields.
 RECOVERY_KERNELS = ("fitted_fig7", "pcr_slade2006")

@@ -26,9 +26,15 @@ from functools import cached_property
 import numpy as np
 
 from vm_ros.model.jit import clip, exp, expm1, jitable, power, where
-from vm_ros.model.params import FAST, SLOW, ContinuousParams, LumpedParams, NaturalParams
+from vm_ros.model.params import (
+    FAST,
+    SCHEMES,
+    SLOW,
+    ContinuousParams,
+    LumpedParams,
+    NaturalParams,
+)
 
-SCHEMES = ("lumped", "natural", "continuous")
 _TINY = 1e-12
 
 

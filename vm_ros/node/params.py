@@ -20,9 +20,7 @@ from dataclasses import dataclass
 import yaml
 
 from vm_ros.errors import ConfigError, InputError
-from vm_ros.joint_space import parse_joint_map
-from vm_ros.model.params import DRIVE_LAWS, RECOVERY_MODES
-from vm_ros.model.recruitment import SCHEMES
+from vm_ros.model.params import DRIVE_LAWS, RECOVERY_MODES, SCHEMES
 
 PARAMS_SOURCE = "<parameters>"  # ConfigError.path for a bad parameter value
 
@@ -264,6 +262,9 @@ class NodeConfig:
             raise ConfigError(PARAMS_SOURCE, "initial_path_length_m", list(lengths),
                               "lengths must be > 0 m")
         self.overrides_mapping()  # raises on a bad YAML mapping
+        # imported here: muscle_node --help reads PARAMS without the geometry modules
+        from vm_ros.joint_space import parse_joint_map
+
         parse_joint_map(self.joint_map, PARAMS_SOURCE)  # syntax; coordinates: JointSpace
         for name in ("joint_map", "joints"):
             value = getattr(self, name)

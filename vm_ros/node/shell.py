@@ -70,6 +70,7 @@ from std_msgs.msg import Float64, Float64MultiArray
 
 from vm_ros import telemetry as tm
 from vm_ros.errors import ConfigError, VmRosError
+from vm_ros.node import interface
 from vm_ros.node.health import (
     ISSUE_KINDS,
     QUIET_KINDS,
@@ -102,34 +103,13 @@ GRAPH_CHECK_PERIOD_S = 1.0  # steady clock: how often input topics' publishers a
 _WITH_MESSAGE_INFO = inspect.Signature(
     [inspect.Parameter(name, inspect.Parameter.POSITIONAL_OR_KEYWORD) for name in ("data", "info")])
 
-# (topic, message type, description); joint topics only with a geometry
-INPUT_TOPICS = (
-    (tm.TOPIC_EXCITATION, JointState, "drive per muscle by name: name[], position[] in [0, 1]"),
-    (tm.TOPIC_EXCITATION_ARRAY, Float64MultiArray, "drive, one per muscle in muscles order"),
-    (tm.TOPIC_KINEMATICS, JointState,
-     "muscle path length (position[], m) and velocity (velocity[], m/s) by name"),
-)
-JOINT_INPUT_TOPICS = (
-    (tm.TOPIC_JOINT_STATES, JointState, "robot joint positions and velocities (with geometry)"),
-)
-OUTPUT_TOPICS = (
-    (tm.TOPIC_FORCE, JointState, "tendon force (effort[], N), fascicle length and velocity"),
-    (tm.TOPIC_ENERGY_RATE, Float64MultiArray,
-     "energy rate (W) by muscle x fibre (slow, fast, all) x component"),
-    (tm.TOPIC_ENERGY_RATE_TOTAL, Float64, "energy rate of all muscles (W)"),
-    (tm.TOPIC_ENERGY_TOTAL, Float64, "energy since the start (J)"),
-    (tm.TOPIC_DIAGNOSTICS, DiagnosticArray, "node health and counters (steady clock)"),
-)
-MODEL_OUTPUT_TOPICS = (
-    (tm.TOPIC_ENERGY_RATE_MODELS, Float64MultiArray,
-     "published energetics models' rates (W) by muscle x model x component (with "
-     "energetics_models)"),
-)
-JOINT_OUTPUT_TOPICS = (
-    (tm.TOPIC_JOINT_EFFORTS, JointState, "joint efforts (N m or N) by joint (with geometry)"),
-    (tm.TOPIC_JOINT_EFFORT_COMMANDS, Float64MultiArray,
-     "joint efforts in joints order (with geometry)"),
-)
+# (topic, message class, description) from vm_ros.node.interface (type names there)
+_MESSAGE_CLASSES = {tm.TYPE_JOINT_STATE: JointState, tm.TYPE_FLOAT64_MULTI_ARRAY: Float64MultiArray,
+                    tm.TYPE_FLOAT64: Float64, tm.TYPE_DIAGNOSTIC_ARRAY: DiagnosticArray}
+INPUT_TOPICS, JOINT_INPUT_TOPICS, OUTPUT_TOPICS, MODEL_OUTPUT_TOPICS, JOINT_OUTPUT_TOPICS = (
+    tuple((topic, _MESSAGE_CLASSES[type_name], text) for topic, type_name, text in table)
+    for table in (interface.INPUT_TOPICS, interface.JOINT_INPUT_TOPICS, interface.OUTPUT_TOPICS,
+                  interface.MODEL_OUTPUT_TOPICS, interface.JOINT_OUTPUT_TOPICS))
 
 _ROS_TYPES = {"bool": ParameterType.PARAMETER_BOOL, "integer": ParameterType.PARAMETER_INTEGER,
               "double": ParameterType.PARAMETER_DOUBLE, "string": ParameterType.PARAMETER_STRING,
@@ -801,26 +781,6 @@ def spin(executor, context, stop: ShutdownRequest) -> None:
         executor.spin_until_future_complete(requested, timeout_sec=SPIN_CHECK_S)
 
 
-def _topic_lines(topics) -> list[str]:
-    return [f"  {topic} ({_type_name(t)}): {text}" for topic, t, text in topics]
-
-
-def _argument_parser() -> argparse.ArgumentParser:
-    lines = [f"  {p.name} ({p.kind}, default {p.default!r}): {p.describe()}" for p in PARAMS]
-    epilog = ["inputs (reliable, keep last qos_depth; relative names):",
-              *_topic_lines(INPUT_TOPICS + JOINT_INPUT_TOPICS),
-              "outputs (reliable, keep last qos_depth):",
-              *_topic_lines(OUTPUT_TOPICS + JOINT_OUTPUT_TOPICS),
-              "parameters:", *lines,
-              "The node interface (layouts, bad inputs, diagnostics) is described in "
-              "docs/node.md and the README."]
-    return argparse.ArgumentParser(
-        prog="muscle_node", formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Virtual Muscle force and fibre-type energetics as a ROS 2 node. Set "
-                    "parameters with --ros-args -p NAME:=VALUE or --params-file FILE.",
-        epilog="\n".join(epilog))
-
-
 def run_node(name: str, parser: argparse.ArgumentParser, make_node, executor_for,
              args=None) -> int:
     """The Jazzy-style main of a vm_ros node program: --help (ROS arguments stripped), init with
@@ -861,7 +821,7 @@ def run_node(name: str, parser: argparse.ArgumentParser, make_node, executor_for
 
 def main(args=None) -> int:
     """muscle_node [--help] [--ros-args ...]: init, node, spin, destroy, shutdown."""
-    return run_node(NODE_NAME, _argument_parser(), MuscleNode,
+    return run_node(NODE_NAME, interface.argument_parser(), MuscleNode,
                     lambda node: make_executor(node.config.executor), args)
 
 
