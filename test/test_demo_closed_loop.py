@@ -86,12 +86,12 @@ def test_closed_loop_demo_logs_moves_and_plots(tmp_path):
 
 def test_command_line_round_trips():
     """The demo re-runs itself inside a namespace with _command_line(args): same arguments."""
-    parser = build_parser()
     for argv in (["demo"],
                  ["demo", "--closed-loop", "--model", "my model.xml", "--duration", "0.25",
                   "--out", "a b", "--mcap", "x.mcap", "--executor", "single_threaded",
                   "--recruitment", "natural", "--model-rate-hz", "500"],
                  ["demo", "--no-mcap", "--startup-timeout", "7", "--accept-skips"]):
+        parser = build_parser(argv)  # loads the verb's own arguments (cli.build_parser)
         args = parser.parse_args(argv)
         again = parser.parse_args(demo._command_line(args))
         assert {k: v for k, v in vars(again).items() if k != "_run"} == \

@@ -68,6 +68,8 @@ def test_each_element_is_evaluated_only_while_it_iterates():
 # a new SciPy import in vm_ros fails here until its name is checked and added.
 SCIPY_1_10_NAMES = {
     ("scipy.integrate", "solve_ivp"),  # SciPy 1.0
+    ("scipy.interpolate", "UnivariateSpline"),  # 0.x
+    ("scipy.interpolate", "make_interp_spline"),  # 0.19
     ("scipy.optimize", "least_squares"),  # 0.17
     ("scipy.stats", "qmc"),  # 1.7
     ("scipy.stats.qmc", "LatinHypercube"),  # 1.7 (its rng= keyword is 1.15: seed= is used)
