@@ -412,7 +412,7 @@ def _compare_peers(value: str) -> tuple:
 
 def _memory_csv_rows(r: dict, add) -> None:
     case = (f"{r['muscles']} muscles, bag split {r['max_bag_duration_s']:g} s, "
-            f"{r.get('duration_s', 0):.0f} s")
+            f"{r.get('duration_s', 0):.0f} s after {r.get('warmup_s', 0):.0f} s")
     if "error" in r:
         add("node-memory", case, "error", r["error"], "")
         return

@@ -31,14 +31,14 @@ FLUSH_INTERVAL_S, 1 s), the first chunk included: a SIGKILL loses at most the me
 last ``flush_interval_s`` (plus the writer thread's latency, at most DRAIN_PERIOD_S). Metadata
 and attachments are written at start-up, before any message.
 
-Memory: building, compressing and writing a chunk allocates a few buffers of about
-``chunk_size`` bytes (zstd's context among them) and frees them again; glibc's allocator keeps
-such freed memory in the process (its heap holes cannot shrink), so that the resident memory of a
-long recording crept up. Every RELEASE_PERIOD_S of wall time, and after finishing a file of a
-split bag, the writer thread hands the allocator's free pages back to the OS (glibc's
-``malloc_trim``; nothing where the C library has none). The file's indexes stay in memory until
-the file is finished, as the MCAP summary needs them: about 0.3 kB per chunk, which splitting
-(max_file_size, max_file_duration_s) bounds.
+Memory: building, compressing and writing a chunk allocates buffers of about ``chunk_size``
+bytes (zstd's context among them) and frees them again; glibc's allocator may keep such freed
+memory in the process instead of returning it. Every RELEASE_PERIOD_S of wall time, and after
+finishing a file of a split bag, the writer thread hands the allocator's free pages back to the
+OS (glibc's ``malloc_trim``; nothing where the C library has none). mcap's Writer keeps a file's
+chunk indexes (a ChunkIndex record of a few hundred bytes per chunk) until the file is finished,
+as the MCAP summary needs them: a single file's grow with the recording; splitting
+(max_file_size, max_file_duration_s) bounds them.
 
 Bag directories: a path without the ``.mcap`` suffix is a rosbag2 bag directory ``NAME/`` holding
 ``NAME_0.mcap`` and, once the log is finished, rosbag2's ``metadata.yaml``
@@ -86,7 +86,7 @@ _YIELD_EVERY = 32
 DRAIN_PERIOD_S = 0.05
 WAKE_SIZE = 256
 # The writer thread returns the C allocator's free memory to the OS this often (s of wall time;
-# module docstring, Memory); each call took 0.2-0.6 ms in a node at 1 kHz with 100 muscles.
+# module docstring, Memory).
 RELEASE_PERIOD_S = 60.0
 
 
