@@ -8,7 +8,7 @@ import math
 import pytest
 from conftest import require_ros
 
-from vm_ros.bench.node_bench import run_node_benchmark
+from vm_ros.bench.node_bench import rss_growth, run_node_benchmark
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -58,7 +58,25 @@ def test_split_bag_run_reads_back_and_samples_memory(tmp_path):
                                                          abs=2 * mib)
     assert result["rss_growth_mib"] == pytest.approx(trace[-1][1] - trace[0][1], abs=2 * mib)
     assert math.isfinite(result["rss_slope_mib_per_hour"])
+    assert result["rss_growth_mib_per_min"] == pytest.approx(
+        result["rss_growth_mib"] / (result["duration_s"] / 60.0), rel=1e-9)
+    assert math.isfinite(result["rss_slope_second_half_mib_per_hour"])
     assert result["latency_from_node_log"] and result["latency_samples"] > 100  # read the bag
+
+
+def test_rss_growth_of_known_traces():
+    """A steady climb of 1 MiB in 10 minutes is 6 MiB/h and 0.1 MiB/min; a warm-up step of
+    3 MiB in the first half followed by a flat second half has a second-half slope of 0."""
+    steady = rss_growth([(t, 200.0 + t / 600.0) for t in range(0, 601, 5)])
+    assert steady["rss_growth_mib"] == pytest.approx(1.0)
+    assert steady["rss_growth_mib_per_min"] == pytest.approx(0.1)
+    assert steady["rss_slope_mib_per_hour"] == pytest.approx(6.0)
+    assert steady["rss_slope_second_half_mib_per_hour"] == pytest.approx(6.0)
+    settling = rss_growth([(t, 200.0 + (3.0 if t >= 100 else 0.0)) for t in range(0, 601, 5)])
+    assert settling["rss_growth_mib"] == pytest.approx(3.0)
+    assert settling["rss_max_growth_mib"] == pytest.approx(3.0)
+    assert settling["rss_slope_mib_per_hour"] > 0
+    assert settling["rss_slope_second_half_mib_per_hour"] == pytest.approx(0.0, abs=1e-9)
 
 
 def test_splitting_needs_a_bag():

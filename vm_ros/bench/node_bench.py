@@ -37,9 +37,11 @@ Definitions (keys of the returned dict; times are the benchmark's steady clock u
 | rss_peak_mib | node VmHWM at the window's end (peak since the process started) |
 | rss_growth_mib, rss_max_growth_mib | rss_final_mib, and the largest sample, minus
   rss_window_start_mib |
+| rss_growth_mib_per_min | rss_growth_mib / the window in minutes |
 | rss_slope_mib_per_hour | least-squares slope of the window's VmRSS samples (every
   rss_sample_period_s, from /proc/<pid>/status), x 3600 s/h; rss_trace: the samples as
   [seconds into the window, MiB] |
+| rss_slope_second_half_mib_per_hour | the same over the samples of the window's second half |
 | latency_p50_ms, _p99_ms, _max_ms | excitation-to-force latency, below (latency_samples) |
 | excitation_not_in_node_log | window excitations the node never logged: dropped from its
   subscription queue (depth qos_depth) while it was busy (MCAP only) |
@@ -811,16 +813,29 @@ def _measure(process, driver: BenchDriver, executor, duration_s: float, warmup_s
     return result
 
 
+def _slope_per_hour(t: np.ndarray, rss: np.ndarray) -> float:
+    """Least-squares slope of rss (MiB) against t (s), x 3600 s/h; NaN for fewer than two
+    distinct times."""
+    if len(t) < 2 or np.ptp(t) <= 0:
+        return math.nan
+    return float(np.polyfit(t, rss, 1)[0]) * SECONDS_PER_HOUR
+
+
 def rss_growth(trace) -> dict:
-    """rss_growth_mib, rss_max_growth_mib, rss_slope_mib_per_hour, rss_samples and rss_trace of
-    ``trace``, [(seconds into the window, VmRSS MiB)...] starting at the window's start."""
+    """rss_growth_mib, rss_growth_mib_per_min, rss_max_growth_mib, rss_slope_mib_per_hour,
+    rss_slope_second_half_mib_per_hour, rss_samples and rss_trace of ``trace``, [(seconds into
+    the window, VmRSS MiB)...] starting at the window's start."""
     t = np.array([s for s, _ in trace], dtype=float)
     rss = np.array([m for _, m in trace], dtype=float)
-    slope = (float(np.polyfit(t, rss, 1)[0]) * SECONDS_PER_HOUR
-             if len(t) >= 2 and np.ptp(t) > 0 else math.nan)
-    return {"rss_growth_mib": float(rss[-1] - rss[0]),
+    growth = float(rss[-1] - rss[0])
+    second_half = t >= 0.5 * t[-1]
+    return {"rss_growth_mib": growth,
+            "rss_growth_mib_per_min": growth / (t[-1] / 60.0) if t[-1] > 0 else math.nan,
             "rss_max_growth_mib": float(rss.max() - rss[0]),
-            "rss_slope_mib_per_hour": slope, "rss_samples": len(trace),
+            "rss_slope_mib_per_hour": _slope_per_hour(t, rss),
+            "rss_slope_second_half_mib_per_hour": _slope_per_hour(t[second_half],
+                                                                  rss[second_half]),
+            "rss_samples": len(trace),
             "rss_trace": [[round(float(a), 3), round(float(b), 3)] for a, b in trace]}
 
 

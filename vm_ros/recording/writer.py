@@ -31,6 +31,15 @@ FLUSH_INTERVAL_S, 1 s), the first chunk included: a SIGKILL loses at most the me
 last ``flush_interval_s`` (plus the writer thread's latency, at most DRAIN_PERIOD_S). Metadata
 and attachments are written at start-up, before any message.
 
+Memory: building, compressing and writing a chunk allocates buffers of about ``chunk_size``
+bytes (zstd's context among them) and frees them again; glibc's allocator may keep such freed
+memory in the process instead of returning it. Every RELEASE_PERIOD_S of wall time, and after
+finishing a file of a split bag, the writer thread hands the allocator's free pages back to the
+OS (glibc's ``malloc_trim``; nothing where the C library has none). mcap's Writer keeps a file's
+chunk indexes (a ChunkIndex record of a few hundred bytes per chunk) until the file is finished,
+as the MCAP summary needs them: a single file's grow with the recording; splitting
+(max_file_size, max_file_duration_s) bounds them.
+
 Bag directories: a path without the ``.mcap`` suffix is a rosbag2 bag directory ``NAME/`` holding
 ``NAME_0.mcap`` and, once the log is finished, rosbag2's ``metadata.yaml``
 (vm_ros.recording.bag).
@@ -38,6 +47,7 @@ Bag directories: a path without the ``.mcap`` suffix is a rosbag2 bag directory 
 
 from __future__ import annotations
 
+import ctypes
 import threading
 import time
 from collections import deque
@@ -75,6 +85,28 @@ _YIELD_EVERY = 32
 # (messages, or write_block blocks) wait, or a quarter of the queue if that is less.
 DRAIN_PERIOD_S = 0.05
 WAKE_SIZE = 256
+# The writer thread returns the C allocator's free memory to the OS this often (s of wall time;
+# module docstring, Memory).
+RELEASE_PERIOD_S = 60.0
+
+
+def _c_malloc_trim():
+    """glibc's ``malloc_trim(pad)`` (free heap pages back to the OS), or None without glibc."""
+    try:
+        trim = ctypes.CDLL(None).malloc_trim
+    except (OSError, AttributeError):
+        return None
+    trim.argtypes, trim.restype = [ctypes.c_size_t], ctypes.c_int
+    return trim
+
+
+_MALLOC_TRIM = _c_malloc_trim()
+
+
+def release_free_memory() -> None:
+    """Hand the C allocator's free pages back to the OS (glibc; elsewhere nothing)."""
+    if _MALLOC_TRIM is not None:
+        _MALLOC_TRIM(0)
 
 
 class RecorderError(VmRosError):
@@ -272,6 +304,7 @@ class McapRecorder:
         self._open_chunk_count = 0
         self._chunk_opened_at: float | None = None
         self._chunks_seen = self._sink.chunks
+        self._release_at = time.monotonic() + RELEASE_PERIOD_S
         self._thread = threading.Thread(target=self._run, name=f"mcap-recorder {self._path.name}",
                                         daemon=True)
         self._thread.start()
@@ -434,6 +467,8 @@ class McapRecorder:
                 self._flush_if_old()
             except Exception as exc:  # disk full, I/O error: record it, keep draining
                 self._fail(exc)
+            if time.monotonic() >= self._release_at:
+                self._release_memory()
         self._finish()
 
     def _next_item(self):
@@ -554,6 +589,11 @@ class McapRecorder:
         with self._channel_lock:
             self._pending = list(self._channels.values())
         self._schema_ids, self._channel_ids = {}, {}
+        self._release_memory()  # the finished file's indexes and buffers
+
+    def _release_memory(self) -> None:
+        release_free_memory()
+        self._release_at = time.monotonic() + RELEASE_PERIOD_S
 
     def _note_written_chunks(self) -> None:
         """A new chunk in the file holds every message of the open chunk: start a new one."""
