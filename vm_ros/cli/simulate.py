@@ -95,6 +95,7 @@ from vm_ros.node.motion_inputs import (
     box_warnings,
     coupled_columns,
     parse_hold,
+    rotational_names,
 )
 from vm_ros.node.params import NodeConfig
 from vm_ros.node.recording import INPUT_RULE as NODE_INPUT_RULE
@@ -326,8 +327,7 @@ def _motion_source(args) -> _Source:
     node = NodeConfig.from_values(node_values)
     needed = [name for name in geometry.coordinate_names if name in crossed]
     joint_motion = JointMotion.from_motion(motion, geometry, needed, hold)
-    rotational = {c.name for c in geometry.coordinates if c.unit == "rad"}
-    warnings = motion.unit_warnings(rotational & set(joint_motion.coordinates))
+    warnings = motion.unit_warnings(rotational_names(geometry) & set(joint_motion.coordinates))
     warnings += box_warnings(joint_motion, geometry, motion.in_degrees)
     coupler_warnings, coupled_notes = coupled_columns(motion, geometry)
     warnings += coupler_warnings

@@ -73,7 +73,7 @@ class JointMotion:
             raise VmRosError(f"motion {motion.path}: no column for coordinate(s) "
                              f"{', '.join(missing)} (columns: {', '.join(motion.names)}); give "
                              "them with --hold NAME=VALUE (with a unit: 0deg, 0.9m)")
-        rotational = {c.name for c in geometry.coordinates if c.unit == "rad"}
+        rotational = rotational_names(geometry)
         values = motion.to_si(rotational)
         speeds = motion.speeds_to_si(rotational)
         time = motion.time - motion.time[0]
@@ -162,6 +162,18 @@ def parse_hold(texts, geometry) -> dict[str, float]:
     return hold
 
 
+def rotational_names(geometry) -> set[str]:
+    """The geometry's rotational coordinates, independent and coupled (unit rad): the motion
+    columns that ``inDegrees=yes`` puts in degrees."""
+    return {c.name for c in (*geometry.coordinates, *geometry.coupled) if c.unit == "rad"}
+
+
+def shown_unit(unit: str, in_degrees: bool) -> str:
+    """The unit a coordinate of ``unit`` (rad or m) is shown in for a motion: deg for a rotational
+    one when the motion is in degrees."""
+    return "deg" if in_degrees and unit == "rad" else unit
+
+
 def shown_range(coordinate, symbol: str) -> str:
     """A coordinate's box in the unit ``symbol`` (e.g. '-10 to 120 deg')."""
     factor = UNITS[symbol].factor
@@ -182,9 +194,7 @@ def coupled_columns(motion: Motion, geometry) -> tuple[list[str], list[str]]:
     driver's column, the column is compared with the function of the driver's values (frames
     with the driver inside its box, in SI); a difference beyond COUPLER_TOLERANCE is a warning
     naming the worst frame's time and both values in the motion's unit, else a note."""
-    rotational = {c.name for c in (*geometry.coordinates, *geometry.coupled)
-                  if c.unit == "rad"}
-    values = motion.to_si(rotational)
+    values = motion.to_si(rotational_names(geometry))
     warnings, notes = [], []
     for c in geometry.coupled:
         if c.name not in motion.names:
@@ -198,7 +208,7 @@ def coupled_columns(motion: Motion, geometry) -> tuple[list[str], list[str]]:
         column = values[:, motion.names.index(c.name)]
         coupled = c.value(values[:, motion.names.index(c.follows[0])])
         difference = np.abs(column - coupled)   # NaN where the driver is outside its box
-        symbol = "deg" if motion.in_degrees and c.unit == "rad" else c.unit
+        symbol = shown_unit(c.unit, motion.in_degrees)
         factor = UNITS[symbol].factor
         tolerance = COUPLER_TOLERANCE[c.unit]
         if not np.isfinite(difference).any():
@@ -227,7 +237,7 @@ def box_warnings(motion: JointMotion, geometry, in_degrees: bool) -> list[str]:
         excess = np.maximum(coordinate.lower - q, q - coordinate.upper)  # > 0 outside
         if not (excess > 0).any():
             continue
-        symbol = "deg" if in_degrees and coordinate.unit == "rad" else coordinate.unit
+        symbol = shown_unit(coordinate.unit, in_degrees)
         extreme = q[np.argmax(excess)] / UNITS[symbol].factor
         warnings.append(f"motion {motion.source}: {name} outside the geometry's range "
                         f"{shown_range(coordinate, symbol)} in {int((excess > 0).sum())} of "
@@ -287,4 +297,5 @@ class MotionInputs:
 
 
 __all__ = ["COUPLER_TOLERANCE", "JointMotion", "MotionInputs", "box_warnings", "coupled_columns",
-           "parse_hold", "shown_range", "velocity_from_positions"]
+           "parse_hold", "rotational_names", "shown_range", "shown_unit",
+           "velocity_from_positions"]
