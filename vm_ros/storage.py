@@ -47,6 +47,17 @@ def parse_storage(path, text: str, what: str) -> StorageTable:
     return StorageTable(header, labels, [row.split() for row in body[1:]])
 
 
+def read_storage(path, what: str) -> StorageTable:
+    """Read and split a storage file; VmRosError ``"<what> <path>: ..."`` when it cannot be
+    read or is not one."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError as exc:
+        raise VmRosError(f"{what} {path}: cannot read ({exc.strerror or exc})") from exc
+    return parse_storage(path, text, what)
+
+
 def numeric_rows(path, labels, rows, what: str):
     """The data rows as a finite float array (n_rows, len(labels)); VmRosError otherwise."""
     import numpy as np
@@ -63,4 +74,14 @@ def numeric_rows(path, labels, rows, what: str):
     return data
 
 
-__all__ = ["StorageTable", "numeric_rows", "parse_storage"]
+def check_increasing(path, time, what: str) -> None:
+    """VmRosError naming the first data row (1-based) whose time does not increase."""
+    import numpy as np
+
+    back = np.diff(time) <= 0
+    if np.any(back):
+        raise VmRosError(f"{what} {path}: times must increase strictly (row "
+                         f"{int(np.argmax(back)) + 2} does not)")
+
+
+__all__ = ["StorageTable", "check_increasing", "numeric_rows", "parse_storage", "read_storage"]
