@@ -23,7 +23,8 @@ INERTIA = 1e-4   # kg m^2, the mass's own inertia about its centre (each axis)
 
 def _geometry(*names_units):
     return SimpleNamespace(coordinates=tuple(Coordinate(n, u, -3.0, 3.0)
-                                             for n, u in names_units), coupled=())
+                                             for n, u in names_units), coupled=(),
+                           coordinate_names=tuple(n for n, _ in names_units))
 
 
 def _motion(time, columns: dict, source="walk.mot", start_s=0.0):
@@ -245,3 +246,29 @@ def test_opensim_inverse_dynamics_of_a_pendulum(tmp_path):
     inner = slice(20, -20)   # OpenSim's splines of the coordinates are looser at the ends
     assert np.abs(targets.moments_nm[inner, 0] - expected[inner]).max() < 0.005 * peak
     assert targets.source == f"opensim-id:{model}"
+
+
+def test_opensim_id_of_the_walk_reproduces_its_reference_output(tmp_path):
+    """OpenSim's InverseDynamicsTool run here with the walk's ground reactions and its setup's
+    6 Hz filter gives the hip, knee and ankle moments of opensim-models' reference ID file
+    (when scripts/fetch-gait-data has fetched the walk)."""
+    from vm_ros.importers.motion import read_motion
+    from vm_ros.importers.osim import load_opensim
+    from vm_ros.validation.walk_data import WalkDataError, walk_files
+
+    try:
+        files = walk_files()
+        load_opensim()
+    except (WalkDataError, VmRosError) as exc:
+        pytest.skip(str(exc))
+    names = [f"{joint}_{side}" for side in "rl" for joint in ("hip_flexion", "knee_angle",
+                                                                 "ankle_angle")]
+    geometry = _geometry(*((n, "rad") for n in names))
+    motion = JointMotion.from_motion(read_motion(files["motion"]), geometry, names, {})
+    reference = load_targets(str(files["inverse_dynamics"]), geometry=geometry, motion=motion)
+    ours = load_targets(f"opensim-id:{files['model']},{files['grf_loads']},lowpass=6",
+                        geometry=geometry, motion=motion)
+    np.testing.assert_allclose(ours.moments_nm, reference.moments_nm, rtol=0,
+                               atol=1e-3 * reference.peak_nm().max())
+    assert reference.unmatched == ("pelvis_tilt_moment", "pelvis_tx_force", "pelvis_ty_force",
+                                   "lumbar_extension_moment")

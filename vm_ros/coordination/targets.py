@@ -25,10 +25,11 @@ vm_ros.node.motion_inputs.JointMotion) for its coordinates. The spec says where 
   residual that holds it in space (there is no ground contact); they are reported in
   ``unmatched``, like every other degree of freedom no coordinate accounts for. ``MODEL`` is an
   MJCF file or a myo-sim name; without it, the model the geometry was imported from.
-- **OpenSim** (extra ``opensim``): OpenSim's InverseDynamicsTool on the motion's file with the
-  external loads file (its data file is found relative to the XML, as OpenSim's tools find it)
-  and, with ``lowpass=HZ``, OpenSim's low-pass filter of the coordinates (Gait10dof18musc's ID
-  setup uses 6 Hz); its output is read as a storage file, above.
+- **OpenSim** (extra ``opensim``): OpenSim's InverseDynamicsTool on the motion's file, the
+  model's muscles excluded (as OpenSim's ID setups do), with the external loads file (its data
+  file is found relative to the XML, as OpenSim's tools find it) and, with ``lowpass=HZ``,
+  OpenSim's low-pass filter of the coordinates (Gait10dof18musc's ID setup uses 6 Hz); its
+  output is read as a storage file, above.
 
 Sign convention: OpenSim's and MuJoCo's, the generalized force that produces the motion along
 the coordinate (tau = r^T F for muscle forces F and moment arms r, vm_ros.geometry.paths).
@@ -322,6 +323,9 @@ def targets_from_opensim(text: str, geometry, motion) -> JointMomentTargets:
         tool.setModel(model)
         tool.setCoordinatesFileName(str(motion_file))
         tool.setLowpassCutoffFrequency(lowpass)
+        excluded = opensim.ArrayStr()
+        excluded.append("Muscles")  # the targets are what the muscles must produce
+        tool.setExcludedForces(excluded)
         tool.setStartTime(float(frames[0]))
         tool.setEndTime(float(frames[-1]))
         tool.setResultsDir(out)

@@ -60,6 +60,9 @@ FILES = {
     "grf_loads": WalkFile("ExperimentalData/subject01_walk_grf.xml", "307816039e06346094cb0b"
                           "0d0d6d176935761c02c9fef34a17cfbd57a7882d22",
                           "external loads (feet), data file subject01_walk_grf.mot"),
+    "reserves": WalkFile("gait10dof_Reserve_Actuators.xml", "b6fd299d91361027b107aa2a30a0063"
+                         "27bb57fe6d642291ff7aecbc916ed1e38", "pelvis residual and joint "
+                         "reserve actuators of the CMC setup"),
     "cmc_controls": WalkFile("CMC/ResultsCMC/walk_subject_controls.sto", "f6e7b209a729819423"
                              "e480de37903fc63d19d2c45fdaf25471ab8e8a45f3dd76",
                              "CMC excitations"),
