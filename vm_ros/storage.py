@@ -84,4 +84,19 @@ def check_increasing(path, time, what: str) -> None:
                          f"{int(np.argmax(back)) + 2} does not)")
 
 
-__all__ = ["StorageTable", "check_increasing", "numeric_rows", "parse_storage", "read_storage"]
+def read_columns(path, what: str):
+    """(time (n,), {label: column (n,)}, labels in file order) of a numeric storage file
+    whose times increase strictly; VmRosError ``"<what> <path>: ..."`` otherwise (a label given
+    twice included)."""
+    table = read_storage(path, what)
+    data = numeric_rows(path, table.labels, table.rows, what)
+    check_increasing(path, data[:, 0], what)
+    labels = table.labels[1:]
+    if len(set(labels)) != len(labels):
+        twice = sorted({label for label in labels if labels.count(label) > 1})
+        raise VmRosError(f"{what} {path}: column(s) {', '.join(twice)} appear twice")
+    return data[:, 0], {label: data[:, i + 1] for i, label in enumerate(labels)}, labels
+
+
+__all__ = ["StorageTable", "check_increasing", "numeric_rows", "parse_storage", "read_columns",
+           "read_storage"]

@@ -47,7 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from vm_ros.errors import VmRosError
-from vm_ros.storage import check_increasing, numeric_rows, read_storage
+from vm_ros.storage import read_columns
 
 # a source row within this fraction of the smallest frame interval of a frame is that frame
 ALIGN_FRACTION = 0.01
@@ -115,20 +115,6 @@ def align_to_frames(times, values, frames, what: str) -> np.ndarray:
     return np.column_stack([np.interp(frames, times, column) for column in values.T])
 
 
-def read_generalized_forces(path) -> tuple[np.ndarray, dict[str, np.ndarray], list[str]]:
-    """(time (n,), {label: column (n,)}, labels in file order) of a storage file of
-    generalized forces; TargetsError for an unreadable file or times that do not increase."""
-    path = Path(path)
-    table = read_storage(path, "targets")
-    data = numeric_rows(path, table.labels, table.rows, "targets")
-    check_increasing(path, data[:, 0], "targets")
-    labels = table.labels[1:]
-    if len(set(labels)) != len(labels):
-        twice = sorted({label for label in labels if labels.count(label) > 1})
-        raise TargetsError(f"targets {path}: column(s) {', '.join(twice)} appear twice")
-    return data[:, 0], {label: data[:, i + 1] for i, label in enumerate(labels)}, labels
-
-
 def _units(geometry, coordinates) -> dict[str, str]:
     units = {c.name: c.unit for c in (*geometry.coordinates, *geometry.coupled)}
     return {name: units.get(name, "rad") for name in coordinates}
@@ -137,7 +123,7 @@ def _units(geometry, coordinates) -> dict[str, str]:
 def targets_from_storage(path, geometry, motion, source: str | None = None,
                          notes=()) -> JointMomentTargets:
     """Targets from an inverse-dynamics storage file (module docstring)."""
-    time, columns, labels = read_generalized_forces(path)
+    time, columns, labels = read_columns(path, "targets")
     what = f"targets {path}"
     units = _units(geometry, motion.coordinates)
     chosen = []
@@ -373,5 +359,5 @@ def load_targets(spec: str, *, geometry, motion) -> JointMomentTargets:
 
 
 __all__ = ["ALIGN_FRACTION", "SPEC_HELP", "JointMomentTargets", "TargetsError",
-           "align_to_frames", "load_targets", "read_generalized_forces", "targets_from_mujoco",
+           "align_to_frames", "load_targets", "targets_from_mujoco",
            "targets_from_opensim", "targets_from_storage"]
