@@ -91,7 +91,7 @@ def test_storage_columns_that_do_not_fit_are_one_line_errors(tmp_path, labels, u
     path = _write_sto(tmp_path / "id.sto", labels, [[0.0] + [1.0] * (len(labels) - 1),
                                                     [1.0] + [1.0] * (len(labels) - 1)])
     motion = _motion(np.array([0.0, 1.0]), {"knee": np.zeros(2)})
-    with pytest.raises(TargetsError, match=message) as info:
+    with pytest.raises(VmRosError, match=message) as info:
         load_targets(str(path), geometry=_geometry(("knee", unit)), motion=motion)
     assert "\n" not in str(info.value)
 
