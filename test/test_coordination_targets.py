@@ -71,7 +71,7 @@ def test_storage_at_another_rate_is_interpolated_on_the_motion_axis(tmp_path):
     motion = _motion(own, {"slider": np.zeros(60)}, start_s=0.2)
     targets = load_targets(f"sto:{path}", geometry=_geometry(("slider", "m")), motion=motion)
     np.testing.assert_allclose(targets.moments_nm[:, 0], 3 * own + 1, atol=1e-9)
-    np.testing.assert_allclose(targets.times_s, own - 0.2, atol=1e-12)
+    np.testing.assert_allclose(targets.times_s, own, atol=1e-12)
 
 
 def test_align_to_frames_does_not_snap_rows_half_a_frame_away():

@@ -1,7 +1,8 @@
 """Target joint moments of a motion: what the muscles of a coordination solve must produce.
 
 ``load_targets(spec, geometry=..., motion=...)`` returns them at the frames of ``motion`` (a
-vm_ros.node.motion_inputs.JointMotion) for its coordinates. The spec says where they come from:
+vm_ros.node.motion_inputs.JointMotion) for its coordinates, with the times of the motion file's
+own axis (``motion.start_s + motion.time_s``). The spec says where they come from:
 
     PATH.sto | sto:PATH                              an inverse-dynamics storage file
     mujoco | mujoco:MODEL                            MuJoCo inverse dynamics of the motion
@@ -70,7 +71,7 @@ class JointMomentTargets:
 
     | field | shape | unit |
     | --- | --- | --- |
-    | times_s | (T,) | s, the motion's frames from its first (JointMotion.time_s) |
+    | times_s | (T,) | s, the motion's frames on its file's time axis (start_s + time_s) |
     | coordinates | (C,) | the motion's coordinates, in its order |
     | moments_nm | (T, C) | N m (rotational), N (translational) |
     | source | | the spec, with the file or model it named |
@@ -146,7 +147,7 @@ def targets_from_storage(path, geometry, motion, source: str | None = None,
     if unmatched:
         notes.append(f"{what}: {len(unmatched)} column(s) not taken by a coordinate of the "
                      f"motion, kept as residuals: {', '.join(unmatched)}")
-    return JointMomentTargets(motion.time_s.copy(), tuple(motion.coordinates), aligned[:, :k],
+    return JointMomentTargets(frames, tuple(motion.coordinates), aligned[:, :k],
                               source or str(path), tuple(unmatched), aligned[:, k:],
                               tuple(notes))
 
@@ -223,7 +224,7 @@ def targets_from_mujoco(model: str, geometry, motion) -> JointMomentTargets:
     if unmatched:
         notes.append(f"{len(unmatched)} degree(s) of freedom crossed by no muscle, kept as "
                      f"residuals: {', '.join(label for label, _ in unmatched)}")
-    return JointMomentTargets(motion.time_s.copy(), tuple(motion.coordinates), moments,
+    return JointMomentTargets(motion.start_s + motion.time_s, tuple(motion.coordinates), moments,
                               f"mujoco:{name}", tuple(label for label, _ in unmatched),
                               forces[:, [v for _, v in unmatched]],
                               tuple(notes))
