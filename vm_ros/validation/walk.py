@@ -247,11 +247,79 @@ def _walk_context(files, config) -> dict:
             "cmc_forces": wr.cmc_forces(files), "umberger": wr.umberger_probe(files)}
 
 
-def solve_walk(files, config, params):  # pragma: no cover - replaced when the solver lands
-    """The coordination solutions of the walk (one per cost); CheckSkippedError until
-    vm_ros.coordination has a solver."""
-    raise CheckSkippedError("vm_ros.coordination has no solver in this build: the walk item "
-                            "needs one")
+# the walk's strengths (import-osim --specific-tension): the model's own F0, and the import's
+# default, reported beside it (issue 30)
+STRENGTHS = {"model F0": "vm", "default import": "60"}
+COSTS = ("drive2", "tsianos2012")   # the classic and VM's own energy (vm_ros.coordination.costs)
+
+
+def import_walk(files, strength: str, out_dir):
+    """The walk's model imported as `vm-ros import-osim --motion IK --specific-tension
+    STRENGTH` does, into ``out_dir``: (geometry, library path)."""
+    import io
+
+    from vm_ros.importers.common import ImportChoices, specific_tension_option
+    from vm_ros.importers.osim import OsimOptions, import_osim
+
+    done = import_osim(files["model"], out_dir, OsimOptions(motions=(str(files["motion"]),)),
+                       ImportChoices(specific_tension_option(strength)), progress=False,
+                       file=io.StringIO())
+    return done.geometry, Path(out_dir) / "muscles.yaml"
+
+
+def solution_from_result(label: str, result, motion) -> WalkSolution:
+    """A WalkSolution from a vm_ros.coordination solve: drives, forces and moments at the
+    target frames, the muscles' summed VM metabolic rate (W) interpolated from the model steps
+    to the frames."""
+    from vm_ros.coordination.costs import vm_rate
+
+    problem = result.problem
+    frames = problem.frame_times_s
+    drives = np.column_stack([np.interp(frames, result.node_times_s, result.drives[:, i])
+                              for i in range(result.drives.shape[1])])
+    forward = result.forward
+    steps = np.arange(forward.drive_steps.shape[0]) * problem.dt_s
+    rate = vm_rate(forward.trajectory, forward.drive_steps).sum(axis=1)
+    return WalkSolution(label, frames + motion.start_s, tuple(problem.muscles), drives,
+                        forward.force_frames, tuple(problem.coordinates), result.moments,
+                        problem.target, np.interp(frames, steps, rate))
+
+
+def solve_walk(files, config, params) -> list[WalkSolution]:
+    """One solution per strength (STRENGTHS) and cost (COSTS) of the walk's hip, knee and ankle
+    ID moments; CheckSkippedError when vm_ros.coordination has no solver in this build."""
+    import tempfile
+
+    try:
+        from vm_ros.coordination.problem import build_problem
+        from vm_ros.coordination.solver import SolverOptions, solve
+    except ImportError as exc:
+        raise CheckSkippedError("vm_ros.coordination has no solver in this build: the walk "
+                                f"item needs one ({exc})") from exc
+    from vm_ros.coordination.targets import load_targets
+    from vm_ros.importers.motion import read_motion
+    from vm_ros.model.bank import MuscleBank
+    from vm_ros.model.params import load_model_params, resolve_muscles
+    from vm_ros.node.motion_inputs import JointMotion
+
+    params = params or load_model_params()
+    solutions = []
+    for strength_label, strength in STRENGTHS.items():
+        with tempfile.TemporaryDirectory(prefix="vm_ros_walk_") as out:
+            geometry, library = import_walk(files, strength, out)
+            motion = JointMotion.from_motion(read_motion(files["motion"]), geometry,
+                                             geometry.coordinate_names, {})
+            targets = load_targets(str(files["inverse_dynamics"]), geometry=geometry,
+                                   motion=motion)
+            muscles = geometry.muscle_names
+            specs = resolve_muscles(muscles, library, None, params.generic.ur_default)
+            problem = build_problem(geometry, motion, targets, muscles)
+            for cost in COSTS:
+                bank = MuscleBank(specs, params, "lumped")
+                result = solve(bank, problem, SolverOptions(cost=cost))
+                solutions.append(solution_from_result(f"{cost}, {strength_label}", result,
+                                                      motion))
+    return solutions
 
 
 def check_walk(params=None) -> CheckResult:
