@@ -13,7 +13,8 @@ import pytest
 import yaml
 from scipy import optimize
 
-from vm_ros.coordination.problem import JointMomentTargets, build_problem
+from vm_ros.coordination.problem import build_problem
+from vm_ros.coordination.targets import JointMomentTargets
 from vm_ros.coordination.solver import SolverOptions, solve
 from vm_ros.geometry import Coordinate, MusclePath, PolynomialGeometry
 from vm_ros.model import MuscleBank

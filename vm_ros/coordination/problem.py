@@ -21,21 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vm_ros.coordination.targets import JointMomentTargets
 from vm_ros.errors import VmRosError
 
 FRAME_TOLERANCE_S = 1e-3   # target frames this close outside the motion's span are kept (clipped)
-
-
-@dataclass(frozen=True)
-class JointMomentTargets:
-    """Target generalized forces: ``times_s`` (T,) s on the motion's time axis,
-    ``coordinates`` (C,) names, ``moments_nm`` (T, C) N m (N for translational coordinates),
-    ``source`` (where they came from). vm_ros.coordination.targets reads them from files."""
-
-    times_s: np.ndarray
-    coordinates: tuple[str, ...]
-    moments_nm: np.ndarray
-    source: str
 
 
 @dataclass(frozen=True)
