@@ -14,8 +14,8 @@ import yaml
 from scipy import optimize
 
 from vm_ros.coordination.problem import build_problem
-from vm_ros.coordination.targets import JointMomentTargets
 from vm_ros.coordination.solver import SolverOptions, solve
+from vm_ros.coordination.targets import JointMomentTargets
 from vm_ros.geometry import Coordinate, MusclePath, PolynomialGeometry
 from vm_ros.model import MuscleBank
 from vm_ros.model.params import load_muscle_library

@@ -5,11 +5,12 @@ Every cost is the integral over the motion of a per-muscle rate c_i(t), weighted
 
     C(U) = sum_i w_i int_0^T c_i(t) dt
 
-| name | c_i(t) | unit of C | source |
-| --- | --- | --- | --- |
-| tsianos2012 (default) | VM's total metabolic rate of muscle i (activation, maintenance, shortening/lengthening, recovery; docs/energetics.md) | J | Tsianos, Rustin & Loeb 2012 |
-| drive2 | U_i(t)^2, the drive squared | s | the classic static-optimisation criterion (OpenSim SO's sum a^2) |
-| umberger2003, ... (every name of vm_ros.energetics_models.vm_state.MODEL_NAMES) | that published model's total rate on VM's state (docs/energetics_models.md) | J | the model's paper |
+- ``tsianos2012`` (default, J): c_i = VM's total metabolic rate of muscle i (activation,
+  maintenance, shortening/lengthening, recovery; docs/energetics.md); Tsianos, Rustin & Loeb 2012.
+- ``drive2`` (s): c_i = U_i(t)^2, the drive squared; the classic static-optimisation criterion
+  (OpenSim SO's sum a^2).
+- each name of vm_ros.energetics_models.vm_state.MODEL_NAMES (J): c_i = that published model's
+  total rate on VM's state (docs/energetics_models.md); the model's paper.
 
 drive2 is quadratic in the drive nodes (exactly; the solver uses its Hessian); the energy costs
 are linearised around each iterate from the perturbed forward runs (vm_ros.coordination.

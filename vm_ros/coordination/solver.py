@@ -4,24 +4,23 @@ Unknowns: drive nodes u (N nodes x n muscles, every ``node_step_s``). Objective:
 
     J(u) = sum_i w_i C_i(u) / C_ref                       cost (costs.py), C_ref: the cost with
                                                           every drive held at REFERENCE_DRIVE
-         + mean_{f,c} (w_res (rho_fc / peak_c)^2          reserves rho = target - r^T F(u),
-                       + mu_fc rho_fc / peak_c)           multipliers mu
+         + w_res mean_{f,c} (rho_fc / peak_c)^2           reserves rho = target - r^T F(u)
          + w_smooth mean_{i,j} ((u_i,j+1 - u_i,j) / h)^2  smoothness (weight in s^2)
 
 with F(u) the tendon forces of a forward run (forward.py) at the target frames. Each iteration:
 one forward run gives J and the reserves; ``groups`` perturbed runs give the banded sensitivity
-of every muscle's force at the frames, and of every muscle's cost, to its drive nodes; the model
+of every muscle's force at the frames, and of every muscle's cost, to its drive nodes (every
+``refresh`` kept steps, and after two rejected ones; in between one run with every node
+perturbed rescales its rows by the change of each muscle's local gain and gives the cost's
+gradient without the lag: forward.ForwardModel.gains); the model
 of J around u (reserves linear in the change, drive2 exact, energy costs linear) plus a damping
-lambda J'(u) mean(du^2) (J' = J without the multipliers' term) is minimised over 0 <= u + du <= 1 as one sparse bounded linear least-squares
+lambda J(u) mean(du^2) is minimised over 0 <= u + du <= 1 as one sparse bounded linear least-squares
 problem (bounded_least_squares: a primal active set over SciPy's sparse LU); the step is
 kept when the forward run's J falls (lambda / 3), else lambda x 4 and the step is solved again
 (Levenberg-Marquardt), after one correction step from the rejected trial with the same
 sensitivity (the reserves' second-order error along the cost's descent would otherwise stall it
 at heavy reserve weights). Stops after ``max_iterations`` kept steps, or when a kept step lowers J
-by less than ``tolerance`` of it. After each kept step the multipliers move by 2 w_res
-rho / peak (the method of multipliers, Hestenes 1969, Powell 1969): the reserves then go to
-zero where the muscles can reach the targets without an ever heavier, ill-conditioning weight;
-where they cannot, the multipliers grow and the reserves stay (reported).
+by less than ``tolerance`` of it.
 """
 
 from __future__ import annotations
@@ -47,7 +46,8 @@ from vm_ros.errors import VmRosError
 
 REFERENCE_DRIVE = 0.5   # C_ref: the cost of every drive held at this value over the motion
 DAMPING_UP, DAMPING_DOWN = 4.0, 3.0
-MAX_REJECTED = 10        # consecutive rejected steps before the iteration stops
+MAX_REJECTED = 10
+RESCALE_LIMITS = (0.2, 5.0)        # consecutive rejected steps before the iteration stops
 
 
 @dataclass(frozen=True)
@@ -56,12 +56,13 @@ class SolverOptions:
     ``node_step_s`` (s between drive nodes), ``reserve_weight`` (w_res), ``smoothness``
     (w_smooth, s^2), ``max_iterations``, ``tolerance`` (relative fall of J that stops),
     ``initial_drive`` (every node's start), ``memory_s`` (forward.py), ``damping`` (initial
-    lambda), ``delta`` (perturbation of the drive nodes)."""
+    lambda), ``delta`` (perturbation of the drive nodes), ``refresh`` (kept steps between full
+    sensitivities; in between one run rescales it)."""
 
     cost: str = DEFAULT_COST
     muscle_weights: Mapping = field(default_factory=dict)
     node_step_s: float = 0.02
-    reserve_weight: float = 1e3
+    reserve_weight: float = 1e5
     smoothness: float = 1e-4
     max_iterations: int = 12
     tolerance: float = 1e-4
@@ -69,6 +70,7 @@ class SolverOptions:
     memory_s: float = 0.4
     damping: float = 1.0
     delta: float = 0.02
+    refresh: int = 4
 
     def check(self, muscles) -> None:
         cost_named(self.cost)
@@ -140,7 +142,6 @@ class _Objective:
     def __init__(self, problem: CoordinationProblem, options: SolverOptions, weights, c_ref,
                  node_step_s):
         self.p, self.o, self.w, self.c_ref, self.h = problem, options, weights, c_ref, node_step_s
-        self.multipliers = np.zeros_like(problem.target)
 
     def scaled_reserves(self, out: ForwardOutput) -> np.ndarray:
         """(T, C) reserves / peak."""
@@ -152,7 +153,7 @@ class _Objective:
     def parts(self, nodes, out: ForwardOutput) -> tuple[float, float, float]:
         cost = float(self.w @ self.muscle_cost(out)) / self.c_ref
         rho = self.scaled_reserves(out)
-        tracking = float(np.mean(self.o.reserve_weight * rho ** 2 + self.multipliers * rho))
+        tracking = self.o.reserve_weight * float(np.mean(rho ** 2))
         smooth = (self.o.smoothness * float(np.mean((np.diff(nodes, axis=0) / self.h) ** 2))
                   if len(nodes) > 1 else 0.0)
         return cost, tracking, smooth
@@ -163,22 +164,21 @@ def _subproblem(problem, options, objective, nodes, base, jac, grad, damping):
     p, o = problem, options
     n_nodes, n = nodes.shape
     size = n_nodes * n
-    T, C = p.target.shape
+    frames, coords = p.target.shape
     blocks, rhs = [], []
     # reserves: a_c (sum_i r_fic J_i du_i) = a_c (target - tau)
-    a = np.sqrt(o.reserve_weight / (T * C)) / p.peak
+    a = np.sqrt(o.reserve_weight / (frames * coords)) / p.peak
     rows, cols, vals = [], [], []
     for i in range(n):
         coo = jac[i].tocoo()
-        for c in range(C):
-            rows.append(coo.row * C + c)
+        for c in range(coords):
+            rows.append(coo.row * coords + c)
             cols.append(coo.col * n + i)
             vals.append(coo.data * p.moment_arm[coo.row, i, c] * a[c])
     blocks.append(sparse.csr_matrix((np.concatenate(vals), (np.concatenate(rows),
                                                             np.concatenate(cols))),
-                                    shape=(T * C, size)))
-    shift = objective.multipliers / (2 * o.reserve_weight) * p.peak
-    rhs.append(((p.target - p.moments(base.force_frames) + shift) * a).ravel())
+                                    shape=(frames * coords, size)))
+    rhs.append(((p.target - p.moments(base.force_frames)) * a).ravel())
     # smoothness: s D (u + du) with D the node differences of each muscle
     if o.smoothness > 0 and n_nodes > 1:
         s = np.sqrt(o.smoothness / (n * (n_nodes - 1))) / objective.h
@@ -255,15 +255,20 @@ def solve(bank, problem: CoordinationProblem, options: SolverOptions | None = No
     objective.forward = forward
     nodes = np.full((forward.n_nodes, n), float(options.initial_drive))
     base = forward.run(nodes)
-    value = sum(objective.parts(nodes, base))
-    objective.scale = _scale(objective, nodes, base)
+    value = objective.scale = sum(objective.parts(nodes, base))
     history = [_iteration(objective, nodes, base, options.damping, forward, started)]
     damping = options.damping
     kept = rejected = 0
-    jac = grad = None
+    jac = grad = full = None
     while kept < options.max_iterations and rejected < MAX_REJECTED:
-        if jac is None:
-            jac, grad = forward.sensitivity(nodes, base, options.delta)
+        fresh = full is None or kept % options.refresh == 0 or rejected >= 2
+        if jac is None and fresh:
+            full, grad = forward.sensitivity(nodes, base, options.delta)
+            reference, _ = forward.gains(nodes, base, options.delta)
+            jac, rejected = full, min(rejected, 1)
+        elif jac is None:
+            gain, grad = forward.gains(nodes, base, options.delta)
+            jac = _rescaled(full, gain, reference)
         step = _subproblem(problem, options, objective, nodes, base, jac, grad, damping)
         trial = np.clip(nodes + step, 0.0, 1.0)
         out = forward.run(trial)
@@ -276,10 +281,7 @@ def solve(bank, problem: CoordinationProblem, options: SolverOptions | None = No
         if trial_value < value:
             fall = (value - trial_value) / objective.scale
             nodes, base = trial, out
-            # method of multipliers: mu += 2 w_res rho, J taken again with the new mu
-            objective.multipliers += 2 * options.reserve_weight * objective.scaled_reserves(out)
-            value = sum(objective.parts(nodes, base))
-            objective.scale = _scale(objective, nodes, base)
+            value = objective.scale = trial_value
             damping /= DAMPING_DOWN
             kept += 1
             rejected = 0
@@ -292,14 +294,18 @@ def solve(bank, problem: CoordinationProblem, options: SolverOptions | None = No
         else:
             damping *= DAMPING_UP
             rejected += 1
+            if rejected >= 2 and jac is not full:
+                jac = None
     return _result(bank, problem, options, forward, objective, nodes, base, history, started)
 
 
-def _scale(objective, nodes, out) -> float:
-    """J without the multipliers' term (> 0): the damping's scale."""
-    cost, _, smooth = objective.parts(nodes, out)
-    rho = objective.scaled_reserves(out)
-    return max(cost + smooth + objective.o.reserve_weight * float(np.mean(rho ** 2)), 1e-12)
+def _rescaled(full, gain, reference) -> list:
+    """Each muscle's banded sensitivity with its rows scaled by the change of the local gain
+    since it was computed (the ratio kept within RESCALE_LIMITS)."""
+    ratio = np.clip(np.divide(gain, reference, out=np.ones_like(gain),
+                              where=np.abs(reference) > 1e-9), *RESCALE_LIMITS)
+    ratio = np.where(np.isfinite(ratio), ratio, 1.0)
+    return [sparse.diags(ratio[:, i]) @ full[i] for i in range(len(full))]
 
 
 def _iteration(objective, nodes, out, damping, forward, started) -> Iteration:
