@@ -12,16 +12,16 @@ one forward run gives J and the reserves; ``groups`` perturbed runs give the ban
 of every muscle's force at the frames, and of every muscle's cost, to its drive nodes (every
 ``refresh`` kept steps, and after two rejected ones; in between one run with every node
 perturbed rescales its rows by the change of each muscle's local gain and gives the cost's
-gradient without the lag: forward.ForwardModel.gains); the model of J around u (reserves
-linear in the change, drive2 exact, energy costs linear plus a diagonal curvature from the
-change of their gradient between iterates, a secant estimate kept >= 0) plus a damping
-lambda J(u) mean(du^2) (lambda >= MIN_DAMPING) is minimised over 0 <= u + du <= 1 as one
-sparse bounded linear least-squares problem (bounded_least_squares: a primal active set over
-SciPy's sparse LU); the step is kept when the forward run's J falls (lambda / 3), else
-lambda x 4 and the step is solved again (Levenberg-Marquardt), after one correction step from
-the rejected trial with the same sensitivity (the reserves' second-order error along the cost's descent would otherwise stall it
-at heavy reserve weights). Stops after ``max_iterations`` kept steps, or when a kept step lowers J
-by less than ``tolerance`` of it.
+gradient without the lag: forward.ForwardModel.gains); the model of J around u (reserves linear
+in the change, drive2 exact, energy costs linear plus a diagonal curvature from the change of
+their gradient between iterates, a secant estimate kept >= 0) plus a damping lambda J(u)
+mean(du^2) (lambda >= MIN_DAMPING) is minimised over 0 <= u + du <= 1 as one sparse bounded
+linear least-squares problem (bounded_least_squares: a primal active set over SciPy's sparse
+LU); the step is kept when the forward run's J falls (lambda / 3), else lambda x 4 and the step
+is solved again (Levenberg-Marquardt), after one correction step from the rejected trial with
+the same sensitivity (the reserves' second-order error along the cost's descent would otherwise
+stall it at heavy reserve weights). Stops after ``max_iterations`` kept steps, or when a kept
+step lowers J by less than ``tolerance`` of it.
 """
 
 from __future__ import annotations
