@@ -14,7 +14,6 @@ import yaml
 from vm_ros.cli import main
 from vm_ros.errors import InputError
 from vm_ros.model import MuscleBank
-from vm_ros.validation import energetics_compare as compare
 from vm_ros.model.energetics_models.vm_state import (
     MODEL_NAMES,
     PUBLISHED_MODELS,
@@ -25,6 +24,7 @@ from vm_ros.model.energetics_models.vm_state import (
     vm_model_inputs,
     vm_model_inputs_from_outputs,
 )
+from vm_ros.validation import energetics_compare as compare
 
 DT = 0.001
 
