@@ -20,7 +20,7 @@ from pathlib import Path
 import yaml
 
 from vm_ros.errors import ConfigError
-from vm_ros.model import MuscleBank
+from vm_ros.model.bank import MuscleBank
 from vm_ros.resources import config_dir
 
 
