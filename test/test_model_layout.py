@@ -21,12 +21,12 @@ import warnings
 import numpy as np
 import pytest
 
-from vm_ros.bench import model_bench
 from vm_ros.errors import InputError
 from vm_ros.model import SCHEMES, BankState, MuscleBank, Phase, StepRecord, kernel, layout
 from vm_ros.model.compiled_step import CompiledStep, KernelConstants
 from vm_ros.model.numpy_step import NumpyStep
 from vm_ros.model.reference import absolute_scale, pack_state
+from vm_ros_bench import model_bench
 
 DT = 1e-3
 RELATIVE = 1e-13
