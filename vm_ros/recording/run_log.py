@@ -21,7 +21,7 @@ overrides, dt, model/publish/telemetry rates, start time, time base, input hold 
 (a JSON list of their names, the model axis of energy_rate_models). Attachments: ``model.yaml``
 and ``muscles.yaml`` (exact bytes of the files used), ``overrides.yaml`` and, with a geometry,
 ``geometry.yaml`` (exact bytes): with the recorded inputs, enough to recompute the run
-(vm_ros.recording.offline). A log without a geometry has none of the joint channels, keys or
+(vm_ros.offline.runner). A log without a geometry has none of the joint channels, keys or
 attachment; a log without energetics models has no energy_rate_models channel or key.
 
 Times: log_time is in integer ns on one timeline per log: the start time (``start_time_ns`` of the
@@ -53,9 +53,9 @@ from vm_ros.errors import ConfigError, VmRosError
 from vm_ros.geometry.file import plain_data
 from vm_ros.model import MuscleBank
 from vm_ros.model.params import DRIVE_LAWS, RECOVERY_MODES
+from vm_ros.model.run_config import RunConfig
 from vm_ros.recording.messages import TOPIC_TELEMETRY, TYPE_MUSCLE_TELEMETRY
 from vm_ros.recording.reader import LogReader
-from vm_ros.recording.run_config import RunConfig
 from vm_ros.recording.series import SeriesBuilder, SkippedMessages, TopicSeries, skipped_line
 from vm_ros.recording.versions import library_versions
 from vm_ros.recording.writer import McapRecorder
@@ -70,13 +70,12 @@ ATTACHMENT_GEOMETRY = "geometry.yaml"
 NODE_PARAMETERS_KEY = "node_parameters"
 INPUT_HOLD = "zero-order hold: the step [t, t + dt) uses the latest input with log_time <= t"
 
-INPUT_TOPICS = (tm.TOPIC_EXCITATION, tm.TOPIC_EXCITATION_ARRAY, tm.TOPIC_KINEMATICS,
-                tm.TOPIC_JOINT_STATES)
+INPUT_TOPICS = tm.input_topic_names()  # the table vm_ros.topics.INPUT_TOPICS
 OUTPUT_TOPICS = (tm.TOPIC_FORCE, tm.TOPIC_ENERGY_RATE, tm.TOPIC_ENERGY_RATE_TOTAL,
                  tm.TOPIC_ENERGY_TOTAL, tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_JOINT_EFFORT_COMMANDS)
 # channels of a run with a geometry only (vm_ros.joint_space); joint_work: offline runs only
-JOINT_TOPICS = (tm.TOPIC_JOINT_STATES, tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_JOINT_EFFORT_COMMANDS,
-                tm.TOPIC_JOINT_WORK)
+JOINT_TOPICS = (*(row.name for row in tm.INPUT_TOPICS if row.role == tm.JOINTS),
+                tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_JOINT_EFFORT_COMMANDS, tm.TOPIC_JOINT_WORK)
 # channels of a run with published energetics models only (RunConfig.energetics_models)
 MODEL_TOPICS = (tm.TOPIC_ENERGY_RATE_MODELS,)
 LOG_TOPIC_TYPES = {
