@@ -1,4 +1,4 @@
-"""The costs a coordination minimises, chosen by name (COSTS, as vm_ros.energetics_models.
+"""The costs a coordination minimises, chosen by name (COSTS, as vm_ros.model.energetics_models.
 vm_state.PUBLISHED_MODELS names the energetics models).
 
 Every cost is the integral over the motion of a per-muscle rate c_i(t), weighted per muscle:
@@ -9,7 +9,7 @@ Every cost is the integral over the motion of a per-muscle rate c_i(t), weighted
   maintenance, shortening/lengthening, recovery; docs/energetics.md); Tsianos, Rustin & Loeb 2012.
 - ``drive2`` (s): c_i = U_i(t)^2, the drive squared; the classic static-optimisation criterion
   (OpenSim SO's sum a^2).
-- each name of vm_ros.energetics_models.vm_state.MODEL_NAMES (J): c_i = that published model's
+- each name of vm_ros.model.energetics_models.vm_state.MODEL_NAMES (J): c_i = that published model's
   total rate on VM's state (docs/energetics_models.md); the model's paper.
 
 drive2 is quadratic in the drive nodes (exactly; the solver uses its Hessian); the energy costs
@@ -25,7 +25,7 @@ from functools import partial
 
 import numpy as np
 
-from vm_ros.energetics_models.vm_state import PUBLISHED_MODELS
+from vm_ros.model.energetics_models.vm_state import PUBLISHED_MODELS
 from vm_ros.errors import VmRosError
 
 TOTAL_RATE = 3        # column of StepRecord.energy_rates: VM's total rate (W)
