@@ -25,8 +25,8 @@ from functools import partial
 
 import numpy as np
 
-from vm_ros.model.energetics_models.vm_state import PUBLISHED_MODELS
 from vm_ros.errors import VmRosError
+from vm_ros.model.energetics_models.vm_state import PUBLISHED_MODELS
 
 TOTAL_RATE = 3        # column of StepRecord.energy_rates: VM's total rate (W)
 MODEL_TOTAL = 4       # component of energy_rate_models: the model's total (W)
