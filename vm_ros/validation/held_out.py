@@ -244,7 +244,7 @@ def compare_held_out(params, cases, laws=(None,), dt: float = DT,
                                                 cases, dt)
     w = int(round(WINDOW_S / dt))
     n_windows = len(nat_t) // w
-    nat_w = nat_t[:n_windows * w].reshape(n_windows, w, -1).sum(axis=1)
+    nat_w = nat_t[:n_windows * w].reshape(n_windows, w, len(cases)).sum(axis=1)
     counted = nat_w >= MIN_RATE_FRACTION * t1 * w
     runs = []
     for law in laws:
@@ -258,7 +258,7 @@ def compare_held_out(params, cases, laws=(None,), dt: float = DT,
                 if nat_e[start:stop, i].mean() >= MIN_RATE_FRACTION * e1[i]:
                     ratios.append(lum_e[start:stop, i].sum() / nat_e[start:stop, i].sum())
                     owners.append(i)
-        lum_w = lum_t[:n_windows * w].reshape(n_windows, w, -1).sum(axis=1)
+        lum_w = lum_t[:n_windows * w].reshape(n_windows, w, len(cases)).sum(axis=1)
         runs.append(HeldOutRun(100.0 * np.sqrt(np.mean(error**2, axis=0)),
                                100.0 * error[len(error) // 2:].mean(axis=0), np.array(ratios),
                                np.array(owners, dtype=int), lum_w[counted] / nat_w[counted]))
