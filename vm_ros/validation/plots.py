@@ -259,9 +259,9 @@ def plot_held_out(result: CheckResult, path: Path) -> None:
             values = run.force_rms_percent[family == name]
             axes[0].plot(np.full(len(values), j + offset), values, "o", color=colour, ms=4,
                          label=label if j == 0 else None)
-        axes[1].hist(run.jump_energy_ratio, bins=40, range=(0.5, 1.5), histtype="step",
+        axes[1].hist(run.jump_energy_ratio, bins=50, range=(0.0, 2.0), histtype="step",
                      color=colour, label=label)
-        axes[2].hist(run.window_energy_ratio, bins=40, range=(0.5, 1.5), histtype="step",
+        axes[2].hist(run.window_energy_ratio, bins=50, range=(0.0, 2.0), histtype="step",
                      color=colour, label=label)
     axes[0].set_xticks(range(len(families)), families, rotation=30, fontsize=8)
     axes[0].set(ylabel="force RMS, % of F(U=1)")
@@ -272,7 +272,7 @@ def plot_held_out(result: CheckResult, path: Path) -> None:
             ax.axvline(edge, color="k", lw=0.8, ls=":")
         ax.set(xlabel=what, ylabel="count")
         ax.legend(fontsize=8)
-    finish(fig, result, path, top=0.86)
+    finish(fig, result, path, top=0.8)
 
 
 def plot_cost(result: CheckResult, path: Path) -> None:
