@@ -233,10 +233,10 @@ def _simulate(bank: MuscleBank, cases, dt):
             full_rates.activation + full_rates.cross_bridge, full_rates.total)
 
 
-def compare_held_out(params, cases, laws=(None,), dt: float = DT,
+def compare_held_out(params, cases, lumped=None, dt: float = DT,
                      units_per_type: int = NATURAL_UNITS_PER_TYPE) -> list[HeldOutRun]:
-    """Lumped against natural units through ``cases``, one HeldOutRun per drive law of ``laws``
-    (None: ``params``' own); the natural units run once."""
+    """Lumped against natural units (``params``) through ``cases``, one HeldOutRun per parameter
+    set of ``lumped`` (default: ``params`` alone); the natural units run once."""
     specs = [c.spec for c in cases]
     natural_params = dataclasses.replace(params, natural=dataclasses.replace(
         params.natural, units_per_type=int(units_per_type)))
@@ -247,8 +247,7 @@ def compare_held_out(params, cases, laws=(None,), dt: float = DT,
     nat_w = nat_t[:n_windows * w].reshape(n_windows, w, len(cases)).sum(axis=1)
     counted = nat_w >= MIN_RATE_FRACTION * t1 * w
     runs = []
-    for law in laws:
-        lumped_params = params if law is None else with_drive_law(params, law)
+    for lumped_params in lumped or (params,):
         lum_f, lum_e, lum_t, *_ = _simulate(MuscleBank(specs, lumped_params, "lumped"), cases, dt)
         error = (lum_f - nat_f) / f1
         ratios, owners = [], []
@@ -334,12 +333,26 @@ def held_out_criteria(cases, run: HeldOutRun, paper: HeldOutRun) -> list[Criteri
     return criteria
 
 
+def held_out_summary(cases, run: HeldOutRun) -> str:
+    """One line: pulse trains at L0 force RMS median / worst, off L0 and moving worst (% F(U=1)),
+    jumps within 0.8-1.25, the range of the per-window energy ratio."""
+    family = _families(cases)
+    rms = run.force_rms_percent
+    at_l0 = rms[family == "pulses_l0"]
+    off = rms[(family == "pulses_length") | (family == "moving")]
+    jumps = run.jump_energy_ratio
+    within = np.mean((jumps >= JUMP_BAND[0]) & (jumps <= JUMP_BAND[1]))
+    return (f"pulse trains at L0 force RMS {np.median(at_l0):.2f} / {at_l0.max():.2f} %, off L0 "
+            f"and moving worst {off.max():.2f} %, jumps within 0.8-1.25 {within:.1%}, windows "
+            f"{run.window_energy_ratio.min():.2f}-{run.window_energy_ratio.max():.2f}")
+
+
 def check_held_out(params=None, seeds=HELD_OUT_SEEDS) -> CheckResult:
     """Item 12 (module docstring): the cases of ``seeds``, lumped with the default law and with
     the paper's, against natural units."""
     params = params or load_model_params()
     cases = held_out_cases(seeds)
-    run, paper = compare_held_out(params, cases, laws=(None, PAPER_LAW))
+    run, paper = compare_held_out(params, cases, (params, with_drive_law(params, PAPER_LAW)))
     result = CheckResult(
         "12", f"Held-out drives (seeds {seeds[0]}-{seeds[-1]}): lumped "
         f"({params.lumped.drive_law}) vs natural units",
