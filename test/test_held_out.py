@@ -124,3 +124,15 @@ def test_reduced_check_carries_the_targets():
     assert {c.status for c in result.criteria if c.bounded} <= {"pass", "GAP"}
     assert all(np.isfinite(c.value) for c in result.criteria)
     assert any(c.description.startswith("tsianos2012 law") for c in result.criteria)
+
+
+def test_summary_line_of_a_made_up_run(cases):
+    """fit-w --drive-filter prints this line: the numbers of a HeldOutRun made up here."""
+    family = [c.family for c in cases]
+    rms = np.array([{"pulses_l0": 1.0, "pulses_length": 4.5, "moving": 2.0}.get(f, 9.0)
+                    for f in family])
+    run = ho.HeldOutRun(rms, np.zeros(len(cases)), np.array([0.7, 0.9, 1.0, 1.3]),
+                        np.zeros(4, dtype=int), np.array([0.95, 1.2]))
+    assert ho.held_out_summary(cases, run) == (
+        "pulse trains at L0 force RMS 1.00 / 1.00 %, off L0 and moving worst 4.50 %, jumps "
+        "within 0.8-1.25 50.0%, windows 0.95-1.20")
