@@ -8,19 +8,15 @@ MuscleBank.run steps the whole motion: drive filter, activation, fascicle mass, 
 
 Because the motion is prescribed, muscle i's force and energy depend only on muscle i's drive.
 So one run probes every muscle at once, and the sensitivity of forces and costs to the drive
-nodes comes from 2 ``groups`` perturbed runs: run pair g raises and lowers by ``delta`` (within
-[0, 1]) every node j with j mod groups = g, of every muscle; the difference at times in
-[t_{j-1}, t_{j-1} + groups h) is put down to node j. Central, not one-sided, differences: VM's
-drive filter rises and falls with different time constants, so the response to a drive change is
-not odd in its sign (raising the first node by 0.02 from a steady 0.74, the drive then falling
-back, leaves an undershoot of 11 % of the force that lasts beyond 0.5 s; raising every node
-leaves none; measured on the static test's muscle), and a one-sided difference made the
-iteration drift away from the static optimum. This is exact for a model whose response to a
-drive change has faded within groups h - 2 h (the hat function's width); the activation's 90 %
-rise time is 0.2-0.3 s and a drive change leaves a tail for longer, so groups h >= 0.8 s is the
-default (``memory_s``; with 0.4 s two identical muscles drifted apart in the tests). Results
-beyond the window are dropped (a truncated Jacobian: it slows the iteration, it does not change
-what it converges to, the forward run being exact).
+nodes comes from ``groups`` perturbed runs: run g raises (or, near 1, lowers) by ``delta`` every
+node j with j mod groups = g, of every muscle; the change at times in [t_{j-1}, t_{j-1} +
+groups h) is put down to node j. This is exact for a model whose response to a drive change
+has faded within groups h - 2 h (the hat function's width); the activation's 90 % rise time is
+0.2-0.3 s and a drive change leaves a tail for longer, so groups h >= 0.8 s is the default
+(``memory_s``; with 0.4 s two identical muscles drifted apart in the tests). Results beyond the
+window are
+dropped (a truncated Jacobian: it slows the iteration, it does not change what it converges to,
+the forward run being exact).
 """
 
 from __future__ import annotations
@@ -135,35 +131,32 @@ class ForwardModel:
     def sensitivity(self, nodes: np.ndarray, base: ForwardOutput, delta: float = 0.02):
         """d(force at frames)/d(node drive) per muscle as a sparse (T, N) matrix each, and
         d(integral of each rate)/d(node drive) (N, n) per rate name, from ``groups`` perturbed
-        runs (two per group) around ``nodes`` (module docstring)."""
+        runs around ``nodes`` (module docstring)."""
         p = self.problem
         n = nodes.shape[1]
         frame_step = np.clip(p.frame_times_s / p.dt_s, 0, p.n_steps)
-        up = np.minimum(delta, 1.0 - nodes)        # central differences within [0, 1]
-        down = np.minimum(delta, nodes)
-        width = np.maximum(up + down, 1e-12)
+        step = np.where(nodes + delta <= 1.0, delta, -delta)
         rows = [[] for _ in range(n)]
         cols = [[] for _ in range(n)]
         vals = [[] for _ in range(n)]
         grads = {name: np.zeros_like(nodes) for name in self.rate_functions}
         for g in range(self.groups):
             windows = self.windows(g)
+            perturbed = nodes.copy()
             chosen = [j for j, _, _ in windows]
-            raised, lowered = nodes.copy(), nodes.copy()
-            raised[chosen] += up[chosen]
-            lowered[chosen] -= down[chosen]
-            high, low = self.run(raised), self.run(lowered)
-            d_frames = high.force_frames - low.force_frames
+            perturbed[chosen] += step[chosen]
+            out = self.run(perturbed)
+            d_frames = out.force_frames - base.force_frames
             for j, first, end in windows:
                 inside = np.flatnonzero((frame_step > first) & (frame_step <= end))
                 for i in range(n):
                     rows[i].append(inside)
                     cols[i].append(np.full(len(inside), j))
-                    vals[i].append(d_frames[inside, i] / width[j, i])
-                for name, rate in high.rates.items():
+                    vals[i].append(d_frames[inside, i] / step[j, i])
+                for name, rate in out.rates.items():
                     start = max(first, 0)
-                    change = (rate[start:end] - low.rates[name][start:end]).sum(axis=0)
-                    grads[name][j] = change * p.dt_s / width[j]
+                    change = (rate[start:end] - base.rates[name][start:end]).sum(axis=0)
+                    grads[name][j] = change * p.dt_s / step[j]
         shape = (len(p.frame_times_s), self.n_nodes)
         jac = [sparse.csr_matrix((np.concatenate(vals[i]), (np.concatenate(rows[i]),
                                                             np.concatenate(cols[i]))),
