@@ -291,7 +291,8 @@ def run(args, on_outcome: Callable[[RunOutcome], None] | None = None) -> int:
         new_info = RunInfo(config, timing, "recompute", info.namespace, info.time_base, extra,
                            info.topics)
         # open while the attached files exist: the new log attaches them again
-        recorder = open_run_log(out_path, new_info, bank, **recorder_options(args))
+        recorder = open_run_log(out_path, new_info, bank, attachment_time_ns=start_ns,
+                                **recorder_options(args))
     with StopOnSignal() as stop, recorder, Progress(
             f"recompute {log_path.name}", n_steps, enabled=True if args.progress else None) \
             as progress:

@@ -407,7 +407,8 @@ def run(args, on_outcome: Callable[[RunOutcome], None] | None = None) -> int:
     n_steps = round(duration / timing.dt_s)
     # signals stay caught until the log is closed, so that SIGTERM cannot cut the file short
     with StopOnSignal() as stop, open_run_log(
-            out_path, info, bank, **recorder_options(args)) as recorder, Progress(
+            out_path, info, bank, attachment_time_ns=timing.start_time_ns,
+            **recorder_options(args)) as recorder, Progress(
             f"simulate {source.name}", n_steps, enabled=True if args.progress else None) \
             as progress:
         offline = OfflineRun(bank, timing, recorder)

@@ -31,6 +31,9 @@ from vm_ros import telemetry as tm
 from vm_ros.errors import VmRosError
 
 STATUS_OK, STATUS_FAILED = "ok", "failed"
+# A chunk of a study run's log is closed by its size alone (not after a wall time), so that a run
+# with a fixed start time writes the same bytes on any worker; a run cut short is rerun whole.
+FLUSH_INTERVAL_S = 3600.0
 # one run at a time per worker process: a run's output is captured by redirecting sys.stdout
 _RUN_LOCK = threading.Lock()
 
@@ -79,7 +82,7 @@ def execute(task: RunTask) -> dict:
     """Run ``task``: the record {run_id, status, error, rows, wall_s, worker}."""
     final = Path(task.log_path)
     partial = final.with_name(f".{final.stem}-{uuid.uuid4().hex[:8]}.mcap")
-    argv = [*task.argv, "--out", str(partial)]
+    argv = [*task.argv, "--out", str(partial), "--flush-interval", repr(FLUSH_INTERVAL_S)]
     if task.start_time_ns is not None and task.verb == "simulate":
         argv += ["--start-time", str(task.start_time_ns)]
     record = {"run_id": task.run_id, "status": STATUS_FAILED, "error": "", "rows": [],
