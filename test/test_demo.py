@@ -10,7 +10,7 @@ from conftest import require_ros
 
 from vm_ros.child_process import module_command
 from vm_ros.cli.demo import CATCH_UP_S, _node_command, demo_summary, format_summary
-from vm_ros.recording.summary import split_energy
+from vm_ros.report.summary import split_energy
 from vm_ros.telemetry import COMPONENT_LABELS, FIBRE_LABELS
 
 
@@ -77,7 +77,7 @@ def test_summary_prints_one_total_and_the_skipped_time():
 def test_demo_node_catches_up_on_a_stall_and_runs_the_installed_package():
     from types import SimpleNamespace
 
-    from vm_ros.scenarios import load_scenario
+    from vm_ros.offline.scenarios import load_scenario
 
     args = SimpleNamespace(recruitment="lumped", model_rate_hz=1000.0, executor="events")
     command = _node_command(args, load_scenario("knee_extension"), None)

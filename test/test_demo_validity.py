@@ -1,5 +1,5 @@
 """A real-time run whose model time was skipped or whose inputs were applied off their time is
-not valid: the demos say so and exit 3 unless --accept-skips (vm_ros.recording.validity)."""
+not valid: the demos say so and exit 3 unless --accept-skips (vm_ros.report.validity)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from conftest import require_ros
 
 from vm_ros.child_process import module_command
 from vm_ros.cli.demo import CATCH_UP_S
-from vm_ros.recording.validity import (
+from vm_ros.report.validity import (
     EXIT_NOT_VALID,
     INPUT_JITTER_BOUND_S,
     input_timing,

@@ -184,10 +184,10 @@ def test_simulate_logs_every_model_as_published_rates_give(logs, tmp_path):
 
 
 def test_block_and_stepwise_offline_runs_log_the_same_models(tmp_path):
-    from vm_ros.recording.offline import OfflineRun, SampledInputs
-    from vm_ros.recording.run_config import RunConfig
+    from vm_ros.model.run_config import RunConfig
+    from vm_ros.offline.runner import OfflineRun, SampledInputs
+    from vm_ros.offline.scenarios import load_scenario
     from vm_ros.recording.run_log import RunInfo, RunTiming, open_run_log
-    from vm_ros.scenarios import load_scenario
 
     scenario = load_scenario("knee_extension")
     config = RunConfig(scenario.muscles, energetics_models=("lichtwark2005", "margaria1968"))
@@ -220,7 +220,7 @@ def test_recompute_adds_the_channel_to_an_old_log(logs, tmp_path, capsys):
     lines = [x.split() for x in printed.splitlines()
              if x.split()[:1] in (["tsianos2012"], ["umberger2010"], ["bhargava2004"])]
     assert [x[0] for x in lines] == ["tsianos2012", "umberger2010", "bhargava2004"]
-    from vm_ros.recording.tables import model_totals
+    from vm_ros.report.tables import model_totals
 
     totals = {row.model: row.total for row in model_totals(read_run(out))}
     assert [float(x[1]) for x in lines] == [round(totals[x[0]], 2) for x in lines]

@@ -11,11 +11,11 @@ import pytest
 from test_recording_writer import FullDisk
 
 from vm_ros import telemetry as tm
+from vm_ros.model.run_config import RunConfig
 from vm_ros.node.recording import NodeRunLog, node_run_extra
 from vm_ros.recording import RecorderError, RunInfo, RunTiming, read_run
 from vm_ros.recording.cdr import serialize
 from vm_ros.recording.messages import excitation_fields, float64_fields, kinematics_fields
-from vm_ros.recording.run_config import RunConfig
 
 MUSCLES = ("vasti", "rectus_femoris")
 T0 = 1_700_000_000_000_000_000

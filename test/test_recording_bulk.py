@@ -10,13 +10,13 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
 from vm_ros import telemetry as tm
+from vm_ros.model.run_config import RunConfig
+from vm_ros.offline.runner import OfflineRun, RecordedInputs, SampledInputs
+from vm_ros.offline.scenarios import load_scenario
 from vm_ros.recording import bulk
 from vm_ros.recording import messages as msgs
 from vm_ros.recording.cdr import serialize
-from vm_ros.recording.offline import OfflineRun, RecordedInputs, SampledInputs
-from vm_ros.recording.run_config import RunConfig
 from vm_ros.recording.run_log import RunInfo, RunTiming, open_run_log, read_run
-from vm_ros.scenarios import load_scenario
 
 NAMES = ("rectus_femoris", "vasti")
 LIBRARY_12 = ("biceps_long_head", "biceps_short_head", "triceps_long_head", "brachialis",
@@ -291,8 +291,8 @@ def test_recorded_inputs_block_equals_advance_to_step_by_step(tmp_path):
     """Names mapped, non-finite or non-positive values ignored, excitation_array by position,
     a message that does not decode copied but not applied: the same held inputs and the same
     copied messages at the same steps either way."""
+    from vm_ros.offline.runner import LogSink, _Pending
     from vm_ros.recording import cdr
-    from vm_ros.recording.offline import LogSink, _Pending
     from vm_ros.recording.run_log import METADATA_NAME
     from vm_ros.recording.writer import McapRecorder
 

@@ -125,7 +125,7 @@ def test_log_with_an_older_model_file_says_how_to_recompute(tmp_path, capsys):
 
     from vm_ros.cli.recompute import _bank_of
     from vm_ros.errors import ConfigError
-    from vm_ros.recording.run_config import RunConfig
+    from vm_ros.model.run_config import RunConfig
     from vm_ros.resources import config_dir
 
     model = yaml.safe_load((config_dir() / "model.yaml").read_text(encoding="utf-8"))

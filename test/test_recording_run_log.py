@@ -10,10 +10,11 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
 from vm_ros import telemetry as tm
+from vm_ros.model.run_config import RunConfig, parse_override
+from vm_ros.offline.runner import LogSink, OfflineRun, RecordedInputs, SampledInputs
+from vm_ros.offline.scenarios import load_scenario
 from vm_ros.recording import cdr
 from vm_ros.recording.messages import TOPIC_TELEMETRY, energy_partition
-from vm_ros.recording.offline import LogSink, OfflineRun, RecordedInputs, SampledInputs
-from vm_ros.recording.run_config import RunConfig, parse_override
 from vm_ros.recording.run_log import (
     ATTACHMENT_LIBRARY,
     ATTACHMENT_MODEL,
@@ -25,7 +26,6 @@ from vm_ros.recording.run_log import (
     read_run,
 )
 from vm_ros.recording.writer import McapRecorder
-from vm_ros.scenarios import load_scenario
 
 STEPS = 300  # 0.3 s at 1 kHz
 

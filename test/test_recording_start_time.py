@@ -12,9 +12,9 @@ import pytest
 from vm_ros import telemetry as tm
 from vm_ros.cli import main
 from vm_ros.recording.replay import paced, recorded_messages
-from vm_ros.recording.report_plots import report_bin, scenario_bin
 from vm_ros.recording.run_log import RunTiming, read_run
-from vm_ros.recording.tables import energy_rate_table, force_table, telemetry_table
+from vm_ros.report.plots import report_bin, scenario_bin
+from vm_ros.report.tables import energy_rate_table, force_table, telemetry_table
 
 MS = 1_000_000
 DAY_2023 = 1_700_000_000 * 1_000_000_000  # 2023-11-14, ns since the epoch

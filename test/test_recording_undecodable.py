@@ -16,9 +16,9 @@ from mcap.writer import Writer
 
 from vm_ros import telemetry as tm
 from vm_ros.errors import ConfigError
+from vm_ros.model.run_config import RunConfig
 from vm_ros.recording import METADATA_NAME, McapRecorder, RunInfo, RunTiming, cdr, open_run_log
 from vm_ros.recording.reader import LogReader
-from vm_ros.recording.run_config import RunConfig
 from vm_ros.recording.run_log import read_run
 
 VM_ROS = str(Path(sys.prefix) / "bin" / "vm-ros")

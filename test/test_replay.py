@@ -116,8 +116,8 @@ def test_undecodable_messages_are_one_line_per_cause(tmp_path):
     line per cause with its counts and the first occurrence."""
     from conftest import require_ros
 
+    from vm_ros.model.run_config import RunConfig
     from vm_ros.recording import RunInfo, RunTiming, open_run_log
-    from vm_ros.recording.run_config import RunConfig
 
     require_ros()  # the replay subprocess starts rclpy
     malformed = b"\x00\x01\x00\x00" + b"\xfa" * 24    # CDR header, then no valid message

@@ -14,9 +14,9 @@ import pytest
 from vm_ros.cli import main
 from vm_ros.cli import report as report_verb
 from vm_ros.errors import VmRosError
-from vm_ros.recording import report_plots
 from vm_ros.recording.run_log import read_run
-from vm_ros.recording.tables import Table
+from vm_ros.report import plots as report_plots
+from vm_ros.report.tables import Table
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -83,7 +83,7 @@ def test_missing_matplotlib_is_a_clear_error(logs, tmp_path, monkeypatch):
 
 
 def test_efficiency_is_na_when_net_work_is_not_positive():
-    from vm_ros.recording.summary import summarize, summary_records, summary_table
+    from vm_ros.report.summary import summarize, summary_records, summary_table
 
     energy = np.zeros((3, 3, 4))
     energy[:, -1, -1] = [10.0, 20.0, 40.0]

@@ -12,11 +12,11 @@ from report_runs import write_muscle_run
 
 from vm_ros.cli import main
 from vm_ros.cli import report as report_verb
-from vm_ros.recording import report_plots
-from vm_ros.recording import tables as report_tables
 from vm_ros.recording.run_log import read_run
+from vm_ros.report import plots as report_plots
+from vm_ros.report import tables as report_tables
 
-MAX_PX = (2400, 3400)  # the cap documented in vm_ros.recording.report_plots
+MAX_PX = (2400, 3400)  # the cap documented in vm_ros.report.plots
 PAGE = 40  # muscles per page of a per-muscle figure
 PER_MUSCLE = ("force", "kinematics", "drive", "energy_muscles")
 

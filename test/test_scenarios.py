@@ -8,8 +8,8 @@ import pytest
 import yaml
 
 from vm_ros.errors import ConfigError
+from vm_ros.offline.scenarios import load_scenario, scenario_names
 from vm_ros.resources import config_dir
-from vm_ros.scenarios import load_scenario, scenario_names
 
 
 def _write_variant(tmp_path, key, **item):

@@ -13,7 +13,7 @@ from vm_ros import telemetry as tm
 from vm_ros.cli import main
 from vm_ros.recording.messages import TOPIC_TELEMETRY
 from vm_ros.recording.run_log import read_run
-from vm_ros.recording.tables import run_summary
+from vm_ros.report.tables import run_summary
 
 LOG_TOPICS = {"/excitation", "/excitation_array", "/muscle_kinematics", "/muscle_force",
               "/energy_rate", "/energy_rate_total", "/energy_total", "/muscle_telemetry"}
@@ -122,7 +122,7 @@ def test_runs_and_logs_without_any_ros_package(tmp_path):
 
 def test_no_source_runs_the_default_scenario_and_says_which(tmp_path, capsys):
     from vm_ros.cli.simulate import DEFAULT_SCENARIO
-    from vm_ros.scenarios import load_scenario
+    from vm_ros.offline.scenarios import load_scenario
 
     out = tmp_path / "default.mcap"
     assert main(["simulate", "--duration", "0.05", "--out", str(out)]) == 0

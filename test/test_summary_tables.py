@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vm_ros.recording.summary import (
+from vm_ros.report.summary import (
     JointSummary,
     ModelTotals,
     MuscleSummary,

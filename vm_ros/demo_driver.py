@@ -22,7 +22,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray
 
 from vm_ros import telemetry as tm
-from vm_ros.scenarios import load_scenario
+from vm_ros.offline.scenarios import load_scenario
 
 _QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000,
                   reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)

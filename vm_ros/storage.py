@@ -3,7 +3,7 @@
 Layout: header lines (``name=value`` pairs such as ``inDegrees=yes``), a line ``endheader``, a
 line of column labels (tab- or space-separated, the first ``time``), then one row of numbers per
 sample. The motion reader (vm_ros.importers.motion) and the excitation reader
-(vm_ros.recording.excitations) both start here.
+(vm_ros.offline.excitations) both start here.
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ TOPIC_DIAGNOSTICS = "/diagnostics"
 TOPIC_JOINT_STATES = "joint_states"
 TOPIC_JOINT_EFFORTS = "joint_efforts"
 TOPIC_JOINT_EFFORT_COMMANDS = "joint_effort_commands"
-TOPIC_JOINT_WORK = "joint_work"  # logged by offline runs only (vm_ros.recording.offline)
+TOPIC_JOINT_WORK = "joint_work"  # logged by offline runs only (vm_ros.offline.runner)
 
 TYPE_JOINT_STATE = "sensor_msgs/msg/JointState"
 TYPE_FLOAT64_MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"

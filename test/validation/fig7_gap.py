@@ -23,7 +23,7 @@ import numpy as np
 
 from vm_ros.model import MuscleBank, load_model_params
 from vm_ros.model.energetics import initial_energy_rates_tsianos2012
-from vm_ros.scenarios import Scenario, load_scenario
+from vm_ros.offline.scenarios import Scenario, load_scenario
 from vm_ros.validation.paper import _path_for
 from vm_ros.validation.paper import isometric_at as _isometric_at
 

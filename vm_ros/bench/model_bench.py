@@ -188,7 +188,7 @@ def knee_extension_offline(duration_s: float | None = None, backend: str = "auto
     """The Fig. 7 scenario (rectus femoris + vasti, dynamic recovery) offline with
     ``MuscleBank.run``: wall time of building the bank, sampling the scenario's inputs at every
     step and running every step, with the total energy as a check of the result."""
-    from vm_ros.scenarios import load_scenario
+    from vm_ros.offline.scenarios import load_scenario
 
     t0 = time.perf_counter()
     scenario = load_scenario("knee_extension")

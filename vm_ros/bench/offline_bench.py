@@ -34,7 +34,7 @@ DT = 1e-3
 
 def _model_alone(duration_s: float | None) -> float:
     """Wall time (s) of MuscleBank.run over the scenario, inputs sampled beforehand."""
-    from vm_ros.scenarios import load_scenario
+    from vm_ros.offline.scenarios import load_scenario
 
     scenario = load_scenario(SCENARIO)
     bank = scenario.make_bank()

@@ -21,7 +21,7 @@ catches up on up to CATCH_UP_S of model time after such a stall (the default
 max_catch_up_steps, 50 ms, is for controllers that would rather skip than run late), so that no
 model time is skipped and the run does not depend on the load.
 
-Validity (vm_ros.recording.validity): when muscle_node skipped model time, or applied its
+Validity (vm_ros.report.validity): when muscle_node skipped model time, or applied its
 excitation or muscle_kinematics more than 20 ms off their time, or received them further apart
 than its extrapolation_max_s, the summary says the numbers are not valid and the demo exits with
 status 3 (EXIT_NOT_VALID); --accept-skips prints the same and exits 0. On a busy machine the
@@ -51,8 +51,8 @@ from vm_ros import telemetry as tm
 from vm_ros.child_process import module_command, module_environment
 from vm_ros.errors import VmRosError
 from vm_ros.model.params import load_muscle_library
-from vm_ros.recording.summary import split_energy
-from vm_ros.recording.validity import DEFAULT_INPUT_BOUND_S, Validity, run_validity
+from vm_ros.report.summary import split_energy
+from vm_ros.report.validity import DEFAULT_INPUT_BOUND_S, Validity, run_validity
 from vm_ros.sim.loop_log import diagnostics_number, node_diagnostics
 
 SCENARIO = "knee_extension"
@@ -167,7 +167,7 @@ class DemoSummary:
     | peak_force, mean_force | (n,) | N, over the k messages |
     | energy | (n, 3 fibres, 4 components) | J, from message 0 to k-1 (demo_summary) |
     | energy_total | () | J, change of energy_total from message 0 to k-1 |
-    | validity | Validity | skipped model time and input gaps (vm_ros.recording.validity) |
+    | validity | Validity | skipped model time and input gaps (vm_ros.report.validity) |
     | diagnostics | dict | the node's last /diagnostics values (key -> text) |
     """
 
@@ -189,7 +189,7 @@ def demo_summary(names, stamps_ns, efforts, rates, totals, duration_s: float,
     stamped ``stamps_ns`` on model time), over those stamped within ``duration_s`` of the
     first, in the order of their stamps; ``inputs``: (topic, log times, header stamps) of the
     inputs as muscle_node logged them (() when not known), checked against ``gap_bound_s``
-    (vm_ros.recording.validity.run_validity)."""
+    (vm_ros.report.validity.run_validity)."""
     k = min(len(stamps_ns), len(efforts), len(rates), len(totals))
     if k < 2:
         raise VmRosError(f"too few messages from muscle_node ({k})")
@@ -262,7 +262,7 @@ def run(args) -> int:
         from vm_ros.demo_driver import DemoDriver, DemoMonitor
     except ImportError as exc:
         raise VmRosError(f"vm-ros demo needs ROS 2 (rclpy): pip install '.[ros]' ({exc})") from exc
-    from vm_ros.scenarios import load_scenario
+    from vm_ros.offline.scenarios import load_scenario
 
     if not os.environ.get("HOME") and not os.environ.get("ROS_LOG_DIR"):
         raise VmRosError("rclpy needs HOME or ROS_LOG_DIR set")

@@ -75,9 +75,9 @@ from vm_ros.node.replay import (
     node_config,
     node_joint_space,
 )
+from vm_ros.offline.runner import OfflineRun, RecordedInputs
 from vm_ros.progress import Progress
 from vm_ros.recording.bag import shown_log_path
-from vm_ros.recording.offline import OfflineRun, RecordedInputs
 from vm_ros.recording.run_log import (
     ATTACHMENT_GEOMETRY,
     INPUT_TOPICS,
@@ -87,14 +87,14 @@ from vm_ros.recording.run_log import (
     open_run_log,
     read_run,
 )
-from vm_ros.recording.summary import (
+from vm_ros.report.summary import (
     joint_summary_table,
     model_totals_table,
     summarize,
     summarize_joints,
     summary_table,
 )
-from vm_ros.recording.tables import logged_model_totals
+from vm_ros.report.tables import logged_model_totals
 from vm_ros.telemetry import energy_partition
 
 

@@ -3,7 +3,7 @@ energy per muscle and fibre type, whole-body totals and, for joint-space runs, j
 
 Files written to --out (default: <log name>-report/ beside the log):
   summary.csv        per muscle and fibre type: peak and mean force (N), energy per component (J:
-                     the model's sum over its steps, vm_ros.recording.tables.run_energy),
+                     the model's sum over its steps, vm_ros.report.tables.run_energy),
                      mechanical work (J), efficiency; also printed
   forces.csv         time_s, <muscle>.force_N, .fascicle_length_m, .fascicle_velocity_m_per_s
   energy_rate.csv    time_s, <muscle>.<slow|fast|all>.<component>_W
@@ -38,7 +38,7 @@ Files written to --out (default: <log name>-report/ beside the log):
   energy_partition.png, totals.png, joint_torque.png (one panel per joint: generalized force,
                      and the joint angle on a twin axis)
 Plots of long runs show per time bin the mean (line) and the range (band); the bin comes from
---bin, else the scenario's energy_bin, else the run's length (vm_ros.recording.report_plots).
+--bin, else the scenario's energy_bin, else the run's length (vm_ros.report.plots).
 Times are seconds of model time from the first output. Plots need matplotlib (the [plot]
 extra); --no-plots writes the CSV files only.
 """
@@ -55,9 +55,9 @@ from vm_ros import telemetry as tm
 from vm_ros.errors import VmRosError
 from vm_ros.progress import Progress
 from vm_ros.recording.messages import TOPIC_TELEMETRY
-from vm_ros.recording.report_plots import MAX_BINS, MIN_SCENARIO_BINS, plot_run, report_bin
 from vm_ros.recording.run_log import METADATA_NAME, read_run
-from vm_ros.recording.summary import (
+from vm_ros.report.plots import MAX_BINS, MIN_SCENARIO_BINS, plot_run, report_bin
+from vm_ros.report.summary import (
     joint_summary_records,
     joint_summary_table,
     model_totals_records,
@@ -65,7 +65,7 @@ from vm_ros.recording.summary import (
     summary_records,
     summary_table,
 )
-from vm_ros.recording.tables import (
+from vm_ros.report.tables import (
     Table,
     energy_models_axes,
     energy_rate_models_table,

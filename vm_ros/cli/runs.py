@@ -14,7 +14,7 @@ from pathlib import Path
 from vm_ros.errors import VmRosError
 from vm_ros.model import SCHEMES
 from vm_ros.model.params import DRIVE_LAWS, RECOVERY_MODES
-from vm_ros.recording.run_config import RunConfig, parse_overrides
+from vm_ros.model.run_config import RunConfig, parse_overrides
 from vm_ros.recording.writer import FLUSH_INTERVAL_S
 
 

@@ -90,6 +90,7 @@ from vm_ros.geometry import load_geometry
 from vm_ros.importers.motion import read_motion
 from vm_ros.joint_space import JointMap, JointSpace
 from vm_ros.model.params import load_muscle_library
+from vm_ros.model.run_config import RunConfig
 from vm_ros.node.motion_inputs import (
     JointMotion,
     MotionInputs,
@@ -101,26 +102,25 @@ from vm_ros.node.motion_inputs import (
 from vm_ros.node.params import NodeConfig
 from vm_ros.node.recording import INPUT_RULE as NODE_INPUT_RULE
 from vm_ros.node.replay import NODE_PARAMETERS_KEY, NodeConditioning
-from vm_ros.progress import Progress
-from vm_ros.recording.bag import shown_log_path
-from vm_ros.recording.excitations import (
+from vm_ros.offline.excitations import (
     COVERAGE_TOLERANCE_S,
     constant_excitation,
     load_excitations,
 )
-from vm_ros.recording.input_series import load_input_series
-from vm_ros.recording.offline import OfflineResult, OfflineRun, SampledInputs
-from vm_ros.recording.run_config import RunConfig
+from vm_ros.offline.input_series import load_input_series
+from vm_ros.offline.runner import OfflineResult, OfflineRun, SampledInputs
+from vm_ros.offline.scenarios import load_scenario, scenario_names
+from vm_ros.progress import Progress
+from vm_ros.recording.bag import shown_log_path
 from vm_ros.recording.run_log import RunInfo, RunTiming, open_run_log
-from vm_ros.recording.summary import (
+from vm_ros.report.summary import (
     joint_summary_table,
     model_totals_table,
     summarize,
     summarize_joints,
     summary_table,
 )
-from vm_ros.recording.tables import logged_model_totals
-from vm_ros.scenarios import load_scenario, scenario_names
+from vm_ros.report.tables import logged_model_totals
 from vm_ros.telemetry import energy_partition
 
 JOINT_OPTIONS = ("geometry", "excitations", "excitation", "joint_map", "hold")

@@ -9,7 +9,7 @@ cumulative energy is exactly this sum for Tsianos 2012, which the tests check).
 | scenario | muscles | what | recovery |
 | isometric_u{U} | vasti | drive U from its steady state, fascicle held at L0 | static |
 | isovelocity_{V} | vasti | drive 0.5, fascicle from 1 -/+ 0.15 L0 through L0 at V L0/s | static |
-| knee_extension | rectus femoris, vasti | Tsianos 2012 Fig. 7 (vm_ros.scenarios) | dynamic |
+| knee_extension | rectus femoris, vasti | Tsianos 2012 Fig. 7 (offline.scenarios) | dynamic |
 | gait_cycle | vasti | our gait-like cycle, below | static |
 
 The gait-like cycle (ours, not from a paper; a stretch-shortening pattern like a knee extensor's
@@ -50,9 +50,9 @@ from vm_ros.model.params import (  # model.yaml's reader
     _read_section,
     _section,
 )
-from vm_ros.recording.tables import bin_means
+from vm_ros.offline.scenarios import load_scenario
+from vm_ros.report.tables import bin_means
 from vm_ros.resources import config_dir
-from vm_ros.scenarios import load_scenario
 
 TSIANOS = "tsianos2012"
 FILE_NAME = "energetics_compare.yaml"

@@ -41,8 +41,8 @@ from vm_ros.importers.motion import Motion
 from vm_ros.joint_space import JointMap
 from vm_ros.model.units import UNITS, units_for
 from vm_ros.node.replay import NodeConditioning
+from vm_ros.offline.excitations import ExcitationSeries
 from vm_ros.recording import messages as msgs
-from vm_ros.recording.excitations import ExcitationSeries
 
 
 @dataclass(frozen=True)

@@ -21,9 +21,9 @@ import numpy as np
 from vm_ros.errors import ConfigError, plain_value
 from vm_ros.joint_space import JointSpace
 from vm_ros.model import MuscleBank
+from vm_ros.model.run_config import RunConfig
 from vm_ros.node.inputs import InputLimits
 from vm_ros.node.params import PARAMS_SOURCE, NodeConfig
-from vm_ros.recording.run_config import RunConfig
 
 EXIT_BAD_PARAMETER = 2  # exit status of a start-up error (argparse's for a usage error)
 LINE_MAX_CHARS = 600  # longest start-up error line (a value or reason is shortened to fit)

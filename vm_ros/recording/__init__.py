@@ -1,4 +1,6 @@
-"""MCAP run logs: writing (McapRecorder), reading back (read_run), offline runs and replay.
+"""MCAP run logs, the format: writing (McapRecorder), reading back (read_run) and replay.
+
+Running a model offline is vm_ros.offline; reports of a run are vm_ros.report.
 
 Importable without ROS: messages are CDR-encoded from bundled definitions (vm_ros.recording.cdr).
 """

@@ -166,7 +166,7 @@ class OutputLayouts:
     """The CDR layouts of the published muscle topics (muscle_force, energy_rate,
     energy_rate_total, energy_total, and energy_rate_models with ``models``) for the bank's
     muscles, built once: muscle_node encodes one step at a time (``encode``), offline runs
-    many (vm_ros.recording.offline)."""
+    many (vm_ros.offline.runner)."""
 
     def __init__(self, names, models=()):
         n = len(names)

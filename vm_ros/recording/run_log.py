@@ -21,7 +21,7 @@ overrides, dt, model/publish/telemetry rates, start time, time base, input hold 
 (a JSON list of their names, the model axis of energy_rate_models). Attachments: ``model.yaml``
 and ``muscles.yaml`` (exact bytes of the files used), ``overrides.yaml`` and, with a geometry,
 ``geometry.yaml`` (exact bytes): with the recorded inputs, enough to recompute the run
-(vm_ros.recording.offline). A log without a geometry has none of the joint channels, keys or
+(vm_ros.offline.runner). A log without a geometry has none of the joint channels, keys or
 attachment; a log without energetics models has no energy_rate_models channel or key.
 
 Times: log_time is in integer ns on one timeline per log: the start time (``start_time_ns`` of the
@@ -53,9 +53,9 @@ from vm_ros.errors import ConfigError, VmRosError
 from vm_ros.geometry.file import plain_data
 from vm_ros.model import MuscleBank
 from vm_ros.model.params import DRIVE_LAWS, RECOVERY_MODES
+from vm_ros.model.run_config import RunConfig
 from vm_ros.recording.messages import TOPIC_TELEMETRY, TYPE_MUSCLE_TELEMETRY
 from vm_ros.recording.reader import LogReader
-from vm_ros.recording.run_config import RunConfig
 from vm_ros.recording.series import SeriesBuilder, SkippedMessages, TopicSeries, skipped_line
 from vm_ros.recording.versions import library_versions
 from vm_ros.recording.writer import McapRecorder

@@ -23,8 +23,8 @@ from vm_ros import telemetry as tm
 from vm_ros.geometry.file import loads as load_geometry_text
 from vm_ros.recording import read_run
 from vm_ros.recording.run_log import ATTACHMENT_GEOMETRY, RunLogError, logged_node_parameters
-from vm_ros.recording.summary import joint_work_increments
-from vm_ros.recording.validity import DEFAULT_INPUT_BOUND_S, Validity, run_validity
+from vm_ros.report.summary import joint_work_increments
+from vm_ros.report.validity import DEFAULT_INPUT_BOUND_S, Validity, run_validity
 
 TOPICS = (tm.TOPIC_JOINT_STATES, tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_FORCE, tm.TOPIC_EXCITATION,
           tm.TOPIC_ENERGY_RATE_TOTAL, tm.TOPIC_ENERGY_TOTAL, tm.TOPIC_DIAGNOSTICS)
@@ -56,7 +56,7 @@ class LoopLog:
     | energy_rate | Series (k,) | W, energy_rate_total |
     | energy | Series (k,) | J, energy_total |
     | diagnostics | list of dict | muscle_node's /diagnostics values (key -> text), in order |
-    | validity | Validity | skipped model time, joint_states gaps (vm_ros.recording.validity) |
+    | validity | Validity | skipped model time, joint_states gaps (vm_ros.report.validity) |
     """
 
     path: Path
@@ -82,7 +82,7 @@ class LoopLog:
 
     def joint_work_j(self) -> tuple[float, float]:
         """(net, positive) work of the joint torques on the joints (J): the sum over the
-        joint_efforts samples of vm_ros.recording.summary.joint_work_increments (published at
+        joint_efforts samples of vm_ros.report.summary.joint_work_increments (published at
         every model step here: the model-step sum of tau . qdot dt), the positive samples'."""
         work = joint_work_increments(self.tau.time_s, self.tau.values,
                                      self.effort_qdot.values).sum(axis=1)

@@ -13,7 +13,7 @@ import numpy as np
 
 from vm_ros.model import MuscleBank, load_model_params
 from vm_ros.model.params import DRIVE_LAWS, RECOVERY_KERNELS
-from vm_ros.scenarios import load_scenario
+from vm_ros.offline.scenarios import load_scenario
 from vm_ros.validation.paper import DT, isometric_at
 from vm_ros.validation.results import CheckResult, Criterion
 

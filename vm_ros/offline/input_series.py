@@ -1,7 +1,7 @@
 """Input time series from a CSV file, as functions of time for an offline run.
 
 Columns: ``time_s`` (s, increasing), then per muscle ``<muscle>.excitation`` (drive U, a fraction
-in [0, 1]: anything else is an error, see vm_ros.recording.excitations) and
+in [0, 1]: anything else is an error, see vm_ros.offline.excitations) and
 ``<muscle>.path_length`` (m), optionally ``<muscle>.path_velocity`` (m/s). Values between rows
 are interpolated linearly (held constant outside the table); a missing path velocity is the
 finite-difference derivative of the path length (numpy.gradient).
@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from vm_ros.errors import ConfigError
-from vm_ros.recording.excitations import check_drive_range
+from vm_ros.offline.excitations import check_drive_range
 
 QUANTITIES = ("excitation", "path_length", "path_velocity")
 REQUIRED = ("excitation", "path_length")

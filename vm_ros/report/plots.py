@@ -44,8 +44,8 @@ import numpy as np
 from vm_ros import telemetry as tm
 from vm_ros.errors import VmRosError
 from vm_ros.recording.run_log import RunLog
-from vm_ros.recording.summary import EFFORT_UNITS, run_totals
-from vm_ros.recording.tables import (
+from vm_ros.report.summary import EFFORT_UNITS, run_totals
+from vm_ros.report.tables import (
     FIBRE_TYPES,
     JOINT_UNITS,
     TSIANOS,
@@ -85,7 +85,7 @@ def scenario_bin(run: RunLog) -> tuple[str, float] | None:
     """(scenario name, its energy_bin in s) when the log's metadata names a built-in scenario
     (simulate writes it) that has one; None otherwise."""
     from vm_ros.errors import ConfigError
-    from vm_ros.scenarios import load_scenario
+    from vm_ros.offline.scenarios import load_scenario
 
     name = str(run.info.extra.get("scenario", "")) if run.info is not None else ""
     if not name:

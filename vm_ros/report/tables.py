@@ -21,7 +21,7 @@ from vm_ros.recording.run_log import (
     logged_node_parameters,
     read_run,
 )
-from vm_ros.recording.summary import (
+from vm_ros.report.summary import (
     JOINT_WORK_SAMPLED,
     JOINT_WORK_STEPS,
     JointSummary,
