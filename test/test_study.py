@@ -14,7 +14,7 @@ import pytest
 
 from vm_ros.cli import main
 from vm_ros.recording.run_log import read_run
-from vm_ros.recording.tables import run_summary
+from vm_ros.report.tables import run_summary
 
 pytest.importorskip("distributed")
 pyarrow_parquet = pytest.importorskip("pyarrow.parquet")

@@ -26,7 +26,7 @@ class RunOutcome:
     | field | meaning |
     | --- | --- |
     | muscles | per muscle: force statistics, energy per fibre type and component, work
-      (vm_ros.recording.summary.MuscleSummary) |
+      (vm_ros.report.summary.MuscleSummary) |
     | model_totals | per published energetics model, energy per muscle (ModelTotals; Tsianos
       2012 first; [] without energetics models) |
     | duration_s | model time simulated (s) |

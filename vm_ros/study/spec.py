@@ -298,7 +298,7 @@ class _Checker:
             main, content[name] = str(path), self.digest(path)
             label = f"{name}:{value}"
         else:
-            from vm_ros.scenarios import scenario_names
+            from vm_ros.offline.scenarios import scenario_names
 
             if value not in scenario_names():
                 self.fail(f"{where}.{name}", f"unknown scenario {plain_value(value)} (have: "

@@ -117,7 +117,7 @@ def outcome_rows(outcome) -> list[dict]:
     """One dict per muscle of a finished run (vm_ros.cli.runs.RunOutcome): model time
     simulated, force statistics, mechanical work, energy per fibre type and component (J), each
     published model's energy (J)."""
-    from vm_ros.recording.tables import TSIANOS
+    from vm_ros.report.tables import TSIANOS
 
     models = [m for m in outcome.model_totals if m.model != TSIANOS]
     rows = []
