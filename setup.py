@@ -66,6 +66,7 @@ setup(
         (f"share/{PACKAGE}", ["package.xml"]),
         # sorted globs: new files are picked up, and an empty folder gives an empty (harmless) entry
         (f"share/{PACKAGE}/config", sorted(glob("config/*.yaml"))),
+        (f"share/{PACKAGE}/config/studies", sorted(glob("config/studies/*.yaml"))),
         (f"share/{PACKAGE}/msg", sorted(glob("msg_defs/*.msg"))),
         (f"lib/{PACKAGE}", ["resource/muscle_node", "resource/mujoco_sim_node"]),
     ],

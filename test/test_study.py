@@ -161,6 +161,24 @@ def test_a_bad_study_file_is_one_line_naming_the_field_and_exit_2(tmp_path, caps
     assert not (tmp_path / "out").exists()  # nothing ran, nothing was written
 
 
+def test_the_verb_on_a_running_scheduler_then_the_report(tmp_path, capsys):
+    from distributed import LocalCluster
+
+    study = _study(tmp_path, "grid:\n  dt: [0.001, 0.002]\n")
+    with LocalCluster(n_workers=1, threads_per_worker=1, host="127.0.0.1",
+                      dashboard_address=None) as cluster:
+        assert main(["study", "run", str(study), "--out", str(tmp_path / "out"),
+                     "--scheduler", cluster.scheduler_address]) == 0
+    out = capsys.readouterr().out
+    assert "2 runs: 0 finished before, 2 ok, 0 failed; 4 table rows" in out
+    assert main(["study", "report", str(tmp_path / "out")]) == 0
+    printed = capsys.readouterr().out.splitlines()
+    assert printed[0].split()[:3] == ["run_id", "input", "dt"]
+    assert len(printed) == 1 + 4 + 2  # header, a row per run and muscle, the count, the plot
+    assert printed[-1] == f"plot: {tmp_path / 'out' / 'main_effects.png'}"
+    assert (tmp_path / "out" / "main_effects.png").stat().st_size > 10_000
+
+
 def test_without_the_study_extra_the_verb_names_it(tmp_path, capsys, monkeypatch):
     import vm_ros.study
 

@@ -136,7 +136,7 @@ def run_study(study: Study, out_dir: Path, client, say: Callable[[str], None] = 
                              retries=study.retries, pure=False): task for task in todo}
     try:
         for done, future in enumerate(as_completed(futures), start=1):
-            task = futures[future]
+            task = futures.pop(future)  # nothing of a finished run is kept
             try:
                 record = future.result()
             except Exception as error:  # raised after Dask's retries, or KilledWorker
@@ -150,7 +150,7 @@ def run_study(study: Study, out_dir: Path, client, say: Callable[[str], None] = 
                 + (f": {record['error']}" if record.get("error") else ""))
             on_record(record)
     except KeyboardInterrupt:
-        client.cancel(list(futures))
+        client.cancel(list(futures))  # those not finished
         summary.interrupted = len(todo) - summary.ok - summary.failed
         summary.rows = write_table(study, out_dir)
         print(f"vm-ros study: interrupted; {summary.line()}", file=sys.stderr)

@@ -1,6 +1,7 @@
 """A study's table, printed, and its main effects plotted: for each varied parameter, the mean
 energy over the runs at each of its values (the other parameters averaged over), per muscle and
-for all muscles (the sum over muscles of each run); with ``by``, one line per value of that
+for all muscles (the sum over muscles of each run); parameters varied together (equal in every
+run, as both muscles' fibre mix) share a panel; with ``by``, one line per value of that
 parameter (an interaction plot).
 """
 
@@ -74,17 +75,27 @@ def main_effects(rows: list[dict], parameter: str, energy: str, by: str | None =
             for key, sums in effects.items()}
 
 
+def together(parameters: list[str], rows: list[dict]) -> list[list[str]]:
+    """The parameters grouped into panels: those with equal values in every row (varied
+    together, as both muscles' fibre mix) share one."""
+    panels: dict = {}
+    for name in parameters:
+        panels.setdefault(tuple(r[name] for r in rows), []).append(name)
+    return list(panels.values())
+
+
 def plot(columns: list[str], rows: list[dict], path: Path, energy: str, by: str | None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    parameters = [p for p in varied_columns(columns) if p != by]
-    fig, axes = plt.subplots(1, max(len(parameters), 1), figsize=(5.5 * max(len(parameters), 1),
-                                                                  4.2), squeeze=False)
+    panels = together([p for p in varied_columns(columns) if p != by], rows)
+    fig, axes = plt.subplots(1, max(len(panels), 1), figsize=(5.5 * max(len(panels), 1), 4.2),
+                             squeeze=False)
     styles = ["-", "--", ":", "-."]
-    for ax, parameter in zip(axes[0], parameters, strict=False):
+    for ax, names in zip(axes[0], panels, strict=False):
+        parameter = names[0]
         effects = main_effects(rows, parameter, energy, by)
         muscles = list(dict.fromkeys(m for m, _ in effects))
         splits = list(dict.fromkeys(b for _, b in effects))
@@ -94,11 +105,12 @@ def plot(columns: list[str], rows: list[dict], path: Path, energy: str, by: str 
             ax.plot(xs if numeric else [str(x) for x in xs], [y / 1e3 for y in ys], marker="o",
                     color=f"C{muscles.index(muscle)}",
                     ls=styles[splits.index(split) % len(styles)], label=label)
-        ax.set_xlabel(parameter)
-        ax.set_ylabel(f"{energy} (kJ), mean over the other parameters")
+        ax.set_xlabel("\n= ".join(names))
+        ax.set_ylabel(f"{energy} (kJ)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
-    fig.suptitle("main effects" + (f" by {by}" if by else ""))
+    fig.suptitle("main effects" + (f" by {by}" if by else "") + "\n(means over the other "
+                 "parameters)", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
