@@ -22,11 +22,14 @@ process per core, bound to 127.0.0.1, without a dashboard.
 from __future__ import annotations
 
 import os
+import signal
 import sys
 import uuid
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+
+from distributed.diagnostics.plugin import WorkerPlugin
 
 from vm_ros.study.spec import Study
 from vm_ros.study.table import (
@@ -61,7 +64,18 @@ class Engine:
         cluster = LocalCluster(n_workers=self.workers or os.cpu_count() or 1,
                                threads_per_worker=1, processes=True, host=LOOPBACK,
                                dashboard_address=None, silence_logs=logging.ERROR)
-        return Client(cluster), cluster
+        client = Client(cluster)
+        client.register_plugin(IgnoreInterrupt())
+        return client, cluster
+
+
+class IgnoreInterrupt(WorkerPlugin):
+    """The embedded cluster's workers (and those the nannies restart) ignore SIGINT: Ctrl-C in
+    the terminal reaches the whole process group, and it is the client that stops the study
+    and closes the cluster."""
+
+    def setup(self, worker) -> None:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def close(client, cluster) -> None:
