@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from vm_ros.cli import main
+from vm_ros.cli.study import offline_verbs
 from vm_ros.recording.run_log import read_run
 from vm_ros.report.tables import run_summary
 
@@ -36,8 +37,8 @@ def _run(study_path: Path, out: Path, workers: int, on_record=lambda record: Non
     try:
         assert all(address.startswith("tcp://127.0.0.1:")
                    for address in [client.scheduler.address, *client.scheduler_info()["workers"]])
-        return run_study(load_study(study_path), out, client, say=lambda line: None,
-                         on_record=on_record)
+        return run_study(load_study(study_path), out, client, offline_verbs(),
+                         say=lambda line: None, on_record=on_record)
     finally:
         close(client, cluster)
 
@@ -125,8 +126,8 @@ def test_a_killed_worker_loses_no_row_and_duplicates_none(tmp_path):
         os.kill(killed["pid"], signal.SIGKILL)
 
     try:
-        summary = run_study(load_study(study), out, client, say=lambda line: None,
-                            on_record=kill_a_busy_worker)
+        summary = run_study(load_study(study), out, client, offline_verbs(),
+                            say=lambda line: None, on_record=kill_a_busy_worker)
     finally:
         close(client, cluster)
     assert killed["pid"]

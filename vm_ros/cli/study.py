@@ -32,6 +32,15 @@ from pathlib import Path
 from vm_ros.errors import VmRosError
 
 
+def offline_verbs() -> dict:
+    """The verbs a study runs, by name (vm_ros.study.task.Verb)."""
+    from vm_ros.cli import recompute, simulate
+    from vm_ros.study.task import Verb
+
+    return {name: Verb(name, module.add_arguments, module.run)
+            for name, module in (("simulate", simulate), ("recompute", recompute))}
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
     check = sub.add_parser("check", help="validate a study file and list its runs")
@@ -85,7 +94,7 @@ def run(args) -> int:
     try:
         print(f"Dask: {len(client.scheduler_info()['workers'])} workers at "
               f"{client.scheduler.address}")
-        summary = run_study(study, args.out, client)
+        summary = run_study(study, args.out, client, offline_verbs())
     finally:
         close(client, cluster)
     print(summary.line())

@@ -2,10 +2,11 @@
 table (Parquet and CSV), resumable and robust to failed runs and lost workers.
 
     study = load_study("config/studies/fig7_slow_fraction.yaml")   # validated, nothing runs
-    summary = run_study(study, Path("out/fig7"), Engine())          # vm_ros.study.engine
+    client, cluster = Engine().open()                               # vm_ros.study.engine
+    summary = run_study(study, Path("out/fig7"), client, verbs)     # verbs: vm_ros.cli.study
 
 Modules: ``spec`` (the study file and its runs), ``task`` (one run on a worker: the verb's own
-runner and log writer, then the run's rows read back from its log), ``table`` (rows of finished
+runner and log writer, handed in by the command line), ``table`` (rows of finished
 runs on disk, the consolidated table), ``engine`` (Dask client and cluster, submission, resume,
 faults), ``report`` (main-effect plots and the printed table). docs/studies.md has the file
 format.

@@ -25,7 +25,7 @@ import os
 import signal
 import sys
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -40,7 +40,7 @@ from vm_ros.study.table import (
     write_atomically,
     write_table,
 )
-from vm_ros.study.task import STATUS_OK, RunTask, execute, one_line
+from vm_ros.study.task import STATUS_OK, RunTask, Verb, execute, one_line
 
 LOOPBACK = "127.0.0.1"
 
@@ -117,31 +117,33 @@ def prepare(study: Study, out_dir: Path) -> None:
     write_atomically(out_dir / "study.yaml", study.path.read_bytes())
 
 
-def tasks(study: Study, out_dir: Path) -> list[RunTask]:
+def tasks(study: Study, out_dir: Path, verbs: Mapping[str, Verb]) -> list[RunTask]:
     out_dir = Path(out_dir).resolve()
     found = []
     for spec in study.runs:
         argv = list(spec.argv)
         if spec.params_text is not None:
             argv += ["--params", str(out_dir / PARAMS_DIR / spec.params_name)]
-        found.append(RunTask(spec.run_id, spec.verb, tuple(argv),
+        found.append(RunTask(spec.run_id, verbs[spec.verb], tuple(argv),
                              str(out_dir / RUNS_DIR / f"{spec.run_id}.mcap"),
                              study.start_time_ns))
     return found
 
 
-def run_study(study: Study, out_dir: Path, client, say: Callable[[str], None] = print,
+def run_study(study: Study, out_dir: Path, client, verbs: Mapping[str, Verb],
+              say: Callable[[str], None] = print,
               on_record: Callable[[dict], None] = lambda record: None) -> StudySummary:
-    """Run the study's runs that have no finished record on ``client``; record each as it
-    completes (``on_record`` is called after), then write the table. KeyboardInterrupt cancels
-    what is left, writes the table and is re-raised."""
+    """Run the study's runs that have no finished record on ``client`` with ``verbs`` (name ->
+    Verb: simulate, recompute); record each as it completes (``on_record`` is called after),
+    then write the table. KeyboardInterrupt cancels what is left, writes the table and is
+    re-raised."""
     from distributed import as_completed
 
     out_dir = Path(out_dir)
     prepare(study, out_dir)
     store = RecordStore(out_dir)
     finished = store.finished(study)
-    todo = [task for task in tasks(study, out_dir) if task.run_id not in finished]
+    todo = [task for task in tasks(study, out_dir, verbs) if task.run_id not in finished]
     summary = StudySummary(len(study.runs), skipped=len(finished))
     say(f"study {study.name}: {len(study.runs)} runs, {len(finished)} finished before, "
         f"{len(todo)} to run")

@@ -41,7 +41,7 @@ from pathlib import Path
 
 import yaml
 
-from vm_ros.errors import ConfigError, VmRosError, plain_value
+from vm_ros.errors import ConfigError, InputError, VmRosError, plain_value
 from vm_ros.model.params import (
     DRIVE_LAWS,
     RECOVERY_MODES,
@@ -96,13 +96,16 @@ def _count(value) -> str:
 
 
 def _models(value) -> str:
-    from vm_ros.cli.simulate import energetics_models_option
+    from vm_ros.model.energetics_models.in_bank import model_names
 
-    text = ",".join(value) if isinstance(value, list) else str(value)
+    text = ",".join(map(str, value)) if isinstance(value, list) else str(value)
+    if text.strip() == "none":
+        return text
     try:
-        energetics_models_option(text)
-    except VmRosError as error:
-        raise ValueError(str(error).removeprefix("--energetics-models: ")) from None
+        if not model_names(text):
+            raise ValueError("no model named: give a list of models, all or none")
+    except InputError as error:
+        raise ValueError(f"{plain_value(error.value)}: {error.reason}") from None
     return text
 
 

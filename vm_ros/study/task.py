@@ -16,12 +16,12 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import importlib
 import io
 import os
 import threading
 import time
 import uuid
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -39,13 +39,24 @@ _RUN_LOCK = threading.Lock()
 
 
 @dataclass(frozen=True)
+class Verb:
+    """An offline verb as the study runs it: its name, ``add_arguments(parser)`` and
+    ``run(args, on_outcome) -> exit status`` (vm_ros.cli.simulate, vm_ros.cli.recompute; the
+    command line hands them in, and Dask sends them to the workers by reference)."""
+
+    name: str
+    add_arguments: Callable
+    run: Callable
+
+
+@dataclass(frozen=True)
 class RunTask:
-    """What a worker needs for one run (picklable): the run's id, verb and arguments, its log
-    path (``runs/<run id>.mcap`` of the study folder, which the workers must see) and the log
-    time of model time 0 (None: the wall clock at the start, as the verbs do)."""
+    """What a worker needs for one run (picklable): the run's id, its verb and arguments, its
+    log path (``runs/<run id>.mcap`` of the study folder, which the workers must see) and the
+    log time of model time 0 (None: the wall clock at the start, as the verbs do)."""
 
     run_id: str
-    verb: str
+    verb: Verb
     argv: tuple
     log_path: str
     start_time_ns: int | None = None
@@ -56,12 +67,6 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message):
         raise VmRosError(f"arguments: {message}")
-
-
-def _verb_module(verb: str):
-    from vm_ros.cli import VERBS
-
-    return importlib.import_module(f"vm_ros.cli.{VERBS[verb][0]}")
 
 
 def _last_error(text: str, verb: str) -> str:
@@ -83,25 +88,25 @@ def execute(task: RunTask) -> dict:
     final = Path(task.log_path)
     partial = final.with_name(f".{final.stem}-{uuid.uuid4().hex[:8]}.mcap")
     argv = [*task.argv, "--out", str(partial), "--flush-interval", repr(FLUSH_INTERVAL_S)]
-    if task.start_time_ns is not None and task.verb == "simulate":
+    if task.start_time_ns is not None and task.verb.name == "simulate":
         argv += ["--start-time", str(task.start_time_ns)]
     record = {"run_id": task.run_id, "status": STATUS_FAILED, "error": "", "rows": [],
               "worker": f"{os.uname().nodename}:{os.getpid()}"}
     start = time.perf_counter()
     out, err = io.StringIO(), io.StringIO()
     try:
-        module = _verb_module(task.verb)
-        parser = _Parser(prog=f"vm-ros {task.verb}")
-        module.add_arguments(parser)
+        parser = _Parser(prog=f"vm-ros {task.verb.name}")
+        task.verb.add_arguments(parser)
         args = parser.parse_args(argv)
         outcomes = []
         with _RUN_LOCK, contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-            code = int(module.run(args, on_outcome=outcomes.append) or 0)
+            code = int(task.verb.run(args, on_outcome=outcomes.append) or 0)
         if code == 0 and outcomes:
             os.replace(partial, final)
             record.update(status=STATUS_OK, rows=outcome_rows(outcomes[0]))
         else:
-            record["error"] = _last_error(err.getvalue(), task.verb) or f"exit status {code}"
+            record["error"] = (_last_error(err.getvalue(), task.verb.name)
+                               or f"exit status {code}")
     except (VmRosError, OSError) as error:
         record["error"] = one_line(error)
     finally:

@@ -55,6 +55,7 @@ def _rss_mib() -> float:
 
 
 def _timed_study(study_path: Path, out: Path, workers: int, on_record=None) -> dict:
+    from vm_ros.cli.study import offline_verbs
     from vm_ros.study.engine import Engine, close, run_study
     from vm_ros.study.spec import load_study
 
@@ -71,7 +72,8 @@ def _timed_study(study_path: Path, out: Path, workers: int, on_record=None) -> d
             on_record(item)
 
     try:
-        summary = run_study(study, out, client, say=lambda line: None, on_record=record)
+        summary = run_study(study, out, client, offline_verbs(), say=lambda line: None,
+                            on_record=record)
         wall = time.perf_counter() - started
     finally:
         close(client, cluster)
