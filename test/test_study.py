@@ -21,7 +21,7 @@ pytest.importorskip("distributed")
 pyarrow_parquet = pytest.importorskip("pyarrow.parquet")
 
 from vm_ros.study.engine import Engine, close, run_study  # noqa: E402
-from vm_ros.study.spec import load_study  # noqa: E402
+from vm_ros.study.study_file import load_study  # noqa: E402
 
 KNEE = "scenario: knee_extension"
 

@@ -57,7 +57,7 @@ def _rss_mib() -> float:
 def _timed_study(study_path: Path, out: Path, workers: int, on_record=None) -> dict:
     from vm_ros.cli.study import offline_verbs
     from vm_ros.study.engine import Engine, close, run_study
-    from vm_ros.study.spec import load_study
+    from vm_ros.study.study_file import load_study
 
     study = load_study(study_path)
     start = time.perf_counter()

@@ -68,7 +68,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args) -> int:
     from vm_ros.study import require_extra
-    from vm_ros.study.spec import load_study
+    from vm_ros.study.study_file import load_study
 
     if args.action == "check":
         study = load_study(args.study)

@@ -5,14 +5,14 @@ table (Parquet and CSV), resumable and robust to failed runs and lost workers.
     client, cluster = Engine().open()                               # vm_ros.study.engine
     summary = run_study(study, Path("out/fig7"), client, verbs)     # verbs: vm_ros.cli.study
 
-Modules: ``spec`` (the study file and its runs), ``task`` (one run on a worker: the verb's own
+Modules: ``study_file`` (the study file and its runs), ``task`` (one run on a worker: the verb's own
 runner and log writer, handed in by the command line), ``table`` (rows of finished
 runs on disk, the consolidated table), ``engine`` (Dask client and cluster, submission, resume,
 faults), ``report`` (main-effect plots and the printed table). docs/studies.md has the file
 format.
 
 The study extra (``pip install "vm_ros[study]"``: dask[distributed] and pyarrow) is needed for
-``engine`` and ``table``; ``spec`` needs neither.
+``engine`` and ``table``; ``study_file`` needs neither.
 """
 
 from __future__ import annotations

@@ -31,7 +31,7 @@ from pathlib import Path
 
 from distributed.diagnostics.plugin import WorkerPlugin
 
-from vm_ros.study.spec import Study
+from vm_ros.study.study_file import Study
 from vm_ros.study.table import (
     PARAMS_DIR,
     RUNS_DIR,

@@ -27,7 +27,7 @@ import os
 from pathlib import Path
 
 from vm_ros import telemetry as tm
-from vm_ros.study.spec import Study
+from vm_ros.study.study_file import Study
 from vm_ros.study.task import STATUS_FAILED, STATUS_OK, energy_column
 
 ROWS_DIR, RUNS_DIR, PARAMS_DIR = "rows", "runs", "params"
