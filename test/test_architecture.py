@@ -13,7 +13,7 @@ ROW = re.compile(r"^\| (\d+) \| `([^`]+)` \|")
 
 def floors() -> dict[str, int]:
     """{room path: floor} from the table of docs/architecture.md."""
-    text = (ROOT / "docs" / "architecture.md").read_text()
+    text = (ROOT / "docs/architecture.md").read_text()
     return {m.group(2): int(m.group(1)) for m in map(ROW.match, text.splitlines()) if m}
 
 
