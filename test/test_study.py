@@ -180,6 +180,31 @@ def test_the_verb_on_a_running_scheduler_then_the_report(tmp_path, capsys):
     assert (tmp_path / "out" / "main_effects.png").stat().st_size > 10_000
 
 
+def test_a_full_disk_fails_that_run_alone_with_its_one_line_error(tmp_path, monkeypatch):
+    """Each run on the worker (here in this process): the one whose log hits ENOSPC is failed
+    with the writer's error, the other one is ok; no partial log is left."""
+    from test_recording_writer import FailingFile
+
+    from vm_ros.recording.writer import McapRecorder
+    from vm_ros.study.task import RunTask, execute
+
+    full, room = tmp_path / "full", tmp_path / "room"
+    full.mkdir(), room.mkdir()
+    opener = McapRecorder.__init__.__kwdefaults__["opener"]
+    monkeypatch.setitem(McapRecorder.__init__.__kwdefaults__, "opener", lambda path: (
+        FailingFile(limit=4096) if path.parent == full else opener(path)))
+    verb = offline_verbs()["simulate"]
+    argv = ("--scenario", "knee_extension", "--duration", "0.5")
+    failed = execute(RunTask("a" * 16, verb, argv, str(full / "a.mcap"), 0))
+    ok = execute(RunTask("b" * 16, verb, argv, str(room / "b.mcap"), 0))
+    assert failed["status"] == "failed" and failed["rows"] == []
+    assert "No space left on device" in failed["error"] and "\n" not in failed["error"]
+    assert not [p for p in full.iterdir() if p.suffix == ".mcap"]
+    assert ok["status"] == "ok" and [r["muscle"] for r in ok["rows"]] == ["rectus_femoris",
+                                                                          "vasti"]
+    assert (room / "b.mcap").is_file()
+
+
 def test_without_the_study_extra_the_verb_names_it(tmp_path, capsys, monkeypatch):
     import vm_ros.study
 
