@@ -180,6 +180,35 @@ def test_the_verb_on_a_running_scheduler_then_the_report(tmp_path, capsys):
     assert (tmp_path / "out" / "main_effects.png").stat().st_size > 10_000
 
 
+def test_ctrl_c_stops_the_study_keeping_what_finished(tmp_path):
+    """SIGINT to the command's process group (as Ctrl-C in a terminal): exit 130, the records
+    and table of the runs that finished, nothing of the others."""
+    import subprocess
+    import sys
+    import time
+
+    study = _study(tmp_path, "grid:\n  dt: [0.001, 0.0011, 0.0012, 0.0013, 0.0014, 0.0015]\n")
+    study.write_text(study.read_text().replace("duration: 0.5", "duration: 20.0"))
+    out = tmp_path / "out"
+    command = [str(Path(sys.executable).parent / "vm-ros"), "study", "run", str(study), "--out",
+               str(out), "--workers", "1"]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True, start_new_session=True,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    deadline = time.monotonic() + 240
+    while not list((out / "rows").glob("*.json")) and time.monotonic() < deadline \
+            and process.poll() is None:
+        time.sleep(0.2)
+    os.killpg(process.pid, signal.SIGINT)
+    stdout, stderr = process.communicate(timeout=120)
+    assert process.returncode == 130, stderr
+    assert "interrupted" in stderr and "Traceback" not in stderr
+    kept = {p.stem for p in (out / "rows").glob("*.json")}
+    assert 1 <= len(kept) < 6
+    rows = pyarrow_parquet.read_table(out / "results.parquet").to_pylist()
+    assert {r["run_id"] for r in rows} == kept and all(r["status"] == "ok" for r in rows)
+
+
 def test_a_full_disk_fails_that_run_alone_with_its_one_line_error(tmp_path, monkeypatch):
     """Each run on the worker (here in this process): the one whose log hits ENOSPC is failed
     with the writer's error, the other one is ok; no partial log is left."""
