@@ -1,7 +1,7 @@
 """Measure the model, the offline runner and muscle_node against vm_ros's speed targets; write
 the results (JSON and CSV) and print a table.
 
-Sections (all but node-memory by default; --only picks some):
+Sections (all but study and node-memory by default; --only picks some):
   model     MuscleBank.step for 1, 10, 100, 1000 muscles (lumped units, energetics on,
             dt 1 ms), compiled (Numba) and NumPy back ends; the published energetics models'
             cost at 1000 muscles; the kernel per muscle-step: run against repeated step at 1,
@@ -29,10 +29,10 @@ Sections (all but node-memory by default; --only picks some):
             section; the closed loop in one process (myoelbow; myolegs with its root fixed
             and free), wall time per simulated second at 1 ms steps (vm_ros_bench.joint_bench).
             --quick imports at degree 3 over 100 poses (smaller polynomials: not comparable).
-  study     a study on the embedded Dask LocalCluster (the study extra): 64 runs of the 30 s
-            knee extension (fibre mix x recovery kernel) on 1 and 2 workers, speed-up and
-            overhead per run; the client's memory over 1000 short runs
-            (vm_ros_bench.study_bench)
+  study     runs only when named (--only study; about 17 minutes on a busy 2-core machine): a
+            study on the embedded Dask LocalCluster (the study extra), 64 runs of the 30 s knee
+            extension (fibre mix x recovery kernel) on 1 and 2 workers, speed-up and overhead
+            per run; the client's memory over 1000 short runs (vm_ros_bench.study_bench)
   node-memory
             runs only when named (--only node-memory; 7 minutes): muscle_node's resident
             memory over a long run, 100 muscles at 1 kHz, publish 100 Hz, MCAP as a rosbag2
@@ -82,8 +82,8 @@ from vm_ros.errors import VmRosError
 from vm_ros_bench import FOLDER, child_environment
 
 SECTIONS = ("model", "natural", "offline", "decode", "node", "joint", "study", "node-memory")
-DEFAULT_SECTIONS = ("model", "natural", "offline", "decode", "node", "joint",
-                    "study")  # node-memory: when named
+DEFAULT_SECTIONS = ("model", "natural", "offline", "decode", "node",
+                    "joint")  # node-memory and study: when named
 MEMORY_DURATION_S, MEMORY_QUICK_DURATION_S = 300.0, 60.0  # node-memory window
 MEMORY_WARMUP_S, MEMORY_QUICK_WARMUP_S = 120.0, 5.0
 MEMORY_SPLIT_S = 60.0  # bag split (log time); shorter windows: a fifth of the window
