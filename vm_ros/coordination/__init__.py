@@ -1,0 +1,1 @@
+"""Muscle coordination from motion: drives that reproduce target joint moments."""
