@@ -72,8 +72,8 @@ def _counting_node(ros, lengths, executor, **params):
     node = ros.muscle_node(muscles=MUSCLES, initial_path_length_m=list(lengths),
                            executor=executor, **params)
     taken = []
-    original = node.inputs.on_excitation_array
-    node.inputs.on_excitation_array = lambda drive, now: taken.append(1) or original(drive, now)
+    original = node.inputs.on_drive
+    node.inputs.on_drive = lambda *args: taken.append(1) or original(*args)
     return node, taken
 
 

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vm_ros import topics as tp
 from vm_ros.geometry.checks import MIN_PATH_LENGTH_M
 from vm_ros.node.health import Issue
 from vm_ros.node.params import NodeConfig
@@ -210,24 +211,30 @@ class NodeInputs:
         self.last_excitation_ns = now_ns
         return issues
 
-    def on_excitation(self, names: Sequence[str], drive, now_ns: int) -> list[Issue]:
-        """JointState on excitation: name[] muscles (or empty: all, in order), position[] drive."""
+    def on_drive(self, topic: str, names, drive, now_ns: int) -> list[Issue]:
+        """A DRIVE input (vm_ros.topics): ``names`` the muscles (empty: all, in order), or None
+        for one drive per muscle in the muscles-parameter order."""
         drive = np.asarray(drive, dtype=float).ravel()
-        issues, muscles, entries = self._select("excitation", names, drive.size)
+        if names is None:
+            if drive.size != self.n:
+                return [Issue("wrong_size", f"{topic}: {drive.size} values, expected "
+                              f"{self.n} (one per muscle)")]
+            return self._set_drive(topic, self._order, drive, now_ns)
+        issues, muscles, entries = self._select(topic, names, drive.size)
         if muscles is None:
             return issues
         if muscles.size == 0:
             return issues
         values = drive if entries is self._order else drive[entries]
-        return issues + self._set_drive("excitation", muscles, values, now_ns)
+        return issues + self._set_drive(topic, muscles, values, now_ns)
+
+    def on_excitation(self, names: Sequence[str], drive, now_ns: int) -> list[Issue]:
+        """JointState on excitation: name[] muscles (or empty: all, in order), position[] drive."""
+        return self.on_drive("excitation", names, drive, now_ns)
 
     def on_excitation_array(self, drive, now_ns: int) -> list[Issue]:
         """Float64MultiArray on excitation_array: one drive per muscle, muscles-parameter order."""
-        drive = np.asarray(drive, dtype=float).ravel()
-        if drive.size != self.n:
-            return [Issue("wrong_size", f"excitation_array: {drive.size} values, expected "
-                          f"{self.n} (one per muscle)")]
-        return self._set_drive("excitation_array", self._order, drive, now_ns)
+        return self.on_drive("excitation_array", None, drive, now_ns)
 
     @property
     def joint_driven_names(self) -> tuple[str, ...]:
@@ -236,7 +243,12 @@ class NodeInputs:
     def on_kinematics(self, names: Sequence[str], length, velocity, now_ns: int) -> list[Issue]:
         """JointState on muscle_kinematics: position[] path length (m), velocity[] (m/s, or
         empty for 0). Entries for joint-driven muscles are ignored and counted."""
-        topic = "muscle_kinematics"
+        return self.on_path("muscle_kinematics", names, length, velocity, now_ns)
+
+    def on_path(self, topic: str, names, length, velocity, now_ns: int) -> list[Issue]:
+        """A PATH input (vm_ros.topics): path lengths (m) and velocities (m/s, or empty for 0) of
+        ``names`` (empty or None: all, in order), as on_kinematics."""
+        names = () if names is None else names
         length = np.asarray(length, dtype=float).ravel()
         velocity = np.asarray(velocity, dtype=float).ravel()
         if velocity.size not in (0, length.size):
@@ -407,4 +419,15 @@ class NodeInputs:
         return {"excitation": names(self.drive_stale), "kinematics": names(self.length_stale)}
 
 
-__all__ = ["InputLimits", "NodeInputs", "physical_path_length_range"]
+def node_receivers(inputs: NodeInputs, on_joint_states) -> dict:
+    """muscle_node's receiver of each input role (vm_ros.topics.apply_input): the drive and path
+    inputs of ``inputs`` (looked up at each message), and ``on_joint_states(names, position,
+    velocity, time_ns)`` for the joint inputs. The node and its replay (vm_ros.node.replay)
+    both dispatch through this one map."""
+    return {tp.DRIVE: lambda *values: inputs.on_drive(*values),
+            tp.PATH: lambda *values: inputs.on_path(*values),
+            tp.JOINTS: lambda topic, names, position, velocity, time_ns:
+                on_joint_states(names, position, velocity, time_ns)}
+
+
+__all__ = ["InputLimits", "NodeInputs", "node_receivers", "physical_path_length_range"]

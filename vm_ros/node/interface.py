@@ -9,19 +9,8 @@ import argparse
 from vm_ros import topics as tp
 from vm_ros.node.params import PARAMS
 
-# (topic, message type name, description); joint topics only with a geometry
-INPUT_TOPICS = (
-    (tp.TOPIC_EXCITATION, tp.TYPE_JOINT_STATE,
-     "drive per muscle by name: name[], position[] in [0, 1]"),
-    (tp.TOPIC_EXCITATION_ARRAY, tp.TYPE_FLOAT64_MULTI_ARRAY,
-     "drive, one per muscle in muscles order"),
-    (tp.TOPIC_KINEMATICS, tp.TYPE_JOINT_STATE,
-     "muscle path length (position[], m) and velocity (velocity[], m/s) by name"),
-)
-JOINT_INPUT_TOPICS = (
-    (tp.TOPIC_JOINT_STATES, tp.TYPE_JOINT_STATE,
-     "robot joint positions and velocities (with geometry)"),
-)
+# (topic, message type name, description); joint topics only with a geometry. The input topics
+# are vm_ros.topics.INPUT_TOPICS, those of role JOINTS only with a geometry.
 OUTPUT_TOPICS = (
     (tp.TOPIC_FORCE, tp.TYPE_JOINT_STATE,
      "tendon force (effort[], N), fascicle length and velocity"),
@@ -64,12 +53,19 @@ def _topic_lines(topics) -> list[str]:
     return [f"  {topic} ({type_name}): {text}" for topic, type_name, text in topics]
 
 
+def input_topics(geometry: bool) -> tuple:
+    """(topic, message type name, description) of the input topics: those of role JOINTS only
+    with a ``geometry``."""
+    return tuple((row.name, row.type_name, row.text) for row in tp.INPUT_TOPICS
+                 if geometry or row.role != tp.JOINTS)
+
+
 def argument_parser() -> argparse.ArgumentParser:
     """muscle_node's parser: no options of its own but --help, which lists topics and
     parameters."""
     lines = [f"  {p.name} ({p.kind}, default {p.default!r}): {p.describe()}" for p in PARAMS]
     epilog = ["inputs (reliable, keep last qos_depth; relative names):",
-              *_topic_lines(INPUT_TOPICS + JOINT_INPUT_TOPICS),
+              *_topic_lines(input_topics(geometry=True)),
               "outputs (reliable, keep last qos_depth):",
               *_topic_lines(OUTPUT_TOPICS + JOINT_OUTPUT_TOPICS),
               "parameters:", *lines,
@@ -82,5 +78,5 @@ def argument_parser() -> argparse.ArgumentParser:
         epilog="\n".join(epilog))
 
 
-__all__ = ["INPUT_TOPICS", "JOINT_INPUT_TOPICS", "JOINT_OUTPUT_TOPICS", "MODEL_OUTPUT_TOPICS",
-           "OUTPUT_TOPICS", "argument_parser", "user_arguments"]
+__all__ = ["JOINT_OUTPUT_TOPICS", "MODEL_OUTPUT_TOPICS", "OUTPUT_TOPICS", "argument_parser",
+           "input_topics", "user_arguments"]

@@ -13,7 +13,7 @@ that step used, as in the node. `vm-ros recompute`, `vm-ros simulate --motion` (
 its inputs as the node would and logs the parameters used in ``node_parameters``) and the node
 tests use this one implementation (:class:`NodeConditioning`).
 
-    inputs = NodeReplayInputs(run, bank, sink)   # run read with raw=INPUT_TOPICS
+    inputs = NodeReplayInputs(run, bank, sink)   # run read with raw=input_topic_names()
     u, lp, vp = inputs.advance_to(t_ns)          # same interface as offline.RecordedInputs
     inputs.joint_efforts(force)                  # JointEfforts of that step's forces, or None
 
@@ -31,17 +31,17 @@ from pathlib import Path
 import numpy as np
 
 from vm_ros import telemetry as tm
+from vm_ros import topics as tp
 from vm_ros.errors import ConfigError
 from vm_ros.geometry import load_geometry
 from vm_ros.geometry.file import loads as load_geometry_text
 from vm_ros.joint_space import JointEfforts, JointMap, JointSpace
-from vm_ros.node.inputs import InputLimits, NodeInputs
+from vm_ros.node.inputs import InputLimits, NodeInputs, node_receivers
 from vm_ros.node.joint_inputs import JointInputs
 from vm_ros.node.params import NodeConfig
 from vm_ros.recording.cdr import input_decoder
 from vm_ros.recording.run_log import (
     ATTACHMENT_GEOMETRY,
-    INPUT_TOPICS,
     METADATA_NAME,
     NODE_PARAMETERS_KEY,
     RunLog,
@@ -116,6 +116,7 @@ class NodeConditioning:
         self.issues: Counter = Counter()
         self._texts: dict[str, str] = {}
         self.clamped = np.zeros(space.n_coordinates if space is not None else 0, dtype=int)
+        self._receivers = node_receivers(self.inputs, self._joint_states)
 
     def _count(self, issues) -> None:
         for issue in issues:
@@ -127,27 +128,26 @@ class NodeConditioning:
         return "; ".join(self._texts.values())
 
     def on_message(self, topic: str, msg, time_ns: int) -> None:
-        """A decoded message on one of the input topics, received at ``time_ns``."""
-        if topic == tm.TOPIC_EXCITATION_ARRAY:
-            self._count(self.inputs.on_excitation_array(msg.data, time_ns))
-        elif topic == tm.TOPIC_EXCITATION:
-            self.on_excitation(msg.name, msg.position, time_ns)
-        elif topic == tm.TOPIC_KINEMATICS:
-            self._count(self.inputs.on_kinematics(msg.name, msg.position, msg.velocity,
-                                                  time_ns))
-        elif topic == tm.TOPIC_JOINT_STATES and self.joints is not None:  # else not subscribed
-            self.on_joint_states(msg.name, msg.position, msg.velocity, time_ns)
+        """A decoded message on one of the input topics (vm_ros.topics.INPUT_TOPICS), received
+        at ``time_ns``; joint topics without a geometry are not subscribed: nothing happens."""
+        self._count(tp.apply_input(tp.input_topic(topic), msg, self._receivers, time_ns))
 
     def on_excitation(self, names, drive, time_ns: int) -> None:
         self._count(self.inputs.on_excitation(names, drive, time_ns))
 
     def on_joint_states(self, names, position, velocity, time_ns: int) -> None:
+        self._count(self._joint_states(names, position, velocity, time_ns))
+
+    def _joint_states(self, names, position, velocity, time_ns: int) -> list:
+        if self.joints is None:  # no geometry: the node does not subscribe joint topics
+            return []
         before = self.joints.sample
-        self._count(self.joints.on_joint_states(names, position, velocity, time_ns))
+        issues = self.joints.on_joint_states(names, position, velocity, time_ns)
         sample = self.joints.sample
         if sample is not before:  # accepted: count the named coordinates that were clamped
             named = self._named(names)
             self.clamped[named[self.joints.q[named] != sample.q[named]]] += 1
+        return issues
 
     def _named(self, names) -> np.ndarray:
         """Coordinate indices of the joints a joint_states message names (positional: joints)."""
@@ -193,9 +193,9 @@ class NodeReplayInputs:
         self._path = run.path
         self.conditioning = NodeConditioning(bank, config, space)
         self.inputs = self.conditioning.inputs
-        self._events = run.events(INPUT_TOPICS)
+        self._events = run.events(tp.input_topic_names())
         # the node's decoders (one per topic: a JointState decoder remembers its names)
-        self._decoders = {topic: input_decoder(tm.TOPIC_TYPES[topic]) for topic in INPUT_TOPICS}
+        self._decoders = {row.name: input_decoder(row.type_name) for row in tp.INPUT_TOPICS}
         if any(event.data is None for event in self._events):
             raise ValueError(f"{run.path}: inputs read without their raw bytes")
         self._next = 0

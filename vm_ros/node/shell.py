@@ -69,6 +69,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray
 
 from vm_ros import telemetry as tm
+from vm_ros import topics as tp
 from vm_ros.errors import ConfigError, VmRosError
 from vm_ros.node import interface
 from vm_ros.node.health import (
@@ -82,7 +83,7 @@ from vm_ros.node.health import (
     format_value,
     lost_key,
 )
-from vm_ros.node.inputs import InputLimits, NodeInputs
+from vm_ros.node.inputs import InputLimits, NodeInputs, node_receivers
 from vm_ros.node.joint_inputs import JointInputs
 from vm_ros.node.params import PARAMS, PARAMS_SOURCE, NodeConfig, ParamSpec
 from vm_ros.node.params import runtime_parameter_names as _runtime_names
@@ -106,10 +107,10 @@ _WITH_MESSAGE_INFO = inspect.Signature(
 # (topic, message class, description) from vm_ros.node.interface (type names there)
 _MESSAGE_CLASSES = {tm.TYPE_JOINT_STATE: JointState, tm.TYPE_FLOAT64_MULTI_ARRAY: Float64MultiArray,
                     tm.TYPE_FLOAT64: Float64, tm.TYPE_DIAGNOSTIC_ARRAY: DiagnosticArray}
-INPUT_TOPICS, JOINT_INPUT_TOPICS, OUTPUT_TOPICS, MODEL_OUTPUT_TOPICS, JOINT_OUTPUT_TOPICS = (
+OUTPUT_TOPICS, MODEL_OUTPUT_TOPICS, JOINT_OUTPUT_TOPICS = (
     tuple((topic, _MESSAGE_CLASSES[type_name], text) for topic, type_name, text in table)
-    for table in (interface.INPUT_TOPICS, interface.JOINT_INPUT_TOPICS, interface.OUTPUT_TOPICS,
-                  interface.MODEL_OUTPUT_TOPICS, interface.JOINT_OUTPUT_TOPICS))
+    for table in (interface.OUTPUT_TOPICS, interface.MODEL_OUTPUT_TOPICS,
+                  interface.JOINT_OUTPUT_TOPICS))
 
 _ROS_TYPES = {"bool": ParameterType.PARAMETER_BOOL, "integer": ParameterType.PARAMETER_INTEGER,
               "double": ParameterType.PARAMETER_DOUBLE, "string": ParameterType.PARAMETER_STRING,
@@ -273,10 +274,11 @@ class MuscleNode(Node):
         ``qos_overrides.<topic>.<publisher|subscription>.<history|depth|reliability>``
         parameters may change."""
         overridable = QoSOverridingOptions.with_default_policies()
-        outputs, inputs = list(OUTPUT_TOPICS), list(INPUT_TOPICS)
+        outputs = list(OUTPUT_TOPICS)
+        inputs = [(topic, _MESSAGE_CLASSES[type_name], text) for topic, type_name, text
+                  in interface.input_topics(geometry=self.joint_space is not None)]
         if self.joint_space is not None:
             outputs += JOINT_OUTPUT_TOPICS
-            inputs += JOINT_INPUT_TOPICS
         if self.bank.energetics_models:
             outputs += MODEL_OUTPUT_TOPICS
         self._input_types = {topic: msg_type for topic, msg_type, _ in inputs}
@@ -375,10 +377,8 @@ class MuscleNode(Node):
     # --- inputs -----------------------------------------------------------------------------
 
     def _receiver(self, topic: str, msg_type):
-        handle = {tm.TOPIC_EXCITATION: self._on_excitation,
-                  tm.TOPIC_EXCITATION_ARRAY: self._on_excitation_array,
-                  tm.TOPIC_KINEMATICS: self._on_kinematics,
-                  tm.TOPIC_JOINT_STATES: self._on_joint_states}[topic]
+        row = tp.input_topic(topic)
+        receivers = node_receivers(self.inputs, self._on_joint_states)
         gaps = self._gaps[topic] = SequenceGaps()
         # the decoder a recompute uses (vm_ros.recording.cdr.input_decoder), so that the node
         # and its replay agree on what is undecodable; rclpy's deserialiser printed a stderr line
@@ -402,7 +402,7 @@ class MuscleNode(Node):
             except Exception as exc:  # corrupt bytes: never let them stop the node
                 self._report([Issue("undecodable", f"{topic}: {type(exc).__name__}: {exc}")])
                 return
-            self._report(handle(msg, effective_ns))
+            self._report(tp.apply_input(row, msg, receivers, effective_ns))
 
         # rclpy passes the message info (its publication sequence number) to a callback whose
         # signature takes two arguments: SingleThreadedExecutor as receive(data, info), rclpy
@@ -412,17 +412,8 @@ class MuscleNode(Node):
         receive.__signature__ = _WITH_MESSAGE_INFO
         return receive
 
-    def _on_excitation(self, msg: JointState, now_ns: int):
-        return self.inputs.on_excitation(msg.name, msg.position, now_ns)
-
-    def _on_excitation_array(self, msg: Float64MultiArray, now_ns: int):
-        return self.inputs.on_excitation_array(msg.data, now_ns)
-
-    def _on_kinematics(self, msg: JointState, now_ns: int):
-        return self.inputs.on_kinematics(msg.name, msg.position, msg.velocity, now_ns)
-
-    def _on_joint_states(self, msg: JointState, now_ns: int):
-        return self.joint_inputs.on_joint_states(msg.name, msg.position, msg.velocity, now_ns)
+    def _on_joint_states(self, names, position, velocity, now_ns: int):
+        return self.joint_inputs.on_joint_states(names, position, velocity, now_ns)
 
     def _check_publisher_types(self) -> None:
         """Publishers of another message type on an input topic are never matched, so nothing

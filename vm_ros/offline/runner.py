@@ -42,12 +42,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from vm_ros import telemetry as tm
+from vm_ros import topics as tp
 from vm_ros.model import MuscleBank, StepOutput
 from vm_ros.recording import bulk
 from vm_ros.recording import messages as msgs
 from vm_ros.recording.cdr import serialize
 from vm_ros.recording.run_log import (
-    INPUT_TOPICS,
     RunLog,
     RunLogError,
     RunTiming,
@@ -275,11 +275,16 @@ class RecordedInputs:
         self.u = np.zeros(n_muscles)
         self.lp = np.full(n_muscles, np.nan)
         self.vp = np.zeros(n_muscles)
-        joint_states = run.get(tm.TOPIC_JOINT_STATES)
-        if joint_states is not None and len(joint_states):
-            raise RunLogError(run.path, f"{tm.TOPIC_JOINT_STATES} without node_parameters: the "
-                                        "joint conditioning of this log is not known")
-        self._events = run.events(INPUT_TOPICS)
+        # how each role's values are held: one message (_apply) and a block of them (block);
+        # joint inputs need the node's conditioning (vm_ros.node.replay)
+        self._hold = {tp.DRIVE: self._hold_drive, tp.PATH: self._hold_path}
+        self._hold_block = {tp.DRIVE: self._drive_block, tp.PATH: self._path_block}
+        for row in tp.INPUT_TOPICS:
+            series = run.get(row.name)
+            if row.role not in self._hold and series is not None and len(series):
+                raise RunLogError(run.path, f"{row.name} without node_parameters: the joint "
+                                            "conditioning of this log is not known")
+        self._events = run.events(tp.input_topic_names())
         self._event_times = np.array([e.time_ns for e in self._events], dtype=np.int64)
         self._next = 0
         kinematics = run.get(tm.TOPIC_KINEMATICS)
@@ -292,17 +297,18 @@ class RecordedInputs:
         return self._events[-1].time_ns if self._events else 0
 
     def _apply(self, topic: str, series, i: int) -> None:
-        if topic == tm.TOPIC_KINEMATICS:
-            lp, vp = series.fields["position"][i], series.fields["velocity"][i]
-            ok = np.isfinite(lp) & (lp > 0)
-            self.lp[ok] = lp[ok]
-            self.vp[ok] = np.where(np.isfinite(vp[ok]), vp[ok], 0.0)
-            return
-        key = "position" if topic == tm.TOPIC_EXCITATION else "data"
-        u = series.fields[key][i]
+        row = tp.input_topic(topic)
+        self._hold[row.role](*(series.fields[field][i] for field in row.fields))
+
+    def _hold_drive(self, u) -> None:
         if u.shape == self.u.shape:
             ok = np.isfinite(u)
             self.u[ok] = u[ok]
+
+    def _hold_path(self, lp, vp) -> None:
+        ok = np.isfinite(lp) & (lp > 0)
+        self.lp[ok] = lp[ok]
+        self.vp[ok] = np.where(np.isfinite(vp[ok]), vp[ok], 0.0)
 
     def advance_to(self, time_ns: int):
         while self._next < len(self._events) and self._events[self._next].time_ns <= time_ns:
@@ -334,23 +340,15 @@ class RecordedInputs:
         applied = np.searchsorted(times, step_starts_ns, side="right")  # events per step
         n, count = len(self.u), len(events)
         u_new, lp_new, vp_new = (np.full((count, n), np.nan) for _ in range(3))
-        for topic, key in ((tm.TOPIC_KINEMATICS, "position"), (tm.TOPIC_EXCITATION, "position"),
-                           (tm.TOPIC_EXCITATION_ARRAY, "data")):
-            chosen = [i for i, e in enumerate(events) if e.topic == topic and e.series is not None]
+        for row in tp.INPUT_TOPICS:
+            chosen = [i for i, e in enumerate(events) if e.topic == row.name
+                      and e.series is not None]
             if not chosen:
                 continue
             series = events[chosen[0]].series
             rows = [events[i].index for i in chosen]
-            values = series.fields[key][rows]
-            if topic != tm.TOPIC_KINEMATICS:
-                if values.shape[1:] == (n,):  # else ignored, as _apply ignores them
-                    u_new[chosen] = np.where(np.isfinite(values), values, np.nan)
-                continue
-            velocity = series.fields["velocity"][rows]
-            ok = np.isfinite(values) & (values > 0)
-            lp_new[chosen] = np.where(ok, values, np.nan)
-            vp_new[chosen] = np.where(ok, np.where(np.isfinite(velocity), velocity, 0.0),
-                                      np.nan)
+            self._hold_block[row.role]((u_new, lp_new, vp_new), chosen,
+                                       *(series.fields[field][rows] for field in row.fields))
         u = _carried(u_new, ~np.isnan(u_new), applied, self.u)
         updated = ~np.isnan(lp_new)
         lp = _carried(lp_new, updated, applied, self.lp)
@@ -360,6 +358,18 @@ class RecordedInputs:
         self._next = end
         self.u, self.lp, self.vp = u[-1].copy(), lp[-1].copy(), vp[-1].copy()
         return u, lp, vp
+
+    def _drive_block(self, new, chosen, drive) -> None:
+        """block's _hold_drive: the drives of the messages ``chosen`` into their rows of new[0]
+        (NaN: not updated); drives of another size are ignored, as _hold_drive ignores them."""
+        if drive.shape[1:] == (len(self.u),):
+            new[0][chosen] = np.where(np.isfinite(drive), drive, np.nan)
+
+    def _path_block(self, new, chosen, length, velocity) -> None:
+        """block's _hold_path: path lengths and velocities into new[1] and new[2]."""
+        ok = np.isfinite(length) & (length > 0)
+        new[1][chosen] = np.where(ok, length, np.nan)
+        new[2][chosen] = np.where(ok, np.where(np.isfinite(velocity), velocity, 0.0), np.nan)
 
 
 def _carried(new, updated, applied, held) -> np.ndarray:

@@ -70,13 +70,12 @@ ATTACHMENT_GEOMETRY = "geometry.yaml"
 NODE_PARAMETERS_KEY = "node_parameters"
 INPUT_HOLD = "zero-order hold: the step [t, t + dt) uses the latest input with log_time <= t"
 
-INPUT_TOPICS = (tm.TOPIC_EXCITATION, tm.TOPIC_EXCITATION_ARRAY, tm.TOPIC_KINEMATICS,
-                tm.TOPIC_JOINT_STATES)
+INPUT_TOPICS = tm.input_topic_names()  # the table vm_ros.topics.INPUT_TOPICS
 OUTPUT_TOPICS = (tm.TOPIC_FORCE, tm.TOPIC_ENERGY_RATE, tm.TOPIC_ENERGY_RATE_TOTAL,
                  tm.TOPIC_ENERGY_TOTAL, tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_JOINT_EFFORT_COMMANDS)
 # channels of a run with a geometry only (vm_ros.joint_space); joint_work: offline runs only
-JOINT_TOPICS = (tm.TOPIC_JOINT_STATES, tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_JOINT_EFFORT_COMMANDS,
-                tm.TOPIC_JOINT_WORK)
+JOINT_TOPICS = (*(row.name for row in tm.INPUT_TOPICS if row.role == tm.JOINTS),
+                tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_JOINT_EFFORT_COMMANDS, tm.TOPIC_JOINT_WORK)
 # channels of a run with published energetics models only (RunConfig.energetics_models)
 MODEL_TOPICS = (tm.TOPIC_ENERGY_RATE_MODELS,)
 LOG_TOPIC_TYPES = {
