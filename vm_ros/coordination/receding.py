@@ -19,7 +19,7 @@ path is prescribed, so muscle i's force depends on its own drive only: the deriv
 force with respect to block b of every drive come from one run with all of block b raised by
 ``probe_drive``. The B + 1 runs (nominal, one per block) are one MuscleBank.run of a bank holding
 B + 1 copies of the muscles. The linearised problem is a bounded linear least squares
-(scipy.optimize.lsq_linear); block 0 is applied, the rest seeds the next period.
+(box_qp, a primal active-set method); block 0 is applied, the rest seeds the next period.
 
 What is approximated: a secant linearisation per period (force is not linear in drive); the
 horizon's motion is what the caller predicts (muscle_node: the latest joint sample moved on by its
@@ -33,7 +33,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import lsq_linear
 
 from vm_ros.model import MuscleBank
 
@@ -153,24 +152,62 @@ def solve_window(forces, moment_arm, target, tracked, probe: Probe, settings: Ho
     jac = jac[:, tracked].reshape(-1, n_blocks * m)
     x0 = probe.nominal.ravel()
     rhs = (target - moment0)[:, tracked].ravel() + jac @ x0
-    scale = 1.0 / np.sqrt(max(len(moment0), 1))
-    rows, values = [jac * scale], [rhs * scale]
+    scale = 1.0 / max(len(moment0), 1)
+    hessian = scale * (jac.T @ jac)                      # 1/2 x H x - f x, tracking
+    linear = scale * (jac.T @ rhs)
     cost = WINDOW_COSTS[settings.cost]
     weight = cost.weight if settings.effort_weight is None else settings.effort_weight
     diag, lin = cost.term(probe, weight)
-    d = np.sqrt(diag.ravel())
-    rows.append(np.diag(d))
-    values.append(-lin.ravel() / d)
+    hessian[np.diag_indices_from(hessian)] += diag.ravel()
+    linear -= lin.ravel()
     if settings.smoothness > 0:
-        w = np.sqrt(settings.smoothness)
         change = np.eye(n_blocks * m) - np.eye(n_blocks * m, k=-m)  # U_b - U_{b-1}
-        rows.append(w * change)
-        values.append(w * np.concatenate([previous_drive, np.zeros((n_blocks - 1) * m)]))
-    solution = lsq_linear(np.vstack(rows), np.concatenate(values), bounds=(0.0, 1.0),
-                          method="bvls")
-    plan = np.clip(solution.x.reshape(n_blocks, m), 0.0, 1.0)
+        hessian += settings.smoothness * (change.T @ change)
+        linear[:m] += settings.smoothness * np.asarray(previous_drive, dtype=float)
+    solution = box_qp(hessian, linear, x0)
+    plan = solution.reshape(n_blocks, m)
     predicted = moment0 + np.einsum("smc,bsm,bm->sc", moment_arm, sens, plan - probe.nominal)
     return WindowPlan(plan[0].copy(), plan, predicted)
+
+
+def box_qp(hessian, linear, start, tol: float = 1e-12) -> np.ndarray:
+    """argmin 1/2 x H x - f x over 0 <= x <= 1, H symmetric positive definite: a primal
+    active-set method from ``start`` (clipped into the box). Each iteration solves the free
+    variables' equations with the others at their bounds, steps as far as the box allows toward
+    that point, and frees the bound variable whose multiplier has the wrong sign the most; at
+    most 3 n + 10 iterations (the last iterate is feasible either way). NumPy's solve on the
+    free block: LAPACK's least-squares drivers (scipy's lsq_linear, np.linalg.lstsq) took
+    100-600 ms per call for 54 unknowns on a loaded 2-core machine with OpenBLAS threads, the
+    solve 0.04 ms."""
+    x = np.clip(np.asarray(start, dtype=float), 0.0, 1.0)
+    at_lo, at_hi = x <= 0.0, x >= 1.0
+    bound_value = np.where(at_hi, 1.0, 0.0)
+    threshold = tol * max(float(np.abs(linear).max()), 1.0)
+    for _ in range(3 * len(x) + 10):
+        free = ~(at_lo | at_hi)
+        bound_value = np.where(at_hi, 1.0, 0.0)
+        goal = np.where(free, x, bound_value)
+        if free.any():
+            rest = hessian[np.ix_(free, ~free)] @ bound_value[~free]
+            goal[free] = np.linalg.solve(hessian[np.ix_(free, free)], linear[free] - rest)
+        step = goal - x
+        with np.errstate(divide="ignore", invalid="ignore"):
+            room = np.where(step > 0, (1.0 - x) / step, np.where(step < 0, -x / step, np.inf))
+        room = np.where(free, room, np.inf)
+        blocking = int(np.argmin(room))
+        if room[blocking] < 1.0:
+            x = np.clip(x + room[blocking] * step, 0.0, 1.0)
+            x[blocking] = 1.0 if step[blocking] > 0 else 0.0
+            at_hi[blocking], at_lo[blocking] = x[blocking] == 1.0, x[blocking] == 0.0
+            continue
+        x = np.clip(goal, 0.0, 1.0)
+        gradient = hessian @ x - linear
+        wrong = np.where(at_lo, -gradient, np.where(at_hi, gradient, 0.0))
+        worst = int(np.argmax(wrong))
+        if wrong[worst] <= threshold:
+            break
+        at_lo[worst] = at_hi[worst] = False
+    return x
 
 
 def _replicated(state, index, copies: int):
@@ -282,4 +319,4 @@ def tracking_lag(times_s, target, achieved, max_lag_s: float) -> tuple[float, fl
 
 
 __all__ = ["WINDOW_COSTS", "HorizonSettings", "Probe", "RecedingHorizon", "WindowPlan",
-           "block_edges", "solve_window", "tracking_lag"]
+           "block_edges", "box_qp", "solve_window", "tracking_lag"]
