@@ -149,8 +149,9 @@ def test_box_qp_matches_an_independent_bounded_solver():
         hessian = a.T @ a + 0.1 * np.eye(8)
         linear = rng.normal(scale=4.0, size=8)
         x = box_qp(hessian, linear, rng.uniform(size=8))
-        reference = minimize(lambda y: 0.5 * y @ hessian @ y - linear @ y, np.full(8, 0.5),
-                             jac=lambda y: hessian @ y - linear, method="L-BFGS-B",
+        reference = minimize(lambda y, h=hessian, f=linear: 0.5 * y @ h @ y - f @ y,
+                             np.full(8, 0.5), jac=lambda y, h=hessian, f=linear: h @ y - f,
+                             method="L-BFGS-B",
                              bounds=[(0.0, 1.0)] * 8, options={"ftol": 1e-15, "gtol": 1e-12})
         np.testing.assert_allclose(x, reference.x, atol=1e-6)
         assert np.all((x >= 0) & (x <= 1))

@@ -24,13 +24,17 @@ import time
 
 import numpy as np
 
+from vm_ros.blas_threads import limit_blas_threads
 from vm_ros.coordination.receding import HorizonSettings, RecedingHorizon
 from vm_ros.model import MuscleBank
 from vm_ros.model.params import load_muscle_library
 
 DT_S, PERIOD_STEPS = 1e-3, 10
 ARM_M = 0.03
-CASES = (18, 80)
+# (muscles, settings name): default settings, and for 80 muscles also a lighter problem
+LIGHT = HorizonSettings(blocks=2, eval_step_s=0.01)
+CASES = ((18, "default"), (80, "default"), (80, "blocks 2, samples every 10 ms"))
+SETTINGS = {"default": HorizonSettings(), "blocks 2, samples every 10 ms": LIGHT}
 
 
 def muscle_bank(n: int) -> MuscleBank:
@@ -101,14 +105,16 @@ def bench_case(n: int, seconds: float = 3.0, warmup_s: float = 0.5,
 
 
 def bench_coordination(cases=CASES, seconds: float = 3.0, progress=None) -> list[dict]:
-    """Every case of ``cases`` (muscle counts), with the load average around each."""
+    """Every case of ``cases`` ((muscles, settings name)), with the load average around each;
+    one BLAS thread, as muscle_node with coordination sets (vm_ros.blas_threads)."""
+    limit_blas_threads(1)
     rows = []
-    for n in cases:
+    for n, name in cases:
         if progress is not None:
-            progress(f"coordination: {n} muscles, 100 Hz, {seconds:g} s ...")
+            progress(f"coordination: {n} muscles, {name}, 100 Hz, {seconds:g} s ...")
         load_start = os.getloadavg()[0]
-        row = bench_case(n, seconds)
-        rows.append(row | {"load_average_start": load_start,
+        row = bench_case(n, seconds, settings=SETTINGS[name])
+        rows.append(row | {"settings": name, "load_average_start": load_start,
                            "load_average_end": os.getloadavg()[0]})
     return rows
 

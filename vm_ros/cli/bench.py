@@ -24,6 +24,10 @@ Sections (all but node-memory by default; --only picks some):
             section; the closed loop in one process (myoelbow; myolegs with its root fixed
             and free), wall time per simulated second at 1 ms steps (vm_ros.bench.joint_bench).
             --quick imports at degree 3 over 100 poses (smaller polynomials: not comparable).
+  coordination
+            live coordination per publish period without ROS (vm_ros.bench.coordination_bench):
+            the receding-horizon solve and the period's model steps at 100 Hz with a 1 kHz
+            model, 18 and 80 muscles; latency (solve), CPU per simulated second, load average
   node-memory
             runs only when named (--only node-memory; 7 minutes): muscle_node's resident
             memory over a long run, 100 muscles at 1 kHz, publish 100 Hz, MCAP as a rosbag2
@@ -67,8 +71,9 @@ from pathlib import Path
 from vm_ros.child_process import module_command, module_environment
 from vm_ros.errors import VmRosError
 
-SECTIONS = ("model", "natural", "offline", "node", "joint", "node-memory")
-DEFAULT_SECTIONS = ("model", "natural", "offline", "node", "joint")  # node-memory: when named
+SECTIONS = ("model", "natural", "offline", "node", "joint", "coordination", "node-memory")
+# node-memory: when named
+DEFAULT_SECTIONS = ("model", "natural", "offline", "node", "joint", "coordination")
 MEMORY_DURATION_S, MEMORY_QUICK_DURATION_S = 300.0, 60.0  # node-memory window
 MEMORY_WARMUP_S, MEMORY_QUICK_WARMUP_S = 120.0, 5.0
 MEMORY_SPLIT_S = 60.0  # bag split (log time); shorter windows: a fifth of the window
@@ -366,6 +371,13 @@ def _csv_rows(results: dict) -> list[dict]:
         _joint_csv_rows(results["joint"], add)
     if "node-memory" in results:
         _memory_csv_rows(results["node-memory"], add)
+    for r in results.get("coordination", []):
+        case = f"{r['muscles']} muscles, {r['settings']}, publish {r['publish_rate_hz']:g} Hz"
+        for key in ("solve_ms_median", "solve_ms_p99", "period_ms_median", "period_ms_p99",
+                    "load_average_start"):
+            add("coordination", case, key, r[key], "")
+        add("coordination", case, "cpu_percent_one_core", r["cpu_percent_one_core"], "",
+            "< 100 %", r["cpu_percent_one_core"] < 100.0)
     return rows
 
 
@@ -522,6 +534,11 @@ def run(args) -> int:
         results["node"] = _node_rows(node_duration, out)
     if "joint" in sections:
         results["joint"] = _joint_section(out, args.quick, repeats, min_seconds, node_duration)
+    if "coordination" in sections:
+        from vm_ros.bench import coordination_bench
+
+        results["coordination"] = coordination_bench.bench_coordination(
+            seconds=1.0 if args.quick else 3.0, progress=_say)
     if "node-memory" in sections:
         results["node-memory"] = _node_memory_row(
             args.node_duration or (MEMORY_QUICK_DURATION_S if args.quick else MEMORY_DURATION_S),

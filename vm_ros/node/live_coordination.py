@@ -23,6 +23,7 @@ from collections import deque
 
 import numpy as np
 
+from vm_ros.blas_threads import limit_blas_threads
 from vm_ros.coordination.receding import HorizonSettings, RecedingHorizon, tracking_lag
 from vm_ros.joint_space import JointEfforts, JointSpace
 from vm_ros.node.effort_targets import EffortTargets
@@ -42,6 +43,7 @@ class LiveCoordination:
 
     def __init__(self, bank, space: JointSpace, inputs, config, period_s: float):
         self.space, self.inputs = space, inputs
+        limit_blas_threads(1)  # the node is one thread (vm_ros.blas_threads)
         self.index = space.driven_index
         self.targets = EffortTargets(space)
         self.coordinator = RecedingHorizon(bank, self.index, period_s, horizon_settings(config))
