@@ -5,9 +5,17 @@ from __future__ import annotations
 
 import csv
 import json
+import os
+import subprocess
+import sys
+from pathlib import Path
 
-from vm_ros.bench.model_bench import knee_extension_offline
+import pytest
+
 from vm_ros.cli import main
+from vm_ros_bench.model_bench import knee_extension_offline
+
+REPOSITORY = Path(__file__).resolve().parent.parent
 
 
 def test_bench_model_section_writes_json_and_csv(tmp_path, capsys):
@@ -35,7 +43,7 @@ def test_knee_extension_offline_energy_matches_stepwise_run():
 def test_node_memory_runs_only_when_named_and_is_held_to_two_mib_per_hour():
     """The node-memory item is not in the default run; its slope row has the 2 MiB/h target,
     met or not by the least-squares slope of the window's samples."""
-    from vm_ros.cli import bench
+    from vm_ros_bench import cli as bench
 
     assert "node-memory" in bench.SECTIONS and "node-memory" not in bench.DEFAULT_SECTIONS
     run = {"muscles": 100, "max_bag_duration_s": 60.0, "duration_s": 600.0,
@@ -57,7 +65,7 @@ def test_kernel_and_node_rows_carry_the_speed_targets():
     against step to >= 1, parallel 10,000 muscles to real time at 1 kHz and the cold start to
     10 s; the node rows hold 1, 100 and 1000 muscles to 10 %, 20 % and 100 % of a core and 1000
     muscles to no time skipped (synthetic results: the rows, not the machine, are tested)."""
-    from vm_ros.cli import bench
+    from vm_ros_bench import cli as bench
 
     def row(n, run_us, step_us, parallel=False):
         return {"muscles": n, "steps": 100, "parallel": parallel, "parallel_blocks": parallel,
@@ -93,3 +101,99 @@ def test_kernel_and_node_rows_carry_the_speed_targets():
     assert targets[("100", "cpu_percent_one_core")] == ("<= 20 %", False)
     assert targets[("1000", "cpu_percent_one_core")] == ("<= 100 %", True)
     assert targets[("1000", "model_time_skipped_s")] == ("0 s", False)
+
+
+def test_the_benchmarks_are_not_installed_with_vm_ros():
+    """The benchmarks live in the repository's bench/ folder: the installed vm_ros has neither
+    a bench subpackage nor vm_ros_bench beside it."""
+    import vm_ros
+    import vm_ros_bench
+
+    installed = Path(vm_ros.__file__).resolve().parent
+    assert not (installed / "bench").exists()
+    assert not (installed.parent / "vm_ros_bench").exists()
+    assert Path(vm_ros_bench.__file__).resolve().parent.parent == REPOSITORY / "bench"
+
+
+def test_the_verb_finds_the_benchmarks_in_a_checkout_only(tmp_path):
+    from vm_ros.cli import bench as verb
+
+    assert verb.find_benchmarks([tmp_path, tmp_path / "x"]) is None
+    (tmp_path / "bench" / "vm_ros_bench").mkdir(parents=True)
+    assert verb.find_benchmarks([tmp_path]) is None  # a folder, not the package
+    (tmp_path / "bench" / "vm_ros_bench" / "__init__.py").write_text("")
+    assert verb.find_benchmarks([tmp_path / "x", tmp_path]) == tmp_path / "bench"
+
+
+def test_without_a_checkout_bench_says_so_in_one_line(monkeypatch, capsys):
+    from vm_ros.cli import bench as verb
+
+    monkeypatch.setattr(verb, "benchmarks", lambda: None)
+    for arguments in (["--only", "model", "--out", "x"], ["--help"], []):
+        with pytest.raises(SystemExit) as stop:
+            main(["bench", *arguments])
+        assert stop.value.code == 2
+        captured = capsys.readouterr()
+        assert captured.out == "" and captured.err.count("\n") == 1
+        assert captured.err.startswith("vm-ros bench: error: ")
+        assert "checkout" in captured.err and "bench/" in captured.err
+
+
+def test_the_installed_verb_run_inside_a_checkout_finds_the_benchmarks():
+    """The installed vm-ros (no PYTHONPATH) started in a subfolder of the checkout: its --help
+    is the benchmarks' own (their sections)."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    done = subprocess.run([str(Path(sys.executable).parent / "vm-ros"), "bench", "--help"],
+                          cwd=REPOSITORY / "test", env=env, capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert "node-memory" in done.stdout and "--compare" in done.stdout
+
+
+def test_each_section_is_written_as_it_ends_and_a_failing_one_keeps_the_others(tmp_path,
+                                                                              monkeypatch,
+                                                                              capsys):
+    """A section that raises leaves the files with every section before it (on disk before the
+    failing one started), its error as a row and in bench.json, and a non-zero exit."""
+    from vm_ros_bench import model_bench
+
+    out = tmp_path / "bench"
+    natural = [{"backend": "numpy", "muscles": 1, "units_per_type": 20,
+                "natural_over_lumped": 3.5}]
+    monkeypatch.setattr(model_bench, "bench_natural_ratio", lambda **_: natural)
+    on_disk = {}
+
+    def offline_fails(**_):
+        on_disk.update(json.loads((out / "bench.json").read_text()))
+        raise RuntimeError("the machine went away\nsecond line")
+
+    monkeypatch.setattr(model_bench, "bench_knee_offline", offline_fails)
+    code = main(["bench", "--only", "natural", "--only", "offline", "--out", str(out)])
+    assert code == 1
+    assert on_disk["natural"] == natural
+    results = json.loads((out / "bench.json").read_text())
+    assert results["natural"] == natural
+    assert results["offline"]["error"] == "RuntimeError: the machine went away"
+    assert "offline_fails" in results["offline"]["traceback"]
+    rows = list(csv.DictReader((out / "bench.csv").read_text().splitlines()))
+    assert [(r["section"], r["metric"], r["value"]) for r in rows] == [
+        ("natural", "natural / lumped step cost", "3.5"),
+        ("offline", "error", "RuntimeError: the machine went away")]
+    err = capsys.readouterr().err
+    assert "offline: failed (RuntimeError: the machine went away)" in err
+    assert "Traceback" not in err
+
+
+def test_bench_decode_section_times_the_node_decoder_beside_rclpy(tmp_path):
+    """The decode item: the stream case held to 20 us per message, the other cases beside it
+    (rclpy's a row with the reason when the ros extra is missing), the load quoted."""
+    out = tmp_path / "bench"
+    assert main(["bench", "--only", "decode", "--quick", "--repeats", "1", "--out",
+                 str(out)]) == 0
+    decode = json.loads((out / "bench.json").read_text())["decode"]
+    assert decode["joints"] == 80 and decode["clock"] == "thread CPU"
+    assert [r["case"] for r in decode["rows"]] == ["stream", "new names", "mcap_ros2", "rclpy"]
+    rows = list(csv.DictReader((out / "bench.csv").read_text().splitlines()))
+    stream = [r for r in rows if ", stream (load " in r["case"]]
+    assert len(stream) == 1 and stream[0]["target"] == "<= 20 us"
+    assert float(stream[0]["value"]) > 0 and stream[0]["met"] in ("True", "False")

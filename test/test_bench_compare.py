@@ -12,8 +12,9 @@ import time
 import numpy as np
 import pytest
 
-from vm_ros.bench import mujoco_compare, opensim_compare, peer_compare, peers
-from vm_ros.cli import bench, main
+from vm_ros.cli import main
+from vm_ros_bench import cli as bench
+from vm_ros_bench import mujoco_compare, opensim_compare, peer_compare, peers
 
 N = 3  # the larger bank of the quick runs
 

@@ -10,8 +10,8 @@ import json
 import pytest
 from conftest import require_ros
 
-from vm_ros.bench import joint_bench
 from vm_ros.cli import main
+from vm_ros_bench import joint_bench
 
 QUICKEST = ["bench", "--only", "joint", "--quick", "--repeats", "1", "--node-duration", "2"]
 

@@ -1,4 +1,4 @@
-"""The node benchmark (vm_ros.bench.node_bench) end to end: a short run of muscle_node as a
+"""The node benchmark (vm_ros_bench.node_bench) end to end: a short run of muscle_node as a
 process, driven and measured from this process, gives sane numbers."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import math
 import pytest
 from conftest import require_ros
 
-from vm_ros.bench.node_bench import rss_growth, run_node_benchmark
+from vm_ros_bench.node_bench import rss_growth, run_node_benchmark
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

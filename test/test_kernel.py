@@ -22,12 +22,12 @@ import sys
 import numpy as np
 import pytest
 
-from vm_ros.bench import model_bench
 from vm_ros.errors import InputError
 from vm_ros.model import SCHEMES, MuscleBank, jit, kernel, layout, load_model_params
 from vm_ros.model.compiled_step import CompiledStep, KernelConstants
 from vm_ros.model.lumped_fit import with_drive_law
 from vm_ros.model.params import DRIVE_LAWS
+from vm_ros_bench import model_bench
 
 DT = 1e-3
 needs_numba = pytest.mark.skipif(not kernel.AVAILABLE, reason="numba not importable")

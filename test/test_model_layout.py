@@ -21,12 +21,12 @@ import warnings
 import numpy as np
 import pytest
 
-from vm_ros.bench import model_bench
 from vm_ros.errors import InputError
 from vm_ros.model import SCHEMES, BankState, MuscleBank, Phase, StepRecord, kernel, layout
 from vm_ros.model.compiled_step import CompiledStep, KernelConstants
 from vm_ros.model.numpy_step import NumpyStep
 from vm_ros.model.reference import absolute_scale, pack_state
+from vm_ros_bench import model_bench
 
 DT = 1e-3
 RELATIVE = 1e-13
@@ -220,3 +220,49 @@ def test_the_kernel_reads_polynomials_padded_to_a_fixed_length():
                                   polyval_horner(coefficients, u))
     with pytest.raises(ValueError, match="at most 8"):
         layout.padded_polynomial(np.ones(layout.POLY_TERMS + 1))
+
+
+def test_one_function_maps_length_and_velocity_to_the_fibre_type_curves():
+    """curves.fibre_type_curves[_and_slopes] is the one (L, V) -> FL, FV mapping: the NumPy
+    step's, the published models' inputs and the kernel (uncompiled on its packed rows, and
+    compiled by Numba) give the same values; FL(1) = FV(0) = 1 for both types."""
+    from vm_ros.model import curves, mechanics
+    from vm_ros.model.energetics_models.vm_state import fibre_curves
+
+    bank = MuscleBank.from_config(["vasti"], backend="numpy")
+    p = bank.params
+    v, l = np.meshgrid(np.linspace(-6.0, 4.0, 11), np.linspace(0.4, 1.8, 29), indexing="ij")
+    activity = np.array([[0.4, 0.7]])
+    _, fl, fv = mechanics.contractile_force_normalised(l, v, activity, 1.3, p.fibre, p.generic)
+    fl1, fv0 = curves.fibre_type_curves(np.ones((1, 1)), np.zeros((1, 1)),
+                                        layout.type_columns(p.fibre),
+                                        p.generic.fv_denominator_min)
+    np.testing.assert_array_equal(np.concatenate([fl1, fv0], axis=None), [1.0] * 4)
+    published = fibre_curves(l, v, p.fibre, p.generic)
+    np.testing.assert_array_equal(published[0], fl)
+    np.testing.assert_array_equal(published[1], fv)
+    c = KernelConstants.from_bank(bank)
+    s, rows, _ = kernel._tables_as_tuples(c.shared, c.fibre_type, c.w_slow_poly)
+    terms = np.array([kernel._fibre_terms(a, b, 1.3, rows, s) for a, b in
+                      zip(l.ravel(), v.ravel(), strict=True)])
+    at = {"fl": (kernel.FL_SLOW, kernel.FL_FAST), "fv": (kernel.FV_SLOW, kernel.FV_FAST)}
+    for name, expected in (("fl", fl), ("fv", fv)):
+        got = terms[:, at[name]].reshape(expected.shape)
+        _assert_equal_to_rounding(got, expected, f"uncompiled kernel {name}")
+    if not kernel.AVAILABLE:
+        return
+    import numba
+
+    @numba.njit
+    def compiled(ls, vs, row, minimum):
+        out = np.empty((ls.size, 5))
+        for i in range(ls.size):
+            out[i] = curves.fibre_type_curves_and_slopes(ls[i], vs[i], row, minimum)
+        return out
+
+    for t in (0, 1):
+        got = compiled(l.ravel(), v.ravel(), rows[t], s[layout.S.fv_denominator_min])
+        want = curves.fibre_type_curves_and_slopes(
+            l.ravel(), v.ravel(), tuple(c.fibre_type[t]), p.generic.fv_denominator_min)
+        for k in range(5):
+            _assert_equal_to_rounding(got[:, k], want[k], f"compiled term {k} of type {t}")

@@ -6,6 +6,7 @@ residual efc_pos), velocities against ten_velocity."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,7 +15,11 @@ mujoco = pytest.importorskip("mujoco", reason="the mujoco extra is not installed
 
 from vm_ros.errors import VmRosError  # noqa: E402
 from vm_ros.geometry import generalized_forces  # noqa: E402
-from vm_ros.geometry.mujoco_backend import ModelLoadError, MujocoGeometry  # noqa: E402
+from vm_ros.geometry.mujoco_backend import (  # noqa: E402
+    ModelLoadError,
+    MujocoGeometry,
+    load_model,
+)
 
 # Two hinges and a slide: `follow` (slide) is coupled to `flex` by a joint equality and both have
 # a reference position (qpos0 != 0); `wrist` has no range. Tendon t_a wraps over a cylinder.
@@ -284,3 +289,28 @@ def test_subset_and_bad_sources(elbow):
         MujocoGeometry("no_such_model")
     with pytest.raises(VmRosError, match="no such MJCF file"):
         MujocoGeometry("/nonexistent/model.xml")
+
+
+def test_a_bare_myo_sim_name_wins_unless_the_argument_is_a_path_to_a_model_file(tmp_path,
+                                                                              monkeypatch):
+    """A folder, or a file, named like a myo-sim model in the working directory does not hide
+    the model; written as a path, the file is used (a folder is no MJCF file); a bare name that
+    myo-sim does not know is a file when there is one. Each says which it used."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "myoelbow").mkdir()
+    named = load_model("myoelbow")
+    assert named.kind == "myo-sim" and named.name == "myoelbow"
+    assert named.describe().startswith("myo-sim ") and "'myoelbow'" in named.describe()
+    assert MujocoGeometry("myoelbow").origin == named.describe()
+    with pytest.raises(ModelLoadError, match=r"no such MJCF file \(a folder\)"):
+        load_model("./myoelbow")
+    (tmp_path / "myoelbow").rmdir()
+    (tmp_path / "myoelbow").write_text(COUPLED_MJCF)
+    assert load_model("myoelbow").kind == "myo-sim"
+    as_path = load_model(Path("myoelbow").resolve())
+    assert as_path.kind == "MJCF file" and as_path.model.nu == 3
+    assert as_path.describe() == f"MJCF file {tmp_path.resolve() / 'myoelbow'}"
+    (tmp_path / "my_model").write_text(COUPLED_MJCF)  # no extension, not a myo-sim name
+    assert load_model("my_model").kind == "MJCF file"
+    with pytest.raises(ModelLoadError, match="not an MJCF file or a myo-sim model name"):
+        load_model("no_such_model")

@@ -5,7 +5,7 @@ Why: live coordination (vm_ros.coordination.receding) does small dense linear al
 publish period inside muscle_node, which is one thread. With OpenBLAS's default of one thread per
 core, on a 2-core machine under load (load average 10-13) the 80-muscle solve took 290-470 ms
 wall and 27-36 cores' worth of CPU time per simulated second instead of 25-39 ms and 0.7-1.1 of a
-core (vm_ros.bench.coordination_bench, OPENBLAS_NUM_THREADS=1 against the default, measured once
+core (vm-ros bench --only coordination, OPENBLAS_NUM_THREADS=1 against the default, measured once
 on 2026-12-02). Setting OPENBLAS_NUM_THREADS works only before NumPy is imported.
 """
 

@@ -40,4 +40,12 @@ def module_environment() -> dict:
     return env
 
 
-__all__ = ["module_command", "module_environment"]
+def loopback_only(command: list) -> list:
+    """``command`` inside a new network namespace with only loopback (as scripts/netns-run)."""
+    script = ("set -e; ip link set lo up; "
+              "export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST ROS_DOMAIN_ID=42 "
+              "FASTDDS_BUILTIN_TRANSPORTS=UDPv4 VM_ROS_NETNS=1; exec \"$@\"")
+    return ["unshare", "-n", "bash", "-c", script, "netns-run", *command]
+
+
+__all__ = ["loopback_only", "module_command", "module_environment"]

@@ -48,7 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from vm_ros import telemetry as tm
-from vm_ros.child_process import module_command, module_environment
+from vm_ros.child_process import loopback_only, module_command, module_environment
 from vm_ros.errors import VmRosError
 from vm_ros.model.params import load_muscle_library
 from vm_ros.report.summary import split_energy
@@ -106,14 +106,12 @@ def _command_line(args) -> list[str]:
 
 def _in_loopback_namespace(args) -> int:
     """Run this demo again in a new loopback-only network namespace; its exit status."""
-    from vm_ros.cli.bench import _loopback_only
-
     if shutil.which("unshare") is None or shutil.which("ip") is None:
         raise VmRosError("rclpy must run in a loopback-only network namespace: run the demo "
                          "inside scripts/netns-run, or install util-linux and iproute2")
     print("vm-ros demo: starting a loopback-only network namespace (unshare -n)",
           file=sys.stderr)
-    process = subprocess.Popen(_loopback_only(module_command("vm_ros.cli",
+    process = subprocess.Popen(loopback_only(module_command("vm_ros.cli",
                                                              *_command_line(args))))
     while True:
         try:

@@ -6,7 +6,8 @@ muscle forces back to joint torques (NumPy only at run time).
 - ``polynomial``: the basis and its vectorised evaluation; ``kernel``: the compiled evaluator.
 - ``file``: the versioned geometry file (YAML); ``fit``: fitting polynomials to sampled paths.
 - ``checks``: what a geometry must give over its coordinate box to be loaded (paths > 1 mm).
-- importers (build time only, optional extras): ``vm-ros import-osim``, ``vm-ros import-mjcf``.
+- exact paths of source models (optional extras, build time and MuJoCo co-simulation):
+  ``mujoco_backend`` (MuJoCo), ``opensim_backend`` (OpenSim); vm_ros.importers samples them.
 """
 
 from vm_ros.geometry.file import load_geometry, write_geometry

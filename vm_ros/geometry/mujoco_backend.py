@@ -98,9 +98,18 @@ class ModelSource:
     file: str | None                # the XML file, if there is one
     sha256: str | None              # of the XML file, or of the composed model's XML text
     versions: dict
+    kind: str = "MjModel"           # "myo-sim" (a model name), "MJCF file" or "MjModel" (given)
 
     def as_dict(self) -> dict:
         return {"model": self.name, "file": self.file, "sha256": self.sha256, **self.versions}
+
+    def describe(self) -> str:
+        """Which model this is, in words (for a run to say what it used)."""
+        if self.kind == "myo-sim":
+            return f"myo-sim {self.versions.get('myo_sim', '?')} model {self.name!r}"
+        if self.kind == "MJCF file":
+            return f"MJCF file {self.file}"
+        return "the MjModel given"
 
 
 def _versions() -> dict:
@@ -117,37 +126,51 @@ def _versions() -> dict:
 def load_model(source) -> ModelSource:
     """An MjModel, a path to an MJCF file, or a myo-sim model name -> ModelSource.
 
-    ModelLoadError (one line) when the file does not compile or the name is unknown.
+    A bare name (no folder part, not ending in .xml) is a myo-sim model name when myo-sim knows
+    it, whatever the working directory holds (a folder ``myolegs`` there does not hide the model
+    ``myolegs``); otherwise, and for anything written as a path (``./myolegs``, ``a/b.xml``), it
+    is an MJCF file. ``ModelSource.describe()`` says which was used. ModelLoadError (one line)
+    when the file does not compile or the name is unknown.
     """
     require_mujoco()
     if isinstance(source, mujoco.MjModel):
         return ModelSource(source, "<MjModel>", None, None, _versions())
     text = str(source)
     path = Path(text)
-    if path.suffix.lower() == ".xml" or path.exists():
-        if not path.is_file():
-            raise ModelLoadError(text, "no such MJCF file")
+    if text == path.name and path.suffix.lower() != ".xml":  # a bare name
         try:
-            model = mujoco.MjModel.from_xml_path(str(path))
-        except (ValueError, RuntimeError) as exc:
-            raise ModelLoadError(text, f"MuJoCo cannot compile it: "
-                                 f"{str(exc).strip().splitlines()[0]}") from exc
-        return ModelSource(model, path.stem, str(path.resolve()),
-                           hashlib.sha256(path.read_bytes()).hexdigest(), _versions())
+            import myo_sim
+        except ModuleNotFoundError as exc:
+            if not path.is_file():
+                raise ModelLoadError(text, "not an MJCF file, and myo-sim (model names) is not "
+                                     "installed") from exc
+        else:
+            try:
+                with quiet_mujoco():
+                    spec = myo_sim.load_spec(text)
+            except ValueError as exc:  # a name myo-sim does not know
+                if not path.is_file():
+                    raise ModelLoadError(text, "not an MJCF file or a myo-sim model name "
+                                         f"({str(exc).splitlines()[0]})") from exc
+            else:
+                return _myo_sim_model(myo_sim, text, spec)
+    if not path.is_file():
+        raise ModelLoadError(text, "no such MJCF file" + (" (a folder)" if path.is_dir() else ""))
     try:
-        import myo_sim
-    except ModuleNotFoundError as exc:
-        raise ModelLoadError(text, "not an MJCF file, and myo-sim (model names) is not "
-                             "installed") from exc
+        model = mujoco.MjModel.from_xml_path(str(path))
+    except (ValueError, RuntimeError) as exc:
+        raise ModelLoadError(text, f"MuJoCo cannot compile it: "
+                             f"{str(exc).strip().splitlines()[0]}") from exc
+    return ModelSource(model, path.stem, str(path.resolve()),
+                       hashlib.sha256(path.read_bytes()).hexdigest(), _versions(), "MJCF file")
+
+
+def _myo_sim_model(myo_sim, name: str, spec) -> ModelSource:
+    """myo-sim's model ``name`` from its MjSpec ``spec``, compiled."""
     with quiet_mujoco():
-        try:
-            spec = myo_sim.load_spec(text)
-        except ValueError as exc:
-            raise ModelLoadError(text, "not an MJCF file or a myo-sim model name "
-                                 f"({str(exc).splitlines()[0]})") from exc
         model = spec.compile()
         try:
-            file = str(myo_sim.get_xml_path(text))
+            file = str(myo_sim.get_xml_path(name))
             digest = hashlib.sha256(Path(file).read_bytes()).hexdigest()
         except ValueError:  # composed from fragments: hash the composed model's XML
             file = None
@@ -155,7 +178,7 @@ def load_model(source) -> ModelSource:
                 digest = hashlib.sha256(spec.to_xml().encode()).hexdigest()
             except (ValueError, RuntimeError):  # a spec MuJoCo cannot write back: no hash
                 digest = None
-    return ModelSource(model, text, file, digest, _versions())
+    return ModelSource(model, name, file, digest, _versions(), "myo-sim")
 
 
 def _name(model, kind, index: int) -> str:
@@ -299,15 +322,16 @@ class MujocoGeometry(JointGeometry):
     polynomial back end does. Holds its own MjData; not thread-safe.
 
     Attributes beyond JointGeometry's: ``model``, ``data``, ``source`` (dict: model, file, sha256,
-    versions), ``tendon_ids``, ``joint_ids`` (of the coordinates), ``couplings``, ``crossed``
-    (per muscle, the coordinate names its tendon crosses), ``notes`` (choices made, one line
-    each).
+    versions), ``origin`` (which model was used, in words), ``tendon_ids``, ``joint_ids`` (of the
+    coordinates), ``couplings``, ``crossed`` (per muscle, the coordinate names its tendon
+    crosses), ``notes`` (choices made, one line each).
     """
 
     def __init__(self, model, muscles=None, clamp: bool = True):
         loaded = load_model(model)
         m = self.model = loaded.model
         self.source = loaded.as_dict()
+        self.origin = loaded.describe()
         self.data = mujoco.MjData(m)
         self.clamp = clamp
         self.notes: list[str] = []

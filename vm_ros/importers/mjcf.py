@@ -29,30 +29,23 @@ from __future__ import annotations
 
 import math
 import sys
-import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from vm_ros.errors import VmRosError
-from vm_ros.geometry.fit import fit_path
 from vm_ros.geometry.paths import PolynomialGeometry
 from vm_ros.importers.common import (
-    LENGTH_WARNING_M,
     FitOptions,
     ImportChoices,
     ImportedMuscle,
-    write_import,
     write_library,
 )
+from vm_ros.importers.pipeline import PathSource, SampleBox, checks_record, import_paths
 
 MUJOCO_DEFAULT_RANGE = (0.75, 1.05)   # MuJoCo's default muscle operating range (L0)
 MIN_TENDON_M = 0.005                  # a derived tendon this short (or shorter) is unusable
-CROSSING_MOMENT_ARM_M = 1e-3          # a muscle crosses a coordinate where |r| exceeds this
-DISCONTINUITY_M = 1e-3                # m/rad (m/m): secant vs exact slope along a sweep
-SWEEP_LINES = 3                       # sweeps per coordinate, through sampled poses
-SWEEP_POINTS = 100                    # points per sweep
 
 
 @dataclass(frozen=True)
@@ -229,19 +222,14 @@ def origin_of(geometry) -> str:
     return f"MuJoCo model {geometry.source.get('model')}"
 
 
-def print_parameter_flags(library: DerivedLibrary, file=None) -> None:
+def parameter_flag_lines(library: DerivedLibrary) -> list[str]:
     """The loud part of the summary: every muscle whose MuJoCo parameters are unusable."""
-    import sys
-
-    file = file or sys.stdout
     bad = [d for d in library.muscles if d.flags]
     if not bad:
-        print("MuJoCo muscle parameters: all usable (derived the MuJoCo way).",
-              file=file)
-        return
-    print(f"WARNING: {len(bad)} of {len(library.muscles)} muscles have unusable MuJoCo "
-          "parameters (derived the MuJoCo way: L0 = (lr1 - lr0)/(range1 - range0), tendon = "
-          "lr0 - range0*L0):", file=file)
+        return ["MuJoCo muscle parameters: all usable (derived the MuJoCo way)."]
+    lines = [f"WARNING: {len(bad)} of {len(library.muscles)} muscles have unusable MuJoCo "
+             "parameters (derived the MuJoCo way: L0 = (lr1 - lr0)/(range1 - range0), tendon = "
+             "lr0 - range0*L0):"]
     for d in bad:
         if d.name in library.overridden:
             what = "replaced from --library"
@@ -249,8 +237,14 @@ def print_parameter_flags(library: DerivedLibrary, file=None) -> None:
             what = "LEFT OUT of the library (give it with --library)"
         else:
             what = "written as derived: REPLACE IT (--library)"
-        print(f"  !! {d.name}: L0 {d.l0_m * 1e3:.1f} mm, tendon {d.tendon_m * 1e3:.1f} mm, "
-              f"F0 {d.f0_n:.1f} N: {'; '.join(d.flags)} -> {what}", file=file)
+        lines.append(f"  !! {d.name}: L0 {d.l0_m * 1e3:.1f} mm, tendon {d.tendon_m * 1e3:.1f} "
+                     f"mm, F0 {d.f0_n:.1f} N: {'; '.join(d.flags)} -> {what}")
+    return lines
+
+
+def print_parameter_flags(library: DerivedLibrary, file=None) -> None:
+    """``parameter_flag_lines``, printed (default stdout)."""
+    print("\n".join(parameter_flag_lines(library)), file=file or sys.stdout)
 
 
 # ---------------------------------------------------------------------------- held joints
@@ -329,123 +323,99 @@ class MjcfImport:
     notes: list = field(default_factory=list)
 
 
-def latin_hypercube(geometry, n: int, rng) -> np.ndarray:
-    """n poses in the coordinate boxes, one per stratum of every coordinate."""
-    from scipy.stats import qmc
+class MjcfSource(PathSource):
+    """A MuJoCo model's exact paths (MujocoGeometry: lengths and ten_J through the joint
+    equalities) and its parameters derived the MuJoCo way, for vm_ros.importers.pipeline."""
 
-    unit = qmc.LatinHypercube(d=len(geometry.coordinates), seed=rng).random(int(n))
-    return qmc.scale(unit, geometry.lower, geometry.upper)
+    def __init__(self, model, options: MjcfOptions, choices: ImportChoices, user_library=None):
+        from vm_ros.geometry.mujoco_backend import MujocoGeometry
 
+        self.options, self.choices, self.user_library = options, choices, user_library
+        self.user = load_user_library(user_library) if user_library is not None else None
+        exact = self.exact = MujocoGeometry(model, muscles=options.muscles or None)
+        check_ranges(exact)
+        self.held_by_muscle = held_joints(exact)
+        self.held = held_text(self.held_by_muscle) if any(self.held_by_muscle.values()) else ""
+        if not exact.coordinates:
+            raise VmRosError(f"model {exact.source['model']!r}: "
+                             + (f"every joint its muscles cross is held, none is left to "
+                                f"sample: {self.held}; deactivate (active=\"false\") or remove "
+                                "those equalities to make the joints inputs" if self.held
+                                else "no muscle crosses a hinge or slide joint"))
+        self.muscle_names = exact.muscle_names
+        self.origin = origin_of(exact)
+        self.library = None
 
-def discontinuities(geometry, bases) -> np.ndarray:
-    """Largest |secant slope - mean exact slope| (m/rad or m/m) per (muscle, coordinate) along
-    sweeps of each coordinate through the ``bases`` poses: MuJoCo's exact dL/dq against the
-    finite differences of its lengths between neighbouring points (two step sizes: 0 and the
-    point spacing). A path that jumps between wrapping solutions shows as a large value."""
-    n_q = len(geometry.coordinates)
-    worst = np.zeros((len(geometry.muscle_names), n_q))
-    for j in range(n_q):
-        grid = np.linspace(geometry.lower[j], geometry.upper[j], SWEEP_POINTS)
-        for base in bases:
-            poses = np.repeat(base[None, :], SWEEP_POINTS, axis=0)
-            poses[:, j] = grid
-            lengths, gradients = sample_paths(geometry, poses)
-            secant = np.diff(lengths, axis=0) / (grid[1] - grid[0])
-            tangent = (gradients[1:, :, j] + gradients[:-1, :, j]) / 2.0
-            worst[:, j] = np.fmax(worst[:, j], np.abs(secant - tangent).max(axis=0))
-    return worst
+    def box(self, rng) -> SampleBox:
+        e = self.exact
+        return SampleBox(e.coordinate_names, tuple(c.unit for c in e.coordinates), e.lower,
+                         e.upper)
+
+    def poses(self, box, n, rng) -> np.ndarray:
+        """Latin hypercube in the coordinate boxes, one pose per stratum of every coordinate."""
+        from scipy.stats import qmc
+
+        unit = qmc.LatinHypercube(d=len(box.names), seed=rng).random(int(n))
+        return qmc.scale(unit, box.lower, box.upper)
+
+    def lengths_and_gradients(self, q, wrt=None):
+        length, gradient = self.exact.lengths_and_gradients(q)
+        return length, gradient if wrt is None else gradient[:, wrt]
+
+    def skip_reason(self, name) -> str:
+        held = self.held_by_muscle[name]
+        return ("crosses no coordinate (|r| <= 1 mm everywhere)"
+                + (f"; held: {', '.join(held)}" if held else ""))
+
+    def record(self, skipped, box):
+        e = self.exact
+        source = {**e.source, "importer": "vm-ros import-mjcf"}
+        if skipped:
+            source["muscles_skipped"] = skipped
+        if e.notes:
+            source["notes"] = list(e.notes)
+        if self.held:
+            source["held_joints"] = self.held
+        return source, _options_record(self.options), list(e.coupled)
+
+    def imported(self, names, path_min, path_max) -> list:
+        self.library = derive_library(self.exact, self.choices, path_min, path_max, self.user,
+                                      muscle_names=names)
+        return imported_muscles(self.exact.model, names, path_min, path_max)[1]
+
+    def title(self, geometry, seconds) -> str:
+        s = self.exact.source
+        return (f"vm-ros import-mjcf {s['model']} (MuJoCo {s['mujoco']}"
+                + (f", myo-sim {s['myo_sim']}" if "myo_sim" in s else "")
+                + f"): {len(geometry.muscles)} muscles over {len(geometry.coordinates)} "
+                f"coordinates, {self.options.samples + self.options.n_held_out} poses in "
+                f"{seconds:.1f} s")
+
+    def finish(self, written) -> list[str]:
+        library = self.library
+        if library.overridden:
+            _replace_library(written["library"], library)
+        lines = parameter_flag_lines(library)
+        if library.overridden:
+            lines.append(f"replaced from {self.user_library}: {', '.join(library.overridden)}")
+        return lines
 
 
 def import_mjcf(model, out_dir, options: MjcfOptions | None = None,
-                choices: ImportChoices | None = None, user_library=None, file=None
-                ) -> MjcfImport:
+                choices: ImportChoices | None = None, user_library=None, file=None,
+                progress: bool | None = None) -> MjcfImport:
     """Import a MuJoCo model's muscle paths and parameters into ``out_dir``: DIR/geometry.yaml,
     DIR/muscles.yaml, DIR/summary.txt (module docstring). ``user_library``: a muscle-library
     YAML whose entries replace the derived ones by name."""
-    from vm_ros.geometry.mujoco_backend import MujocoGeometry
     from vm_ros.importers.common import specific_tension_option
 
     options = options or MjcfOptions()
     choices = choices or ImportChoices(specific_tension_option("rajagopal"))
-    user = load_user_library(user_library) if user_library is not None else None
-    file = file or sys.stdout
-    started = time.monotonic()
-    exact = MujocoGeometry(model, muscles=options.muscles or None)
-    check_ranges(exact)
-    held = held_joints(exact)
-    if not exact.coordinates:
-        raise VmRosError(f"model {exact.source['model']!r}: "
-                         + (f"every joint its muscles cross is held, none is left to sample: "
-                            f"{held_text(held)}; deactivate (active=\"false\") or remove those "
-                            "equalities to make the joints inputs" if any(held.values())
-                            else "no muscle crosses a hinge or slide joint"))
-    rng = np.random.default_rng(options.seed)
-    q_fit = latin_hypercube(exact, options.samples, rng)
-    q_test = latin_hypercube(exact, options.n_held_out, rng)
-    l_fit, g_fit = sample_paths(exact, q_fit)
-    l_test, g_test = sample_paths(exact, q_test)
-    worst = discontinuities(exact, q_fit[:SWEEP_LINES])
-    crossing = np.abs(np.concatenate([g_fit, g_test])).max(axis=0) > CROSSING_MOMENT_ARM_M
-    names = exact.coordinate_names
-    paths, skipped = [], {}
-    for i, name in enumerate(exact.muscle_names):
-        cols = np.flatnonzero(crossing[i])
-        if not len(cols):
-            skipped[name] = "crosses no coordinate (|r| <= 1 mm everywhere)" + (
-                f"; held: {', '.join(held[name])}" if held[name] else "")
-            continue
-        flags = ["discontinuous"] if np.any(worst[i, cols] > DISCONTINUITY_M) else []
-        path = fit_path(name, [names[k] for k in cols], exact.lower[cols], exact.upper[cols],
-                        q_fit[:, cols], l_fit[:, i], g_fit[:, i][:, cols], q_test[:, cols],
-                        l_test[:, i], g_test[:, i][:, cols],
-                        degrees=options.degrees(len(cols)),
-                        length_tolerance_m=options.length_tolerance_m, flags=flags)
-        if path.fit.length_rms_m > LENGTH_WARNING_M:
-            path = replace(path, fit=replace(path.fit, flags=path.fit.flags + ("poor_fit",)))
-        paths.append(path)
-    if not paths:
-        raise VmRosError(f"model {exact.source['model']!r}: no muscle crosses a coordinate")
-    used = {c for p in paths for c in p.coordinates}
-    coordinates = [c for c in exact.coordinates if c.name in used]
-    coupled = [c for c in exact.coupled if set(c.follows) <= used]
-    source = {**exact.source, "importer": "vm-ros import-mjcf"}
-    if skipped:
-        source["muscles_skipped"] = skipped
-    if exact.notes:
-        source["notes"] = list(exact.notes)
-    if any(held.values()):
-        source["held_joints"] = held_text(held)
-    geometry = PolynomialGeometry(coordinates, paths, coupled, source=source,
-                                  options=_options_record(options))
-    lengths = np.concatenate([l_fit, l_test])
-    kept = [exact.muscle_names.index(p.name) for p in paths]
-    path_min, path_max = lengths[:, kept].min(axis=0), lengths[:, kept].max(axis=0)
-    fitted_names = [p.name for p in paths]
-    library = derive_library(exact, choices, path_min, path_max, user,
-                             muscle_names=fitted_names)
-    seconds = time.monotonic() - started
-    title = (f"vm-ros import-mjcf {exact.source['model']} (MuJoCo {exact.source['mujoco']}"
-             + (f", myo-sim {exact.source['myo_sim']}" if "myo_sim" in exact.source else "")
-             + f"): {len(paths)} muscles over {len(coordinates)} coordinates, "
-             f"{len(q_fit) + len(q_test)} poses in {seconds:.1f} s")
-    _, imported = imported_muscles(exact.model, fitted_names, path_min, path_max)
-    written = write_import(out_dir, geometry, imported, choices, title=title,
-                           origin=origin_of(exact), file=file)
-    if library.overridden:
-        _replace_library(written["library"], library)
-    with open(written["summary"], "a", encoding="utf-8") as summary:
-        for stream in (summary, file):
-            print(file=stream)
-            print_parameter_flags(library, stream)
-            if library.overridden:
-                print(f"replaced from {user_library}: {', '.join(library.overridden)}",
-                      file=stream)
-            if any(held.values()):
-                print(f"held at one value, not inputs: {held_text(held)}", file=stream)
-            if skipped:
-                print(f"skipped {len(skipped)} muscle(s) that cross no coordinate: "
-                      f"{', '.join(skipped)}", file=stream)
-    return MjcfImport(geometry, library, written, skipped, seconds, list(exact.notes))
+    source = MjcfSource(model, options, choices, user_library)
+    result = import_paths(source, out_dir, options, choices, progress=progress, file=file,
+                          label=f"model {source.exact.source['model']!r}")
+    return MjcfImport(result.geometry, source.library, result.written, result.skipped,
+                      result.seconds, list(source.exact.notes))
 
 
 def _replace_library(path, library: DerivedLibrary) -> None:
@@ -468,8 +438,5 @@ def _options_record(options: MjcfOptions) -> dict:
                     "polynomials",
         "gradient": "exact: MuJoCo ten_J (mj_kinematics, mj_comPos, mj_tendon) through the "
                     "joint equalities",
-        "crossing_threshold": f"|dL/dq| > {CROSSING_MOMENT_ARM_M:g} m/rad (m/m) at a sampled pose",
-        "discontinuity_check": f"{SWEEP_LINES} sweeps of {SWEEP_POINTS} points per coordinate: "
-                               f"secant vs exact slope > {DISCONTINUITY_M:g} m/rad",
-        "poor_fit_flag": f"held-out length RMS > {LENGTH_WARNING_M:g} m",
+        **checks_record("at a sampled pose", "exact"),
     }

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from vm_ros.model.jit import exp, expm1, jitable, log1p, power, where
+from vm_ros.model.layout import T
 
 
 @jitable
@@ -88,6 +89,35 @@ def force_velocity_slopes_cheng2000(v, l, vmax, cv0, cv1, av0, av1, av2, bv, den
     dl_long = -(av1 + 2.0 * av2 * l) * v_long / (bv + v_long)
     lengthening = v > 0.0
     return where(lengthening, dv_long, dv_short), where(lengthening, dl_long, dl_short)
+
+
+@jitable
+def fibre_type_curves(l, v, ft, denominator_min):
+    """(FL, FV) of a fibre type at (L, V): the Cheng 2000 relations above, their parameters read
+    from ``ft`` by the fibre-type columns of vm_ros.model.layout.T.
+
+    The one (L, V) -> per-type curve values mapping: the NumPy step, the compiled kernel, the
+    published models' inputs and validation all call it (or
+    :func:`fibre_type_curves_and_slopes`). ``ft``: the kernel's row of one type (a tuple of
+    scalars), or vm_ros.model.layout.type_columns of FibreTypeParams (arrays over the fibre-type
+    axis, broadcast against L and V). A new curve parameter is a column of T, a field of
+    FibreTypeParams and its use here.
+    """
+    fl = force_length_cheng2000(l, ft[T.omega], ft[T.beta], ft[T.rho])
+    fv = force_velocity_cheng2000(v, l, ft[T.vmax], ft[T.cv0], ft[T.cv1], ft[T.av0], ft[T.av1],
+                                  ft[T.av2], ft[T.bv], denominator_min)
+    return fl, fv
+
+
+@jitable
+def fibre_type_curves_and_slopes(l, v, ft, denominator_min):
+    """:func:`fibre_type_curves` with the slopes: (FL, dFL/dL, FV, dFV/dV, dFV/dL)."""
+    fl, dfl = force_length_and_slope_cheng2000(l, ft[T.omega], ft[T.beta], ft[T.rho])
+    fv_args = (ft[T.vmax], ft[T.cv0], ft[T.cv1], ft[T.av0], ft[T.av1], ft[T.av2], ft[T.bv],
+               denominator_min)
+    fv = force_velocity_cheng2000(v, l, *fv_args)
+    dfv_dv, dfv_dl = force_velocity_slopes_cheng2000(v, l, *fv_args)
+    return fl, dfl, fv, dfv_dv, dfv_dl
 
 
 @jitable

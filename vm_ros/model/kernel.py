@@ -78,29 +78,16 @@ def _tables_as_tuples(shared, fibre_type, w_slow_poly):
     return fixed_tuple(shared[0], N_SHARED), (slow, fast), fixed_tuple(w_slow_poly, POLY_TERMS)
 
 
-@jitable
-def _type_terms(l, v, ft, fv_denominator_min):
-    """One fibre type's FL, dFL/dL, FV, dFV/dV and dFV/dL at (L, V) (``ft``: its row of the
-    fibre-type table as a tuple)."""
-    fl, dfl = curves.force_length_and_slope_cheng2000(l, ft[T.omega], ft[T.beta], ft[T.rho])
-    fv = curves.force_velocity_cheng2000(v, l, ft[T.vmax], ft[T.cv0], ft[T.cv1], ft[T.av0],
-                                         ft[T.av1], ft[T.av2], ft[T.bv], fv_denominator_min)
-    dfv_dv, dfv_dl = curves.force_velocity_slopes_cheng2000(
-        v, l, ft[T.vmax], ft[T.cv0], ft[T.cv1], ft[T.av0], ft[T.av1], ft[T.av2], ft[T.bv],
-        fv_denominator_min)
-    return fl, dfl, fv, dfv_dv, dfv_dl
-
-
 @jitable(inline=True)
 def _fibre_terms(l, v, lmax, fibre_type, s):
     """The (L, V) terms at (L, V), in the order FL_SLOW ... DPE2: FL, FV of each fibre type, FPE1
     and FPE2, and their slopes (dFL/dL, dFV/dV, dFV/dL, dFPE1/dL, dFPE2/dL). ``fibre_type`` and
     ``s``: rows of the constant tables as tuples (:func:`_tables_as_tuples`). Inlined by Numba
     into its callers, where LLVM drops the terms a caller does not use."""
-    fl_s, dfl_s, fv_s, dfv_dv_s, dfv_dl_s = _type_terms(l, v, fibre_type[0],
-                                                        s[S.fv_denominator_min])
-    fl_f, dfl_f, fv_f, dfv_dv_f, dfv_dl_f = _type_terms(l, v, fibre_type[1],
-                                                        s[S.fv_denominator_min])
+    fl_s, dfl_s, fv_s, dfv_dv_s, dfv_dl_s = curves.fibre_type_curves_and_slopes(
+        l, v, fibre_type[0], s[S.fv_denominator_min])
+    fl_f, dfl_f, fv_f, dfv_dv_f, dfv_dl_f = curves.fibre_type_curves_and_slopes(
+        l, v, fibre_type[1], s[S.fv_denominator_min])
     pe1, dpe1 = curves.passive_parallel_elastic_and_slope_cheng2000(
         l, v, lmax, s[S.c1], s[S.k1], s[S.lr1], s[S.eta]
     )

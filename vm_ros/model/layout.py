@@ -163,6 +163,17 @@ T, T_UNITS = _columns("TypeColumns", (
     ("av0", "1"), ("av1", "1"), ("av2", "1"), ("bv", "L0/s"), ("e1", "W s/(kg L0)"),
     ("e2", "W/kg"), ("e3", "W L0/(kg s)"), ("e4", "L0/s"), ("recovery_ratio", "1"),
 ))
+def type_columns(fibre, shape=None) -> tuple:
+    """Fibre-type parameters (FibreTypeParams: arrays over the fibre-type axis) as a tuple indexed
+    by the columns T, as the compiled kernel reads its rows (None where ``fibre`` lacks a column:
+    the energetics ones are packed from elsewhere); each array reshaped to ``shape`` if given."""
+    def column(name):
+        value = getattr(fibre, name, None)
+        return value if value is None or shape is None else np.reshape(value, shape)
+
+    return tuple(column(name) for name in T._fields)
+
+
 # shared scalars
 S, S_UNITS = _columns("SharedColumns", (
     ("fmin", "f0.5"), ("fmax", "f0.5"), ("c1", "1"), ("k1", "1"), ("lr1", "1"),
@@ -297,5 +308,5 @@ __all__ = [
     "SNAPSHOT_EVERY", "STATE", "STATE_NAMES",
     "TIME", "Array", "BankState", "M", "MissingConstantError", "P", "S", "T",
     "checked_state", "dummy_arguments", "kernel_parameters", "padded_polynomial", "table",
-    "zero_state",
+    "type_columns", "zero_state",
 ]

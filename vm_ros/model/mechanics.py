@@ -24,6 +24,7 @@ import numpy as np
 
 from vm_ros.model import curves, roots
 from vm_ros.model.jit import jitable, where
+from vm_ros.model.layout import type_columns
 from vm_ros.model.params import FibreTypeParams, GenericParams, MuscleSpec
 
 ROS2_GAMMA = 1.0 + 1.0 / np.sqrt(2.0)
@@ -86,19 +87,7 @@ def contractile_force_normalised(l, v, activity, lmax, fibre: FibreTypeParams, g
     type; ``fibre`` arrays of shape (2,). Returns (f_ce (..., n), fl (..., n, 2), fv (..., n, 2)).
     """
     lt, vt = l[..., None], v[..., None]
-    fl = curves.force_length_cheng2000(lt, fibre.omega, fibre.beta, fibre.rho)
-    fv = curves.force_velocity_cheng2000(
-        vt,
-        lt,
-        fibre.vmax,
-        fibre.cv0,
-        fibre.cv1,
-        fibre.av0,
-        fibre.av1,
-        fibre.av2,
-        fibre.bv,
-        g.fv_denominator_min,
-    )
+    fl, fv = curves.fibre_type_curves(lt, vt, type_columns(fibre), g.fv_denominator_min)
     pe1 = curves.passive_parallel_elastic_cheng2000(l, v, lmax, g.c1, g.k1, g.lr1, g.eta)
     pe2 = curves.thick_filament_compression_cheng2000(lt, g.c2, g.k2, g.lr2)
     active = active_force_term(activity, fl, fv, pe2).sum(axis=-1)
@@ -112,11 +101,8 @@ def contractile_force_and_slopes_normalised(
     curves'. Same arguments as :func:`contractile_force_normalised`; the slopes are zero where
     F_CE is clipped at 0."""
     lt, vt = l[..., None], v[..., None]
-    fl, dfl = curves.force_length_and_slope_cheng2000(lt, fibre.omega, fibre.beta, fibre.rho)
-    fv_args = (fibre.vmax, fibre.cv0, fibre.cv1, fibre.av0, fibre.av1, fibre.av2, fibre.bv,
-               g.fv_denominator_min)
-    fv = curves.force_velocity_cheng2000(vt, lt, *fv_args)
-    dfv_dv, dfv_dl = curves.force_velocity_slopes_cheng2000(vt, lt, *fv_args)
+    fl, dfl, fv, dfv_dv, dfv_dl = curves.fibre_type_curves_and_slopes(
+        lt, vt, type_columns(fibre), g.fv_denominator_min)
     pe1, dpe1 = curves.passive_parallel_elastic_and_slope_cheng2000(l, v, lmax, g.c1, g.k1,
                                                                      g.lr1, g.eta)
     pe2, dpe2 = curves.thick_filament_compression_and_slope_cheng2000(lt, g.c2, g.k2, g.lr2)

@@ -19,7 +19,8 @@ import time
 import numpy as np
 
 from vm_ros.model import MuscleBank, load_model_params
-from vm_ros.model.curves import force_length_cheng2000, tendon_length_at_force
+from vm_ros.model.curves import fibre_type_curves, tendon_length_at_force
+from vm_ros.model.layout import type_columns
 from vm_ros.model.lumped_fit import compare_sinusoidal, compare_steady, with_drive_law
 from vm_ros.model.params import FAST, SLOW, resolve_muscles
 from vm_ros.validation.results import CheckResult, Criterion
@@ -87,8 +88,8 @@ def check_fig2_energy_velocity(params=None) -> CheckResult:
             dry = e.dry_to_wet_mass * bank.mass_kg[0]
             acteff = out.effective_activation[0, t]
             # per kg dry and per unit activation, at the FL of the instant (close to 1)
-            fl = np.exp(-np.abs((out.length_l0[0] ** params.fibre.beta[t] - 1)
-                                / params.fibre.omega[t]) ** params.fibre.rho[t])
+            fl = fibre_type_curves(out.length_l0[0], 0.0, type_columns(params.fibre.take(t)),
+                                   params.generic.fv_denominator_min)[0]
             r = out.energy_rate_by_fibre
             model.append((r.activation[0, t] / act0 + r.cross_bridge[0, t] / (acteff * fl)) / dry)
             e_act.append(r.activation[0, t])
@@ -145,8 +146,8 @@ def check_fig3_fibre_type_energy(params=None) -> CheckResult:
             "initial_length": [_initial_w(o)[0] for o in by_length],
             "e_a_length": [o.energy_rate.activation[0] for o in by_length],
             "e_xb_length": [o.energy_rate.cross_bridge[0] for o in by_length],
-            "fl_length": force_length_cheng2000(lengths, params.fibre.omega[t],
-                                                params.fibre.beta[t], params.fibre.rho[t]),
+            "fl_length": fibre_type_curves(lengths, 0.0, type_columns(params.fibre.take(t)),
+                                           params.generic.fv_denominator_min)[0],
             "velocity": velocities, "total_velocity": [o.energy_rate.total[0] for o in by_velocity],
             "initial_velocity": [_initial_w(o)[0] for o in by_velocity],
             "e_a_velocity": [o.energy_rate.activation[0] for o in by_velocity],

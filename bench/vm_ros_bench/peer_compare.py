@@ -21,10 +21,10 @@ step the force of every muscle and, where the system has it, the energy rate:
   with one body). A step is ``Manager.integrate(t + 1 ms)`` (OpenSim's default integrator; the
   Manager keeps no storage or trajectory of past states), realizing the state to Report and
   reading every tendon force and the probe's outputs.
-- MuJoCo (the ``mujoco`` wheel): vm_ros.bench.mujoco_compare.
+- MuJoCo (the ``mujoco`` wheel): vm_ros_bench.mujoco_compare.
 
-The steppers: vm_ros.bench.peers (vm_ros), vm_ros.bench.opensim_compare and
-vm_ros.bench.mujoco_compare.
+The steppers: vm_ros_bench.peers (vm_ros), vm_ros_bench.opensim_compare and
+vm_ros_bench.mujoco_compare.
 
 Timing: rounds interleave every (system, size) case, one block of steps each (a block is a whole
 number of the inputs' 1 s cycles, at least one, about ``block_seconds``; the order is reversed
@@ -41,9 +41,9 @@ from __future__ import annotations
 import statistics
 import time
 
-from vm_ros.bench import mujoco_compare, opensim_compare
-from vm_ros.bench.peers import CYCLE_STEPS, PeerStepper, VmRosMuscles
 from vm_ros.errors import VmRosError
+from vm_ros_bench import mujoco_compare, opensim_compare
+from vm_ros_bench.peers import CYCLE_STEPS, PeerStepper, VmRosMuscles
 
 PEERS = ("opensim", "mujoco")
 

@@ -1,12 +1,12 @@
 """What every system of ``vm-ros bench --compare`` shares: the stepper interface, the common
-inputs and vm_ros's own stepper (the comparison itself: vm_ros.bench.peer_compare).
+inputs and vm_ros's own stepper (the comparison itself: vm_ros_bench.peer_compare).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from vm_ros.bench.model_bench import DT, library_bank
+from vm_ros_bench.model_bench import DT, library_bank
 
 PERIOD_STEPS = 2000  # input table: 2 s holds whole periods of the 1 Hz path and the 2 Hz drive
 CYCLE_STEPS = 1000  # 1 s, the inputs' common period: a timed block is a whole number of these

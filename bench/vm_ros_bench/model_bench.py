@@ -22,8 +22,10 @@ import time
 
 import numpy as np
 
+from vm_ros.child_process import SAFE_PATH_FLAG
 from vm_ros.model import MuscleBank, kernel, load_model_params, load_muscle_library
 from vm_ros.model.params import resolve_muscles
+from vm_ros_bench import child_environment
 
 DT = 1e-3
 
@@ -211,7 +213,7 @@ def knee_extension_offline(duration_s: float | None = None, backend: str = "auto
 def bench_knee_offline(repeats: int = 3, progress=None, logged: bool = True) -> dict:
     """Median over repeats of :func:`knee_extension_offline` (the first run, which may compile,
     is reported separately); with ``logged``, under "logged" the same scenario as `vm-ros
-    simulate` writes it against the model alone (vm_ros.bench.offline_bench)."""
+    simulate` writes it against the model alone (vm_ros_bench.offline_bench)."""
     first = knee_extension_offline()
     runs = [knee_extension_offline() for _ in range(repeats)]
     result = {key: statistics.median(r[key] for r in runs)
@@ -222,7 +224,7 @@ def bench_knee_offline(repeats: int = 3, progress=None, logged: bool = True) -> 
     result["first_run_wall_s"] = first["wall_s"]
     result["repeats"] = repeats
     if logged:
-        from vm_ros.bench.offline_bench import bench_offline_logged
+        from vm_ros_bench.offline_bench import bench_offline_logged
 
         result["logged"] = bench_offline_logged(repeats=repeats, progress=progress)
     if progress:
@@ -273,14 +275,15 @@ def cold_start_to_first_run(n: int = 10) -> dict:
     imports, compilation and the run; ``imports_s`` the imports alone (vm_ros.model, NumPy,
     SciPy, Numba), the rest is the bank, the kernel's compilation and the run."""
     code = ("import time; t = time.perf_counter()\n"
-            "from vm_ros.bench.model_bench import DT, _inputs, library_bank\n"
+            "from vm_ros_bench.model_bench import DT, _inputs, library_bank\n"
             "imported = time.perf_counter() - t\n"
             f"b = library_bank({int(n)}); u, lp, vp = _inputs(b, 100); b.reset(lp[0])\n"
             "b.run(DT, u, lp, vp); print(imported, time.perf_counter() - t)")
     with tempfile.TemporaryDirectory(prefix="vm_ros-cold-") as cache:
-        env = {**os.environ, "NUMBA_CACHE_DIR": cache}
-        done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
-                              text=True, timeout=600)
+        env = {**child_environment(), "NUMBA_CACHE_DIR": cache}
+        python = [sys.executable, "-P"] if SAFE_PATH_FLAG else [sys.executable]
+        done = subprocess.run([*python, "-c", code], env=env, capture_output=True, text=True,
+                              timeout=600)
     if done.returncode != 0:
         return {"muscles": n, "error": (done.stderr.strip().splitlines() or ["failed"])[-1]}
     imports_s, total_s = (float(x) for x in done.stdout.strip().splitlines()[-1].split())

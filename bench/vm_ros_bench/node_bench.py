@@ -1,9 +1,12 @@
-"""muscle_node under load: N muscles at a given model and publish rate, measured from outside.
+r"""muscle_node under load: N muscles at a given model and publish rate, measured from outside.
 
     result = run_node_benchmark(100, workdir=Path("bench"))  # inside scripts/netns-run
-    python -m vm_ros.bench.node_bench --muscles 100 --duration 60      # prints JSON
-    python -m vm_ros.bench.node_bench --geometry geometry.yaml --library muscles.yaml  # joints
-    python -m vm_ros.bench.node_bench --duration 600 --warmup 30 --bag --max-bag-duration 60
+    # from the repository root (the package is not installed):
+    PYTHONPATH=bench python -m vm_ros_bench.node_bench --muscles 100 --duration 60  # JSON
+    PYTHONPATH=bench python -m vm_ros_bench.node_bench --geometry geometry.yaml \
+        --library muscles.yaml  # joint_states
+    PYTHONPATH=bench python -m vm_ros_bench.node_bench --duration 600 --warmup 30 --bag \
+        --max-bag-duration 60
 
 What runs: a library YAML in ``workdir`` with ``n_muscles`` uniquely named copies of the shipped
 muscles (every field and source kept), a params YAML, and ``python -P -m vm_ros.node`` (this
@@ -843,9 +846,9 @@ def rss_growth(trace) -> dict:
 
 
 def main(argv=None) -> int:
-    """python -m vm_ros.bench.node_bench [--muscles N] [--duration S] ...: the dict as JSON."""
+    """python -m vm_ros_bench.node_bench [--muscles N] [--duration S] ...: the dict as JSON."""
     parser = argparse.ArgumentParser(
-        prog="python -m vm_ros.bench.node_bench",
+        prog="python -m vm_ros_bench.node_bench",
         description="Benchmark muscle_node as a process (run inside scripts/netns-run).")
     parser.add_argument("--muscles", type=int, default=100, help="number of muscles")
     parser.add_argument("--model-rate", type=float, default=1000.0, help="model rate (Hz)")

@@ -1,13 +1,13 @@
-"""OpenSim's side of ``vm-ros bench --compare`` (the comparison: vm_ros.bench.peer_compare)."""
+"""OpenSim's side of ``vm-ros bench --compare`` (the comparison: vm_ros_bench.peer_compare)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from vm_ros.bench.model_bench import DT
-from vm_ros.bench.peers import PeerStepper, bench_inputs
 from vm_ros.errors import VmRosError
 from vm_ros.importers.osim import load_opensim
+from vm_ros_bench.model_bench import DT
+from vm_ros_bench.peers import PeerStepper, bench_inputs
 
 TENDON_SLACK_OVER_L0T = 0.964  # config/muscles.yaml conversion rule 3: L0T = Ls / 0.964
 

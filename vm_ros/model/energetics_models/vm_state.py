@@ -2,7 +2,8 @@
 model computed from it (docs/energetics_models.md section 7).
 
 Pure functions over arrays: one step's outputs (shape (n,)) or many steps' ((k, n)) map to a
-:class:`~vm_ros.energetics_models.state.MuscleState` plus the extras some models take as keywords.
+:class:`~vm_ros.model.energetics_models.state.MuscleState` plus the extras some models take as
+keywords.
 Per muscle, with Acteff_i the effective activation of fibre type i (which already carries the
 type's recruited share of F0, docs/model.md section 5), L = x / L0, V = xdot / L0:
 
@@ -34,8 +35,10 @@ from functools import partial
 
 import numpy as np
 
-from vm_ros.energetics_models.bhargava import bhargava2004
-from vm_ros.energetics_models.constants import (
+from vm_ros.errors import InputError
+from vm_ros.model import curves
+from vm_ros.model.energetics_models.bhargava import bhargava2004
+from vm_ros.model.energetics_models.constants import (
     load_bhargava_constants,
     load_houdijk_constants,
     load_lichtwark_constants,
@@ -43,14 +46,13 @@ from vm_ros.energetics_models.constants import (
     load_minetti_constants,
     load_umberger_constants,
 )
-from vm_ros.energetics_models.houdijk import houdijk2006
-from vm_ros.energetics_models.lichtwark import lichtwark2005
-from vm_ros.energetics_models.margaria import margaria1968
-from vm_ros.energetics_models.minetti import minetti1997
-from vm_ros.energetics_models.state import HeatRates, MuscleState
-from vm_ros.energetics_models.umberger import umberger2003
-from vm_ros.errors import InputError
-from vm_ros.model import curves
+from vm_ros.model.energetics_models.houdijk import houdijk2006
+from vm_ros.model.energetics_models.lichtwark import lichtwark2005
+from vm_ros.model.energetics_models.margaria import margaria1968
+from vm_ros.model.energetics_models.minetti import minetti1997
+from vm_ros.model.energetics_models.state import HeatRates, MuscleState
+from vm_ros.model.energetics_models.umberger import umberger2003
+from vm_ros.model.layout import type_columns
 from vm_ros.model.params import FibreTypeParams, GenericParams
 
 
@@ -118,19 +120,8 @@ def fibre_curves_by_type(length_l0, velocity_l0_per_s, fibre: FibreTypeParams,
     with the muscles (not the two fibre types) as NumPy's innermost loop."""
     l = np.asarray(length_l0, dtype=float)
     v = np.asarray(velocity_l0_per_s, dtype=float)
-    lt, vt = l[None], v[None]
-    per_type = (1, 2) + (1,) * l.ndim
-
-    def typed(value):
-        return np.reshape(value, per_type)[0]
-
-    fl = curves.force_length_cheng2000(lt, typed(fibre.omega), typed(fibre.beta),
-                                       typed(fibre.rho))
-    fv = curves.force_velocity_cheng2000(vt, lt, typed(fibre.vmax), typed(fibre.cv0),
-                                         typed(fibre.cv1), typed(fibre.av0), typed(fibre.av1),
-                                         typed(fibre.av2), typed(fibre.bv),
-                                         generic.fv_denominator_min)
-    return fl, fv
+    return curves.fibre_type_curves(l[None], v[None], type_columns(fibre, (2,) + (1,) * l.ndim),
+                                    generic.fv_denominator_min)
 
 
 def time_since_onset(time_s, excitation):

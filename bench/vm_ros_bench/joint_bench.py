@@ -1,6 +1,6 @@
 """Joint-space benchmarks (no ROS; extra ``mujoco`` with myo-sim): the geometry of the myo-sim
 leg evaluated three ways, and the closed loop in one process. ``vm-ros bench --only joint`` adds
-muscle_node from joint_states (vm_ros.bench.node_bench.run_joint_node_benchmark).
+muscle_node from joint_states (vm_ros_bench.node_bench.run_joint_node_benchmark).
 
 - Geometry (``bench_geometry``): one ``evaluate(q, qdot)`` call (path lengths, lengthening
   velocities and moment arms of every muscle, with the box checks and clamping a caller gets) of

@@ -24,14 +24,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from vm_ros.energetics_models.vm_state import (
+from vm_ros.errors import InputError
+from vm_ros.model.energetics_models.vm_state import (
     MODEL_NAMES,
     VmMuscleConstants,
     current_model_name,
     published_model,
     vm_model_inputs,
 )
-from vm_ros.errors import InputError
 
 COMPONENTS = ("activation_maintenance", "shortening_lengthening", "basal", "mechanical_work",
               "total")

@@ -3,7 +3,7 @@ installed): ``n`` muscle actuators stepped by ``mj_step`` from Python at 1 ms, b
 number of vm_ros muscles.
 
 The model, built in code as MJCF (the layout of the OpenSim peer in
-vm_ros.bench.opensim_compare): one body (1 kg) on a slide joint (axis x) and per muscle a
+vm_ros_bench.opensim_compare): one body (1 kg) on a slide joint (axis x) and per muscle a
 spatial tendon from its own site on the world to a site on the body, the sites placed so that the
 tendon's length is its muscle's rest length (L0 + L0T) when the joint is at the first muscle's;
 on each tendon a ``<muscle>`` actuator (MuJoCo's muscle dynamics, gain and bias: rigid tendon,
@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from vm_ros.bench.model_bench import DT
-from vm_ros.bench.peers import PeerStepper, bench_inputs
+from vm_ros_bench.model_bench import DT
+from vm_ros_bench.peers import PeerStepper, bench_inputs
 
 MUSCLE_RANGE_L0 = (0.75, 1.05)  # MuJoCo's default <muscle range> (normalised length)
 NEEDS_MUJOCO = "the mujoco package is not installed (pip install '.[mujoco]')"
