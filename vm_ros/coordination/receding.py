@@ -107,7 +107,7 @@ class WindowCost:
 
 
 # Defaults: on the slow elbow motion of test_coordination_live.py (peak 10 N m) tracking stays
-# within 1.2 % RMS of peak with them; ten times larger costs 8 %.
+# within 1.2 % RMS of peak with them; ten times larger weights gave 8 % (measured once).
 WINDOW_COSTS = {
     "energy": WindowCost(_energy, 1e-3, "(N m)^2 per W"),
     "drive2": WindowCost(_drive2, 0.1, "(N m)^2 per drive^2"),
@@ -225,9 +225,9 @@ class RecedingHorizon:
 
     The forward runs step ``probe_dt_s``: ``settings.eval_step_s`` rounded so that a whole
     number of them make the period (``period_s``); the tracked samples are the ends of those
-    steps. The fixed step's force at 5 ms steps is within 1 % of its force at 1 ms (a 150 ms
-    run at drive 0.5 on a moving path, five library muscles): the probe needs the derivatives,
-    and each period starts again from the caller's state.
+    steps. The fixed step's force at 5 ms steps is within 1.5 % of its force at 1 ms (a 150 ms
+    run at drive 0.5 on a moving path, five library muscles; test_coordination_live.py): the
+    probe needs the derivatives, and each period starts again from the caller's state.
     """
 
     def __init__(self, bank: MuscleBank, index, period_s: float,

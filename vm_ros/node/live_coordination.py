@@ -34,6 +34,7 @@ def horizon_settings(config) -> HorizonSettings:
     """The coordinator's constants from the node's parameters (NodeConfig)."""
     return HorizonSettings(horizon_s=config.coordination_horizon_s,
                            blocks=config.coordination_blocks, cost=config.coordination_cost,
+                           eval_step_s=config.coordination_sample_period_s,
                            effort_weight=config.coordination_effort_weight or None,
                            smoothness=config.coordination_smoothness)
 

@@ -158,6 +158,9 @@ PARAMS = (
     ParamSpec("coordination.blocks", 3, "integer", "blocks",
               "Piecewise-constant drive blocks over the horizon (the first is the next publish "
               "period)", low=1, high=20),
+    ParamSpec("coordination.sample_period_s", 0.005, "double", "s",
+              "Step of the horizon's forward runs and spacing of the tracked samples (rounded to "
+              "divide the publish period)", low=0.001, high=0.1),
     ParamSpec("coordination.cost", "energy", "string", "-",
               "Cost beside tracking: energy (VM's metabolic rate, Tsianos 2012) or drive2 "
               "(sum of drive^2)", choices=("energy", "drive2")),
@@ -227,6 +230,7 @@ class NodeConfig:
     coordination_enabled: bool
     coordination_horizon_s: float
     coordination_blocks: int
+    coordination_sample_period_s: float
     coordination_cost: str
     coordination_effort_weight: float
     coordination_smoothness: float
