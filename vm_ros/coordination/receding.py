@@ -8,7 +8,7 @@ of k >= p steps, the drives are piecewise constant in B blocks (block 0 is the n
 rest of the horizon is split evenly), U of shape (B, m), each in [0, 1], and
 
     minimise  (1/S) sum_s sum_j (M_j(t_s; U) - tau_j(t_s))^2                  tracking, (N m)^2
-              + cost(U)                              WINDOW_COSTS: energy (default) or drive2
+              + cost(U)                              WINDOW_COSTS: tsianos2012 (default) or drive2
               + smoothness * (|U_0 - u_prev|^2 + sum_{b>0} |U_b - U_{b-1}|^2)
 
     M(t; U) = r(t)^T F(t; U), F the tendon forces of a forward run of the full model from x0
@@ -56,7 +56,7 @@ class HorizonSettings:
 
     horizon_s: float = 0.15
     blocks: int = 3
-    cost: str = "energy"
+    cost: str = "tsianos2012"
     effort_weight: float | None = None
     smoothness: float = 1.0
     eval_step_s: float = 0.005
@@ -109,7 +109,7 @@ class WindowCost:
 # Defaults: on the slow elbow motion of test_coordination_live.py (peak 10 N m) tracking stays
 # within 1.2 % RMS of peak with them; ten times larger weights gave 8 % (measured once).
 WINDOW_COSTS = {
-    "energy": WindowCost(_energy, 1e-3, "(N m)^2 per W"),
+    "tsianos2012": WindowCost(_energy, 1e-3, "(N m)^2 per W"),
     "drive2": WindowCost(_drive2, 0.1, "(N m)^2 per drive^2"),
 }
 

@@ -161,12 +161,12 @@ PARAMS = (
     ParamSpec("coordination.sample_period_s", 0.005, "double", "s",
               "Step of the horizon's forward runs and spacing of the tracked samples (rounded to "
               "divide the publish period)", low=0.001, high=0.1),
-    ParamSpec("coordination.cost", "energy", "string", "-",
-              "Cost beside tracking: energy (VM's metabolic rate, Tsianos 2012) or drive2 "
-              "(sum of drive^2)", choices=("energy", "drive2")),
+    ParamSpec("coordination.cost", "tsianos2012", "string", "-",
+              "Cost beside tracking: tsianos2012 (VM's metabolic rate) or drive2 "
+              "(sum of drive^2)", choices=("tsianos2012", "drive2")),
     ParamSpec("coordination.effort_weight", 0.0, "double", "(N m)^2 per W or per drive^2",
-              "Weight of the cost against tracking error ((N m)^2 per W for energy, per drive^2 "
-              "for drive2; 0 = the cost's default: 0.001 and 0.1)", low=0.0, high=1e6),
+              "Weight of the cost against tracking error ((N m)^2 per W for tsianos2012, per "
+              "drive^2 for drive2; 0 = the cost's default: 0.001 and 0.1)", low=0.0, high=1e6),
     ParamSpec("coordination.smoothness", 1.0, "double", "(N m)^2 per drive^2",
               "Weight of drive changes from one block to the next", low=0.0, high=1e6),
     ParamSpec("coordination.lag_window_s", 2.0, "double", "s",
