@@ -24,15 +24,15 @@ from collections import deque
 import numpy as np
 
 from vm_ros.blas_threads import limit_blas_threads
-from vm_ros.coordination.receding import HorizonSettings, RecedingHorizon, tracking_lag
+from vm_ros.coordination import receding  # a room below the node (docs/architecture.md)
 from vm_ros.joint_space import JointEfforts, JointSpace
 from vm_ros.node.effort_targets import EffortTargets
 from vm_ros.node.health import DurationWindow
 
 
-def horizon_settings(config) -> HorizonSettings:
+def horizon_settings(config) -> receding.HorizonSettings:
     """The coordinator's constants from the node's parameters (NodeConfig)."""
-    return HorizonSettings(horizon_s=config.coordination_horizon_s,
+    return receding.HorizonSettings(horizon_s=config.coordination_horizon_s,
                            blocks=config.coordination_blocks, cost=config.coordination_cost,
                            eval_step_s=config.coordination_sample_period_s,
                            effort_weight=config.coordination_effort_weight or None,
@@ -47,7 +47,8 @@ class LiveCoordination:
         limit_blas_threads(1)  # the node is one thread (vm_ros.blas_threads)
         self.index = space.driven_index
         self.targets = EffortTargets(space)
-        self.coordinator = RecedingHorizon(bank, self.index, period_s, horizon_settings(config))
+        self.coordinator = receding.RecedingHorizon(bank, self.index, period_s,
+                                                    horizon_settings(config))
         inputs.exempt_drive(self.index)
         keep = max(int(round(config.coordination_lag_window_s / period_s)), 2)
         self.history: deque = deque(maxlen=keep)  # (stamp ns, target, effort, tracked) robot
@@ -109,7 +110,7 @@ class LiveCoordination:
             columns = self.targets.tracked
             target = np.array([h[1][columns] for h in rows])
             effort = np.array([h[2][columns] for h in rows])
-            lag, lag_rms = tracking_lag(times, target, effort, self.max_lag_s)
+            lag, lag_rms = receding.tracking_lag(times, target, effort, self.max_lag_s)
             values += [("tracking error RMS (N m)", float(np.sqrt(np.mean((effort - target)
                                                                           ** 2)))),
                        ("tracking lag (s)", lag),
