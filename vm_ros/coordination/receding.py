@@ -8,7 +8,7 @@ of k >= p steps, the drives are piecewise constant in B blocks (block 0 is the n
 rest of the horizon is split evenly), U of shape (B, m), each in [0, 1], and
 
     minimise  (1/S) sum_s sum_j (M_j(t_s; U) - tau_j(t_s))^2                  tracking, (N m)^2
-              + cost(U)                              WINDOW_COSTS: tsianos2012 (default) or drive2
+              + cost(U)                   vm_ros.coordination.costs: tsianos2012 (default), ...
               + smoothness * (|U_0 - u_prev|^2 + sum_{b>0} |U_b - U_{b-1}|^2)
 
     M(t; U) = r(t)^T F(t; U), F the tendon forces of a forward run of the full model from x0
@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vm_ros.coordination import costs  # a room below this one (docs/architecture.md)
 from vm_ros.model import MuscleBank
 
 DRIVE_FLOOR_WEIGHT = 1e-3  # (N m)^2 per drive^2: keeps the energy cost's quadratic part > 0
@@ -46,8 +47,9 @@ class HorizonSettings:
     | field | unit | meaning |
     | horizon_s | s | look-ahead H (>= one period) |
     | blocks | - | B drive blocks over the horizon (block 0 = the next period) |
-    | cost | - | a key of WINDOW_COSTS |
-    | effort_weight | WINDOW_COSTS[cost].unit | weight of the cost (None: the cost's own) |
+    | cost | - | a name of vm_ros.coordination.costs.COSTS |
+    | effort_weight | (N m)^2 per W, per drive^2 for drive2 | weight of the cost (None: RATE_WEIGHT
+      or DRIVE2_WEIGHT) |
     | smoothness | (N m)^2 per drive^2 | weight of drive changes between blocks |
     | eval_step_s | s | spacing of the tracked samples t_s |
     | probe_drive | 1 | drive step of the derivative runs (a secant: from rest, force over
@@ -71,8 +73,8 @@ class Probe:
     | nominal | (B, m) | 1, the plan linearised about |
     | delta | (B, m) | 1, the drive step of each derivative run |
     | block_weight | (B,) | 1, each block's share of the horizon |
-    | energy_rate | (m,) | W, horizon mean of each muscle's rate at the nominal plan |
-    | energy_slope | (B, m) | W per unit drive of block b |
+    | energy_rate | (m,) | W (drive2: 1), horizon mean of each muscle's cost rate, nominal plan |
+    | energy_slope | (B, m) | its change per unit drive of block b |
     """
 
     nominal: np.ndarray
@@ -83,35 +85,33 @@ class Probe:
 
 
 def _drive2(probe: Probe, weight: float) -> tuple[np.ndarray, np.ndarray]:
-    """sum_b w_b sum_i u_bi^2 (OpenSim static optimisation's sum a^2, drive for activation)."""
+    """sum_b w_b sum_i u_bi^2 (OpenSim static optimisation's sum a^2, drive for activation):
+    exact."""
     return 2.0 * weight * np.repeat(probe.block_weight[:, None], probe.nominal.shape[1], 1), \
         np.zeros_like(probe.nominal)
 
 
-def _energy(probe: Probe, weight: float) -> tuple[np.ndarray, np.ndarray]:
-    """The horizon mean of VM's metabolic rate (Tsianos 2012) summed over the muscles,
-    linearised: dE_i/dU_bi from the derivative runs (a drive^2 floor of DRIVE_FLOOR_WEIGHT keeps
-    the problem strictly convex)."""
+def _rate(probe: Probe, weight: float) -> tuple[np.ndarray, np.ndarray]:
+    """The horizon mean of an energy rate summed over the muscles, linearised: dE_i/dU_bi from
+    the derivative runs (a drive^2 floor of DRIVE_FLOOR_WEIGHT keeps the problem strictly
+    convex)."""
     diag, _ = _drive2(probe, DRIVE_FLOOR_WEIGHT)
     return diag, weight * np.maximum(probe.energy_slope, 0.0)
 
 
-@dataclass(frozen=True)
-class WindowCost:
-    """One cost: ``term(probe, weight) -> (D, g)``, both (B, m), the cost being
-    1/2 U D U + g U + const; ``weight`` the default effort_weight in ``unit``."""
-
-    term: Callable[[Probe, float], tuple[np.ndarray, np.ndarray]]
-    weight: float
-    unit: str
+# The costs are those of the offline coordination, by name (vm_ros.coordination.costs.COSTS:
+# tsianos2012, the default, drive2 and the published energetics models on VM's state); the
+# window's term: exact for the quadratic drive2, linearised for the rates. Default weights: on
+# the slow elbow motion of test_coordination_live.py (peak 10 N m) tracking stays within 1.2 %
+# RMS of peak with them; ten times larger weights gave 8 % (measured once).
+RATE_WEIGHT, DRIVE2_WEIGHT = 1e-3, 0.1   # (N m)^2 per W, (N m)^2 per drive^2
 
 
-# Defaults: on the slow elbow motion of test_coordination_live.py (peak 10 N m) tracking stays
-# within 1.2 % RMS of peak with them; ten times larger weights gave 8 % (measured once).
-WINDOW_COSTS = {
-    "tsianos2012": WindowCost(_energy, 1e-3, "(N m)^2 per W"),
-    "drive2": WindowCost(_drive2, 0.1, "(N m)^2 per drive^2"),
-}
+def window_term(name: str) -> tuple[Callable[[Probe, float], tuple], float]:
+    """(term(probe, weight) -> (D, g), default weight) of the cost ``name``: the cost is
+    1/2 U D U + g U + const, D and g of shape (B, m); VmRosError for an unknown name."""
+    cost = costs.cost_named(name)
+    return (_drive2, DRIVE2_WEIGHT) if cost.quadratic else (_rate, RATE_WEIGHT)
 
 
 @dataclass(frozen=True)
@@ -155,9 +155,8 @@ def solve_window(forces, moment_arm, target, tracked, probe: Probe, settings: Ho
     scale = 1.0 / max(len(moment0), 1)
     hessian = scale * (jac.T @ jac)                      # 1/2 x H x - f x, tracking
     linear = scale * (jac.T @ rhs)
-    cost = WINDOW_COSTS[settings.cost]
-    weight = cost.weight if settings.effort_weight is None else settings.effort_weight
-    diag, lin = cost.term(probe, weight)
+    term, default = window_term(settings.cost)
+    diag, lin = term(probe, default if settings.effort_weight is None else settings.effort_weight)
     hessian[np.diag_indices_from(hessian)] += diag.ravel()
     linear -= lin.ravel()
     if settings.smoothness > 0:
@@ -232,9 +231,7 @@ class RecedingHorizon:
 
     def __init__(self, bank: MuscleBank, index, period_s: float,
                  settings: HorizonSettings = HorizonSettings()):
-        if settings.cost not in WINDOW_COSTS:
-            raise ValueError(f"cost must be one of {', '.join(WINDOW_COSTS)}, got "
-                             f"{settings.cost!r}")
+        self.cost = costs.cost_named(settings.cost)  # VmRosError for an unknown name
         self.index = np.asarray(index, dtype=int)
         self.settings = settings
         self.period_steps = max(int(round(period_s / settings.eval_step_s)), 1)
@@ -246,7 +243,8 @@ class RecedingHorizon:
         specs = [bank.specs[i] for i in self.index]
         self.probe_bank = MuscleBank(specs * (self.n_blocks + 1), bank.params,
                                      recruitment=bank.recruitment.name,
-                                     recovery_mode=bank.recovery_mode, backend=bank.backend)
+                                     recovery_mode=bank.recovery_mode, backend=bank.backend,
+                                     energetics_models=self.cost.bank_models)
         self.plan = np.zeros((self.n_blocks, self.m))
         self.drive = np.zeros(self.m)  # applied last period
 
@@ -285,10 +283,12 @@ class RecedingHorizon:
             plans[b + 1, b] += delta[b]
         self.probe_bank.set_state(_replicated(state, self.index, copies))
         reps = (1, copies)
-        run = self.probe_bank.run(self.probe_dt_s, self._drive_series(plans),
-                                  np.tile(path_length, reps), np.tile(path_velocity, reps))
+        drives = self._drive_series(plans)
+        run = self.probe_bank.run(self.probe_dt_s, drives, np.tile(path_length, reps),
+                                  np.tile(path_velocity, reps))
         forces = run.force.reshape(self.steps, copies, self.m).transpose(1, 0, 2)
-        rates = run.energy_rate_by_fibre.total.sum(axis=-1).mean(axis=0).reshape(copies, self.m)
+        rates = self.cost.rate(run, drives, self.cost.bank_models).mean(axis=0).reshape(
+            copies, self.m)
         probe = Probe(nominal, delta, np.diff(self.edges) / self.steps, rates[0],
                       (rates[1:] - rates[0]) / delta)
         plan = solve_window(forces, moment_arm, target, tracked, probe, self.settings,
@@ -318,5 +318,5 @@ def tracking_lag(times_s, target, achieved, max_lag_s: float) -> tuple[float, fl
     return best
 
 
-__all__ = ["WINDOW_COSTS", "HorizonSettings", "Probe", "RecedingHorizon", "WindowPlan",
-           "block_edges", "box_qp", "solve_window", "tracking_lag"]
+__all__ = ["DRIVE2_WEIGHT", "RATE_WEIGHT", "HorizonSettings", "Probe", "RecedingHorizon",
+           "WindowPlan", "block_edges", "box_qp", "solve_window", "tracking_lag", "window_term"]

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import yaml
 
-from vm_ros.errors import ConfigError, InputError
+from vm_ros.errors import ConfigError, InputError, VmRosError
 from vm_ros.model.params import DRIVE_LAWS, RECOVERY_MODES, SCHEMES
 
 PARAMS_SOURCE = "<parameters>"  # ConfigError.path for a bad parameter value
@@ -162,8 +162,9 @@ PARAMS = (
               "Step of the horizon's forward runs and spacing of the tracked samples (rounded to "
               "divide the publish period)", low=0.001, high=0.1),
     ParamSpec("coordination.cost", "tsianos2012", "string", "-",
-              "Cost beside tracking: tsianos2012 (VM's metabolic rate) or drive2 "
-              "(sum of drive^2)", choices=("tsianos2012", "drive2")),
+              "Cost beside tracking, a name of the coordination costs: tsianos2012 (VM's "
+              "metabolic rate), drive2 (sum of drive^2) or a published energetics model's "
+              "rate on VM's state"),
     ParamSpec("coordination.effort_weight", 0.0, "double", "(N m)^2 per W or per drive^2",
               "Weight of the cost against tracking error ((N m)^2 per W for tsianos2012, per "
               "drive^2 for drive2; 0 = the cost's default: 0.001 and 0.1)", low=0.0, high=1e6),
@@ -304,6 +305,14 @@ class NodeConfig:
             if value and not self.geometry:
                 raise ConfigError(PARAMS_SOURCE, name, _plain(value),
                                   "needs a geometry file (the geometry parameter)")
+        if self.coordination_enabled:
+            from vm_ros.coordination import costs  # not for --help: loads the model
+
+            try:
+                costs.cost_named(self.coordination_cost)
+            except VmRosError as exc:
+                raise ConfigError(PARAMS_SOURCE, "coordination.cost", self.coordination_cost,
+                                  str(exc)) from None
         if self.coordination_enabled and self.mcap_enabled:
             raise ConfigError(PARAMS_SOURCE, "coordination.enabled", True,
                               "not recorded yet: a run log of live coordination could not be "
