@@ -163,10 +163,23 @@ def solve_window(forces, moment_arm, target, tracked, probe: Probe, settings: Ho
         change = np.eye(n_blocks * m) - np.eye(n_blocks * m, k=-m)  # U_b - U_{b-1}
         hessian += settings.smoothness * (change.T @ change)
         linear[:m] += settings.smoothness * np.asarray(previous_drive, dtype=float)
-    solution = box_qp(hessian, linear, x0)
+    solution = np.empty_like(x0)
+    for group in coupled_groups(hessian):  # independent problems: muscles sharing no joint
+        solution[group] = box_qp(hessian[np.ix_(group, group)], linear[group], x0[group])
     plan = solution.reshape(n_blocks, m)
     predicted = moment0 + np.einsum("smc,bsm,bm->sc", moment_arm, sens, plan - probe.nominal)
     return WindowPlan(plan[0].copy(), plan, predicted)
+
+
+def coupled_groups(hessian) -> list[np.ndarray]:
+    """Indices of the connected components of the nonzero pattern of ``hessian``: unknowns in
+    different groups do not interact (muscles that share no tracked joint), so each group is
+    its own problem (80 muscles over 27 joints: a solve of 3-variable problems instead of one
+    of 240 variables)."""
+    from scipy.sparse.csgraph import connected_components
+
+    count, labels = connected_components(hessian != 0.0, directed=False)
+    return [np.flatnonzero(labels == k) for k in range(count)]
 
 
 def box_qp(hessian, linear, start, tol: float = 1e-12) -> np.ndarray:
@@ -319,4 +332,5 @@ def tracking_lag(times_s, target, achieved, max_lag_s: float) -> tuple[float, fl
 
 
 __all__ = ["DRIVE2_WEIGHT", "RATE_WEIGHT", "HorizonSettings", "Probe", "RecedingHorizon",
-           "WindowPlan", "block_edges", "box_qp", "solve_window", "tracking_lag", "window_term"]
+           "WindowPlan", "block_edges", "box_qp", "coupled_groups", "solve_window",
+           "tracking_lag", "window_term"]
