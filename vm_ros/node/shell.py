@@ -19,6 +19,11 @@ vm_ros.node.health. Topics (relative names, so namespaces and remapping apply):
 Every publisher and subscription accepts the standard ``qos_overrides`` parameters (history,
 depth, reliability).
 
+Live coordination (``coordination.enabled``, vm_ros.node.live_coordination): in
+``joint_effort_trajectory`` (JointTrajectory), ``joint_effort_targets`` (JointState),
+``joint_effort_targets_array`` (Float64MultiArray); out ``muscle_drive`` and ``joint_reserves``
+(JointState); the joint-driven muscles' drives solved each publish period.
+
 Joint space (vm_ros.joint_space): node muscles that the geometry covers are driven from
 joint_states; each published step's tendon forces go back through the moment arms of the joint
 sample that step used, as generalized forces in the robot's convention.
