@@ -6,7 +6,8 @@ Every cost is the integral over the motion of a per-muscle rate c_i(t), weighted
     C(U) = sum_i w_i int_0^T c_i(t) dt
 
 - ``tsianos2012`` (default, J): c_i = VM's total metabolic rate of muscle i (activation,
-  maintenance, shortening/lengthening, recovery; docs/energetics.md); Tsianos, Rustin & Loeb 2012.
+  maintenance, shortening/lengthening, recovery; docs/model.md section 6); Tsianos, Rustin &
+  Loeb 2012.
 - ``drive2`` (s): c_i = U_i(t)^2, the drive squared; the classic static-optimisation criterion
   (OpenSim SO's sum a^2).
 - each name of vm_ros.model.energetics_models.vm_state.MODEL_NAMES (J): c_i = that published model's
