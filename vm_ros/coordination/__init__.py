@@ -7,4 +7,5 @@ moments at least cost (docs/coordination.md).
 - ``costs``: the costs by name (COSTS).
 - ``reserves``: reserve moments per coordinate and the frames beyond the muscles' capacity.
 - ``solver``: the whole-trajectory iteration (solve).
+- ``receding``: the receding-horizon coordinator of muscle_node's live coordination.
 """
