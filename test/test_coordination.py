@@ -70,6 +70,32 @@ def steady_force(tmp_path, fields: dict, name: str, drive: float) -> float:
     return float(bank.reset(path_length=[LENGTH_AT_ZERO_M], excitation=[drive]).force[0])
 
 
+def static_optimum(tmp_path, fields, arms, target) -> np.ndarray:
+    """Drives (Ua, Ub) minimising Ua^2 + Ub^2 subject to ra F_a(Ua) + rb F_b(Ub) = target,
+    F the static-equilibrium force of each muscle (``fields``: library overrides) at constant
+    drive (MuscleBank.reset), solved in one variable with SciPy."""
+    cache = {}
+
+    def f(which, u):
+        if (which, u) not in cache:
+            cache[which, u] = steady_force(tmp_path, fields[which], "ab"[which], u)
+        return cache[which, u]
+
+    def partner(ua):  # Ub meeting the moment for a given Ua
+        return optimize.brentq(lambda ub: moment(ua, ub), 0.0, 1.0, xtol=1e-10)
+
+    def moment(ua, ub):
+        return arms[0] * f(0, ua) + arms[1] * f(1, ub) - target
+
+    # the Ua for which some Ub in [0, 1] meets the moment
+    low = 0.0 if moment(0.0, 1.0) >= 0 else optimize.brentq(moment, 0.0, 1.0, args=(1.0,))
+    high = 1.0 if moment(1.0, 0.0) <= 0 else optimize.brentq(moment, 0.0, 1.0, args=(0.0,))
+    best = optimize.minimize_scalar(lambda ua: ua ** 2 + partner(ua) ** 2,
+                                    bounds=(low, high), method="bounded",
+                                    options={"xatol": 1e-6})
+    return np.array([best.x, partner(best.x)])
+
+
 @pytest.mark.parametrize("cost", ["tsianos2012", "drive2"])
 def test_two_identical_muscles_share_the_moment_equally(tmp_path, cost):
     _, result = solved(tmp_path, {"a": {}, "b": {}}, {"a": 0.02, "b": 0.02},
@@ -80,10 +106,6 @@ def test_two_identical_muscles_share_the_moment_equally(tmp_path, cost):
     assert np.allclose(result.drives[:, 0], result.drives[:, 1], atol=1e-6)
 
 
-@pytest.mark.xfail(strict=True, reason="measured: the drives start near the optimum (0.19 / 0.73) "
-                   "and drift to 0.69 / 0.70 in mid run, the reserves held within 0.3 N m: the "
-                   "one-sided sensitivity misses VM's sign-dependent response to a drive "
-                   "change (docs/coordination.md; open)")
 def test_drive_squared_static_case_is_the_static_optimisation_solution(tmp_path):
     """Constant pose and moment, arms 0.02 and 0.04 m: min Ua^2 + Ub^2 subject to
     0.02 F(Ua) + 0.04 F(Ub) = 30 N m, F the static-equilibrium force of the drive (reset),
@@ -92,23 +114,7 @@ def test_drive_squared_static_case_is_the_static_optimisation_solution(tmp_path)
     target = 30.0
     _, result = solved(tmp_path, {"a": {}, "b": {}}, arms, lambda t: np.full_like(t, target),
                        duration_s=0.6, cost="drive2", smoothness=0.0)
-    force = dict.fromkeys(arms)
-
-    def f(u):
-        if force.get(u) is None:
-            force[u] = steady_force(tmp_path, {}, "a", u)
-        return force[u]
-
-    def partner(ua):  # Ub meeting the moment for a given Ua
-        return optimize.brentq(lambda ub: 0.02 * f(ua) + 0.04 * f(ub) - target, 0.0, 1.0,
-                               xtol=1e-10)
-
-    low = 0.0 if 0.04 * f(1.0) >= target else optimize.brentq(
-        lambda ua: 0.02 * f(ua) + 0.04 * f(1.0) - target, 0.0, 1.0)
-    best = optimize.minimize_scalar(lambda ua: ua ** 2 + partner(ua) ** 2,
-                                    bounds=(low, 1.0), method="bounded",
-                                    options={"xatol": 1e-6})
-    expected = np.array([best.x, partner(best.x)])
+    expected = static_optimum(tmp_path, ({}, {}), (0.02, 0.04), target)
     middle = len(result.drives) // 2
     assert result.drives[middle] == pytest.approx(expected, abs=0.01)
     assert expected[1] > 1.5 * expected[0]   # the longer arm carries more: not a trivial split
@@ -139,7 +145,7 @@ def test_targets_beyond_the_muscles_are_named_with_the_moment_they_lack(tmp_path
         return np.where((t >= 0.5) & (t <= 0.7), 110.0, 10.0)
 
     _, result = solved(tmp_path, {"a": {}, "b": {}}, {"a": 0.02, "b": 0.02}, moment,
-                       duration_s=1.2, max_iterations=4)
+                       duration_s=1.2, iterations=4)
     named = {round(f.time_s, 3): f for f in result.infeasible}
     inside = [t for t in result.problem.frame_times_s if 0.5 <= t <= 0.7]
     assert sorted(named) == pytest.approx(inside)
@@ -149,16 +155,15 @@ def test_targets_beyond_the_muscles_are_named_with_the_moment_they_lack(tmp_path
     assert result.summary.peak[0] >= 110.0 - capacity
 
 
-@pytest.mark.xfail(strict=True, reason="measured: under drive2 at 10 % of capacity the solver "
-                   "settles on drives 0.02 (slow) / 0.37 (fast), a local optimum: the static "
-                   "optimum of the same forces is about 0.20 / 0.28 (open)")
 def test_energy_loads_the_slow_muscle_at_low_moment_and_recruits_the_fast_one_as_it_rises(
         tmp_path):
     """Tsianos 2012, Discussion B: a slow and a fast muscle of equal strength (same mass and
     L0, so the same F0) and moment arm, held isometric at a constant moment. Under VM's energy
     cost the slow muscle carries more of a low moment than under drive^2, and the fast muscle's
-    share grows as the moment rises; under drive^2 the drives are equal when the two muscles'
-    static forces per drive are (they differ by under 15 % here: compared with that)."""
+    share grows as the moment rises. Under drive^2 the drives are the static optimum (SciPy,
+    static_optimum), checked on its cost Us^2 + Uf^2 within 1 %: VM's force grows convexly
+    with the drive, so that cost is nearly flat along the moment constraint and the optimum is
+    not an equal split (measured: 0.20 / 0.27 at 10 % of capacity, 0.39 / 0.81 at 50 %)."""
     fields = {"slow": {"fpcsa_slow": 1.0}, "fast": {"fpcsa_slow": 0.0}}
     arms = {"slow": 0.02, "fast": 0.02}
     capacity = 0.02 * sum(steady_force(tmp_path, fields[m], m, 1.0) for m in fields)
@@ -171,6 +176,8 @@ def test_energy_loads_the_slow_muscle_at_low_moment_and_recruits_the_fast_one_as
             shares[level, cost] = force[0] / force.sum()
             if cost == "drive2":
                 middle = result.drives[len(result.drives) // 2]
-                assert middle[0] == pytest.approx(middle[1], rel=0.15)
+                best = static_optimum(tmp_path, (fields["slow"], fields["fast"]), (0.02, 0.02),
+                                      level * capacity)
+                assert np.sum(middle ** 2) == pytest.approx(np.sum(best ** 2), rel=0.01)
     assert shares[0.1, "tsianos2012"] > shares[0.1, "drive2"]
     assert shares[0.5, "tsianos2012"] < shares[0.1, "tsianos2012"]

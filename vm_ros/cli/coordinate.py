@@ -67,8 +67,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f"{defaults.reserve_weight:g})")
     parser.add_argument("--node-step", type=float, default=defaults.node_step_s, metavar="S",
                         help=f"time between drive nodes (default {defaults.node_step_s:g} s)")
-    parser.add_argument("--iterations", type=int, default=defaults.max_iterations,
-                        help=f"kept iterations at most (default {defaults.max_iterations})")
+    parser.add_argument("--iterations", type=int, default=defaults.iterations,
+                        help=f"forward runs of the tracking stage at most (default "
+                             f"{defaults.iterations})")
+    parser.add_argument("--refine", type=int, default=defaults.refine,
+                        help=f"Levenberg-Marquardt polish steps after it (default "
+                             f"{defaults.refine})")
     parser.add_argument("--dt", type=float, default=0.001, metavar="S",
                         help="model step (default 0.001 s)")
     parser.add_argument("--speed", type=float, metavar="M/S",
@@ -152,7 +156,7 @@ def _report_lines(result, rate_w, body_mass, speed) -> list[str]:
     if body_mass and speed:
         lines.append(f"cost of transport: {total / (body_mass * GRAVITY_M_PER_S2 * speed):.3f} "
                      f"(P / (m g v), {total / (body_mass * speed):.2f} J/(kg m))")
-    iterations = len(result.history) - 1
+    iterations = len(result.history)
     lines.append(f"solved in {iterations} iteration(s), {result.forward_runs} forward runs, "
                  f"{result.seconds:.1f} s ({result.options.cost} cost "
                  f"{result.cost_value:.4g} {_cost_unit(result.options.cost)})")
@@ -230,7 +234,8 @@ def run(args) -> int:
     targets = load_targets(args.targets, geometry=geometry, motion=joint_motion)
     options = SolverOptions(cost=args.cost, muscle_weights=_weights(args.muscle_weight),
                             node_step_s=args.node_step, reserve_weight=args.reserve_weight,
-                            smoothness=args.smoothness, max_iterations=args.iterations)
+                            smoothness=args.smoothness, iterations=args.iterations,
+                            refine=args.refine)
     options.check(muscles)
     config = RunConfig(muscles, geometry=args.geometry, library=args.library,
                        params=args.params,
@@ -273,7 +278,7 @@ def run(args) -> int:
     argv += [a for name in ("library", "params") if getattr(args, name)
              for a in (f"--{name}", str(getattr(args, name)))]
     extra = {STEADY_START: "yes", COST_KEY: args.cost, "targets": targets.source,
-             SOLVE_KEY: f"{len(result.history) - 1} iterations, max reserve RMS "
+             SOLVE_KEY: f"{len(result.history)} iterations, max reserve RMS "
                         f"{np.max(result.summary.rms_percent):.3f} % of peak"}
     print(f"run log of the drives (vm-ros simulate --motion, steady start; "
           f"{time.perf_counter() - started:.1f} s so far):")

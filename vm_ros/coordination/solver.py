@@ -35,6 +35,7 @@ from scipy import sparse
 from scipy.sparse import linalg
 
 from vm_ros.coordination.costs import DEFAULT_COST, cost_named
+from vm_ros.coordination.distribution import FINE_LEVELS, TABLE_LENGTHS, refined, static_table
 from vm_ros.coordination.forward import ForwardModel, ForwardOutput
 from vm_ros.coordination.problem import CoordinationProblem
 from vm_ros.coordination.reserves import (
@@ -43,6 +44,7 @@ from vm_ros.coordination.reserves import (
     infeasible_frames,
     summarize_reserves,
 )
+from vm_ros.coordination.tracking import track
 from vm_ros.errors import VmRosError
 
 REFERENCE_DRIVE = 0.5   # C_ref: the cost of every drive held at this value over the motion
@@ -57,20 +59,32 @@ RESCALE_LIMITS = (0.2, 5.0)        # consecutive rejected steps before the itera
 @dataclass(frozen=True)
 class SolverOptions:
     """How to solve: ``cost`` (costs.COSTS name), ``muscle_weights`` (name -> w_i, default 1),
-    ``node_step_s`` (s between drive nodes), ``reserve_weight`` (w_res), ``smoothness``
-    (w_smooth, s^2), ``max_iterations``, ``tolerance`` (relative fall of J that stops),
-    ``initial_drive`` (every node's start), ``memory_s`` (forward.py), ``damping`` (initial
-    lambda), ``delta`` (perturbation of the drive nodes), ``refresh`` (kept steps between full
-    sensitivities; in between one run rescales it)."""
+    ``node_step_s`` (s between drive nodes).
+
+    Stage 1 (distribution.py): ``distribution_reserve_weight`` (w_res of the LP, on mean
+    |reserve| / peak), ``distribution_smoothness`` (w_smooth of the LP, s, on mean
+    |dF/dt| / F_max). Stage 2 (tracking.py): ``iterations`` (forward runs at most),
+    ``lead_s``, ``gain``, ``tracking_tolerance`` (max RMS reserve / peak that stops).
+
+    Polish (Levenberg-Marquardt, this module's docstring): ``refine`` kept steps (0: none),
+    ``reserve_weight`` (w_res), ``smoothness`` (w_smooth, s^2), ``tolerance`` (relative fall
+    of J that stops), ``memory_s`` (forward.py), ``damping`` (initial lambda), ``delta``
+    (perturbation of the drive nodes), ``refresh`` (kept steps between full sensitivities; in
+    between one run rescales it)."""
 
     cost: str = DEFAULT_COST
     muscle_weights: Mapping = field(default_factory=dict)
     node_step_s: float = 0.04
+    distribution_reserve_weight: float = 1e3
+    distribution_smoothness: float = 0.1
+    iterations: int = 30
+    lead_s: float = 0.06
+    gain: float = 0.8
+    tracking_tolerance: float = 0.002
+    refine: int = 0
     reserve_weight: float = 1e5
     smoothness: float = 1e-4
-    max_iterations: int = 12
     tolerance: float = 1e-4
-    initial_drive: float = 0.1
     memory_s: float = 0.8
     damping: float = 1.0
     delta: float = 0.02
@@ -81,14 +95,16 @@ class SolverOptions:
         unknown = [m for m in self.muscle_weights if m not in muscles]
         if unknown:
             raise VmRosError(f"muscle weight for {unknown[0]!r}: not a muscle of the problem")
-        for name in ("node_step_s", "reserve_weight", "delta"):
+        for name in ("node_step_s", "reserve_weight", "delta", "distribution_reserve_weight",
+                     "gain", "iterations"):
             if not getattr(self, name) > 0:
                 raise VmRosError(f"{name} must be > 0 (got {getattr(self, name)})")
-        if not (self.smoothness >= 0 and 0 <= self.initial_drive <= 1
-                and self.max_iterations >= 0 and all(w >= 0 for w in
-                                                     self.muscle_weights.values())):
-            raise VmRosError("smoothness and muscle weights must be >= 0, initial_drive in "
-                             "[0, 1], max_iterations >= 0")
+        for name in ("smoothness", "distribution_smoothness", "lead_s", "refine",
+                     "tracking_tolerance"):
+            if not getattr(self, name) >= 0:
+                raise VmRosError(f"{name} must be >= 0 (got {getattr(self, name)})")
+        if not all(w >= 0 for w in self.muscle_weights.values()):
+            raise VmRosError("muscle weights must be >= 0")
 
 
 @dataclass
@@ -257,16 +273,28 @@ def solve(bank, problem: CoordinationProblem, options: SolverOptions | None = No
                 1e-12)
     objective = _Objective(problem, options, weights, c_ref, options.node_step_s)
     objective.forward = forward
-    nodes = np.full((forward.n_nodes, n), float(options.initial_drive))
-    base = forward.run(nodes)
+    # stage 1: the distribution; stage 2: drives whose forward run meets it
+    rate = cost.rate_function(bank.energetics_models)
+    fine = static_table(bank, problem, rate, FINE_LEVELS, TABLE_LENGTHS)
+    table, shares = refined(problem, fine, weights, options.distribution_reserve_weight,
+                            options.distribution_smoothness)
+    history = []
+
+    def tracked(nodes, out):
+        history.append(_iteration(objective, nodes, out, options.damping, forward, started))
+        if progress is not None:
+            progress(history[-1])
+
+    best = track(forward, table, shares.force, options.lead_s, options.gain,
+                 options.iterations, options.tracking_tolerance, progress=tracked)
+    nodes, base = best.nodes, best.forward
     value = objective.scale = sum(objective.parts(nodes, base))
-    history = [_iteration(objective, nodes, base, options.damping, forward, started)]
     damping = options.damping
     kept = rejected = 0
     jac = grad = full = None
     objective.curvature = np.zeros_like(nodes)
     secant = None  # (nodes, gradient) of the last sensitivity, for the cost's curvature
-    while kept < options.max_iterations and rejected < MAX_REJECTED:
+    while kept < options.refine and rejected < MAX_REJECTED:
         fresh = full is None or kept % options.refresh == 0 or rejected >= 2
         if jac is None and fresh:
             full, grad = forward.sensitivity(nodes, base, options.delta)

@@ -113,6 +113,7 @@ class MuscleBank:
         self.ur = np.array([s.ur for s in specs], dtype=float)
         self.recruitment = make_recruitment(recruitment, self.fpcsa, self.ur, params)
         self.recovery_mode = recovery_mode
+        self.recruitment_scheme = recruitment
         self.equations = NumpyStep(self.geometry, params, self.recruitment, recovery_mode)
         self._state: BankState | None = None
         self.backend = "numpy" if backend == "numpy" or not kernel.AVAILABLE else "numba"
@@ -127,6 +128,17 @@ class MuscleBank:
             names = model_names(energetics_models)
             if names:
                 self._models = BankModels(names, VmMuscleConstants.from_bank(self))
+
+    def replicated(self, copies: int) -> MuscleBank:
+        """A new bank of ``copies`` copies of every muscle (muscle order repeated ``copies``
+        times), with the same parameters, recruitment, recovery, back end and energetics models:
+        one call then evaluates many inputs of the same muscles."""
+        # each spec's lmax resolved once (a root per muscle otherwise)
+        specs = [dataclasses.replace(s, lmax=float(lmax)) for s, lmax in zip(self.specs,
+                                                                              self.lmax,
+                                                                              strict=True)]
+        return MuscleBank(specs * int(copies), self.params, self.recruitment_scheme,
+                          self.recovery_mode, self.backend, self.energetics_models)
 
     @property
     def energetics_models(self) -> tuple:
