@@ -1,7 +1,7 @@
 """Measure the model, the offline runner and muscle_node against vm_ros's speed targets; write
 the results (JSON and CSV) and print a table.
 
-Sections (all but study and node-memory by default; --only picks some):
+Sections (all but coordination-walk, study and node-memory by default; --only picks some):
   model     MuscleBank.step for 1, 10, 100, 1000 muscles (lumped units, energetics on,
             dt 1 ms), compiled (Numba) and NumPy back ends; the published energetics models'
             cost at 1000 muscles; the kernel per muscle-step: run against repeated step at 1,
@@ -37,6 +37,12 @@ Sections (all but study and node-memory by default; --only picks some):
             live coordination per publish period without ROS (vm_ros_bench.coordination_bench):
             the receding-horizon solve and the period's model steps at 100 Hz with a 1 kHz
             model, 18 and 80 muscles; latency (solve), CPU per simulated second, load average
+  coordination-walk
+            runs only when named (--only coordination-walk; about a minute): vm-ros
+            coordinate's offline solve of opensim-models' Gait10dof18musc walk at the model's
+            F0, default options and --refine 6; reserve RMS per coordinate (% of peak; target
+            < 3 %), forward runs, seconds (target < 10 s), load average. Skipped with the reason
+            when the walk is not fetched (scripts/fetch-gait-data).
   node-memory
             runs only when named (--only node-memory; 7 minutes): muscle_node's resident
             memory over a long run, 100 muscles at 1 kHz, publish 100 Hz, MCAP as a rosbag2
@@ -85,8 +91,8 @@ from vm_ros.child_process import loopback_only, module_command
 from vm_ros.errors import VmRosError
 from vm_ros_bench import FOLDER, child_environment
 
-SECTIONS = ("model", "natural", "offline", "decode", "node", "joint", "coordination", "study",
-            "node-memory")
+SECTIONS = ("model", "natural", "offline", "decode", "node", "joint", "coordination",
+            "coordination-walk", "study", "node-memory")
 DEFAULT_SECTIONS = ("model", "natural", "offline", "decode", "node", "joint",
                     "coordination")  # node-memory and study: when named
 MEMORY_DURATION_S, MEMORY_QUICK_DURATION_S = 300.0, 60.0  # node-memory window
@@ -408,6 +414,20 @@ def _csv_rows(results: dict) -> list[dict]:
             add("coordination", case, key, r[key], "")
         add("coordination", case, "cpu_percent_one_core", r["cpu_percent_one_core"], "",
             "< 100 %", r["cpu_percent_one_core"] < 100.0)
+    from vm_ros_bench.coordination_bench import WALK_TARGET_PERCENT, WALK_TARGET_S
+
+    for r in results.get("coordination-walk", []):
+        if "skipped" in r:
+            add("coordination-walk", "Gait10dof18musc walk", "skipped", r["skipped"], "")
+            continue
+        case = f"Gait10dof18musc walk, {r['case']}"
+        for name, value in r["rms_percent"].items():
+            add("coordination-walk", case, f"reserve_rms_percent {name}", value, "%",
+                f"< {WALK_TARGET_PERCENT:g} %", value < WALK_TARGET_PERCENT)
+        add("coordination-walk", case, "forward_runs", r["forward_runs"], "")
+        add("coordination-walk", case, "load_average_start", r["load_average_start"], "")
+        add("coordination-walk", case, "seconds", r["seconds"], "s", f"< {WALK_TARGET_S:g} s",
+            r["seconds"] < WALK_TARGET_S)
     if "study" in results and "error" not in results["study"]:
         from vm_ros_bench import study_bench
 
@@ -654,6 +674,7 @@ def run(args) -> int:
                                          node_duration)),
         ("coordination", lambda: coordination_bench.bench_coordination(
             seconds=1.0 if args.quick else 3.0, progress=_say)),
+        ("coordination-walk", lambda: coordination_bench.bench_walk(progress=_say)),
         ("study", lambda: _study_section(args.quick)),
         ("node-memory", lambda: _node_memory_row(
             args.node_duration or (MEMORY_QUICK_DURATION_S if args.quick else MEMORY_DURATION_S),

@@ -123,3 +123,53 @@ if __name__ == "__main__":
     import json
 
     print(json.dumps(bench_coordination(progress=print), indent=2))
+
+
+WALK_CASES = {"default": {}, "refine 6": {"refine": 6}}   # SolverOptions changes per case
+WALK_TARGET_PERCENT, WALK_TARGET_S = 3.0, 10.0            # issue 30: 3 % RMS of peak in < 10 s
+
+
+def bench_walk(progress=print) -> list[dict]:
+    """The offline solve of opensim-models' Gait10dof18musc walk (issue 30's speed item): the
+    model imported at its own F0 (`--specific-tension vm`), the hip, knee and ankle ID moments,
+    default cost, per case of WALK_CASES: reserve RMS per coordinate (% of peak), forward runs,
+    wall-clock seconds of the solve and the load average before it. One row with ``skipped``
+    when the walk's files are not fetched (scripts/fetch-gait-data)."""
+    import tempfile
+
+    from vm_ros.coordination.problem import build_problem
+    from vm_ros.coordination.solver import SolverOptions, solve
+    from vm_ros.coordination.targets import load_targets
+    from vm_ros.importers.motion import read_motion
+    from vm_ros.model.params import load_model_params, resolve_muscles
+    from vm_ros.node.motion_inputs import JointMotion
+    from vm_ros.validation.walk import STRENGTHS, import_walk
+    from vm_ros.validation.walk_data import WalkDataError, walk_files
+
+    try:
+        files = walk_files()
+    except WalkDataError as error:
+        return [{"skipped": str(error)}]
+    params = load_model_params()
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="vm_ros_bench_walk_") as out:
+        geometry, library = import_walk(files, STRENGTHS["model F0"], out)
+        motion = JointMotion.from_motion(read_motion(files["motion"]), geometry,
+                                         geometry.coordinate_names, {})
+        targets = load_targets(str(files["inverse_dynamics"]), geometry=geometry, motion=motion)
+        muscles = geometry.muscle_names
+        specs = resolve_muscles(muscles, library, None, params.generic.ur_default)
+        problem = build_problem(geometry, motion, targets, muscles)
+        for case, changes in WALK_CASES.items():
+            load = os.getloadavg()[0]
+            started = time.perf_counter()
+            result = solve(MuscleBank(specs, params, "lumped"), problem,
+                           SolverOptions(**changes))
+            seconds = time.perf_counter() - started
+            rms = dict(zip(problem.coordinates, result.summary.rms_percent.tolist(),
+                           strict=True))
+            progress(f"coordination-walk {case}: worst reserve RMS {max(rms.values()):.2f} % "
+                     f"of peak, {result.forward_runs} runs, {seconds:.1f} s")
+            rows.append({"case": case, "rms_percent": rms, "forward_runs": result.forward_runs,
+                         "seconds": seconds, "load_average_start": load})
+    return rows
