@@ -1,5 +1,11 @@
 """Whole-trajectory coordination against the forward run of the full model (docs/coordination.md).
 
+solve() works in two stages and an optional polish: stage 1 (distribution.py) tabulates each
+muscle's quasi-static force and cost per frame and drive and distributes the target moments
+over the muscles by one linear programme (HiGHS), giving each muscle a target force; stage 2
+(tracking.py) finds the drives whose forward run meets those forces by iterative learning
+control, one forward run per iteration; then ``refine`` Levenberg-Marquardt steps on J below.
+
 Unknowns: drive nodes u (N nodes x n muscles, every ``node_step_s``). Objective:
 
     J(u) = sum_i w_i C_i(u) / C_ref                       cost (costs.py), C_ref: the cost with
@@ -20,7 +26,7 @@ linear least-squares problem (bounded_least_squares: a primal active set over Sc
 LU); the step is kept when the forward run's J falls (lambda / 3), else lambda x 4 and the step
 is solved again (Levenberg-Marquardt), after one correction step from the rejected trial with
 the same sensitivity (the reserves' second-order error along the cost's descent would otherwise
-stall it at heavy reserve weights). Stops after ``max_iterations`` kept steps, or when a kept
+stall it at heavy reserve weights). Stops after ``refine`` kept steps, or when a kept
 step lowers J by less than ``tolerance`` of it.
 """
 
