@@ -12,9 +12,8 @@
 
 VENV ?= .venv
 # Debian 12's own interpreter where it is installed, whatever python3 comes first on PATH: it is a
-# statically linked build, and measured faster than a shared-library build of the same Python
-# (pyenv's 3.11.7): the kernel's first compile 11.4 s against 12.3 s, a 1-muscle muscle_node
-# 7.8-8.4 % of a core against 8.4-9.4 % (paired runs, 2026-11-30). PYTHON=... overrides it.
+# statically linked build, faster than a shared-library build of the same Python for the kernel's
+# compile and the node (docs/performance.md). PYTHON=... overrides it.
 PYTHON ?= $(or $(wildcard /usr/bin/python3.11),python3)
 COLCON_VENV ?= .venv-colcon
 

@@ -182,3 +182,18 @@ def test_each_section_is_written_as_it_ends_and_a_failing_one_keeps_the_others(t
     err = capsys.readouterr().err
     assert "offline: failed (RuntimeError: the machine went away)" in err
     assert "Traceback" not in err
+
+
+def test_bench_decode_section_times_the_node_decoder_beside_rclpy(tmp_path):
+    """The decode item: the stream case held to 20 us per message, the other cases beside it
+    (rclpy's a row with the reason when the ros extra is missing), the load quoted."""
+    out = tmp_path / "bench"
+    assert main(["bench", "--only", "decode", "--quick", "--repeats", "1", "--out",
+                 str(out)]) == 0
+    decode = json.loads((out / "bench.json").read_text())["decode"]
+    assert decode["joints"] == 80 and decode["clock"] == "thread CPU"
+    assert [r["case"] for r in decode["rows"]] == ["stream", "new names", "mcap_ros2", "rclpy"]
+    rows = list(csv.DictReader((out / "bench.csv").read_text().splitlines()))
+    stream = [r for r in rows if ", stream (load " in r["case"]]
+    assert len(stream) == 1 and stream[0]["target"] == "<= 20 us"
+    assert float(stream[0]["value"]) > 0 and stream[0]["met"] in ("True", "False")

@@ -1,5 +1,5 @@
 """The mapping from Virtual Muscle's state to the published energetics models' inputs
-(vm_ros.energetics_models.vm_state) and the ``vm-ros compare-energetics`` verb."""
+(vm_ros.model.energetics_models.vm_state) and the ``vm-ros compare-energetics`` verb."""
 
 from __future__ import annotations
 
@@ -12,8 +12,9 @@ import pytest
 import yaml
 
 from vm_ros.cli import main
-from vm_ros.energetics_models import compare
-from vm_ros.energetics_models.vm_state import (
+from vm_ros.errors import InputError
+from vm_ros.model import MuscleBank
+from vm_ros.model.energetics_models.vm_state import (
     MODEL_NAMES,
     PUBLISHED_MODELS,
     VmMuscleConstants,
@@ -23,8 +24,7 @@ from vm_ros.energetics_models.vm_state import (
     vm_model_inputs,
     vm_model_inputs_from_outputs,
 )
-from vm_ros.errors import InputError
-from vm_ros.model import MuscleBank
+from vm_ros.validation import energetics_compare as compare
 
 DT = 0.001
 

@@ -16,18 +16,18 @@ import pytest
 
 from vm_ros import telemetry as tm
 from vm_ros.cli import main
-from vm_ros.energetics_models import MODEL_NAMES, published_rates
-from vm_ros.energetics_models.in_bank import COMPONENTS
-from vm_ros.energetics_models.vm_state import (
+from vm_ros.errors import InputError
+from vm_ros.model import MuscleBank
+from vm_ros.model import kernel as model_kernel
+from vm_ros.model.energetics_models import MODEL_NAMES, published_rates
+from vm_ros.model.energetics_models.in_bank import COMPONENTS
+from vm_ros.model.energetics_models.vm_state import (
     VmMuscleConstants,
     rates_from_inputs,
     time_since_onset,
     vm_model_inputs,
     vm_model_inputs_from_outputs,
 )
-from vm_ros.errors import InputError
-from vm_ros.model import MuscleBank
-from vm_ros.model import kernel as model_kernel
 from vm_ros.recording import messages as msgs
 from vm_ros.recording.run_log import read_run
 

@@ -1,4 +1,4 @@
-"""The published heat-rate models (vm_ros.energetics_models) against OpenSim 4.6's own probes.
+"""The published heat-rate models (vm_ros.model.energetics_models) against OpenSim 4.6's own probes.
 
 A one-muscle OpenSim model (a Millard2012EquilibriumMuscle with a rigid tendon on a slider) carries
 Umberger2010MuscleMetabolicsProbe and Bhargava2004MuscleMetabolicsProbe instances, one per option
@@ -19,8 +19,9 @@ import numpy as np
 import pytest
 import yaml
 
-from vm_ros import energetics_models
-from vm_ros.energetics_models import (
+from vm_ros.errors import ConfigError
+from vm_ros.model import energetics_models
+from vm_ros.model.energetics_models import (
     MuscleState,
     bhargava2004,
     load_bhargava_constants,
@@ -29,10 +30,9 @@ from vm_ros.energetics_models import (
     probe_total,
     umberger2003,
 )
-from vm_ros.energetics_models.in_bank import model_names
-from vm_ros.energetics_models.umberger import force_length_multiplier_from_state
-from vm_ros.energetics_models.vm_state import published_model
-from vm_ros.errors import ConfigError
+from vm_ros.model.energetics_models.in_bank import model_names
+from vm_ros.model.energetics_models.umberger import force_length_multiplier_from_state
+from vm_ros.model.energetics_models.vm_state import published_model
 from vm_ros.resources import config_dir
 
 RTOL = 1e-9

@@ -1,5 +1,5 @@
 """Lichtwark & Wilson, Houdijk et al. 2006, Margaria 1968 and Minetti & Alexander 1997
-(vm_ros.energetics_models) against their papers' numbers and a second implementation.
+(vm_ros.model.energetics_models) against their papers' numbers and a second implementation.
 
 The second implementation is scalar Python written here from the formulations of Koelewijn,
 Heinrich & van den Bogert 2019 (PLoS ONE 14(9):e0222037; their published code, BioMAC-Sim-Toolbox
@@ -24,7 +24,8 @@ import numpy as np
 import pytest
 import yaml
 
-from vm_ros.energetics_models import (
+from vm_ros.errors import ConfigError
+from vm_ros.model.energetics_models import (
     MuscleState,
     force_length_multiplier_from_state,
     houdijk2006,
@@ -36,8 +37,7 @@ from vm_ros.energetics_models import (
     margaria1968,
     minetti1997,
 )
-from vm_ros.energetics_models.lichtwark import force_velocity_multiplier_from_state
-from vm_ros.errors import ConfigError
+from vm_ros.model.energetics_models.lichtwark import force_velocity_multiplier_from_state
 from vm_ros.resources import config_dir
 
 RTOL = 1e-12

@@ -226,8 +226,8 @@ def test_one_function_maps_length_and_velocity_to_the_fibre_type_curves():
     """curves.fibre_type_curves[_and_slopes] is the one (L, V) -> FL, FV mapping: the NumPy
     step's, the published models' inputs and the kernel (uncompiled on its packed rows, and
     compiled by Numba) give the same values; FL(1) = FV(0) = 1 for both types."""
-    from vm_ros.energetics_models.vm_state import fibre_curves
     from vm_ros.model import curves, mechanics
+    from vm_ros.model.energetics_models.vm_state import fibre_curves
 
     bank = MuscleBank.from_config(["vasti"], backend="numpy")
     p = bank.params

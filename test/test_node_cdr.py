@@ -145,3 +145,57 @@ def test_a_stream_with_repeated_names_decodes_them_once():
     longer.header.frame_id = "odd"  # the same name block start, a longer block
     d = decode(serialization.serialize_message(longer))
     assert list(d.name) == list(first.name) + ["extra"]
+
+
+@pytest.mark.parametrize("msg", [samples()[0], _many_names(80)], ids=["2 joints", "80 joints"])
+def test_a_stream_decoder_reading_at_the_last_layout_is_as_safe(msg):
+    """A decoder that has just read the message (its layout kept) reads each truncation and 600
+    corruptions as a fresh one does: mcap_ros2's values wherever both decode, refused wherever
+    a fresh input decoder refuses; an oversized claim raises."""
+    data = serialization.serialize_message(msg)
+    rng = random.Random(5)
+    payloads = [data[:cut] for cut in range(len(data))]
+    for _ in range(600):
+        corrupt = bytearray(data)
+        for _ in range(3):
+            corrupt[rng.randrange(4, len(corrupt))] = rng.randrange(256)
+        payloads.append(bytes(corrupt))
+    oversized = bytearray(data)
+    effort_at = data.rindex(struct.pack("<d", msg.velocity[-1])) + 8  # after the velocities
+    oversized[effort_at:effort_at + 4] = struct.pack("<I", 10**6)
+    stream = input_decoder("sensor_msgs/msg/JointState")
+    fast = 0
+    for payload in [*payloads, bytes(oversized)]:
+        assert _values(stream(data)) == _values(_decode(msgs.JointState, data))
+        try:
+            expected = _values(_decode(msgs.JointState, payload))
+        except (ValueError, UnicodeDecodeError):
+            expected = None
+        try:
+            got = _values(stream(payload))
+        except (ValueError, UnicodeDecodeError):
+            got = None
+        assert got == expected
+        fast += got is not None and len(payload) == len(data)
+    assert fast > 0 and expected is None  # the oversized count, last
+
+
+def test_a_stream_decoder_keeps_the_names_when_only_the_padding_differs():
+    """The alignment padding between names is not initialised by every serialiser: two messages
+    with the same names and different padding bytes share the names tuple."""
+    msg = msgs.JointState(name=["a", "bb", "ccc", "dddd"], position=[1.0, 2.0, 3.0, 4.0])
+    data = serialization.serialize_message(msg)
+    decode = input_decoder("sensor_msgs/msg/JointState")
+    first = decode(data)
+    # encapsulation 4 bytes, stamp 8, frame_id "" as length 4 + NUL 1: the count at 20; "a" as
+    # length at 24, "a\0" at 28-29, padding 30-31; "bb" as length at 32, "bb\0" at 36-38,
+    # padding 39
+    padded = bytearray(data)
+    for at in (30, 31, 39):
+        padded[at] = 0xAB
+    assert bytes(padded) != data
+    second = decode(bytes(padded))
+    assert second.name is first.name and list(second.position) == [1.0, 2.0, 3.0, 4.0]
+    renamed = bytearray(padded)
+    renamed[28] = ord("z")  # "a" -> "z": a new names tuple
+    assert decode(bytes(renamed)).name == ("z", "bb", "ccc", "dddd")

@@ -39,7 +39,7 @@ cross_bridge, recovery, total). layout.dim[0..2] carry the labels "muscle", "fib
 with sizes and strides; layout.data_offset = 0.
 
 energy_rate_models layout (the published energetics models the run selected,
-vm_ros.energetics_models): ``data[i*M*C + j*C + k]`` = muscle i (order of the ``muscles``
+vm_ros.model.energetics_models): ``data[i*M*C + j*C + k]`` = muscle i (order of the ``muscles``
 parameter), model j (the run's models, in the order of the registry MODEL_NAMES), component k in
 MODEL_COMPONENT_LABELS = (activation_maintenance, shortening_lengthening, basal,
 mechanical_work, total), C = 5; NaN where a model has no such component. Each layout.dim's
@@ -53,7 +53,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vm_ros.energetics_models.in_bank import COMPONENTS as MODEL_COMPONENTS
+from vm_ros.model.energetics_models.in_bank import COMPONENTS as MODEL_COMPONENTS
 from vm_ros.model.records import ENERGY_COMPONENTS, StepOutput
 from vm_ros.topics import *  # noqa: F403 - the topic and type names, declared there
 

@@ -10,6 +10,11 @@ Sections (all but node-memory by default; --only picks some):
   natural   natural units (20 per fibre type) over lumped units, cost ratio per step
   offline   the 180 s rectus femoris + vasti knee extension (dynamic recovery) with
             MuscleBank.run, wall time including set-up and input sampling
+  decode    muscle_node's decoding of an 80-joint JointState (vm_ros.recording.cdr): a stream
+            that keeps its names (the node's steady state; target <= 20 us per message), names
+            changing every message, mcap_ros2's decoder and rclpy's deserialize_message; thread
+            CPU time per message, medians of interleaved rounds, the load quoted
+            (vm_ros_bench.decode_bench)
   node      muscle_node as a separate process: 1, 100 and 1000 muscles at 1 kHz publishing at
             100 Hz with MCAP (default batch: a tick per publish period), and 10 muscles
             publishing at 1 kHz; CPU, memory, model-time drift, time skipped, latency.
@@ -70,8 +75,8 @@ from vm_ros.child_process import loopback_only, module_command
 from vm_ros.errors import VmRosError
 from vm_ros_bench import FOLDER, child_environment
 
-SECTIONS = ("model", "natural", "offline", "node", "joint", "node-memory")
-DEFAULT_SECTIONS = ("model", "natural", "offline", "node", "joint")  # node-memory: when named
+SECTIONS = ("model", "natural", "offline", "decode", "node", "joint", "node-memory")
+DEFAULT_SECTIONS = ("model", "natural", "offline", "decode", "node", "joint")  # node-memory: named
 MEMORY_DURATION_S, MEMORY_QUICK_DURATION_S = 300.0, 60.0  # node-memory window
 MEMORY_WARMUP_S, MEMORY_QUICK_WARMUP_S = 120.0, 5.0
 MEMORY_SPLIT_S = 60.0  # bag split (log time); shorter windows: a fifth of the window
@@ -340,6 +345,8 @@ def _csv_rows(results: dict) -> list[dict]:
             if "cli_s" in logged:
                 add("offline", "the same as a vm-ros simulate process", "wall", logged["cli_s"],
                     "s")
+    if "decode" in results:
+        _decode_csv_rows(results["decode"], add)
     if "compare" in results:
         _compare_csv_rows(results["compare"], add)
     for r in results.get("node", []):
@@ -369,6 +376,25 @@ def _csv_rows(results: dict) -> list[dict]:
     if "node-memory" in results:
         _memory_csv_rows(results["node-memory"], add)
     return rows
+
+
+def _decode_csv_rows(r: dict, add) -> None:
+    load = f"load {r['load_1min_start']:.2f}-{r['load_1min_end']:.2f}"
+    timed = {row["case"]: row for row in r["rows"] if "us" in row}
+    for row in r["rows"]:
+        case = f"JointState {r['joints']} joints, {row['case']} ({load})"
+        if "skipped" in row:
+            add("decode", case, "skipped", row["skipped"], "")
+            continue
+        stream = row["case"] == "stream"
+        add("decode", case, f"per message median, {r['clock']}", row["us"], "us",
+            f"<= {r['target_us']:g} us" if stream else None,
+            row["us"] <= r["target_us"] if stream else None, row["us_min"], row["us_max"])
+    if "stream" in timed:
+        for name in ("rclpy", "new names"):
+            if name in timed:
+                add("decode", f"JointState {r['joints']} joints, {name} / stream ({load})",
+                    "per message", timed[name]["us"] / timed["stream"]["us"], "ratio")
 
 
 def _compare_csv_rows(compare: dict, add) -> None:
@@ -535,7 +561,7 @@ def _measure(name: str, measure, results: dict, out: Path) -> None:
 
 
 def run(args) -> int:
-    from vm_ros_bench import model_bench
+    from vm_ros_bench import decode_bench, model_bench
 
     sections = args.only or list(DEFAULT_SECTIONS)
     repeats = args.repeats or (3 if args.quick else 7)
@@ -584,6 +610,8 @@ def run(args) -> int:
         ("kernel", lambda: _kernel_rows(args.quick)),
         ("natural", natural),
         ("offline", offline),
+        ("decode", lambda: decode_bench.bench_joint_state_decode(
+            repeats=repeats, min_seconds=min_seconds, progress=_say)),
         ("node", lambda: _node_rows(node_duration, out)),
         ("joint", lambda: _joint_section(out, args.quick, repeats, min_seconds,
                                          node_duration)),

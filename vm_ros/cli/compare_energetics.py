@@ -1,5 +1,5 @@
-"""Every published energetics model (vm_ros.energetics_models) against Tsianos 2012 on the same
-Virtual Muscle runs: an isometric drive sweep (fascicle held at L0), an isovelocity sweep
+"""Every published energetics model (vm_ros.model.energetics_models) against Tsianos 2012 on the
+same Virtual Muscle runs: an isometric drive sweep (fascicle held at L0), an isovelocity sweep
 (shortening and lengthening at a fixed drive), the paper's 180 s knee extension and a gait-like
 cycle (ours), each for slow, mixed, fast and library fibre compositions
 (docs/energetics_models.md section 8).
@@ -22,7 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from vm_ros.energetics_models.compare import (
+from vm_ros.errors import VmRosError
+from vm_ros.model.energetics_models.vm_state import MODEL_NAMES
+from vm_ros.validation.energetics_compare import (
     COMPOSITION_NAMES,
     FILE_NAME,
     GROUPS,
@@ -36,8 +38,6 @@ from vm_ros.energetics_models.compare import (
     write_figures,
     write_table,
 )
-from vm_ros.energetics_models.vm_state import MODEL_NAMES
-from vm_ros.errors import VmRosError
 
 TABLE_NAME = "energetics_comparison.csv"
 

@@ -8,7 +8,7 @@ natural isometric force-drive curves), and model_fit_w.yaml: a copy of the model
 with the refit recruitment.lumped coefficients, usable as `--params` / `params=` elsewhere. With
 --drive-filter also drive_filter_steps.csv: the refit law on drive steps the fit did not see
 (lumped / natural initial energy and force impulse over 0.25 s, full model, at L0), and the
-paper's Fig. 10 sinusoids.
+paper's Fig. 10 sinusoids; it also prints the held-out drives' summary (validation item 12).
 """
 
 from __future__ import annotations
@@ -31,6 +31,12 @@ from vm_ros.model.lumped_fit import (
 )
 from vm_ros.model.params import DRIVE_LAWS, resolve_muscles
 from vm_ros.resources import config_dir
+from vm_ros.validation.held_out import (
+    HELD_OUT_SEEDS,
+    compare_held_out,
+    held_out_cases,
+    held_out_summary,
+)
 
 
 def add_arguments(parser) -> None:
@@ -85,6 +91,8 @@ def _held_out(params, start_params, ur: float, path: Path) -> None:
         writer.writerow(["law_constants", "fpcsa_slow", "drive_before", "drive_after",
                          "energy_ratio", "impulse_ratio"])
         writer.writerows([[r[0]] + [f"{v:.4f}" for v in r[1:]] for r in rows])
+    cases = held_out_cases()
+    held_out = compare_held_out(start_params, cases, (start_params, params))
     print("\nvalidation drives, lumped / natural over the first 0.25 s after a step (full model, "
           "L0) and the paper's Fig. 10 sinusoids (worst |error|, % F(U=1))")
     for label, steps, worst in summary:
@@ -93,6 +101,10 @@ def _held_out(params, start_params, ur: float, path: Path) -> None:
               f"{np.median(e):.3f}), force impulse {f.min():.2f}-{f.max():.2f} (median "
               f"{np.median(f):.3f}); Fig. 10 transient {worst[0]:.2f}, mean {worst[1]:.2f}, "
               f"range {worst[2]:.2f}")
+    print(f"held-out drives (vm-ros validate --only held_out, seeds {HELD_OUT_SEEDS[0]}-"
+          f"{HELD_OUT_SEEDS[-1]}), % of F(U=1)")
+    for (label, *_), run in zip(summary, held_out, strict=True):
+        print(f"  {label:6}  {held_out_summary(cases, run)}")
 
 
 def _plot(fit, path: Path) -> None:

@@ -53,7 +53,7 @@ the summary), joint_states giving non-physical path lengths are dropped (counted
 state is published at model time 0 as the node does. The summary adds per joint the peak and mean
 generalized force (N m or N), the joint work (sum of tau qdot dt over the steps) and the clamping.
 
-Published energetics models (--energetics-models A,B or all; vm_ros.energetics_models,
+Published energetics models (--energetics-models A,B or all; vm_ros.model.energetics_models,
 docs/energetics_models.md): the bank runs them beside Tsianos 2012 and the log gains the
 energy_rate_models channel (W, muscle x model x component, at --publish-rate) and their names in
 the metadata; `vm-ros report` plots them and prints their totals.
@@ -82,12 +82,12 @@ from vm_ros.cli.runs import (
     default_log_path,
     recorder_options,
 )
-from vm_ros.energetics_models.in_bank import model_names
-from vm_ros.energetics_models.vm_state import MODEL_NAMES
 from vm_ros.errors import InputError, VmRosError
 from vm_ros.geometry import load_geometry
 from vm_ros.importers.motion import read_motion
 from vm_ros.joint_space import JointMap, JointSpace
+from vm_ros.model.energetics_models.in_bank import model_names
+from vm_ros.model.energetics_models.vm_state import MODEL_NAMES
 from vm_ros.model.params import load_muscle_library
 from vm_ros.model.run_config import RunConfig
 from vm_ros.node.motion_inputs import (

@@ -30,6 +30,8 @@ import numpy as np
 from vm_ros.errors import InputError
 from vm_ros.model import kernel, layout
 from vm_ros.model.compiled_step import CompiledStep, KernelConstants
+from vm_ros.model.energetics_models.in_bank import BankModels, model_names
+from vm_ros.model.energetics_models.vm_state import VmMuscleConstants
 from vm_ros.model.layout import BankState
 from vm_ros.model.mechanics import MuscleGeometry, equilibrium_fascicle_length
 from vm_ros.model.numpy_step import NumpyStep
@@ -122,10 +124,6 @@ class MuscleBank:
         self._models = None
         self._pending: list = []  # (dt, StepOutput) of steps whose models wait for a batch
         if energetics_models:
-            # imported here: vm_ros.energetics_models reads vm_ros.model's curves and params
-            from vm_ros.energetics_models.in_bank import BankModels, model_names
-            from vm_ros.energetics_models.vm_state import VmMuscleConstants
-
             names = model_names(energetics_models)
             if names:
                 self._models = BankModels(names, VmMuscleConstants.from_bank(self))
@@ -160,7 +158,7 @@ class MuscleBank:
         backend: "auto" (the compiled step when Numba is importable), "numba" or "numpy";
         drive_law: the lumped drive filter's law (DRIVE_LAWS; None: the model file's);
         energetics_models: published models to run beside Tsianos 2012 (names of
-        vm_ros.energetics_models.MODEL_NAMES, or "all"; an unknown name is an InputError that
+        vm_ros.model.energetics_models.MODEL_NAMES, or "all"; an unknown name is an InputError that
         lists the known ones); parallel: see the constructor.
         """
         if not isinstance(params, ModelParams):
@@ -359,7 +357,7 @@ class MuscleBank:
         the start of the step; path_velocity: its rate (m/s) over the step (None: held constant).
         Raises InputError (state untouched) for non-finite values, wrong shapes, dt <= 0.
         With ``energetics_models`` the published models then run on the step's outputs
-        (vm_ros.energetics_models.in_bank; StepOutput.energy_rate_models, energy_models): when
+        (vm_ros.model.energetics_models.in_bank; StepOutput.energy_rate_models, energy_models): when
         first read, or every PENDING_MUSCLE_STEPS muscle-steps, for all the steps taken since
         the last time in one batch (as :meth:`run` does), which gives each step's numbers.
         """

@@ -2,7 +2,7 @@
 
 Every constant comes from ``config/model.yaml`` (or a user file of the same form), where each entry
 carries its unit, confidence tag (C certain, L likely, R reconstructed) and source. Each field
-declares the unit its value is held in (``_holds``); the unit written in the file must be one of
+declares the unit its value is held in (``holds``); the unit written in the file must be one of
 vm_ros.model.units.UNITS for the same quantity, and is converted here, once (ms, N/cm^2, g/cm^3,
 kJ); everything downstream is SI or VM's normalised units (L0, L0/s, F0, f0.5). The unit, tag and
 source of each constant stay on the loaded parameters (``ModelParams.info``; ``vm-ros params``).
@@ -16,132 +16,26 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
-import math
 from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from vm_ros.errors import ConfigError
-from vm_ros.model.units import unit_for_field
+from vm_ros.model.config_reader import (  # the {value, unit, tag, source} reader
+    FIBRE_TYPES,
+    ParamInfo,
+    finite_number,
+    holds,
+    load_yaml,
+    read_section,
+    yaml_section,
+)
 from vm_ros.resources import config_dir
 
-FIBRE_TYPES = ("slow", "fast")
 SLOW, FAST = 0, 1
-TAGS = ("C", "L", "R")
-
-
-def _holds(unit: str):
-    """A dataclass field whose value is in ``unit`` (a key of vm_ros.model.units.UNITS); the
-    loader accepts any unit of the same quantity in the file and converts it."""
-    return field(metadata={"unit": unit})
-
-
-@dataclass(frozen=True)
-class ParamInfo:
-    """Where a model constant comes from, as written in its file.
-
-    ``name`` is dotted (``fibre_type_parameters.tf1``); ``unit`` is the unit written in the file
-    (``ms``); ``si`` the unit of the loaded value (``s``); ``tag`` C, L or R; ``source`` the
-    citation.
-    """
-
-    name: str
-    unit: str
-    si: str
-    tag: str
-    source: str
-
-
-def _load_yaml(path: Path) -> dict:
-    try:
-        with open(path, encoding="utf-8") as handle:
-            data = yaml.safe_load(handle)
-    except OSError as exc:
-        raise ConfigError(path, "<file>", None, f"cannot read: {exc.strerror}") from exc
-    except yaml.YAMLError as exc:
-        raise ConfigError(path, "<file>", None, f"not valid YAML: {exc}") from exc
-    if not isinstance(data, dict):
-        raise ConfigError(path, "<file>", type(data).__name__, "top level must be a mapping")
-    return data
-
-
-def _finite_number(path, name: str, value) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ConfigError(path, name, value, "must be a finite number")
-    return float(value)
-
-
-def _section(path, data: dict, dotted: str) -> dict:
-    """The mapping at ``dotted`` (``"recruitment.lumped"``) in ``data``."""
-    section, parts = data, dotted.split(".")
-    for depth in range(len(parts)):
-        section = section.get(parts[depth])
-        if not isinstance(section, dict):
-            where = ".".join(parts[: depth + 1])
-            raise ConfigError(path, where, section, "missing or not a mapping")
-    return section
-
-
-def _read_value(path, name: str, kind: str, entry: dict, factor: float):
-    """One entry's value, by the kind of the field it fills (its annotation)."""
-    if kind == "np.ndarray":  # one value per fibre type
-        return np.array([_finite_number(path, f"{name}.{t}", entry.get(t)) for t in FIBRE_TYPES]
-                        ) * factor
-    value = entry.get("value")
-    if kind == "float":
-        return _finite_number(path, f"{name}.value", value) * factor
-    if kind == "tuple":  # polynomial coefficients
-        if not isinstance(value, list) or not value:
-            raise ConfigError(path, f"{name}.value", value, "must be a non-empty list of numbers")
-        return tuple(_finite_number(path, f"{name}.value", v) * factor for v in value)
-    if kind == "bool":
-        if not isinstance(value, bool):
-            raise ConfigError(path, f"{name}.value", value, "must be true or false")
-        return value
-    if kind == "str":
-        if not isinstance(value, str):
-            raise ConfigError(path, f"{name}.value", value, "must be a name (text)")
-        return value
-    raise TypeError(f"{name}: no reader for fields of type {kind}")
-
-
-def _read_section(cls, path, section: dict, section_name: str, info: dict) -> dict:
-    """The fields of ``cls`` from one section of a model file, converted to the unit each field
-    holds; each entry's unit, tag and source go into ``info``."""
-    fields = {f.name: f for f in dataclasses.fields(cls)}
-    unknown = sorted(set(section) - set(fields))
-    if unknown:
-        raise ConfigError(path, f"{section_name}.{unknown[0]}", None, "unknown parameter")
-    missing = sorted(set(fields) - set(section))
-    if missing:
-        raise ConfigError(path, f"{section_name}.{missing[0]}", None, "missing")
-    values = {}
-    for name, f in fields.items():
-        where, entry = f"{section_name}.{name}", section[name]
-        keys = {*FIBRE_TYPES} if f.type == "np.ndarray" else {"value"}
-        if not isinstance(entry, dict):
-            raise ConfigError(path, where, entry,
-                              f"must be a mapping with {'/'.join(sorted(keys))}/unit/tag/source")
-        for key in ("unit", "tag", "source"):
-            if key not in entry:
-                raise ConfigError(path, f"{where}.{key}", None, "missing")
-        extra = sorted(set(entry) - keys - {"unit", "tag", "source"})
-        if extra:
-            raise ConfigError(path, f"{where}.{extra[0]}", entry[extra[0]],
-                              f"unknown key (an entry has {', '.join(sorted(keys))}, unit, tag, "
-                              f"source)")
-        if entry["tag"] not in TAGS:
-            raise ConfigError(path, f"{where}.tag", entry["tag"], f"must be one of {TAGS}")
-        if not isinstance(entry["source"], str) or not entry["source"].strip():
-            raise ConfigError(path, f"{where}.source", entry["source"], "must be a citation")
-        unit = unit_for_field(path, f"{where}.unit", entry["unit"], f.metadata["unit"])
-        values[name] = _read_value(path, where, f.type, entry, unit.factor)
-        info[where] = ParamInfo(where, unit.symbol, unit.si, entry["tag"], entry["source"])
-    return values
 
 
 @dataclass(frozen=True)
@@ -152,31 +46,31 @@ class FibreTypeParams:
     fibres and yield (cy) for fast ones, so one code path serves both types.
     """
 
-    omega: np.ndarray = _holds("1")
-    beta: np.ndarray = _holds("1")
-    rho: np.ndarray = _holds("1")
-    vmax: np.ndarray = _holds("L0/s")
-    cv0: np.ndarray = _holds("1")
-    cv1: np.ndarray = _holds("1")
-    av0: np.ndarray = _holds("1")
-    av1: np.ndarray = _holds("1")
-    av2: np.ndarray = _holds("1")
-    bv: np.ndarray = _holds("L0/s")
-    af: np.ndarray = _holds("f0.5")
-    nf0: np.ndarray = _holds("1")
-    nf1: np.ndarray = _holds("1")
-    tf1: np.ndarray = _holds("s")
-    tf2: np.ndarray = _holds("s")
-    tf3: np.ndarray = _holds("s")
-    tf4: np.ndarray = _holds("s")
-    as1: np.ndarray = _holds("1")
-    as2: np.ndarray = _holds("1")
-    ts: np.ndarray = _holds("s")
-    sag_rate_threshold: np.ndarray = _holds("f0.5")
-    cy: np.ndarray = _holds("1")
-    vy: np.ndarray = _holds("L0/s")
-    ty: np.ndarray = _holds("s")
-    f_half_pps: np.ndarray = _holds("1/s")
+    omega: np.ndarray = holds("1")
+    beta: np.ndarray = holds("1")
+    rho: np.ndarray = holds("1")
+    vmax: np.ndarray = holds("L0/s")
+    cv0: np.ndarray = holds("1")
+    cv1: np.ndarray = holds("1")
+    av0: np.ndarray = holds("1")
+    av1: np.ndarray = holds("1")
+    av2: np.ndarray = holds("1")
+    bv: np.ndarray = holds("L0/s")
+    af: np.ndarray = holds("f0.5")
+    nf0: np.ndarray = holds("1")
+    nf1: np.ndarray = holds("1")
+    tf1: np.ndarray = holds("s")
+    tf2: np.ndarray = holds("s")
+    tf3: np.ndarray = holds("s")
+    tf4: np.ndarray = holds("s")
+    as1: np.ndarray = holds("1")
+    as2: np.ndarray = holds("1")
+    ts: np.ndarray = holds("s")
+    sag_rate_threshold: np.ndarray = holds("f0.5")
+    cy: np.ndarray = holds("1")
+    vy: np.ndarray = holds("L0/s")
+    ty: np.ndarray = holds("s")
+    f_half_pps: np.ndarray = holds("1/s")
 
     def take(self, index: np.ndarray) -> FibreTypeParams:
         """The same parameters gathered along the fibre-type axis (e.g. one entry per unit)."""
@@ -189,68 +83,68 @@ class FibreTypeParams:
 class GenericParams:
     """Constants shared by both fibre types (VM 4.0). Forces in F0, lengths in L0 or L0T."""
 
-    fmin: float = _holds("f0.5")
-    fmax: float = _holds("f0.5")
-    c1: float = _holds("F0")
-    k1: float = _holds("1")
-    lr1: float = _holds("1")
-    eta: float = _holds("F0 s/L0")
-    c2: float = _holds("F0")
-    k2: float = _holds("1/L0")
-    lr2: float = _holds("L0")
-    ct: float = _holds("F0/L0T")
-    kt: float = _holds("L0T")
-    lrt: float = _holds("L0T")
-    specific_tension: float = _holds("Pa")
-    muscle_density: float = _holds("kg/m^3")
-    ur_default: float = _holds("1")
-    l_activation_max_fraction: float = _holds("1")
-    l_activation_min: float = _holds("L0")
-    fv_denominator_min: float = _holds("1")
+    fmin: float = holds("f0.5")
+    fmax: float = holds("f0.5")
+    c1: float = holds("F0")
+    k1: float = holds("1")
+    lr1: float = holds("1")
+    eta: float = holds("F0 s/L0")
+    c2: float = holds("F0")
+    k2: float = holds("1/L0")
+    lr2: float = holds("L0")
+    ct: float = holds("F0/L0T")
+    kt: float = holds("L0T")
+    lrt: float = holds("L0T")
+    specific_tension: float = holds("Pa")
+    muscle_density: float = holds("kg/m^3")
+    ur_default: float = holds("1")
+    l_activation_max_fraction: float = holds("1")
+    l_activation_min: float = holds("L0")
+    fv_denominator_min: float = holds("1")
 
 
 @dataclass(frozen=True)
 class LumpedParams:
     """Tsianos 2012 Appendix A lumped-unit constants (polynomials in U2, highest power first)."""
 
-    u1: float = _holds("1")
-    t_rise_poly: tuple = _holds("s")
-    t_fall_poly: tuple = _holds("s")
-    t_rise_step_scale: float = _holds("1/s")
-    drive_law: str = _holds("-")
-    relative_rise_poly: tuple = _holds("s")
-    relative_rise_power: float = _holds("1")
-    relative_fall_poly: tuple = _holds("s")
-    relative_fall_power: float = _holds("1")
-    drive_tau_min: float = _holds("s")
-    w_slow_poly: tuple = _holds("1")
-    w_slow_a_poly: tuple = _holds("1")
-    w_slow_tau: float = _holds("1")
-    w_fast_b_poly: tuple = _holds("1")
-    w_fast_c_poly: tuple = _holds("1")
-    w_fast_offset: float = _holds("1")
-    w_fast_rise: float = _holds("1")
-    w_fast_tau_poly: tuple = _holds("1")
-    cap_recruitment_at_full: bool = _holds("bool")
+    u1: float = holds("1")
+    t_rise_poly: tuple = holds("s")
+    t_fall_poly: tuple = holds("s")
+    t_rise_step_scale: float = holds("1/s")
+    drive_law: str = holds("-")
+    relative_rise_poly: tuple = holds("s")
+    relative_rise_power: float = holds("1")
+    relative_fall_poly: tuple = holds("s")
+    relative_fall_power: float = holds("1")
+    drive_tau_min: float = holds("s")
+    w_slow_poly: tuple = holds("1")
+    w_slow_a_poly: tuple = holds("1")
+    w_slow_tau: float = holds("1")
+    w_fast_b_poly: tuple = holds("1")
+    w_fast_c_poly: tuple = holds("1")
+    w_fast_offset: float = holds("1")
+    w_fast_rise: float = holds("1")
+    w_fast_tau_poly: tuple = holds("1")
+    cap_recruitment_at_full: bool = holds("bool")
 
 
 @dataclass(frozen=True)
 class NaturalParams:
     """Discrete natural-unit recruitment (Cheng 2000)."""
 
-    units_per_type: float = _holds("1")
-    apportioning: str = _holds("-")
-    geometric_ratio: float = _holds("1")
-    u_threshold_min: float = _holds("1")
+    units_per_type: float = holds("1")
+    apportioning: str = holds("-")
+    geometric_ratio: float = holds("1")
+    u_threshold_min: float = holds("1")
 
 
 @dataclass(frozen=True)
 class ContinuousParams:
     """Continuous recruitment (Song 2008)."""
 
-    u_threshold_min: float = _holds("1")
-    tau_rise: float = _holds("s")
-    tau_fall: float = _holds("s")
+    u_threshold_min: float = holds("1")
+    tau_rise: float = holds("s")
+    tau_fall: float = holds("s")
 
 
 @dataclass(frozen=True)
@@ -263,20 +157,20 @@ class EnergeticsParams:
     section 7).
     """
 
-    e1: np.ndarray = _holds("W s/(kg L0)")
-    e2: np.ndarray = _holds("W/kg")
-    e3: np.ndarray = _holds("W L0/(kg s)")
-    e4: np.ndarray = _holds("L0/s")
-    recovery_ratio: np.ndarray = _holds("1")
-    activation_fraction: float = _holds("1")
-    dry_to_wet_mass: float = _holds("1")
-    heat_capacity: float = _holds("J/(kg K)")
-    recovery_mode: str = _holds("-")
-    recovery_kernel: str = _holds("-")
-    fitted_fig7_tau_rise: float = _holds("s")
-    fitted_fig7_tau_decay: float = _holds("s")
-    pcr_slade2006_tau_rise: float = _holds("s")
-    pcr_slade2006_tau_decay: float = _holds("s")
+    e1: np.ndarray = holds("W s/(kg L0)")
+    e2: np.ndarray = holds("W/kg")
+    e3: np.ndarray = holds("W L0/(kg s)")
+    e4: np.ndarray = holds("L0/s")
+    recovery_ratio: np.ndarray = holds("1")
+    activation_fraction: float = holds("1")
+    dry_to_wet_mass: float = holds("1")
+    heat_capacity: float = holds("J/(kg K)")
+    recovery_mode: str = holds("-")
+    recovery_kernel: str = holds("-")
+    fitted_fig7_tau_rise: float = holds("s")
+    fitted_fig7_tau_decay: float = holds("s")
+    pcr_slade2006_tau_rise: float = holds("s")
+    pcr_slade2006_tau_decay: float = holds("s")
 
     def kernel_taus(self, kernel: str | None = None) -> tuple[float, float]:
         """(tr, td) in s of the recovery kernel ``kernel`` (default: the selected one)."""
@@ -353,7 +247,7 @@ def load_model_params(path: str | Path | None = None) -> ModelParams:
     (``ms`` for a time constant, not ``mm`` or ``msec``); values are converted once, here.
     """
     path = Path(path) if path is not None else config_dir() / "model.yaml"
-    data = _load_yaml(path)
+    data = load_yaml(path)
     if data.get("fibre_types") != list(FIBRE_TYPES):
         raise ConfigError(
             path, "fibre_types", data.get("fibre_types"), f"must be {list(FIBRE_TYPES)}"
@@ -361,8 +255,8 @@ def load_model_params(path: str | Path | None = None) -> ModelParams:
     info: dict[str, ParamInfo] = {}
     groups = {}
     for section_name, (attribute, cls) in SECTIONS.items():
-        section = _section(path, data, section_name)
-        groups[attribute] = cls(**_read_section(cls, path, section, section_name, info))
+        section = yaml_section(path, data, section_name)
+        groups[attribute] = cls(**read_section(cls, path, section, section_name, info))
     params = ModelParams(**groups, path=str(path), info=info)
     _validate_model_params(params)
     return params
@@ -468,21 +362,25 @@ class MuscleSpec:
     | lmax | L0 | fascicle length at the maximum path length (or None with path_length_max_m) |
     | fpcsa_slow | 1 | fraction of PCSA in slow fibres |
     | ur | 1 | drive at which all units are recruited |
+    | specific_tension_pa | Pa | this muscle's F0 / PCSA (None: the model's generic value) |
     """
 
     name: str
-    mass_kg: float = _holds("kg")
-    l0_m: float = _holds("m")
-    l0t_m: float = _holds("m")
-    fpcsa_slow: float = _holds("1")
-    ur: float = _holds("1")
+    mass_kg: float = holds("kg")
+    l0_m: float = holds("m")
+    l0t_m: float = holds("m")
+    fpcsa_slow: float = holds("1")
+    ur: float = holds("1")
     path_length_max_m: float | None = field(default=None, metadata={"unit": "m"})
     lmax: float | None = field(default=None, metadata={"unit": "L0"})
     path_length_min_m: float | None = field(default=None, metadata={"unit": "m"})
+    specific_tension_pa: float | None = field(default=None, metadata={"unit": "Pa"})
     source: Mapping = field(default_factory=dict)
     description: str = ""
 
 
+# A muscle's own specific tension must be in Pa: this band (5-200 N/cm^2) catches N/cm^2 by mistake.
+SPECIFIC_TENSION_BAND_PA = (5e4, 2e6)
 # The numeric fields of a library entry (unit in the field name, SI or L0; never converted).
 _MUSCLE_NUMBERS = tuple(f.name for f in dataclasses.fields(MuscleSpec) if "unit" in f.metadata)
 _MUSCLE_FIELDS = set(_MUSCLE_NUMBERS) | {"source", "description"}
@@ -504,7 +402,7 @@ def muscle_from_fields(name: str, fields: Mapping, path, ur_default: float) -> M
     values = {}
     for key in _MUSCLE_NUMBERS:
         if fields.get(key) is not None:
-            values[key] = _finite_number(path, f"{where}.{key}", fields[key])
+            values[key] = finite_number(path, f"{where}.{key}", fields[key])
     for key in ("mass_kg", "l0_m", "l0t_m"):
         if key not in values:
             raise ConfigError(path, f"{where}.{key}", None, "missing")
@@ -533,6 +431,15 @@ def muscle_from_fields(name: str, fields: Mapping, path, ur_default: float) -> M
     source = fields.get("source") or {}
     if not isinstance(source, Mapping):
         source = {"all": str(source)}
+    sigma = values.get("specific_tension_pa")
+    if sigma is not None:
+        low, high = SPECIFIC_TENSION_BAND_PA
+        if not low <= sigma <= high:
+            raise ConfigError(path, f"{where}.specific_tension_pa", sigma,
+                              f"give Pa in {low:g}-{high:g} (5-200 N/cm^2)")
+        if not (source.get("specific_tension_pa") or source.get("all")):
+            raise ConfigError(path, f"{where}.source.specific_tension_pa", None,
+                              "a muscle's own specific tension needs its source")
     return MuscleSpec(
         name=name, source=dict(source), description=str(fields.get("description", "")), **values
     )
@@ -541,7 +448,7 @@ def muscle_from_fields(name: str, fields: Mapping, path, ur_default: float) -> M
 def load_muscle_library(path: str | Path | None = None) -> dict[str, dict]:
     """Read a muscle-library YAML file: ``{name: fields}`` (validated when a bank is built)."""
     path = Path(path) if path is not None else config_dir() / "muscles.yaml"
-    data = _load_yaml(path)
+    data = load_yaml(path)
     muscles = data.get("muscles")
     if not isinstance(muscles, dict) or not muscles:
         raise ConfigError(path, "muscles", muscles, "must be a non-empty mapping of name to fields")
@@ -617,7 +524,10 @@ def resolve_muscles(
             fields.pop("path_length_max_m", None)
         if "path_length_max_m" in extra:
             fields.pop("lmax", None)
+        source = {**(fields.get("source") or {}), **(extra.get("source") or {})}
         fields.update(extra)
+        if source:
+            fields["source"] = source
         specs.append(
             muscle_from_fields(name, fields, lib_path if not extra else "<overrides>", ur_default)
         )

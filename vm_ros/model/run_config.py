@@ -20,7 +20,7 @@ from pathlib import Path
 import yaml
 
 from vm_ros.errors import ConfigError
-from vm_ros.model import MuscleBank
+from vm_ros.model.bank import MuscleBank
 from vm_ros.resources import config_dir
 
 
@@ -39,7 +39,7 @@ class RunConfig:
     | joint_map | robot joints -> coordinates, the ``joint_map`` YAML text ("" = own names) |
     | joints | robot joints ordering joint_efforts (() = every coordinate) |
     | energetics_models | published energetics models run beside Tsianos 2012 (names of
-      vm_ros.energetics_models.MODEL_NAMES; () none): the energy_rate_models channel |
+      vm_ros.model.energetics_models.MODEL_NAMES; () none): the energy_rate_models channel |
     """
 
     muscles: tuple

@@ -100,8 +100,8 @@ PARAMS = (
               choices=("", *DRIVE_LAWS)),
     ParamSpec("energetics_models", [], "string_array", "-",
               "Published energetics models computed beside Tsianos 2012 on the same state and "
-              "published on energy_rate_models (names from vm_ros.energetics_models, or [all]; "
-              "[] = none)"),
+              "published on energy_rate_models (names from vm_ros.model.energetics_models, or "
+              "[all]; [] = none)"),
     ParamSpec("model_rate_hz", 1000.0, "double", "Hz",
               "Model step rate; the model advances in fixed steps of 1/model_rate_hz by elapsed "
               "ROS time", low=10.0, high=20000.0),
@@ -297,7 +297,7 @@ class NodeConfig:
 
     def energetics_model_names(self) -> tuple:
         """The energetics_models parameter as model names ("all" expanded)."""
-        from vm_ros.energetics_models.in_bank import model_names  # reads the model's curves
+        from vm_ros.model.energetics_models.in_bank import model_names  # reads the model's curves
 
         try:
             return model_names(list(self.energetics_models))

@@ -78,7 +78,7 @@ _CLOSE = object()
 # a SIGKILL can lose; its cost in bytes and CPU: docs/log_format.md section 1.
 FLUSH_INTERVAL_S = 1.0
 # The writer thread gives up the GIL after this many messages, so that a caller waiting for it
-# (a 1 kHz loop) waits about one batch (~0.3 ms), not CPython's 5 ms switch interval; it stops
+# (a 1 kHz loop) waits about one batch, not CPython's 5 ms switch interval; it stops
 # doing so while the queue is more than a quarter full, to catch up.
 _YIELD_EVERY = 32
 # The writer thread drains the queue this often (s), or at once when WAKE_SIZE queue entries

@@ -158,7 +158,7 @@ class ModelTotals:
     """One published energetics model over a run (energy_rate_models), beside Tsianos 2012.
 
     | field | unit |
-    | model | name (vm_ros.energetics_models.MODEL_NAMES; "tsianos2012" for vm_ros's own) |
+    | model | name (vm_ros.model.energetics_models.MODEL_NAMES; "tsianos2012" for vm_ros's own) |
     | energy | J, (n muscles,) the model's total rate integrated over the published samples |
     | tsianos | J, (n,) Tsianos 2012's total energy: the model's sum over its steps (the summary
       table's E total) |

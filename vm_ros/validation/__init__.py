@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from vm_ros.validation.held_out import check_held_out
 from vm_ros.validation.joint_torque import (
     JOINT_TORQUE_BANDS,
     JOINT_TORQUE_KNOWN_GAPS,
@@ -39,6 +40,7 @@ CHECKS: dict[str, Callable[..., CheckResult]] = {
     "fig9": check_fig9_lumped_steady,
     "fig10": check_fig10_lumped_sinusoidal,
     "steps": check_lumped_steps,
+    "held_out": check_held_out,
     "cost": check_lumped_cost,
     "joint_torque": check_joint_torque,
     "walk": check_walk,

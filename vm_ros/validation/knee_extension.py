@@ -22,6 +22,8 @@ FIG7_PAPER_TOTAL_J = 35_000.0
 FIG7_EXPERIMENT_BAND_J = (30_000.0, 40_000.0)
 # Natural units per fibre type in the Fig. 7 table (the paper's Fig. 10 comparison uses 20 too).
 FIG7_NATURAL_UNITS_PER_TYPE = 20
+FIG7_ENERGY_GAP = ("known gap (test/validation/REPORT.md item 9): the task as specified gives "
+                   "about half of the paper's total energy")
 
 
 @dataclass(frozen=True)
@@ -176,9 +178,9 @@ def check_fig7_knee_extension(params=None, duration_s=None, progress=None,
     """Fig. 7. The model does NOT reach the paper's total energy: it gives less than half of the
     35 000 J (test/validation/REPORT.md explains the gap). The criteria hold what the paper's
     trace shows and the model reproduces (constant initial energy, rising recovery, a ~40 % rise),
-    the cost per unit of work (a physiological efficiency), the gap itself, so that any change of
-    it is seen, and lumped against natural units. ``vm-ros validate --quick`` keeps the first two
-    criteria only.
+    the cost per unit of work (a physiological efficiency), the experiment's energy band (a known
+    gap: the model misses it, reported as GAP with its value), and lumped against natural units.
+    ``vm-ros validate --quick`` keeps the first two criteria only.
 
     ``data["table"]`` (with ``table``): the task under each recruitment scheme, lumped drive law
     and recovery kernel (:func:`fig7_table`); the lumped/natural criterion needs it.
@@ -213,14 +215,14 @@ def check_fig7_knee_extension(params=None, duration_s=None, progress=None,
         # to 0.25-0.60 because the model's work is net fascicle work, not ergometer work.
         Criterion("net fascicle work / total energy (measured 0.32-0.56)",
                   work / float(out.total_energy), 0.25, 0.60),
-        # The gap, pinned: with the relative_drive law and the fitted_fig7 kernel the model gives
-        # 0.535 of the paper's 35 000 J (18.7 kJ; natural units 19.5 kJ; tsianos2012 law 11.6 kJ,
-        # 0.333; the experiment's band is 30 000-40 000 J). Any change of the model or the scenario
-        # that moves this by more than about 10 % must update this band and
-        # test/validation/REPORT.md.
-        Criterion("total energy / paper's 35 000 J (GAP: experiment 30-40 kJ; see "
-                  "test/validation/REPORT.md)",
-                  float(out.total_energy) / FIG7_PAPER_TOTAL_J, 0.48, 0.59),
+        # The experiment's band, 30 000-40 000 J over the 180 s (0.857-1.143 of the paper's
+        # 35 000 J). The model misses it: a known gap, reported with its measured value (with the
+        # relative_drive law and the fitted_fig7 kernel 18.7 kJ, 0.535; test/validation/REPORT.md
+        # item 9 says why). No band is set around the model's own value.
+        Criterion("total energy / paper's 35 000 J (experiment 30-40 kJ)",
+                  float(out.total_energy) / FIG7_PAPER_TOTAL_J,
+                  FIG7_EXPERIMENT_BAND_J[0] / FIG7_PAPER_TOTAL_J,
+                  FIG7_EXPERIMENT_BAND_J[1] / FIG7_PAPER_TOTAL_J, known_gap=FIG7_ENERGY_GAP),
     ]
     rows = []
     if table:

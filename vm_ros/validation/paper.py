@@ -88,8 +88,8 @@ def check_fig2_energy_velocity(params=None) -> CheckResult:
             dry = e.dry_to_wet_mass * bank.mass_kg[0]
             acteff = out.effective_activation[0, t]
             # per kg dry and per unit activation, at the FL of the instant (close to 1)
-            fl = np.exp(-np.abs((out.length_l0[0] ** params.fibre.beta[t] - 1)
-                                / params.fibre.omega[t]) ** params.fibre.rho[t])
+            fl = fibre_type_curves(out.length_l0[0], 0.0, type_columns(params.fibre.take(t)),
+                                   params.generic.fv_denominator_min)[0]
             r = out.energy_rate_by_fibre
             model.append((r.activation[0, t] / act0 + r.cross_bridge[0, t] / (acteff * fl)) / dry)
             e_act.append(r.activation[0, t])

@@ -247,6 +247,35 @@ def plot_lumped_steps(result: CheckResult, path: Path) -> None:
     finish(fig, result, path, top=0.93)
 
 
+def plot_held_out(result: CheckResult, path: Path) -> None:
+    """Item 12: force RMS per case by family, and the per-jump and per-window energy ratios, for
+    the default drive law and the paper's."""
+    d = result.data
+    families = list(dict.fromkeys(c.family for c in d["cases"]))
+    family = np.array([c.family for c in d["cases"]])
+    fig, axes = plt.subplots(1, 3, figsize=(14, 4.5))
+    for offset, run, colour, label in ((-0.15, d["run"], "tab:blue", "default law"),
+                                       (0.15, d["paper_law"], "grey", "tsianos2012 law")):
+        for j, name in enumerate(families):
+            values = run.force_rms_percent[family == name]
+            axes[0].plot(np.full(len(values), j + offset), values, "o", color=colour, ms=4,
+                         label=label if j == 0 else None)
+        axes[1].hist(run.jump_energy_ratio, bins=50, range=(0.0, 2.0), histtype="step",
+                     color=colour, label=label)
+        axes[2].hist(run.window_energy_ratio, bins=50, range=(0.0, 2.0), histtype="step",
+                     color=colour, label=label)
+    axes[0].set_xticks(range(len(families)), families, rotation=30, fontsize=8)
+    axes[0].set(ylabel="force RMS, % of F(U=1)")
+    axes[0].legend(fontsize=8)
+    for ax, what, band in ((axes[1], "per-jump initial energy, lumped / natural", (0.8, 1.25)),
+                           (axes[2], "per-window total energy, lumped / natural", (0.9, 1.1))):
+        for edge in band:
+            ax.axvline(edge, color="k", lw=0.8, ls=":")
+        ax.set(xlabel=what, ylabel="count")
+        ax.legend(fontsize=8)
+    finish(fig, result, path, top=0.8)
+
+
 def plot_cost(result: CheckResult, path: Path) -> None:
     s, sizes = result.data["seconds_per_step"], result.data["sizes"]
     fig, ax = plt.subplots(figsize=(6, 4))
@@ -319,7 +348,9 @@ def _joint_row(axes, key, run) -> None:
                   mew=2, label=ref["label"])
     ax_a.axhline(0, color="grey", lw=0.5)
     ax_a.set(xlabel="joint angle (deg)", ylabel=f"{what} (N m)")
-    ax_a.set_title(f"model peak {run['peak_n_m']:.1f} N m; others' passive torque down to "
+    ax_a.set_title(f"model peak {run['peak_n_m']:.1f} N m "
+                   f"({run['peak_n_m'] / run['published_peak_n_m']:.2f} of the published peak); "
+                   "others' passive torque down to "
                    f"{s.total('other').min():.1f} N m", fontsize=9)
     ax_a.set_ylim(min(0.0, 1.1 * s.total("other").min()), None)
     ax_a.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
@@ -351,4 +382,4 @@ def plot_joint_torque(result: CheckResult, path: Path) -> None:
 PLOTS = {"fig2": plot_fig2, "fig3": plot_fig3, "fig4": plot_fig4, "fig5": plot_fig5,
          "fig6": plot_fig6, "fig7": plot_fig7, "fig9": plot_fig9, "fig10": plot_fig10,
          "cost": plot_cost, "joint_torque": plot_joint_torque, "steps": plot_lumped_steps,
-         "walk": plot_walk}
+         "held_out": plot_held_out, "walk": plot_walk}

@@ -24,20 +24,20 @@ from __future__ import annotations
 
 import numpy as np
 
-from vm_ros.energetics_models.vm_state import (
+from vm_ros.errors import InputError
+from vm_ros.model.energetics_models.vm_state import (
     MODEL_NAMES,
     VmMuscleConstants,
     current_model_name,
     published_model,
     vm_model_inputs,
 )
-from vm_ros.errors import InputError
 
 COMPONENTS = ("activation_maintenance", "shortening_lengthening", "basal", "mechanical_work",
               "total")
 TOTAL = COMPONENTS.index("total")
-# muscle-steps per chunk of a series: (k, n, 2) temporaries of about 160 kB (measured at 1000
-# muscles: chunks of 10 steps cost 2/3 of whole 100-step batches per step)
+# muscle-steps per chunk of a series: (k, n, 2) temporaries of about 160 kB, which stay in the
+# cache (cheaper per step than whole batches: docs/performance.md)
 CHUNK_MUSCLE_STEPS = 10_000
 
 

@@ -1,7 +1,7 @@
 """Every published energetics model against Tsianos 2012 on the same Virtual Muscle runs.
 
 Each scenario is run once per fibre composition with ``MuscleBank.run`` (fixed step ``dt``); the
-published models are computed from every step's state (vm_ros.energetics_models.vm_state), and
+published models are computed from every step's state (vm_ros.model.energetics_models.vm_state), and
 every model's rate, summed over the bank's muscles, is integrated on the step grid the bank
 integrates its own energy on: E = sum_k rate_k dt, rate_k at the end of step k (the bank's
 cumulative energy is exactly this sum for Tsianos 2012, which the tests check).
@@ -38,18 +38,13 @@ from pathlib import Path
 
 import numpy as np
 
-from vm_ros.energetics_models.vm_state import MODEL_NAMES, published_rates
 from vm_ros.errors import ConfigError
 from vm_ros.model import MuscleBank
+from vm_ros.model.config_reader import holds, load_yaml, read_section, yaml_section
 from vm_ros.model.curves import tendon_length_at_force
+from vm_ros.model.energetics_models.vm_state import MODEL_NAMES, published_rates
 from vm_ros.model.mechanics import contractile_force_normalised
-from vm_ros.model.params import (  # model.yaml's reader
-    RECOVERY_MODES,
-    _holds,
-    _load_yaml,
-    _read_section,
-    _section,
-)
+from vm_ros.model.params import RECOVERY_MODES
 from vm_ros.offline.scenarios import load_scenario
 from vm_ros.report.tables import bin_means
 from vm_ros.resources import config_dir
@@ -61,52 +56,52 @@ COMPOSITION_NAMES = ("slow", "mixed", "fast", LIBRARY)
 GROUPS = ("isometric", "isovelocity", "knee_extension", "gait_cycle")
 
 
-# The file's sections, read field by field as model.yaml's are (unit checked against _holds;
+# The file's sections, read field by field as model.yaml's are (unit checked against holds;
 # values in the units the names give: s, 1/s, L0, L0/s).
 @dataclass(frozen=True)
 class RunSection:
-    dt: float = _holds("s")
-    sweep_muscle: str = _holds("-")
-    sweep_recovery_mode: str = _holds("-")
-    rate_bin: float = _holds("s")
-    negligible_ratio: float = _holds("1")
+    dt: float = holds("s")
+    sweep_muscle: str = holds("-")
+    sweep_recovery_mode: str = holds("-")
+    rate_bin: float = holds("s")
+    negligible_ratio: float = holds("1")
 
 
 @dataclass(frozen=True)
 class IsometricSection:
-    drives: tuple = _holds("1")
-    duration: float = _holds("s")
-    fascicle_length: float = _holds("L0")
+    drives: tuple = holds("1")
+    duration: float = holds("s")
+    fascicle_length: float = holds("L0")
 
 
 @dataclass(frozen=True)
 class IsovelocitySection:
-    drive: float = _holds("1")
-    speeds: tuple = _holds("L0/s")
-    centre_length: float = _holds("L0")
-    half_travel: float = _holds("L0")
+    drive: float = holds("1")
+    speeds: tuple = holds("L0/s")
+    centre_length: float = holds("L0")
+    half_travel: float = holds("L0")
 
 
 @dataclass(frozen=True)
 class KneeSection:
-    duration: float = _holds("s")
+    duration: float = holds("s")
 
 
 @dataclass(frozen=True)
 class GaitSection:
-    frequency: float = _holds("1/s")
-    cycles: float = _holds("1")  # a whole number, held as an int once loaded
-    peak_drive: float = _holds("1")
-    burst_fraction: float = _holds("1")
-    length_amplitude: float = _holds("L0")
-    mid_length: float = _holds("L0")
+    frequency: float = holds("1/s")
+    cycles: float = holds("1")  # a whole number, held as an int once loaded
+    peak_drive: float = holds("1")
+    burst_fraction: float = holds("1")
+    length_amplitude: float = holds("L0")
+    mid_length: float = holds("L0")
 
 
 @dataclass(frozen=True)
 class CompositionsSection:
-    slow: float = _holds("1")
-    mixed: float = _holds("1")
-    fast: float = _holds("1")
+    slow: float = holds("1")
+    mixed: float = holds("1")
+    fast: float = holds("1")
 
     def slow_fraction(self, composition: str) -> float | None:
         """fpcsa_slow of ``composition``; None for LIBRARY (each muscle keeps its own)."""
@@ -154,12 +149,12 @@ def load_comparison_settings(path=None) -> ComparisonSettings:
     :class:`ComparisonSettings`; a bad entry (unit, missing tag or source, type, range) is a
     ConfigError naming file and field."""
     path = comparison_config_path(path)
-    data = _load_yaml(path)
+    data = load_yaml(path)
     unknown = sorted(set(data) - set(_SECTIONS))
     if unknown:
         raise ConfigError(path, unknown[0], None,
                           f"unknown section; known: {', '.join(_SECTIONS)}")
-    read = {name: cls(**_read_section(cls, path, _section(path, data, name), name, {}))
+    read = {name: cls(**read_section(cls, path, yaml_section(path, data, name), name, {}))
             for name, (cls, _) in _SECTIONS.items()}
     run, iso, vel = read["run"], read["isometric"], read["isovelocity"]
     knee, gait, comp = read["knee_extension"], read["gait_cycle"], read["compositions"]

@@ -37,9 +37,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from vm_ros.energetics_models.bhargava import recruited_excitations
-from vm_ros.energetics_models.constants import UmbergerConstants
-from vm_ros.energetics_models.state import (
+from vm_ros.model.energetics_models.bhargava import recruited_excitations
+from vm_ros.model.energetics_models.constants import UmbergerConstants
+from vm_ros.model.energetics_models.state import (
     HeatRates,
     MuscleState,
     mechanical_work_rate,

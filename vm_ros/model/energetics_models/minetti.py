@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from vm_ros.energetics_models.constants import MinettiConstants
-from vm_ros.energetics_models.state import HeatRates, MuscleState
+from vm_ros.model.energetics_models.constants import MinettiConstants
+from vm_ros.model.energetics_models.state import HeatRates, MuscleState
 
 
 def phi(normalised_shortening_velocity, constants: MinettiConstants):

@@ -2,7 +2,8 @@
 model computed from it (docs/energetics_models.md section 7).
 
 Pure functions over arrays: one step's outputs (shape (n,)) or many steps' ((k, n)) map to a
-:class:`~vm_ros.energetics_models.state.MuscleState` plus the extras some models take as keywords.
+:class:`~vm_ros.model.energetics_models.state.MuscleState` plus the extras some models take as
+keywords.
 Per muscle, with Acteff_i the effective activation of fibre type i (which already carries the
 type's recruited share of F0, docs/model.md section 5), L = x / L0, V = xdot / L0:
 
@@ -34,8 +35,10 @@ from functools import partial
 
 import numpy as np
 
-from vm_ros.energetics_models.bhargava import bhargava2004
-from vm_ros.energetics_models.constants import (
+from vm_ros.errors import InputError
+from vm_ros.model import curves
+from vm_ros.model.energetics_models.bhargava import bhargava2004
+from vm_ros.model.energetics_models.constants import (
     load_bhargava_constants,
     load_houdijk_constants,
     load_lichtwark_constants,
@@ -43,14 +46,12 @@ from vm_ros.energetics_models.constants import (
     load_minetti_constants,
     load_umberger_constants,
 )
-from vm_ros.energetics_models.houdijk import houdijk2006
-from vm_ros.energetics_models.lichtwark import lichtwark2005
-from vm_ros.energetics_models.margaria import margaria1968
-from vm_ros.energetics_models.minetti import minetti1997
-from vm_ros.energetics_models.state import HeatRates, MuscleState
-from vm_ros.energetics_models.umberger import umberger2003
-from vm_ros.errors import InputError
-from vm_ros.model import curves
+from vm_ros.model.energetics_models.houdijk import houdijk2006
+from vm_ros.model.energetics_models.lichtwark import lichtwark2005
+from vm_ros.model.energetics_models.margaria import margaria1968
+from vm_ros.model.energetics_models.minetti import minetti1997
+from vm_ros.model.energetics_models.state import HeatRates, MuscleState
+from vm_ros.model.energetics_models.umberger import umberger2003
 from vm_ros.model.layout import type_columns
 from vm_ros.model.params import FibreTypeParams, GenericParams
 

@@ -26,8 +26,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from vm_ros.energetics_models.constants import LichtwarkConstants
-from vm_ros.energetics_models.state import HeatRates, MuscleState, mechanical_work_rate
+from vm_ros.model.energetics_models.constants import LichtwarkConstants
+from vm_ros.model.energetics_models.state import HeatRates, MuscleState, mechanical_work_rate
 
 
 def force_velocity_multiplier_from_state(state: MuscleState):

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from vm_ros.errors import ConfigError, InputError
-from vm_ros.model.params import _holds, _load_yaml, _read_section, _section  # model.yaml's
+from vm_ros.model.config_reader import holds, load_yaml, read_section, yaml_section
 from vm_ros.resources import config_dir
 
 FILE_NAME = "energetics_models.yaml"
@@ -27,33 +27,33 @@ class UmbergerConstants:
     """Umberger et al. 2003 / Umberger 2010 as OpenSim 4.6's Umberger2010MuscleMetabolicsProbe
     computes it (option names are OpenSim's); see config/energetics_models.yaml."""
 
-    activation_maintenance_rate_on: bool = _holds("bool")
-    shortening_rate_on: bool = _holds("bool")
-    basal_rate_on: bool = _holds("bool")
-    mechanical_work_rate_on: bool = _holds("bool")
-    enforce_minimum_heat_rate_per_muscle: bool = _holds("bool")
-    use_Bhargava_recruitment_model: bool = _holds("bool")  # noqa: N815 (OpenSim's name)
-    include_negative_mechanical_work: bool = _holds("bool")
-    forbid_negative_total_power: bool = _holds("bool")
-    aerobic_factor: float = _holds("1")
-    basal_coefficient: float = _holds("W/kg")
-    basal_exponent: float = _holds("1")
-    muscle_effort_scaling_factor: float = _holds("1")
-    max_contraction_velocity: float = _holds("L0/s")
-    specific_tension: float = _holds("Pa")
-    density: float = _holds("kg/m^3")
-    activation_maintenance_fast_rate: float = _holds("W/kg")
-    activation_maintenance_base_rate: float = _holds("W/kg")
-    activation_maintenance_exponent: float = _holds("1")
-    lengthened_activation_maintenance_fraction: float = _holds("1")
-    shortening_heat_fast_at_vmax: float = _holds("W/kg")
-    shortening_heat_slow_at_vmax: float = _holds("W/kg")
-    fast_to_slow_vmax_ratio: float = _holds("1")
-    max_slow_shortening_heat_rate: float = _holds("W/kg")
-    shortening_exponent: float = _holds("1")
-    lengthening_coefficient_with_negative_work: float = _holds("1")
-    lengthening_coefficient: float = _holds("1")
-    minimum_heat_rate: float = _holds("W/kg")
+    activation_maintenance_rate_on: bool = holds("bool")
+    shortening_rate_on: bool = holds("bool")
+    basal_rate_on: bool = holds("bool")
+    mechanical_work_rate_on: bool = holds("bool")
+    enforce_minimum_heat_rate_per_muscle: bool = holds("bool")
+    use_Bhargava_recruitment_model: bool = holds("bool")  # noqa: N815 (OpenSim's name)
+    include_negative_mechanical_work: bool = holds("bool")
+    forbid_negative_total_power: bool = holds("bool")
+    aerobic_factor: float = holds("1")
+    basal_coefficient: float = holds("W/kg")
+    basal_exponent: float = holds("1")
+    muscle_effort_scaling_factor: float = holds("1")
+    max_contraction_velocity: float = holds("L0/s")
+    specific_tension: float = holds("Pa")
+    density: float = holds("kg/m^3")
+    activation_maintenance_fast_rate: float = holds("W/kg")
+    activation_maintenance_base_rate: float = holds("W/kg")
+    activation_maintenance_exponent: float = holds("1")
+    lengthened_activation_maintenance_fraction: float = holds("1")
+    shortening_heat_fast_at_vmax: float = holds("W/kg")
+    shortening_heat_slow_at_vmax: float = holds("W/kg")
+    fast_to_slow_vmax_ratio: float = holds("1")
+    max_slow_shortening_heat_rate: float = holds("W/kg")
+    shortening_exponent: float = holds("1")
+    lengthening_coefficient_with_negative_work: float = holds("1")
+    lengthening_coefficient: float = holds("1")
+    minimum_heat_rate: float = holds("W/kg")
 
 
 @dataclass(frozen=True)
@@ -61,32 +61,32 @@ class BhargavaConstants:
     """Bhargava et al. 2004 as OpenSim 4.6's Bhargava2004MuscleMetabolicsProbe computes it
     (option names are OpenSim's); see config/energetics_models.yaml."""
 
-    activation_rate_on: bool = _holds("bool")
-    maintenance_rate_on: bool = _holds("bool")
-    shortening_rate_on: bool = _holds("bool")
-    basal_rate_on: bool = _holds("bool")
-    mechanical_work_rate_on: bool = _holds("bool")
-    enforce_minimum_heat_rate_per_muscle: bool = _holds("bool")
-    use_force_dependent_shortening_prop_constant: bool = _holds("bool")
-    include_negative_mechanical_work: bool = _holds("bool")
-    forbid_negative_total_power: bool = _holds("bool")
-    basal_coefficient: float = _holds("W/kg")
-    basal_exponent: float = _holds("1")
-    muscle_effort_scaling_factor: float = _holds("1")
-    specific_tension: float = _holds("Pa")
-    density: float = _holds("kg/m^3")
-    activation_constant_slow_twitch: float = _holds("W/kg")
-    activation_constant_fast_twitch: float = _holds("W/kg")
-    maintenance_constant_slow_twitch: float = _holds("W/kg")
-    maintenance_constant_fast_twitch: float = _holds("W/kg")
-    decay_function_value: float = _holds("1")
-    maintenance_length_dependence_x: tuple = _holds("L0")
-    maintenance_length_dependence_y: tuple = _holds("1")
-    shortening_coefficient: float = _holds("1")
-    shortening_isometric_coefficient: float = _holds("1")
-    shortening_total_force_coefficient: float = _holds("1")
-    lengthening_total_force_coefficient: float = _holds("1")
-    minimum_heat_rate: float = _holds("W/kg")
+    activation_rate_on: bool = holds("bool")
+    maintenance_rate_on: bool = holds("bool")
+    shortening_rate_on: bool = holds("bool")
+    basal_rate_on: bool = holds("bool")
+    mechanical_work_rate_on: bool = holds("bool")
+    enforce_minimum_heat_rate_per_muscle: bool = holds("bool")
+    use_force_dependent_shortening_prop_constant: bool = holds("bool")
+    include_negative_mechanical_work: bool = holds("bool")
+    forbid_negative_total_power: bool = holds("bool")
+    basal_coefficient: float = holds("W/kg")
+    basal_exponent: float = holds("1")
+    muscle_effort_scaling_factor: float = holds("1")
+    specific_tension: float = holds("Pa")
+    density: float = holds("kg/m^3")
+    activation_constant_slow_twitch: float = holds("W/kg")
+    activation_constant_fast_twitch: float = holds("W/kg")
+    maintenance_constant_slow_twitch: float = holds("W/kg")
+    maintenance_constant_fast_twitch: float = holds("W/kg")
+    decay_function_value: float = holds("1")
+    maintenance_length_dependence_x: tuple = holds("L0")
+    maintenance_length_dependence_y: tuple = holds("1")
+    shortening_coefficient: float = holds("1")
+    shortening_isometric_coefficient: float = holds("1")
+    shortening_total_force_coefficient: float = holds("1")
+    lengthening_total_force_coefficient: float = holds("1")
+    minimum_heat_rate: float = holds("W/kg")
 
 
 @dataclass(frozen=True)
@@ -94,18 +94,18 @@ class LichtwarkConstants:
     """Lichtwark & Wilson 2005 (maintenance decay) / 2007 (supplement) heat rates as Koelewijn et
     al. 2019 formulate them; see config/energetics_models.yaml (section lichtwark)."""
 
-    include_negative_mechanical_work: bool = _holds("bool")
-    max_contraction_velocity: float = _holds("L0/s")
-    force_velocity_curvature: float = _holds("1")
-    stable_maintenance_fraction: float = _holds("1")
-    maintenance_decay_constant: float = _holds("1")
-    maintenance_decay_fast_amplitude: float = _holds("1")
-    maintenance_decay_fast_rate: float = _holds("1/s")
-    maintenance_decay_slow_amplitude: float = _holds("1")
-    maintenance_decay_slow_rate: float = _holds("1/s")
-    lengthening_maintenance_floor: float = _holds("1")
-    lengthening_maintenance_decay: float = _holds("1")
-    lengthening_heat_coefficient: float = _holds("1")
+    include_negative_mechanical_work: bool = holds("bool")
+    max_contraction_velocity: float = holds("L0/s")
+    force_velocity_curvature: float = holds("1")
+    stable_maintenance_fraction: float = holds("1")
+    maintenance_decay_constant: float = holds("1")
+    maintenance_decay_fast_amplitude: float = holds("1")
+    maintenance_decay_fast_rate: float = holds("1/s")
+    maintenance_decay_slow_amplitude: float = holds("1")
+    maintenance_decay_slow_rate: float = holds("1/s")
+    lengthening_maintenance_floor: float = holds("1")
+    lengthening_maintenance_decay: float = holds("1")
+    lengthening_heat_coefficient: float = holds("1")
 
 
 @dataclass(frozen=True)
@@ -113,20 +113,20 @@ class HoudijkConstants:
     """Houdijk et al. 2006 as Koelewijn et al. 2019 formulate it; see
     config/energetics_models.yaml (section houdijk)."""
 
-    include_negative_mechanical_work: bool = _holds("bool")
-    forbid_negative_total_power: bool = _holds("bool")
-    total_heat_slow_twitch: float = _holds("W/kg")
-    total_heat_fast_twitch: float = _holds("W/kg")
-    activation_fraction_slow_twitch: float = _holds("1")
-    activation_fraction_fast_twitch: float = _holds("1")
-    shortening_coefficient_slow_twitch: float = _holds("F0")
-    shortening_coefficient_fast_twitch: float = _holds("F0")
-    max_frequency_base_slow_twitch: float = _holds("1")
-    max_frequency_base_fast_twitch: float = _holds("1")
-    max_frequency_slope_slow_twitch: float = _holds("1")
-    max_frequency_slope_fast_twitch: float = _holds("1")
-    activation_frequency_offset: float = _holds("1")
-    activation_frequency_constant: float = _holds("1")
+    include_negative_mechanical_work: bool = holds("bool")
+    forbid_negative_total_power: bool = holds("bool")
+    total_heat_slow_twitch: float = holds("W/kg")
+    total_heat_fast_twitch: float = holds("W/kg")
+    activation_fraction_slow_twitch: float = holds("1")
+    activation_fraction_fast_twitch: float = holds("1")
+    shortening_coefficient_slow_twitch: float = holds("F0")
+    shortening_coefficient_fast_twitch: float = holds("F0")
+    max_frequency_base_slow_twitch: float = holds("1")
+    max_frequency_base_fast_twitch: float = holds("1")
+    max_frequency_slope_slow_twitch: float = holds("1")
+    max_frequency_slope_fast_twitch: float = holds("1")
+    activation_frequency_offset: float = holds("1")
+    activation_frequency_constant: float = holds("1")
 
 
 @dataclass(frozen=True)
@@ -134,24 +134,24 @@ class MargariaConstants:
     """Margaria 1968's efficiencies of positive and negative work; see
     config/energetics_models.yaml (section margaria)."""
 
-    include_negative_mechanical_work: bool = _holds("bool")
-    positive_work_efficiency: float = _holds("1")
-    negative_work_efficiency: float = _holds("1")
+    include_negative_mechanical_work: bool = holds("bool")
+    positive_work_efficiency: float = holds("1")
+    negative_work_efficiency: float = holds("1")
 
 
 @dataclass(frozen=True)
 class MinettiConstants:
     """Minetti & Alexander 1997's phi(v); see config/energetics_models.yaml (section minetti)."""
 
-    max_contraction_velocity: float = _holds("L0/s")
-    phi_numerator: tuple = _holds("1")
-    phi_denominator: tuple = _holds("1")
+    max_contraction_velocity: float = holds("L0/s")
+    phi_numerator: tuple = holds("1")
+    phi_denominator: tuple = holds("1")
 
 
 def _constants(path: Path, data: dict, section: str, cls):
     """One section of the file as ``cls``, read as model.yaml's sections are (each entry
     {value, unit, tag, source}; unit checked against what the field holds)."""
-    return cls(**_read_section(cls, path, _section(path, data, section), section, {}))
+    return cls(**read_section(cls, path, yaml_section(path, data, section), section, {}))
 
 
 def _path(path) -> Path:
@@ -162,7 +162,7 @@ def load_umberger_constants(variant: str = "uchida2016", path=None) -> UmbergerC
     """The umberger section with the options of ``variant`` (one of UMBERGER_VARIANTS:
     uchida2016 is OpenSim 4.6's default set) applied."""
     path = _path(path)
-    data = _load_yaml(path)
+    data = load_yaml(path)
     constants = _constants(path, data, "umberger", UmbergerConstants)
     variants = data.get("umberger_variants")
     if not isinstance(variants, dict) or variant not in variants:
@@ -180,7 +180,7 @@ def load_umberger_constants(variant: str = "uchida2016", path=None) -> UmbergerC
 def load_bhargava_constants(path=None) -> BhargavaConstants:
     """The bhargava section of the file."""
     path = _path(path)
-    constants = _constants(path, _load_yaml(path), "bhargava", BhargavaConstants)
+    constants = _constants(path, load_yaml(path), "bhargava", BhargavaConstants)
     x = constants.maintenance_length_dependence_x
     if len(x) < 2 or len(x) != len(constants.maintenance_length_dependence_y) or any(
             b <= a for a, b in zip(x[:-1], x[1:], strict=True)):
@@ -192,20 +192,20 @@ def load_bhargava_constants(path=None) -> BhargavaConstants:
 def load_lichtwark_constants(path=None) -> LichtwarkConstants:
     """The lichtwark section of the file."""
     path = _path(path)
-    return _constants(path, _load_yaml(path), "lichtwark", LichtwarkConstants)
+    return _constants(path, load_yaml(path), "lichtwark", LichtwarkConstants)
 
 
 def load_houdijk_constants(path=None) -> HoudijkConstants:
     """The houdijk section of the file."""
     path = _path(path)
-    return _constants(path, _load_yaml(path), "houdijk", HoudijkConstants)
+    return _constants(path, load_yaml(path), "houdijk", HoudijkConstants)
 
 
 def load_margaria_constants(path=None) -> MargariaConstants:
     """The margaria section of the file; the positive-work efficiency must be positive and the
     negative-work efficiency negative (Margaria's sign convention)."""
     path = _path(path)
-    constants = _constants(path, _load_yaml(path), "margaria", MargariaConstants)
+    constants = _constants(path, load_yaml(path), "margaria", MargariaConstants)
     if not constants.positive_work_efficiency > 0.0:
         raise ConfigError(path, "margaria.positive_work_efficiency",
                           constants.positive_work_efficiency, "must be positive")
@@ -220,7 +220,7 @@ def load_minetti_constants(path=None) -> MinettiConstants:
     """The minetti section of the file: phi's numerator has 3 coefficients, its denominator 4
     (constant first)."""
     path = _path(path)
-    constants = _constants(path, _load_yaml(path), "minetti", MinettiConstants)
+    constants = _constants(path, load_yaml(path), "minetti", MinettiConstants)
     for name, count in (("phi_numerator", 3), ("phi_denominator", 4)):
         if len(getattr(constants, name)) != count:
             raise ConfigError(path, f"minetti.{name}", list(getattr(constants, name)),

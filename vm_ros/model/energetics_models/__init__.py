@@ -21,8 +21,8 @@ from __future__ import annotations
 import functools
 import warnings
 
-from vm_ros.energetics_models.bhargava import bhargava2004
-from vm_ros.energetics_models.constants import (
+from vm_ros.model.energetics_models.bhargava import bhargava2004
+from vm_ros.model.energetics_models.constants import (
     BhargavaConstants,
     HoudijkConstants,
     LichtwarkConstants,
@@ -39,16 +39,16 @@ from vm_ros.energetics_models.constants import (
     muscle_mass,
     probe_total,
 )
-from vm_ros.energetics_models.houdijk import houdijk2006
-from vm_ros.energetics_models.lichtwark import lichtwark2005
-from vm_ros.energetics_models.margaria import margaria1968
-from vm_ros.energetics_models.minetti import minetti1997
-from vm_ros.energetics_models.state import HeatRates, MuscleState
-from vm_ros.energetics_models.umberger import (
+from vm_ros.model.energetics_models.houdijk import houdijk2006
+from vm_ros.model.energetics_models.lichtwark import lichtwark2005
+from vm_ros.model.energetics_models.margaria import margaria1968
+from vm_ros.model.energetics_models.minetti import minetti1997
+from vm_ros.model.energetics_models.state import HeatRates, MuscleState
+from vm_ros.model.energetics_models.umberger import (
     force_length_multiplier_from_state,
     umberger2003,
 )
-from vm_ros.energetics_models.vm_state import (
+from vm_ros.model.energetics_models.vm_state import (
     MODEL_NAMES,
     PUBLISHED_MODELS,
     PublishedModel,
@@ -105,8 +105,8 @@ def _former_name(function, former: str):
 
     @functools.wraps(function)
     def former_function(*args, **kwargs):
-        warnings.warn(f"vm_ros.energetics_models.{former} is now {function.__name__}; the former "
-                      "name goes in the next release", DeprecationWarning, stacklevel=2)
+        warnings.warn(f"vm_ros.model.energetics_models.{former} is now {function.__name__}; "
+                      "the former name goes in the next release", DeprecationWarning, stacklevel=2)
         return function(*args, **kwargs)
 
     return former_function

@@ -29,8 +29,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from vm_ros.energetics_models.constants import BhargavaConstants
-from vm_ros.energetics_models.state import (
+from vm_ros.model.energetics_models.constants import BhargavaConstants
+from vm_ros.model.energetics_models.state import (
     HeatRates,
     MuscleState,
     mechanical_work_rate,
