@@ -229,6 +229,7 @@ def evaluate_walk(solution: WalkSolution, context: dict, config: dict
     references = net_metabolic_references(config["metabolic"], context["speed_m_per_s"])
     data["metabolic_w_per_kg"] = rate
     data.update(_metabolic_breakdown(solution, inside, context["mass_kg"]))
+    criteria.extend(_reported(solution.label, data))
     data["metabolic_references"] = references
     for name, value in references.items():
         criteria.append(Criterion(f"{solution.label}: net metabolic power / {name} "
@@ -263,6 +264,37 @@ def _metabolic_breakdown(solution: WalkSolution, inside, mass_kg: float) -> dict
         out["cocontraction"] = dict(zip(solution.coordinates, solution.cocontraction.tolist(),
                                         strict=True))
     return out
+
+
+def _reported(label: str, data: dict) -> list[Criterion]:
+    """Numbers shown beside the criteria, without a bound (Criterion 'reported')."""
+    out = [Criterion(f"{label}: net metabolic power (W/kg), right cycle",
+                     data["metabolic_w_per_kg"]),
+           Criterion(f"{label}: metabolic rate per newton of muscle force (W/N)",
+                     data["w_per_newton"])]
+    out += [Criterion(f"{label}: {part} share of VM's rate", share)
+            for part, share in data.get("metabolic_parts_share", {}).items()]
+    out += [Criterion(f"{label}: {name} on the same state (W/kg)", value)
+            for name, value in data.get("model_w_per_kg", {}).items()]
+    out += [Criterion(f"{label}: co-contraction share, {name}", value)
+            for name, value in data.get("cocontraction", {}).items()]
+    out += [Criterion(f"{label}: {name} max error / peak on {t['spikes']} spike frames",
+                      t["spike_max_of_peak"])
+            for name, t in data["tracking"].items() if t["spikes"]]
+    return out
+
+
+def context_reported(context: dict) -> list[Criterion]:
+    """The references' own numbers, shown once: belt speed, OpenSim's Umberger probe over the
+    CMC walk, and OpenSim SO against CMC (median force correlation)."""
+    from vm_ros.validation.walk_reference import compare
+
+    so_cmc = compare(context["so_forces"], context["cmc_forces"])
+    return [Criterion("walk: treadmill belt speed (m/s)", context["speed_m_per_s"]),
+            Criterion("OpenSim Umberger 2010 probe over CMC (W/kg)",
+                      context["umberger"]["per_kg"]),
+            Criterion("OpenSim SO against CMC: median force correlation",
+                      float(np.median([v["r"] for v in so_cmc.values()])))]
 
 
 def _walk_context(files, config) -> dict:
@@ -401,6 +433,7 @@ def check_walk(params=None) -> CheckResult:
                          "forward run of the full model, with drives timed like walking EMG, "
                          "forces like OpenSim's, and a metabolic rate comparable with "
                          "calorimetry (issue 30)")
+    result.criteria.extend(context_reported(context))
     for solution in solutions:
         criteria, data = evaluate_walk(solution, context, config)
         result.criteria.extend(criteria)
