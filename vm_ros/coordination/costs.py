@@ -1,4 +1,4 @@
-"""The costs a coordination minimises, chosen by name (COSTS, as vm_ros.energetics_models.
+"""The costs a coordination minimises, chosen by name (COSTS, as vm_ros.model.energetics_models.
 vm_state.PUBLISHED_MODELS names the energetics models).
 
 Every cost is the integral over the motion of a per-muscle rate c_i(t), weighted per muscle:
@@ -6,10 +6,11 @@ Every cost is the integral over the motion of a per-muscle rate c_i(t), weighted
     C(U) = sum_i w_i int_0^T c_i(t) dt
 
 - ``tsianos2012`` (default, J): c_i = VM's total metabolic rate of muscle i (activation,
-  maintenance, shortening/lengthening, recovery; docs/energetics.md); Tsianos, Rustin & Loeb 2012.
+  maintenance, shortening/lengthening, recovery; docs/model.md section 6); Tsianos, Rustin &
+  Loeb 2012.
 - ``drive2`` (s): c_i = U_i(t)^2, the drive squared; the classic static-optimisation criterion
   (OpenSim SO's sum a^2).
-- each name of vm_ros.energetics_models.vm_state.MODEL_NAMES (J): c_i = that published model's
+- each name of vm_ros.model.energetics_models.vm_state.MODEL_NAMES (J): c_i = that published model's
   total rate on VM's state (docs/energetics_models.md); the model's paper.
 
 drive2 is quadratic in the drive nodes (exactly; the solver uses its Hessian); the energy costs
@@ -25,8 +26,8 @@ from functools import partial
 
 import numpy as np
 
-from vm_ros.energetics_models.vm_state import PUBLISHED_MODELS
 from vm_ros.errors import VmRosError
+from vm_ros.model.energetics_models.vm_state import PUBLISHED_MODELS
 
 TOTAL_RATE = 3        # column of StepRecord.energy_rates: VM's total rate (W)
 MODEL_TOTAL = 4       # component of energy_rate_models: the model's total (W)

@@ -12,7 +12,9 @@ nodes comes from ``groups`` perturbed runs: run g raises (or, near 1, lowers) by
 node j with j mod groups = g, of every muscle; the change at times in [t_{j-1}, t_{j-1} +
 groups h) is put down to node j. This is exact for a model whose response to a drive change
 has faded within groups h - 2 h (the hat function's width); the activation's 90 % rise time is
-0.2-0.3 s, so groups h >= 0.4 s is the default (``memory_s``). Results beyond the window are
+0.2-0.3 s and a drive change leaves a tail for longer, so groups h >= 0.8 s is the default
+(``memory_s``; with 0.4 s two identical muscles drifted apart in the tests). Results beyond the
+window are
 dropped (a truncated Jacobian: it slows the iteration, it does not change what it converges to,
 the forward run being exact).
 """
@@ -67,7 +69,7 @@ class ForwardModel:
     with each run (the costs')."""
 
     def __init__(self, bank, problem: CoordinationProblem, node_step_s: float,
-                 rate_functions: dict, memory_s: float = 0.4):
+                 rate_functions: dict, memory_s: float = 0.8):
         self.bank = bank
         self.problem = problem
         self.node_step_s = float(node_step_s)

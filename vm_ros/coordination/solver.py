@@ -12,15 +12,16 @@ one forward run gives J and the reserves; ``groups`` perturbed runs give the ban
 of every muscle's force at the frames, and of every muscle's cost, to its drive nodes (every
 ``refresh`` kept steps, and after two rejected ones; in between one run with every node
 perturbed rescales its rows by the change of each muscle's local gain and gives the cost's
-gradient without the lag: forward.ForwardModel.gains); the model
-of J around u (reserves linear in the change, drive2 exact, energy costs linear) plus a damping
-lambda J(u) mean(du^2) is minimised over 0 <= u + du <= 1 as one sparse bounded linear least-squares
-problem (bounded_least_squares: a primal active set over SciPy's sparse LU); the step is
-kept when the forward run's J falls (lambda / 3), else lambda x 4 and the step is solved again
-(Levenberg-Marquardt), after one correction step from the rejected trial with the same
-sensitivity (the reserves' second-order error along the cost's descent would otherwise stall it
-at heavy reserve weights). Stops after ``max_iterations`` kept steps, or when a kept step lowers J
-by less than ``tolerance`` of it.
+gradient without the lag: forward.ForwardModel.gains); the model of J around u (reserves linear
+in the change, drive2 exact, energy costs linear plus a diagonal curvature from the change of
+their gradient between iterates, a secant estimate kept >= 0) plus a damping lambda J(u)
+mean(du^2) (lambda >= MIN_DAMPING) is minimised over 0 <= u + du <= 1 as one sparse bounded
+linear least-squares problem (bounded_least_squares: a primal active set over SciPy's sparse
+LU); the step is kept when the forward run's J falls (lambda / 3), else lambda x 4 and the step
+is solved again (Levenberg-Marquardt), after one correction step from the rejected trial with
+the same sensitivity (the reserves' second-order error along the cost's descent would otherwise
+stall it at heavy reserve weights). Stops after ``max_iterations`` kept steps, or when a kept
+step lowers J by less than ``tolerance`` of it.
 """
 
 from __future__ import annotations
@@ -46,6 +47,9 @@ from vm_ros.errors import VmRosError
 
 REFERENCE_DRIVE = 0.5   # C_ref: the cost of every drive held at this value over the motion
 DAMPING_UP, DAMPING_DOWN = 4.0, 3.0
+# lambda never falls below this: in directions the reserves do not see at first order (two
+# muscles trading force) only the damping and the cost's curvature bound the step
+MIN_DAMPING = 0.01
 MAX_REJECTED = 10
 RESCALE_LIMITS = (0.2, 5.0)        # consecutive rejected steps before the iteration stops
 
@@ -61,13 +65,13 @@ class SolverOptions:
 
     cost: str = DEFAULT_COST
     muscle_weights: Mapping = field(default_factory=dict)
-    node_step_s: float = 0.02
+    node_step_s: float = 0.04
     reserve_weight: float = 1e5
     smoothness: float = 1e-4
     max_iterations: int = 12
     tolerance: float = 1e-4
     initial_drive: float = 0.1
-    memory_s: float = 0.4
+    memory_s: float = 0.8
     damping: float = 1.0
     delta: float = 0.02
     refresh: int = 4
@@ -196,10 +200,10 @@ def _subproblem(problem, options, objective, nodes, base, jac, grad, damping):
         rhs.append(-(q @ nodes.ravel()))
     else:
         g = (grad[o.cost] * objective.w / objective.c_ref).ravel()
-    # damping lambda mean(du^2) with the cost's gradient g: |sqrt(l) du + g / (2 sqrt(l))|^2
-    lam = damping * objective.scale / size
-    blocks.append(sparse.identity(size) * np.sqrt(lam))
-    rhs.append(-g / (2 * np.sqrt(lam)))
+    # g du + 1/2 H du^2 + lambda mean(du^2) = |k du + g / (2 k)|^2 + const, k^2 = H / 2 + l
+    k = np.sqrt(objective.curvature.ravel() / 2 + damping * objective.scale / size)
+    blocks.append(sparse.diags(k))
+    rhs.append(-g / (2 * k))
     matrix = sparse.vstack(blocks).tocsr()
     flat = nodes.ravel()
     return bounded_least_squares(matrix, np.concatenate(rhs), -flat, 1.0 - flat).reshape(
@@ -260,6 +264,8 @@ def solve(bank, problem: CoordinationProblem, options: SolverOptions | None = No
     damping = options.damping
     kept = rejected = 0
     jac = grad = full = None
+    objective.curvature = np.zeros_like(nodes)
+    secant = None  # (nodes, gradient) of the last sensitivity, for the cost's curvature
     while kept < options.max_iterations and rejected < MAX_REJECTED:
         fresh = full is None or kept % options.refresh == 0 or rejected >= 2
         if jac is None and fresh:
@@ -269,6 +275,10 @@ def solve(bank, problem: CoordinationProblem, options: SolverOptions | None = No
         elif jac is None:
             gain, grad = forward.gains(nodes, base, options.delta)
             jac = _rescaled(full, gain, reference)
+        if not cost.quadratic and secant is not None and secant[0] is not nodes:
+            objective.curvature = _secant_curvature(objective, secant, nodes, grad,
+                                                    options.cost)
+        secant = (nodes, grad)
         step = _subproblem(problem, options, objective, nodes, base, jac, grad, damping)
         trial = np.clip(nodes + step, 0.0, 1.0)
         out = forward.run(trial)
@@ -282,7 +292,7 @@ def solve(bank, problem: CoordinationProblem, options: SolverOptions | None = No
             fall = (value - trial_value) / objective.scale
             nodes, base = trial, out
             value = objective.scale = trial_value
-            damping /= DAMPING_DOWN
+            damping = max(damping / DAMPING_DOWN, MIN_DAMPING)
             kept += 1
             rejected = 0
             jac = None
@@ -297,6 +307,16 @@ def solve(bank, problem: CoordinationProblem, options: SolverOptions | None = No
             if rejected >= 2 and jac is not full:
                 jac = None
     return _result(bank, problem, options, forward, objective, nodes, base, history, started)
+
+
+def _secant_curvature(objective, secant, nodes, grad, name) -> np.ndarray:
+    """Diagonal curvature (N, n) of the normalised cost from the change of its gradient per
+    node since the last iterate (>= 0; kept where the drive moved less than 1e-3)."""
+    old_nodes, old_grad = secant
+    moved = nodes - old_nodes
+    change = (grad[name] - old_grad[name]) * objective.w / objective.c_ref
+    ratio = np.divide(change, moved, out=np.zeros_like(moved), where=np.abs(moved) > 1e-3)
+    return np.where(np.abs(moved) > 1e-3, np.clip(ratio, 0.0, None), objective.curvature)
 
 
 def _rescaled(full, gain, reference) -> list:
