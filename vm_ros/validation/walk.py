@@ -311,23 +311,28 @@ def _walk_context(files, config) -> dict:
             "cmc_forces": wr.cmc_forces(files), "umberger": wr.umberger_probe(files)}
 
 
-# the walk's strengths (import-osim --specific-tension): the model's own F0, and the import's
-# default, reported beside it (issue 30)
-STRENGTHS = {"model F0": "vm", "default import": "60"}
+# the walk's strengths (import-osim --specific-tension, --strength): the model's own F0 with the
+# masses of measured volumes (60 N/cm^2), and the import's default (VM's 31.8 N/cm^2 on those
+# masses: 0.53 x the model's F0), reported beside it (issue 30). Not `--specific-tension vm`: it
+# keeps F0 by making every mass 60 / 31.8 = 1.89 x larger, and VM's metabolic rate scales with
+# mass (the same drives and forces on the walk: 6.85 against 3.63 W/kg)
+STRENGTHS = {"model F0": ("60", "model"), "default import": ("60", "vm")}
 COSTS = ("drive2", "tsianos2012")   # the classic and VM's own energy (vm_ros.coordination.costs)
 
 
-def import_walk(files, strength: str, out_dir):
-    """The walk's model imported as `vm-ros import-osim --motion IK --specific-tension
-    STRENGTH` does, into ``out_dir``: (geometry, library path)."""
+def import_walk(files, strength: tuple[str, str], out_dir):
+    """The walk's model imported as `vm-ros import-osim --motion IK --specific-tension S
+    --strength F` does for ``strength`` (S, F), into ``out_dir``: (geometry, library path)."""
     import io
 
-    from vm_ros.importers.common import ImportChoices, specific_tension_option
+    from vm_ros.importers.common import ImportChoices, specific_tension_option, strength_option
     from vm_ros.importers.osim import OsimOptions, import_osim
 
+    tension, factor = strength
     done = import_osim(files["model"], out_dir, OsimOptions(motions=(str(files["motion"]),)),
-                       ImportChoices(specific_tension_option(strength)), progress=False,
-                       file=io.StringIO())
+                       ImportChoices(specific_tension_option(tension),
+                                     strength=strength_option(factor)),
+                       progress=False, file=io.StringIO())
     return done.geometry, Path(out_dir) / "muscles.yaml"
 
 
