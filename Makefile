@@ -1,6 +1,6 @@
 # vm_ros developer and CI entry points. Nothing here needs an activated venv.
 #
-#   make venv         create/refresh $(VENV) with ".[ros,dev,fast,opensim,mujoco]" pinned by constraints.txt,
+#   make venv         create/refresh $(VENV) with ".[ros,dev,fast,opensim,mujoco,study]" pinned by constraints.txt,
 #                     and compile the model step (Numba's cache)
 #   make test         the whole pytest suite (ruff included) in a loopback-only network namespace
 #   make demo         the demo, in a loopback-only network namespace
@@ -46,8 +46,8 @@ $(PKG_STAMP): setup.py constraints.txt $(PKG_SOURCES)
 	    echo "$(VENV)/bin/pip install --no-deps --force-reinstall ."; \
 	    $(VENV)/bin/pip install --quiet --no-deps --force-reinstall .; \
 	else \
-	    echo '$(VENV)/bin/pip install -c constraints.txt ".[ros,dev,fast,opensim,mujoco]"'; \
-	    $(VENV)/bin/pip install -c constraints.txt ".[ros,dev,fast,opensim,mujoco]" && touch $(DEPS_STAMP); \
+	    echo '$(VENV)/bin/pip install -c constraints.txt ".[ros,dev,fast,opensim,mujoco,study]"'; \
+	    $(VENV)/bin/pip install -c constraints.txt ".[ros,dev,fast,opensim,mujoco,study]" && touch $(DEPS_STAMP); \
 	fi
 	$(WARM_UP)
 	@touch $@

@@ -44,6 +44,8 @@ VERBS = {
                                                  "and figures)"),
     "coordinate": ("coordinate", "solve the drives whose forward run reproduces a motion's joint "
                                  "moments at least cost; drives, forces, reserves, run log"),
+    "study": ("study", "batch studies on Dask: many runs (inputs x parameter changes), one "
+                       "results table (needs the study extra)"),
     "bag": ("bag", "bag directories: reindex (write metadata.yaml from the .mcap files, as "
                    "ros2 bag does)"),
 }
