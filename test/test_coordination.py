@@ -82,8 +82,8 @@ def test_two_identical_muscles_share_the_moment_equally(tmp_path, cost):
 
 @pytest.mark.xfail(strict=True, reason="measured: the drives start near the optimum (0.19 / 0.73) "
                    "and drift to 0.69 / 0.70 in mid run, the reserves held within 0.3 N m: the "
-                   "heavy reserve weight leaves the iteration little room along the moment's "
-                   "level set (open)")
+                   "one-sided sensitivity misses VM's sign-dependent response to a drive "
+                   "change (docs/coordination.md; open)")
 def test_drive_squared_static_case_is_the_static_optimisation_solution(tmp_path):
     """Constant pose and moment, arms 0.02 and 0.04 m: min Ua^2 + Ub^2 subject to
     0.02 F(Ua) + 0.04 F(Ub) = 30 N m, F the static-equilibrium force of the drive (reset),

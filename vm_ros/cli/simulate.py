@@ -381,12 +381,12 @@ def _positive(name: str, value: float) -> float:
     return value
 
 
-def run(args, verb: str = "simulate", extra: dict | None = None,
-        on_outcome: Callable[[RunOutcome], None] | None = None) -> int:
-    """The verb; ``verb`` and ``extra`` (metadata entries; STEADY_START "yes" starts the
-    activation at the steady state of the first drive) for a verb that runs its drives through
-    this one (`vm-ros coordinate`); ``on_outcome`` (vm_ros.study) gets what the run computed
-    when it succeeded."""
+def run(args, on_outcome: Callable[[RunOutcome], None] | None = None,
+        verb: str = "simulate", extra: dict | None = None) -> int:
+    """The verb; ``on_outcome`` (vm_ros.study) gets what the run computed when it succeeded;
+    ``verb`` and ``extra`` (metadata entries; STEADY_START "yes" starts the activation at the
+    steady state of the first drive) for a verb that runs its drives through this one
+    (`vm-ros coordinate`)."""
     extra = dict(extra or {})
     models = energetics_models_option(args.energetics_models)
     _check_options(args)
