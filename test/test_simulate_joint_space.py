@@ -258,6 +258,8 @@ def test_more_mistakes_are_one_line_and_exit_2(tmp_path):
     cases = [
         (["--motion", str(tmp_path / "missing.mot"), *with_geometry], "cannot read"),
         (["--motion", str(motion), "--geometry", str(motion)], "not a vm_ros geometry file"),
+        (["--motion", str(motion), "--geometry", str(tmp_path / "missing.yaml")],
+         "missing.yaml: cannot read the geometry file"),  # no "field '-' = None"
         (["--motion", str(not_storage), *with_geometry], "not an OpenSim .mot/.sto file"),
         (["--motion", str(backwards), *with_geometry], "times must increase strictly"),
         (["--motion", str(one_frame), *with_geometry], "a single time: give --duration S"),
