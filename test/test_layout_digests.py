@@ -114,6 +114,34 @@ def log_digests(directory: Path) -> dict:
         os.chdir(previous)
 
 
+# A motion run with inputs slower than the model (path lengths extrapolated between
+# joint_states), publish 200 Hz, telemetry 100 Hz and every published energetics model, and its
+# recompute: computed by the code before the offline runs went by blocks for joint space and
+# recompute read logs as arrays (commit 8817190), as above against that commit's source
+SLOW_LEG_DIGESTS = {
+    "leg_slow": "4af89ab9beec90add179034c07daaa5e0f0fb2415d3f5cdd0f0f4655c3c22dae",
+    "leg_slow_recomputed": "8939b45fd21d0403242c8d6b4568174202fa7d3a3908e630212b95db4f09c4d6",
+}
+
+
+def slow_leg_digests(directory: Path) -> dict:
+    from test_simulate_joint_space import leg_motion, write_geometry_file
+
+    previous = Path.cwd()
+    os.chdir(directory)
+    try:
+        write_geometry_file(Path("."))
+        leg_motion(Path("leg.mot"))
+        _run(["simulate", "--motion", "leg.mot", "--geometry", "leg.yaml", "--excitation", "0.3",
+              "--input-rate", "250", "--publish-rate", "200", "--telemetry-rate", "100",
+              "--energetics-models", "all", "--start-time", str(START_NS),
+              "--out", "leg_slow.mcap"])
+        _run(["recompute", "leg_slow.mcap", "--out", "leg_slow_recomputed.mcap"])
+        return {name: log_digest(Path(f"{name}.mcap")) for name in SLOW_LEG_DIGESTS}
+    finally:
+        os.chdir(previous)
+
+
 def all_digests(directory: Path) -> dict:
     return {"bank_numpy": bank_digest("numpy"), "bank_auto": bank_digest("auto"),
             **log_digests(directory)}
@@ -123,6 +151,13 @@ def all_digests(directory: Path) -> dict:
                     reason=f"digests computed with {COMPUTED_WITH}, installed {_versions()}")
 def test_runs_and_logs_are_byte_identical_to_the_code_before_the_change(tmp_path):
     assert all_digests(tmp_path) == DIGESTS
+
+
+@pytest.mark.skipif(_versions() != COMPUTED_WITH,
+                    reason=f"digests computed with {COMPUTED_WITH}, installed {_versions()}")
+def test_a_motion_run_in_blocks_and_its_recompute_are_byte_identical_to_the_stepwise_code(
+        tmp_path):
+    assert slow_leg_digests(tmp_path) == SLOW_LEG_DIGESTS
 
 
 if __name__ == "__main__":

@@ -321,9 +321,9 @@ class PolynomialGeometry(JointGeometry):
             return super().evaluate_many(q, qdot)  # check_pose's errors, pose by pose
         q_used, qdot_used, clamped = clamp_to_box(q, qdot, self._lower, self._upper)
         lengths, gradients = self._compiled_many(q_used)
-        velocities = np.matmul(gradients, qdot_used[:, :, None])[:, :, 0]
-        return [GeometryOutput(lengths[k], velocities[k], -gradients[k], q_used[k],
-                               qdot_used[k], clamped[k]) for k in range(len(q))]
+        # each velocity as evaluate computes it (a stacked matmul may sum in another order)
+        return [GeometryOutput(lengths[k], gradients[k] @ qdot_used[k], -gradients[k],
+                               q_used[k], qdot_used[k], clamped[k]) for k in range(len(q))]
 
 
 __all__ = ["COUPLING_POINTS", "Coordinate", "CoupledCoordinate", "FitReport", "GeometryOutput",

@@ -304,17 +304,16 @@ class JointInputs:
         return JointEfforts(self.space.output_names, position, velocity, effort)
 
     def efforts_many(self, samples: list[JointSample], forces) -> JointEfforts:
-        """``efforts`` of k steps at once: ``samples`` the joint sample of each step, ``forces``
-        (k, n) their outputs; JointEfforts with (k, n_joints) arrays, row by row the same
-        numbers."""
-        forces = np.asarray(forces, dtype=float)[:, self.space.driven_index]
-        moment_arms = np.stack([sample.moment_arm for sample in samples])
-        tau = np.matmul(moment_arms.transpose(0, 2, 1), forces[:, :, None])[:, :, 0]
-        out = self.space.output
-        q = np.stack([sample.q[out] for sample in samples])
-        qdot = np.stack([sample.qdot[out] for sample in samples])
-        position, velocity, effort = self.space.map.to_robot(out, q, qdot, tau[:, out])
-        return JointEfforts(self.space.output_names, position, velocity, effort)
+        """``efforts`` of k steps: ``samples`` the joint sample of each step, ``forces`` (k, n)
+        their outputs; JointEfforts with (k, n_joints) arrays. Step by step through
+        ``efforts`` itself: the product r^T F's last bits depend on how BLAS is handed the
+        arrays (a stacked matmul, or a row of a block instead of a fresh array, sum in
+        another order for the 80-muscle leg)."""
+        rows = [self.efforts(sample, force) for sample, force in zip(samples, forces,
+                                                                      strict=True)]
+        return JointEfforts(self.space.output_names,
+                            *(np.array([getattr(row, key) for row in rows])
+                              for key in ("position", "velocity", "effort")))
 
 
 __all__ = ["JointInputs", "JointSample", "geometry_length_range"]
