@@ -55,38 +55,32 @@ def _simulate_args(out: Path, duration_s: float | None) -> list[str]:
     return args + (["--duration", repr(duration_s)] if duration_s else [])
 
 
-def _simulate_in_process(out: Path, duration_s: float | None) -> tuple[float, str]:
-    """Wall time (s) of vm_ros.cli.simulate.run and its last output line."""
-    from vm_ros.cli import simulate
+def _in_process(verb: str, argv: list[str]) -> tuple[float, str]:
+    """Wall time (s) of vm_ros.cli.<verb>.run with ``argv``, and its last output line."""
+    import importlib
 
+    module = importlib.import_module(f"vm_ros.cli.{verb}")
     parser = argparse.ArgumentParser()
-    simulate.add_arguments(parser)
-    args = parser.parse_args(_simulate_args(out, duration_s))
+    module.add_arguments(parser)
+    args = parser.parse_args(argv)
     text = io.StringIO()
     start = time.perf_counter()
     with contextlib.redirect_stdout(text):
-        code = simulate.run(args)
+        code = module.run(args)
     wall = time.perf_counter() - start
     if code != 0:
-        raise RuntimeError(f"vm-ros simulate exited with {code}: {text.getvalue()[-300:]}")
+        raise RuntimeError(f"vm-ros {verb} exited with {code}: {text.getvalue()[-300:]}")
     return wall, text.getvalue().strip().splitlines()[-1]
+
+
+def _simulate_in_process(out: Path, duration_s: float | None) -> tuple[float, str]:
+    """Wall time (s) of vm_ros.cli.simulate.run and its last output line."""
+    return _in_process("simulate", _simulate_args(out, duration_s))
 
 
 def _recompute_in_process(log: Path, out: Path) -> float:
     """Wall time (s) of vm_ros.cli.recompute.run of ``log`` into ``out``."""
-    from vm_ros.cli import recompute
-
-    parser = argparse.ArgumentParser()
-    recompute.add_arguments(parser)
-    args = parser.parse_args([str(log), "--out", str(out)])
-    text = io.StringIO()
-    start = time.perf_counter()
-    with contextlib.redirect_stdout(text):
-        code = recompute.run(args)
-    wall = time.perf_counter() - start
-    if code != 0:
-        raise RuntimeError(f"vm-ros recompute exited with {code}: {text.getvalue()[-300:]}")
-    return wall
+    return _in_process("recompute", [str(log), "--out", str(out)])[0]
 
 
 def _simulate_cli(out: Path, duration_s: float | None) -> float:
