@@ -1,6 +1,6 @@
 # vm_ros developer and CI entry points. Nothing here needs an activated venv.
 #
-#   make venv         create/refresh $(VENV) with ".[ros,dev,fast,opensim,mujoco]" pinned by constraints.txt,
+#   make venv         create/refresh $(VENV) with ".[ros,dev,fast,opensim,mujoco,study]" pinned by constraints.txt,
 #                     and compile the model step (Numba's cache)
 #   make test         the whole pytest suite (ruff included) in a loopback-only network namespace
 #   make demo         the demo, in a loopback-only network namespace
@@ -12,9 +12,8 @@
 
 VENV ?= .venv
 # Debian 12's own interpreter where it is installed, whatever python3 comes first on PATH: it is a
-# statically linked build, and measured faster than a shared-library build of the same Python
-# (pyenv's 3.11.7): the kernel's first compile 11.4 s against 12.3 s, a 1-muscle muscle_node
-# 7.8-8.4 % of a core against 8.4-9.4 % (paired runs, 2026-11-30). PYTHON=... overrides it.
+# statically linked build, faster than a shared-library build of the same Python for the kernel's
+# compile and the node (docs/performance.md). PYTHON=... overrides it.
 PYTHON ?= $(or $(wildcard /usr/bin/python3.11),python3)
 COLCON_VENV ?= .venv-colcon
 
@@ -47,8 +46,8 @@ $(PKG_STAMP): setup.py constraints.txt $(PKG_SOURCES)
 	    echo "$(VENV)/bin/pip install --no-deps --force-reinstall ."; \
 	    $(VENV)/bin/pip install --quiet --no-deps --force-reinstall .; \
 	else \
-	    echo '$(VENV)/bin/pip install -c constraints.txt ".[ros,dev,fast,opensim,mujoco]"'; \
-	    $(VENV)/bin/pip install -c constraints.txt ".[ros,dev,fast,opensim,mujoco]" && touch $(DEPS_STAMP); \
+	    echo '$(VENV)/bin/pip install -c constraints.txt ".[ros,dev,fast,opensim,mujoco,study]"'; \
+	    $(VENV)/bin/pip install -c constraints.txt ".[ros,dev,fast,opensim,mujoco,study]" && touch $(DEPS_STAMP); \
 	fi
 	$(WARM_UP)
 	@touch $@

@@ -48,6 +48,8 @@ setup(
         # exact MuJoCo geometry back end and the closed-loop simulator; the run time needs neither
         "opensim": ["opensim==4.6"],
         "mujoco": ["mujoco==4.0.0", "myo-sim==0.2.3"],
+        # vm-ros study: runs on Dask distributed, results table in Parquet
+        "study": ["dask[distributed]>=2024.1", "pyarrow>=14"],
         "dev": ["pytest>=7.4", "ruff>=0.5", "hypothesis>=6.80", "matplotlib>=3.6",
                 "rosbags>=0.11"],  # test_recording_bag: an independent rosbag2 reader
     },
@@ -64,6 +66,7 @@ setup(
         (f"share/{PACKAGE}", ["package.xml"]),
         # sorted globs: new files are picked up, and an empty folder gives an empty (harmless) entry
         (f"share/{PACKAGE}/config", sorted(glob("config/*.yaml"))),
+        (f"share/{PACKAGE}/config/studies", sorted(glob("config/studies/*.yaml"))),
         (f"share/{PACKAGE}/msg", sorted(glob("msg_defs/*.msg"))),
         (f"lib/{PACKAGE}", ["resource/muscle_node", "resource/mujoco_sim_node"]),
     ],

@@ -242,3 +242,35 @@ def test_held_wrist_imports_flex_at_the_held_wrist_angle(tmp_path, capsys):
     assert np.sqrt(np.mean((fitted - truth) ** 2)) <= 1e-4
     # the wrist matters to m_c: held at qpos0 (0 rad) instead, it would be > 1 mm off
     assert np.min(np.abs(_tendon_lengths(model, flex, 0.0)[:, 2] - truth)) > 1e-3
+
+
+def test_strength_model_keeps_mujocos_f0_and_the_masses(tmp_path, capsys):
+    """--strength model: each muscle's VM F0 is MuJoCo's own (gainprm[2], read here with MuJoCo),
+    the masses those of the default import; --strength 0.5 halves it; a bad word is one line."""
+    import mujoco
+    from myo_sim import load_spec
+
+    with_model = tmp_path / "model"
+    assert main(["import-mjcf", "myoelbow", "--out", str(with_model), "--samples", "200",
+                 "--strength", "model"]) == 0
+    half = tmp_path / "half"
+    assert main(["import-mjcf", "myoelbow", "--out", str(half), "--samples", "200",
+                 "--strength", "0.5"]) == 0
+    default = tmp_path / "default"
+    assert main(["import-mjcf", "myoelbow", "--out", str(default), "--samples", "200"]) == 0
+    model = load_spec("myoelbow").compile()
+    names = ["BIClong", "BRA"]
+    force = [model.actuator_gainprm[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, n), 2]
+             for n in names]
+    banks = {p.name: MuscleBank.from_config(names, library=p / "muscles.yaml", backend="numpy")
+             for p in (with_model, half, default)}
+    np.testing.assert_allclose(banks["model"].f0, force, rtol=1e-8)
+    np.testing.assert_allclose(banks["half"].f0, 0.5 * np.array(force), rtol=1e-8)
+    np.testing.assert_allclose(banks["default"].f0, 31.8 / 60.0 * np.array(force), rtol=1e-8)
+    np.testing.assert_array_equal(banks["model"].mass_kg, banks["default"].mass_kg)
+    assert "specific_tension_pa" not in (default / "muscles.yaml").read_text()
+    capsys.readouterr()
+    assert main(["import-mjcf", "myoelbow", "--out", str(tmp_path / "x"),
+                 "--strength", "strong"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "--strength 'strong'" in err

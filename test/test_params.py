@@ -55,6 +55,9 @@ GOOD = {"mass_kg": 0.1, "l0_m": 0.08, "l0t_m": 0.2, "lmax": 1.3, "fpcsa_slow": 0
         ({"lmax": 0.9}, "muscles.m.lmax"),
         ({"path_length_max_m": 0.5}, "muscles.m.path_length_max_m"),  # both given
         ({"colour": "red"}, "muscles.m.colour"),
+        ({"specific_tension_pa": 60.0, "source": {"specific_tension_pa": "N/cm^2 by mistake"}},
+         "muscles.m.specific_tension_pa"),
+        ({"specific_tension_pa": 6e5}, "muscles.m.source.specific_tension_pa"),  # no source
     ],
 )
 def test_bad_muscle_field_names_file_and_field(tmp_path, change, field):
@@ -77,6 +80,20 @@ def test_overrides_apply_and_unknown_override_fails(tmp_path):
     assert bank.fpcsa[0] == pytest.approx([0.2, 0.8])
     with pytest.raises(ConfigError):
         MuscleBank.from_config(["m"], library=path, overrides={"other": {"mass_kg": 1.0}})
+
+
+def test_a_muscle_s_own_specific_tension_sets_its_f0(tmp_path):
+    """F0 = sigma * mass / (density * l0): 0.1 kg, 0.08 m, 1060 kg/m^3 -> PCSA 11.79 cm^2; at
+    60 N/cm^2 F0 = 707.5 N, at the generic 31.8 N/cm^2 375.0 N. An override keeps the entry's
+    other source notes."""
+    path = _write_library(tmp_path, {**GOOD, "source": {"mass_kg": "a scale"}})
+    generic = MuscleBank.from_config(["m"], library=path, backend="numpy")
+    own = MuscleBank.from_config(["m"], library=path, backend="numpy", overrides={"m": {
+        "specific_tension_pa": 6e5, "source": {"specific_tension_pa": "Rajagopal 2016"}}})
+    assert generic.f0[0] == pytest.approx(31.8e4 * 0.1 / (1060.0 * 0.08), rel=1e-12)
+    assert own.f0[0] == pytest.approx(6e5 * 0.1 / (1060.0 * 0.08), rel=1e-12)
+    assert own.specs[0].source == {"mass_kg": "a scale", "specific_tension_pa": "Rajagopal 2016"}
+    assert own.mass_kg[0] == generic.mass_kg[0]
 
 
 def test_bad_model_file_names_field(tmp_path):

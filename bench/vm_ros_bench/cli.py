@@ -1,7 +1,7 @@
 """Measure the model, the offline runner and muscle_node against vm_ros's speed targets; write
 the results (JSON and CSV) and print a table.
 
-Sections (all but node-memory by default; --only picks some):
+Sections (all but study and node-memory by default; --only picks some):
   model     MuscleBank.step for 1, 10, 100, 1000 muscles (lumped units, energetics on,
             dt 1 ms), compiled (Numba) and NumPy back ends; the published energetics models'
             cost at 1000 muscles; the kernel per muscle-step: run against repeated step at 1,
@@ -10,11 +10,11 @@ Sections (all but node-memory by default; --only picks some):
   natural   natural units (20 per fibre type) over lumped units, cost ratio per step
   offline   the 180 s rectus femoris + vasti knee extension (dynamic recovery) with
             MuscleBank.run, wall time including set-up and input sampling
-  decode    muscle_node's decoding of an 80-joint JointState (vm_ros.recording.cdr): a stream
-            that keeps its names (the node's steady state; target <= 20 us per message), names
-            changing every message, mcap_ros2's decoder and rclpy's deserialize_message; thread
-            CPU time per message, medians of interleaved rounds, the load quoted
-            (vm_ros_bench.decode_bench)
+  decode    muscle_node's decoding of an 80-joint JointState (vm_ros.recording.cdr): a stream that
+            keeps its names (the node's steady state; target <= 20 us per message), with and without
+            the same padding bytes in every message, names changing every message, mcap_ros2's
+            decoder and rclpy's deserialize_message; thread CPU time per message, medians of
+            interleaved rounds, the load quoted (vm_ros_bench.decode_bench)
   node      muscle_node as a separate process: 1, 100 and 1000 muscles at 1 kHz publishing at
             100 Hz with MCAP (default batch: a tick per publish period), and 10 muscles
             publishing at 1 kHz; CPU, memory, model-time drift, time skipped, latency.
@@ -29,6 +29,10 @@ Sections (all but node-memory by default; --only picks some):
             section; the closed loop in one process (myoelbow; myolegs with its root fixed
             and free), wall time per simulated second at 1 ms steps (vm_ros_bench.joint_bench).
             --quick imports at degree 3 over 100 poses (smaller polynomials: not comparable).
+  study     runs only when named (--only study; about 17 minutes on a busy 2-core machine): a
+            study on the embedded Dask LocalCluster (the study extra), 64 runs of the 30 s knee
+            extension (fibre mix x recovery kernel) on 1 and 2 workers, speed-up and overhead
+            per run; the client's memory over 1000 short runs (vm_ros_bench.study_bench)
   node-memory
             runs only when named (--only node-memory; 7 minutes): muscle_node's resident
             memory over a long run, 100 muscles at 1 kHz, publish 100 Hz, MCAP as a rosbag2
@@ -55,7 +59,9 @@ as repeated step, 10,000 muscles in real time at 1 kHz with the parallel switch,
 < 10 s; knee extension offline < 5 s, logged < 3 s; node at 1 kHz, publish 100 Hz, MCAP: 1
 muscle <= 10 % of a core, 100 muscles <= 20 %, 1000 muscles with no model time skipped, within
 one core, model time within 1 % of wall time; node-memory: resident memory after the warm-up
-growing at most 2 MiB/h (the window's slope, extrapolated to an hour).
+growing at most 2 MiB/h (the window's slope, extrapolated to an hour); study: speed-up on 2
+workers at least 1.8, overhead per run under 5 % of a 30 s run, the client's memory growing at
+most 10 MiB from the 100th to the 1000th short run.
 """
 
 from __future__ import annotations
@@ -75,8 +81,9 @@ from vm_ros.child_process import loopback_only, module_command
 from vm_ros.errors import VmRosError
 from vm_ros_bench import FOLDER, child_environment
 
-SECTIONS = ("model", "natural", "offline", "decode", "node", "joint", "node-memory")
-DEFAULT_SECTIONS = ("model", "natural", "offline", "decode", "node", "joint")  # node-memory: named
+SECTIONS = ("model", "natural", "offline", "decode", "node", "joint", "study", "node-memory")
+DEFAULT_SECTIONS = ("model", "natural", "offline", "decode", "node",
+                    "joint")  # node-memory and study: when named
 MEMORY_DURATION_S, MEMORY_QUICK_DURATION_S = 300.0, 60.0  # node-memory window
 MEMORY_WARMUP_S, MEMORY_QUICK_WARMUP_S = 120.0, 5.0
 MEMORY_SPLIT_S = 60.0  # bag split (log time); shorter windows: a fifth of the window
@@ -243,6 +250,20 @@ KERNEL_PARALLEL_COUNTS = (64, 1000, 10000)
 KERNEL_TARGET_US = 0.25  # per muscle-step on one core at 1000 and 10,000 muscles
 
 
+def _study_section(quick: bool) -> dict:
+    """vm_ros_bench.study_bench (the study extra; without it the reason)."""
+    from vm_ros.study import require_extra
+
+    try:
+        require_extra()
+    except VmRosError as error:
+        _say(f"study: skipped: {error}")
+        return {"error": str(error)}
+    from vm_ros_bench import study_bench
+
+    return study_bench.bench_study(quick, progress=_say)
+
+
 def kernel_available() -> bool:
     from vm_ros.model import kernel
 
@@ -383,6 +404,10 @@ def _csv_rows(results: dict) -> list[dict]:
         _joint_csv_rows(results["joint"], add)
     if "node-memory" in results:
         _memory_csv_rows(results["node-memory"], add)
+    if "study" in results and "error" not in results["study"]:
+        from vm_ros_bench import study_bench
+
+        study_bench.csv_rows(results["study"], add)
     return rows
 
 
@@ -394,12 +419,12 @@ def _decode_csv_rows(r: dict, add) -> None:
         if "skipped" in row:
             add("decode", case, "skipped", row["skipped"], "")
             continue
-        stream = row["case"] == "stream"
+        stream = row["case"].startswith("stream")  # a publisher that keeps its names
         add("decode", case, f"per message median, {r['clock']}", row["us"], "us",
             f"<= {r['target_us']:g} us" if stream else None,
             row["us"] <= r["target_us"] if stream else None, row["us_min"], row["us_max"])
     if "stream" in timed:
-        for name in ("rclpy", "new names"):
+        for name in ("rclpy", "stream, padding varies", "new names"):
             if name in timed:
                 add("decode", f"JointState {r['joints']} joints, {name} / stream ({load})",
                     "per message", timed[name]["us"] / timed["stream"]["us"], "ratio")
@@ -633,6 +658,7 @@ def run(args) -> int:
         ("node", lambda: _node_rows(node_duration, out)),
         ("joint", lambda: _joint_section(out, args.quick, repeats, min_seconds,
                                          node_duration)),
+        ("study", lambda: _study_section(args.quick)),
         ("node-memory", lambda: _node_memory_row(
             args.node_duration or (MEMORY_QUICK_DURATION_S if args.quick else MEMORY_DURATION_S),
             MEMORY_QUICK_WARMUP_S if args.quick else MEMORY_WARMUP_S, out / "node-memory")),

@@ -5,6 +5,8 @@ Cases, each timed on the same messages:
 - ``stream``: vm_ros.recording.cdr.input_decoder as the node uses it on a topic, one decoder for
   a publisher that keeps its names and sends new values in every message (the node's steady
   state: the message is read at the previous one's layout);
+- ``stream, padding varies``: the same stream with the alignment padding after each name set to
+  other bytes in every message (not every serialiser initialises it);
 - ``new names``: the same decoder given two name sets in turn (every message's names decoded);
 - ``mcap_ros2``: the general decoder (vm_ros.recording.cdr.decoder: lists, not arrays);
 - ``rclpy``: rclpy.serialization.deserialize_message (needs the ros extra): the reference the
@@ -44,6 +46,22 @@ def joint_states(joints: int, count: int, suffix: str = "", seed: int = 0) -> li
             for k in range(count)]
 
 
+def with_random_padding(message: bytes, names: int, seed: int) -> bytes:
+    """``message`` (a JointState of ``names`` names and an empty frame_id) with the 0-3
+    alignment bytes after each name but the last set to random values. The name block starts at
+    byte 20: the 4-byte encapsulation, the 8-byte stamp, frame_id's length and its NUL, aligned
+    to 4 from byte 4."""
+    rng = np.random.default_rng(seed)
+    data, offset = bytearray(message), 24  # the first name's length word
+    for k in range(names):
+        end = offset + 4 + int.from_bytes(data[offset:offset + 4], "little")
+        padding = -end % 4
+        if k < names - 1 and padding:
+            data[end:end + padding] = rng.integers(1, 256, padding, dtype=np.uint8).tobytes()
+        offset = end + padding
+    return bytes(data)
+
+
 def _cases(joints: int) -> dict:
     """name -> a function that decodes the next message (or the reason it cannot run)."""
     from vm_ros.recording.cdr import decoder, input_decoder
@@ -60,7 +78,9 @@ def _cases(joints: int) -> dict:
             return decode(messages[position[0]])
         return step
 
+    padded = [with_random_padding(m, joints, seed) for seed, m in enumerate(stream)]
     cases = {"stream": cycling(input_decoder(TYPE), stream),
+             "stream, padding varies": cycling(input_decoder(TYPE), padded),
              "new names": cycling(input_decoder(TYPE), alternate),
              "mcap_ros2": cycling(decoder(TYPE), stream)}
     try:

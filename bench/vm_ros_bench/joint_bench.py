@@ -25,7 +25,7 @@ muscle_node from joint_states (vm_ros_bench.node_bench.run_joint_node_benchmark)
 The myolegs geometry and muscle library come from ``vm-ros import-mjcf``'s Python API
 (``import_myolegs``), imported once into a cache folder and reused while the model, the import
 options and the MuJoCo, myo-sim and vm_ros versions are the same. The quick variant imports
-with degree 3 over 100 poses (about 3 s instead of about 60 s; fewer polynomial terms, so its
+with degree 3 over 100 poses (much faster, docs/performance.md; fewer polynomial terms, so its
 geometry timings are smaller than the full import's and not comparable).
 
 Timings are wall-clock medians over repeats (``time.perf_counter``), with min and max.

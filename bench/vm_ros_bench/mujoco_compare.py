@@ -10,7 +10,7 @@ on each tendon a ``<muscle>`` actuator (MuJoCo's muscle dynamics, gain and bias:
 one activation state, no recruitment, no energetics) with the vm_ros muscle's F0 and an optimal
 length equal to its L0 (``lengthrange`` spans ``range`` = 0.75..1.05 L0 with the rest length at
 1 L0). One joint for all, as a model with many muscles per joint has (a slide joint per muscle
-cost about 0.2 us per extra muscle against 0.12 us with one, at 50 muscles). Each step sets the
+adds cost: docs/performance.md). Each step sets the
 slider's position and velocity (the path of the other systems) and the excitations as ``ctrl``,
 calls ``mj_step`` and reads ``actuator_force``: what a user of MuJoCo from Python does per control
 step. This compares cost, not physiology (different models; MuJoCo reports no energy).

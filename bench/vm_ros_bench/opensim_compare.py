@@ -75,7 +75,7 @@ class OpensimMuscles(PeerStepper):
             model.getMuscles().get(f"m{i}")) for i in range(n)]
         self.manager = osim.Manager(model)
         # no record of past states: kept, it makes every step dearer as the run goes on
-        # (1 muscle: 219 us per step in the first simulated second, 442 us in the eighth)
+        # (docs/performance.md)
         self.manager.setWriteToStorage(False)
         self.manager.setRecordStatesTrajectory(False)
         self.manager.initialize(state)

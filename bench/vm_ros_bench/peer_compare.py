@@ -16,11 +16,10 @@ step the force of every muscle and, where the system has it, the energy rate:
   runs from its own point on the ground to one body on a slider joint whose coordinate is
   prescribed (an OpenSim Sine: +-2 % of the first muscle's rest length at 1 Hz), the points
   placed so that each path is at its muscle's rest length (L0 + L0T) at the middle of the swing.
-  One body for all: a body per muscle would add multibody work that a model with many muscles
-  per body does not have (at 20 muscles it cost about 136 us per extra muscle against 54 us
-  with one body). A step is ``Manager.integrate(t + 1 ms)`` (OpenSim's default integrator; the
-  Manager keeps no storage or trajectory of past states), realizing the state to Report and
-  reading every tendon force and the probe's outputs.
+  One body for all: a body per muscle would add multibody work that a model with many muscles per
+  body does not have (docs/performance.md). A step is ``Manager.integrate(t + 1 ms)`` (OpenSim's
+  default integrator; the Manager keeps no storage or trajectory of past states), realizing the
+  state to Report and reading every tendon force and the probe's outputs.
 - MuJoCo (the ``mujoco`` wheel): vm_ros_bench.mujoco_compare.
 
 The steppers: vm_ros_bench.peers (vm_ros), vm_ros_bench.opensim_compare and

@@ -1,9 +1,10 @@
 """Import a MuJoCo model's muscle geometry (and what parameters it has) for vm_ros.
 
-MODEL is an MJCF file or a myo-sim model name (myoelbow, myoarm_r, myolegs, ...). Writes, in
---out DIR: geometry.yaml (polynomial path lengths of the independent joints, fitted to MuJoCo's
-exact tendon lengths and gradients, with each muscle's held-out errors), muscles.yaml (a VM muscle
-library) and summary.txt (the summary printed here).
+MODEL is an MJCF file or a myo-sim model name (myoelbow, myoarm_r, myolegs, ...); a name myo-sim
+knows wins over a file or folder of that name in the working directory (./NAME for the file).
+Writes, in --out DIR: geometry.yaml (polynomial path lengths of the independent joints, fitted to
+MuJoCo's exact tendon lengths and gradients, with each muscle's held-out errors), muscles.yaml (a
+VM muscle library) and summary.txt (the summary printed here).
 
 MuJoCo stores no optimal fibre length or tendon slack length: they are derived the MuJoCo way
 from each muscle's operating range and compiled lengthrange, and are often unusable (tendons of a

@@ -49,6 +49,7 @@ from __future__ import annotations
 import argparse
 import sys
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -56,6 +57,7 @@ import numpy as np
 
 from vm_ros import telemetry as tm
 from vm_ros.cli.runs import (
+    RunOutcome,
     StopOnSignal,
     add_model_options,
     add_output_options,
@@ -242,7 +244,8 @@ def _bank_of(config, log_path, attached_dir):
         ) from None
 
 
-def run(args) -> int:
+def run(args, on_outcome: Callable[[RunOutcome], None] | None = None) -> int:
+    """The verb; ``on_outcome`` (vm_ros.study) gets what the run computed when it succeeded."""
     models = energetics_models_option(args.energetics_models)
     log_path = args.log
     with Progress(f"read {log_path.name}", 1.0, enabled=True if args.progress else None) as p:
@@ -288,7 +291,8 @@ def run(args) -> int:
         new_info = RunInfo(config, timing, "recompute", info.namespace, info.time_base, extra,
                            info.topics)
         # open while the attached files exist: the new log attaches them again
-        recorder = open_run_log(out_path, new_info, bank, **recorder_options(args))
+        recorder = open_run_log(out_path, new_info, bank, attachment_time_ns=start_ns,
+                                **recorder_options(args))
     with StopOnSignal() as stop, recorder, Progress(
             f"recompute {log_path.name}", n_steps, enabled=True if args.progress else None) \
             as progress:
@@ -312,11 +316,13 @@ def run(args) -> int:
         if irregular:
             print("approximate: the node's model time left its step grid ("
                   + "; ".join(irregular) + "); recomputed on one continuous grid")
+    rows = []
     if result.last is not None:
         last = result.last
-        print(summary_table(summarize(bank.names, result.force_samples,
-                                      energy_partition(last.energy_by_fibre, last.energy),
-                                      last.mechanical_work)))
+        rows = summarize(bank.names, result.force_samples,
+                         energy_partition(last.energy_by_fibre, last.energy),
+                         last.mechanical_work)
+        print(summary_table(rows))
     if len(result.joints):
         conditioning = inputs.conditioning
         units = [space.geometry.coordinates[j].unit for j in space.output]
@@ -327,8 +333,10 @@ def run(args) -> int:
     for line in [c.line() for c in comparisons] + [verdict(comparisons, irregular)]:
         if line:
             print(line)
+    totals = []
     if bank.energetics_models and status.ok and status.written:
-        print(model_totals_table(logged_model_totals(out_path), bank.names))
+        totals = logged_model_totals(out_path)
+        print(model_totals_table(totals, bank.names))
     print(f"log: {shown_log_path(out_path, status.path)} ({status.written} messages, "
           f"{status.bytes_written / 1e6:.2f} MB)")
     if stop.signum:
@@ -337,4 +345,6 @@ def run(args) -> int:
     if not status.ok:
         print(f"vm-ros recompute: error: {status.error}", file=sys.stderr)
         return 1
+    if on_outcome is not None:
+        on_outcome(RunOutcome(rows, totals, result.steps * timing.dt_s))
     return 0

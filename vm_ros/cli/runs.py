@@ -6,7 +6,9 @@ import argparse
 import math
 import signal
 import sys
+import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 from vm_ros.errors import VmRosError
@@ -14,6 +16,25 @@ from vm_ros.model import SCHEMES
 from vm_ros.model.params import DRIVE_LAWS, RECOVERY_MODES
 from vm_ros.model.run_config import RunConfig, parse_overrides
 from vm_ros.recording.writer import FLUSH_INTERVAL_S
+
+
+@dataclass(frozen=True)
+class RunOutcome:
+    """What a finished offline run computed (simulate, recompute), handed to the caller of the
+    verb's ``run(args, on_outcome)`` (vm_ros.study): the numbers its summary printed.
+
+    | field | meaning |
+    | --- | --- |
+    | muscles | per muscle: force statistics, energy per fibre type and component, work
+      (vm_ros.report.summary.MuscleSummary) |
+    | model_totals | per published energetics model, energy per muscle (ModelTotals; Tsianos
+      2012 first; [] without energetics models) |
+    | duration_s | model time simulated (s) |
+    """
+
+    muscles: list
+    model_totals: list
+    duration_s: float
 
 
 def add_model_options(parser, defaults_from: str) -> None:
@@ -141,7 +162,9 @@ def add_strict_option(parser) -> None:
 
 class StopOnSignal:
     """While active, SIGINT and SIGTERM only set ``signum``, so a run can stop between two steps
-    and finish its log cleanly: ``with StopOnSignal() as stop: ... if stop.signum: break``."""
+    and finish its log cleanly: ``with StopOnSignal() as stop: ... if stop.signum: break``.
+    Outside the main thread (a run on a Dask worker: vm_ros.study.task) nothing is installed,
+    since Python delivers signals to the main thread only; the process's owner stops it."""
 
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -156,6 +179,8 @@ class StopOnSignal:
         return self.signum is not None
 
     def __enter__(self) -> StopOnSignal:
+        if threading.current_thread() is not threading.main_thread():
+            return self
         for sig in self.SIGNALS:
             self._previous[sig] = signal.signal(sig, self._handle)
         return self

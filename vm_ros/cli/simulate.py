@@ -74,6 +74,7 @@ from pathlib import Path
 
 from vm_ros.cli.runs import (
     InputWarnings,
+    RunOutcome,
     StopOnSignal,
     add_model_options,
     add_output_options,
@@ -380,7 +381,8 @@ def _positive(name: str, value: float) -> float:
     return value
 
 
-def run(args) -> int:
+def run(args, on_outcome: Callable[[RunOutcome], None] | None = None) -> int:
+    """The verb; ``on_outcome`` (vm_ros.study) gets what the run computed when it succeeded."""
     models = energetics_models_option(args.energetics_models)
     _check_options(args)
     source = _motion_source(args) if args.motion else _source(args)
@@ -405,7 +407,8 @@ def run(args) -> int:
     n_steps = round(duration / timing.dt_s)
     # signals stay caught until the log is closed, so that SIGTERM cannot cut the file short
     with StopOnSignal() as stop, open_run_log(
-            out_path, info, bank, **recorder_options(args)) as recorder, Progress(
+            out_path, info, bank, attachment_time_ns=timing.start_time_ns,
+            **recorder_options(args)) as recorder, Progress(
             f"simulate {source.name}", n_steps, enabled=True if args.progress else None) \
             as progress:
         offline = OfflineRun(bank, timing, recorder)
@@ -416,6 +419,7 @@ def run(args) -> int:
     print(f"simulated {result.steps * timing.dt_s:.3f} s of {', '.join(bank.names)} "
           f"({config.recruitment} recruitment, {bank.recovery_mode} recovery, dt "
           f"{timing.dt_s * 1e3:g} ms)")
+    rows = []
     if result.last is not None:
         last = result.last
         rows = summarize(bank.names, result.force_samples,
@@ -424,8 +428,10 @@ def run(args) -> int:
         print(summary_table(rows))
     for line in source.report(inputs, result):
         print(line)
+    totals = []
     if bank.energetics_models and status.ok and status.written:
-        print(model_totals_table(logged_model_totals(out_path), bank.names))
+        totals = logged_model_totals(out_path)
+        print(model_totals_table(totals, bank.names))
     print(f"log: {shown_log_path(out_path, status.path)} ({status.written} messages, "
           f"{status.bytes_written / 1e6:.2f} MB"
           f"{f', {status.dropped} dropped' if status.dropped else ''})")
@@ -439,4 +445,6 @@ def run(args) -> int:
     if not status.ok:
         print(f"vm-ros simulate: error: {status.error}", file=sys.stderr)
         return 1
+    if on_outcome is not None:
+        on_outcome(RunOutcome(rows, totals, result.steps * timing.dt_s))
     return 0

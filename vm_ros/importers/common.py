@@ -14,6 +14,10 @@ Rules (each written into the library's ``source`` notes; config/muscles.yaml exp
   F0 = 31.8 N/cm^2 * mass / (density * l0) = 0.53 of the source model's F0 (both stated in the
   summary). ``--specific-tension vm`` uses VM's own 31.8 N/cm^2 instead: VM's F0 equals the
   model's, and masses (hence energy rates) are 1.9x larger.
+- strength (``--strength``): ``vm`` (default) leaves VM's own specific tension to every muscle, as
+  above; ``model`` gives each muscle its own ``specific_tension_pa``, the value its mass was made
+  with, so that VM's F0 equals the source model's F0 while the mass stays; a number k gives k times
+  that value (VM's F0 = k x the model's F0). The entry's source note says which.
 - Lmax from the largest sampled path length (the formula of config/muscles.yaml rule 4; that
   rule resets an out-of-band value to 1.3 for the shipped library, while the importer keeps the
   band's end nearest the geometry), clipped into VM's
@@ -83,6 +87,35 @@ class SpecificTension:
     @property
     def n_per_cm2(self) -> float:
         return self.pa / 1e4
+
+
+@dataclass(frozen=True)
+class Strength:
+    """``--strength``: VM's F0 as a multiple of the source model's F0 (``factor``), or None for
+    VM's own specific tension (config/model.yaml) on every muscle."""
+
+    factor: float | None = None
+
+    @property
+    def word(self) -> str:
+        if self.factor is None:
+            return "vm"
+        return "model" if self.factor == 1.0 else f"{self.factor:g}"
+
+
+def strength_option(text: str) -> Strength:
+    """``--strength``: ``vm``, ``model`` (keep the source model's F0) or a factor in 0.1-10."""
+    word = str(text).strip().lower()
+    if word in ("vm", "model"):
+        return Strength(None if word == "vm" else 1.0)
+    try:
+        value = float(word)
+    except ValueError:
+        value = float("nan")
+    if not (math.isfinite(value) and 0.1 <= value <= 10.0):
+        raise VmRosError(f"--strength {text!r}: give 'vm', 'model' or a factor of the model's F0 "
+                         "in 0.1-10")
+    return Strength(value)
 
 
 def specific_tension_option(text: str, params=None) -> SpecificTension:
@@ -166,14 +199,16 @@ def fibre_fraction(table: dict, name: str, default=None) -> tuple[float, str, bo
 
 
 def library_entries(muscles, *, specific_tension_pa, density_kg_per_m3, fibre_table,
-                    default_fpcsa_slow, ur, params=None, origin="the source model"
-                    ) -> tuple[dict, list[dict]]:
+                    default_fpcsa_slow, ur, params=None, origin="the source model",
+                    strength: Strength = Strength()) -> tuple[dict, list[dict]]:
     """VM muscle-library fields for imported muscles, and one summary row per muscle.
 
     Returns (``{name: {mass_kg, l0_m, l0t_m, path_length_max_m, path_length_min_m, fpcsa_slow,
     ur, source: {field: note}, description}}``, rows). ``params``: VM's ModelParams (default the
     shipped config/model.yaml), whose LrT, tendon and PE1 constants and specific tension enter
     rules 3-4 and the VM F0 reported in the rows. ``origin`` names the model in the notes.
+    ``strength``: with a factor, each entry gets ``specific_tension_pa`` = factor * the specific
+    tension of its mass, so that VM's F0 = factor * the model's F0.
     """
     g = (params or load_model_params()).generic
     sigma = float(specific_tension_pa)
@@ -187,7 +222,8 @@ def library_entries(muscles, *, specific_tension_pa, density_kg_per_m3, fibre_ta
                              f"path max {m.path_length_max_m}")
         l0t = float(m.tendon_slack_m) / g.lrt
         mass = f0 * density_kg_per_m3 * l0 / sigma
-        f0_vm = g.specific_tension * mass / (g.muscle_density * l0)
+        own = None if strength.factor is None else strength.factor * sigma
+        f0_vm = (g.specific_tension if own is None else own) * mass / (g.muscle_density * l0)
         lmax_geometric = float(lmax_from_path_length_max(m.path_length_max_m, l0, l0t, g))
         lmax = min(max(lmax_geometric, LMAX_BAND[0]), LMAX_BAND[1])
         # Lmax is linear in the path length: shift the path by the clipped fascicle excursion.
@@ -230,6 +266,12 @@ def library_entries(muscles, *, specific_tension_pa, density_kg_per_m3, fibre_ta
             },
             "description": m.note or f"imported from {origin}",
         }
+        if own is not None:
+            entries[m.name]["specific_tension_pa"] = _round(own)
+            entries[m.name]["source"]["specific_tension_pa"] = (
+                f"--strength {strength.word}: {strength.factor:g} x the {sigma / 1e4:g} N/cm^2 "
+                f"the mass was made with, so that VM's F0 = {strength.factor:g} x {origin}'s F0 "
+                f"{f0:.6g} N")
         rows.append({"name": m.name, "f0_model_n": f0, "f0_vm_n": f0_vm, "mass_kg": mass,
                      "l0_m": l0, "l0t_m": l0t, "lmax_geometric": lmax_geometric, "lmax": lmax,
                      "fpcsa_slow": fpcsa_slow, "fibre_found": fibre_found,
@@ -255,7 +297,7 @@ def write_library(path, entries: dict, header: str) -> Path:
 
 
 def choices_text(rows, *, specific_tension: SpecificTension, density_kg_per_m3, fibre_table,
-                 params=None) -> str:
+                 params=None, strength: Strength = Strength()) -> str:
     """The parameter choices and their consequences, as lines (summary and library header)."""
     g = (params or load_model_params()).generic
     n = len(rows)
@@ -267,8 +309,12 @@ def choices_text(rows, *, specific_tension: SpecificTension, density_kg_per_m3, 
     lines = [
         f"mass = F0 * density {density_kg_per_m3:g} kg/m^3 * l0 / specific tension "
         f"{specific_tension.n_per_cm2:g} N/cm^2 ({specific_tension.source}).",
-        f"VM computes F0 = {g.specific_tension / 1e4:g} N/cm^2 * mass / (density * l0): "
-        f"VM F0 = {ratio:.3g} x the model's F0 (total {sum(r['f0_vm_n'] for r in rows):.0f} N "
+        (f"VM computes F0 = {g.specific_tension / 1e4:g} N/cm^2 * mass / (density * l0): "
+         f"VM F0 = {ratio:.3g} x the model's F0" if strength.factor is None else
+         f"--strength {strength.word}: each muscle's specific_tension_pa is "
+         f"{strength.factor * specific_tension.n_per_cm2:g} N/cm^2, so VM F0 = "
+         f"{strength.factor:g} x the model's F0")
+        + f" (total {sum(r['f0_vm_n'] for r in rows):.0f} N "
         f"vs {sum(r['f0_model_n'] for r in rows):.0f} N).",
         f"l0 = optimal fibre length; pennation dropped (VM has none): {len(pennated)} of {n} "
         "muscles pennated more than 5 deg"
@@ -352,6 +398,7 @@ class ImportChoices:
     specific_tension: SpecificTension
     default_fpcsa_slow: float | None = None
     ur: float = 0.8
+    strength: Strength = Strength()
 
 
 @dataclass(frozen=True)
@@ -423,6 +470,11 @@ def add_parameter_arguments(parser) -> None:
                              "config/fibre_types.yaml)")
     parser.add_argument("--ur", type=float, default=0.8,
                         help="drive at which all units are recruited (default 0.8)")
+    parser.add_argument("--strength", default="vm", metavar="vm|model|FACTOR",
+                        help="VM's F0: 'vm' (the default: VM's own specific tension, 31.8 "
+                             "N/cm^2, on the masses), 'model' (each muscle keeps the source "
+                             "model's F0, through its own specific_tension_pa) or a factor of "
+                             "the model's F0")
 
 
 def choices_from_args(args) -> ImportChoices:
@@ -432,7 +484,7 @@ def choices_from_args(args) -> ImportChoices:
     if not 0 < args.ur <= 1:
         raise VmRosError(f"--ur {args.ur}: give a value in (0, 1]")
     return ImportChoices(specific_tension_option(args.specific_tension), args.fibre_default,
-                         args.ur)
+                         args.ur, strength_option(args.strength))
 
 
 def write_import(out_dir, geometry, muscles, choices: ImportChoices, *, title: str,
@@ -453,9 +505,10 @@ def write_import(out_dir, geometry, muscles, choices: ImportChoices, *, title: s
     entries, rows = library_entries(
         muscles, specific_tension_pa=choices.specific_tension.pa, density_kg_per_m3=density,
         fibre_table=table, default_fpcsa_slow=choices.default_fpcsa_slow, ur=choices.ur,
-        params=params, origin=origin)
+        params=params, origin=origin, strength=choices.strength)
     text = choices_text(rows, specific_tension=choices.specific_tension,
-                        density_kg_per_m3=density, fibre_table=table, params=params)
+                        density_kg_per_m3=density, fibre_table=table, params=params,
+                        strength=choices.strength)
     header = "\n".join([title, "", "Parameter rules (vm_ros.importers.common, docs/geometry.md):",
                         *text.splitlines(), "",
                         "Geometry (path lengths, moment arms) is in geometry.yaml beside this "
@@ -482,7 +535,8 @@ def write_import(out_dir, geometry, muscles, choices: ImportChoices, *, title: s
     return paths
 
 
-__all__ = ["ImportChoices", "ImportedMuscle", "LMAX_BAND", "SpecificTension",
+__all__ = ["ImportChoices", "ImportedMuscle", "LMAX_BAND", "SpecificTension", "Strength",
+           "strength_option",
            "add_fit_arguments", "add_parameter_arguments", "choices_from_args", "choices_text",
            "fibre_fraction", "library_entries", "load_fibre_table", "name_stem", "print_fit_table",
            "print_summary", "specific_tension_option", "write_import", "write_library"]

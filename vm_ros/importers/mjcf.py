@@ -205,7 +205,7 @@ def derive_library(geometry, choices, path_min, path_max, user_entries=None,
             density_kg_per_m3=params.generic.muscle_density,
             fibre_table=fibre_table or common.load_fibre_table(),
             default_fpcsa_slow=choices.default_fpcsa_slow, ur=choices.ur, params=params,
-            origin=origin_of(geometry))
+            origin=origin_of(geometry), strength=choices.strength)
     user_entries = user_entries or {}
     overridden = tuple(n for n in names if n in user_entries)
     for name in overridden:

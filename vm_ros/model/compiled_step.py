@@ -1,9 +1,10 @@
 """Glue between a bank and the compiled step (vm_ros.model.kernel): the constants packed once into
 the tables the kernel reads, and the calls with the flat argument list vm_ros.model.layout declares.
 
-The kernel takes every array as its own argument (grouping them costs 1.4-3x per call, and a Numba
-jitclass is compiled anew in every process), so the lists here are built from the declaration:
-constants in ``layout.CONSTANTS`` order, state in ``layout.STATE`` order, outputs as StepRecord.
+The kernel takes every array as its own argument (grouping them makes each call dearer,
+docs/performance.md, and a Numba jitclass is compiled anew in every process), so the lists here are
+built from the declaration: constants in ``layout.CONSTANTS`` order, state in ``layout.STATE``
+order, outputs as StepRecord.
 """
 
 from __future__ import annotations

@@ -165,7 +165,7 @@ literal_unroll = numba.literal_unroll if HAVE_NUMBA else (lambda iterable: itera
 # muscles calling the model's equation functions, which LLVM must inline whole before it can
 # vectorise the loop (default threshold 225), and whose rows it must check for overlap once per
 # loop (default: at most 8 comparisons). With the defaults the phase loops keep calls and stay
-# scalar: measured 1.37 us per muscle-step at 1000 muscles against 0.17 us with these. These
+# scalar, several times slower (docs/performance.md). These
 # are options of the process's LLVM: other Numba code compiled in the same process after the
 # kernel is imported sees them too (they change how much LLVM inlines and vectorises, never
 # results).
@@ -188,8 +188,8 @@ def set_llvm_options() -> None:
 
 # Numba's options for every compiled function of the model: no C-callable ("cfunc") wrapper, which
 # Numba otherwise builds, optimises and emits for every function and specialisation, for use as a
-# first-class function value, which the model never makes. Measured on a cold cache: the kernel
-# compiles in 12.6 s against 14.5 s with the wrappers (2026-11-30).
+# first-class function value, which the model never makes; leaving them out shortens the
+# kernel's first compile (docs/performance.md).
 COMPILE_OPTIONS = {"no_cfunc_wrapper": True}
 
 

@@ -266,7 +266,7 @@ def _store_outputs(block, i0, count, out_excitation, out_f_se, out_f_ce, out_act
                    out_velocity):
     """A block's output rows into one step's output arrays (layout.SERIES_OUTPUTS), muscles
     i0 ... i0 + count - 1. Written out rather than through _move_rows, whose loop over a tuple
-    of arrays made a step 20 % slower at 1 muscle and 3 % at 1000 (measured)."""
+    of arrays made a step slower (docs/performance.md)."""
     for i in range(count):
         g = i0 + i
         out_excitation[g] = block[ROW_OUT_U, i]
@@ -638,11 +638,9 @@ if HAVE_NUMBA:
 AVAILABLE = advance_series is not None
 
 # The parallel switch (CompiledStep(parallel=...), or this environment variable) and the bank
-# size below which the step stays serial even when it is on. Measured on 2 idle cores (serial
-# time / parallel time, 2026-11-30): one step per call 0.73x at 8 muscles, 0.83x at 16, 0.93x at
-# 32, 1.02x at 64, 1.19x at 128; a series (run) 0.63x at 8, 1.11x at 16, 1.52x at 32, 1.68x at
-# 64, 1.7-1.9x at 1000-10000. With the other core busy it loses (0.4-0.8x, measured with the
-# earlier scalar kernel), hence off by default.
+# size below which the step stays serial even when it is on: below about 64 muscles the threads
+# cost more than they save, and with the other cores busy they lose at any size, hence off by
+# default (docs/performance.md).
 PARALLEL_ENV = "VM_ROS_PARALLEL"
 PARALLEL_MIN_MUSCLES = 64
 
@@ -666,8 +664,8 @@ def parallel_chunk(n: int, threads: int | None = None) -> int:
     return -(-n // threads)
 
 
-# The kernel's first compile, for the line warm_up prints: 11-12 s on an idle machine (README,
-# "cold start"), up to 40 s measured with both cores busy
+# The kernel's first compile, for the line warm_up prints: from an idle machine to both cores
+# busy (docs/performance.md)
 COMPILE_TIME = "about 10-40 s"
 
 

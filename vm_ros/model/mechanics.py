@@ -46,7 +46,8 @@ class MuscleGeometry:
     """Per-muscle constants in SI, arrays of shape (n,).
 
     | field | unit | meaning |
-    | f0 | N | tetanic isometric force at L0, sigma * mass / (rho * L0) |
+    | f0 | N | tetanic isometric force at L0, sigma * mass / (rho * L0); sigma the muscle's |
+    |  |  | specific_tension_pa where its entry gives one, else generic.specific_tension |
     | l0 | m | optimal fascicle length |
     | l0t | m | tendon length at F0 |
     | mass | kg | wet muscle mass |
@@ -67,6 +68,8 @@ class MuscleGeometry:
         l0 = np.array([s.l0_m for s in specs], dtype=float)
         l0t = np.array([s.l0t_m for s in specs], dtype=float)
         pcsa = mass / (g.muscle_density * l0)
+        sigma = np.array([g.specific_tension if s.specific_tension_pa is None
+                          else s.specific_tension_pa for s in specs], dtype=float)
         lmax = np.array(
             [
                 s.lmax
@@ -76,7 +79,7 @@ class MuscleGeometry:
             ]
         )
         return cls(
-            f0=g.specific_tension * pcsa, l0=l0, l0t=l0t, mass=mass, m_eff=mass / 2.0, lmax=lmax
+            f0=sigma * pcsa, l0=l0, l0t=l0t, mass=mass, m_eff=mass / 2.0, lmax=lmax
         )
 
 

@@ -362,6 +362,7 @@ class MuscleSpec:
     | lmax | L0 | fascicle length at the maximum path length (or None with path_length_max_m) |
     | fpcsa_slow | 1 | fraction of PCSA in slow fibres |
     | ur | 1 | drive at which all units are recruited |
+    | specific_tension_pa | Pa | this muscle's F0 / PCSA (None: the model's generic value) |
     """
 
     name: str
@@ -373,10 +374,13 @@ class MuscleSpec:
     path_length_max_m: float | None = field(default=None, metadata={"unit": "m"})
     lmax: float | None = field(default=None, metadata={"unit": "L0"})
     path_length_min_m: float | None = field(default=None, metadata={"unit": "m"})
+    specific_tension_pa: float | None = field(default=None, metadata={"unit": "Pa"})
     source: Mapping = field(default_factory=dict)
     description: str = ""
 
 
+# A muscle's own specific tension must be in Pa: this band (5-200 N/cm^2) catches N/cm^2 by mistake.
+SPECIFIC_TENSION_BAND_PA = (5e4, 2e6)
 # The numeric fields of a library entry (unit in the field name, SI or L0; never converted).
 _MUSCLE_NUMBERS = tuple(f.name for f in dataclasses.fields(MuscleSpec) if "unit" in f.metadata)
 _MUSCLE_FIELDS = set(_MUSCLE_NUMBERS) | {"source", "description"}
@@ -427,6 +431,15 @@ def muscle_from_fields(name: str, fields: Mapping, path, ur_default: float) -> M
     source = fields.get("source") or {}
     if not isinstance(source, Mapping):
         source = {"all": str(source)}
+    sigma = values.get("specific_tension_pa")
+    if sigma is not None:
+        low, high = SPECIFIC_TENSION_BAND_PA
+        if not low <= sigma <= high:
+            raise ConfigError(path, f"{where}.specific_tension_pa", sigma,
+                              f"give Pa in {low:g}-{high:g} (5-200 N/cm^2)")
+        if not (source.get("specific_tension_pa") or source.get("all")):
+            raise ConfigError(path, f"{where}.source.specific_tension_pa", None,
+                              "a muscle's own specific tension needs its source")
     return MuscleSpec(
         name=name, source=dict(source), description=str(fields.get("description", "")), **values
     )
@@ -511,7 +524,10 @@ def resolve_muscles(
             fields.pop("path_length_max_m", None)
         if "path_length_max_m" in extra:
             fields.pop("lmax", None)
+        source = {**(fields.get("source") or {}), **(extra.get("source") or {})}
         fields.update(extra)
+        if source:
+            fields["source"] = source
         specs.append(
             muscle_from_fields(name, fields, lib_path if not extra else "<overrides>", ur_default)
         )

@@ -5,8 +5,8 @@ Every bad input or timing event is an :class:`Issue` of one of the kinds in :dat
 each with its diagnostics label and its documented behaviour. :class:`IssueLog` counts them and
 decides when a log line is due (at most one per kind per ``throttle_s``, carrying the number
 suppressed meanwhile). rclpy's own ``throttle_duration_sec`` is not used: in rclpy 7.1.6 every
-logging call, suppressed or not, inspects the caller's source (about 1 ms a call), which a burst of
-bad messages would turn into seconds of stalled model time.
+logging call, suppressed or not, inspects the caller's source (docs/performance.md), which a
+burst of bad messages would turn into seconds of stalled model time.
 """
 
 from __future__ import annotations
@@ -180,8 +180,8 @@ class SequenceGaps:
     lost before anything of it arrived) is not counted. Exact for one publisher per topic; with
     several, a loss is counted on the nearest stream (a new publisher whose first number lies
     above another's last shows that difference as lost). The rmw's MESSAGE_LOST event is not
-    used: rmw_fastrtps accepts it but never raised it for queue overflow (measured: 0 events for
-    4940 messages lost in a burst). Header stamps are not a loss measure (publishers leave them
+    used: rmw_fastrtps accepts it but never raised it for queue overflow (docs/performance.md).
+    Header stamps are not a loss measure (publishers leave them
     0 or repeat them)."""
 
     def __init__(self, max_streams: int = 16):

@@ -196,7 +196,7 @@ class NodeInputs:
 
     def _set_drive(self, topic: str, muscles, values: np.ndarray, now_ns: int) -> list[Issue]:
         # array methods and np.minimum/np.maximum: NumPy's np.all, np.any and np.clip add a
-        # Python-level call each (about 1 us per call here, for every input message)
+        # Python-level call each, for every input message (docs/performance.md)
         if not np.isfinite(values).all():
             return [Issue("non_finite", f"{topic}: drive is not finite ({values.tolist()[:4]})")]
         issues = []

@@ -480,7 +480,7 @@ class MuscleNode(Node):
         negative, added): each tick's steps end at a publish step and run in one MuscleBank.run.
         Left in the phase of its creation, every tick that fired earlier in its period than the
         start tick ran 9 steps, and the next one split its 11 at the publish step into two
-        calls (measured: 1.99 calls per tick at 1 kHz, publish 100 Hz)."""
+        calls (docs/performance.md)."""
         self.scheduler.start(now_ns)
         self._model_timer.reset()
         if self.run_log is not None:
@@ -748,9 +748,8 @@ def make_executor(kind: str, context=None):
 def freeze_startup_objects() -> None:
     """Move every object alive now (imports, the compiled model: about 140,000 in muscle_node;
     run_node calls it for each vm_ros node once built) to the garbage collector's permanent
-    generation, so that its full collections stop walking them: each took 32 ms of the
-    spinning thread, every 10 s (muscle_node, 1 muscle at 1 kHz), a stall of three publish
-    periods."""
+    generation, so that its full collections stop walking them: each stalled the spinning
+    thread for several publish periods (docs/performance.md)."""
     gc.collect()
     gc.freeze()
 
@@ -763,9 +762,7 @@ def spin(executor, context, stop: ShutdownRequest) -> None:
     loop: spin_until_future_complete on a future that the stop request completes. Python runs
     the signal handler at the next callback (the model timer's, every publish period), and the
     spin returns from it; without any callback, at the next SPIN_CHECK_S. A Python loop of
-    spin_once calls, one per callback, cost the 1-muscle node about 0.6 % of a core more
-    (node_bench, 1 kHz, publish 100 Hz, 6 interleaved 30 s runs each, 2026-11-30: medians
-    10.8 % against 10.3 %, means 11.2 % against 10.4 %)."""
+    spin_once calls, one per callback, cost the node more (docs/performance.md)."""
     requested = Future()
     stop.when_requested(lambda: requested.done() or requested.set_result(True))
     while not stop.requested and context.ok():

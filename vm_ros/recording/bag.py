@@ -40,7 +40,7 @@ ROS_DISTRO = "jazzy"
 INFO_KEY = "rosbag2_bagfile_information"
 # why a bag with a file missing is not read as one log
 GAP = f"the log has a gap (each remaining {SUFFIX} file is a run log of its own and reads alone)"
-# LibYAML's parser where PyYAML has it (a 9 MB file parses in 0.3 s instead of a minute)
+# LibYAML's parser where PyYAML has it (large metadata files: docs/performance.md)
 _YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 MAX_METADATA_DEPTH = 16  # rosbag2 metadata nests 8 levels (to a QoS profile's durations)
 

@@ -3,17 +3,17 @@ message.
 
     add_chunk(writer, channel_ids, sequences, log_times_ns, publish_times_ns, payloads)
 
-mcap's ``Writer.add_message`` costs about 5 us per message in Python (a Message object, its
-record written field by field, a (time, offset) tuple for the index, the statistics): 2.2 s for
-the 450,000 messages of a 180 s knee-extension log. Here the Message records of a block are
-built as one NumPy array of their fixed 31-byte headers (opcode, record length, channel id,
-sequence, log time, publish time; MCAP specification, "Message") joined with the payloads, and
-the message index of each channel is one array, then handed to the writer's own chunk builder,
-which compresses the chunk and writes it with its Chunk, MessageIndex and ChunkIndex records and
-statistics as for ``add_message`` (the file is the same: test/test_recording_writer.py reads both
-back). The chunk builder and statistics are the Writer's private attributes (mcap 1.6, pinned in
-constraints.txt); with a Writer that lacks them, ``add_chunk`` falls back to ``add_message`` per
-message (``BULK`` False).
+mcap's ``Writer.add_message`` does Python work per message (a Message object, its record written
+field by field, a (time, offset) tuple for the index, the statistics): seconds for the messages of
+a 180 s knee-extension log (docs/performance.md). Here the Message records of a block are built as
+one NumPy array of their fixed 31-byte headers (opcode, record length, channel id, sequence, log
+time, publish time; MCAP specification, "Message") joined with the payloads, and the message index
+of each channel is one array, then handed to the writer's own chunk builder, which compresses the
+chunk and writes it with its Chunk, MessageIndex and ChunkIndex records and statistics as for
+``add_message`` (the file is the same: test/test_recording_writer.py reads both back). The chunk
+builder and statistics are the Writer's private attributes (mcap 1.6, pinned in constraints.txt);
+with a Writer that lacks them, ``add_chunk`` falls back to ``add_message`` per message (``BULK``
+False).
 """
 
 from __future__ import annotations

@@ -78,7 +78,7 @@ _CLOSE = object()
 # a SIGKILL can lose; its cost in bytes and CPU: docs/log_format.md section 1.
 FLUSH_INTERVAL_S = 1.0
 # The writer thread gives up the GIL after this many messages, so that a caller waiting for it
-# (a 1 kHz loop) waits about one batch (~0.3 ms), not CPython's 5 ms switch interval; it stops
+# (a 1 kHz loop) waits about one batch, not CPython's 5 ms switch interval; it stops
 # doing so while the queue is more than a quarter full, to catch up.
 _YIELD_EVERY = 32
 # The writer thread drains the queue this often (s), or at once when WAKE_SIZE queue entries
@@ -225,7 +225,9 @@ class McapRecorder:
     chunk stays open, counted from its first message; max_file_size (bytes),
     max_file_duration_s (s of log time): with a bag directory, start a new file NAME_<k>.mcap
     when the current one reaches either (0: one file; vm_ros.recording.bag); opener:
-    ``opener(path) -> binary file`` (tests inject failing files).
+    ``opener(path) -> binary file`` (tests inject failing files); attachment_time_ns: log and
+    create time of the attachments (None: the wall clock when each file starts; offline runs
+    give their start time, so that a run with a fixed start time writes the same bytes).
     Raises RecorderError naming the path when the file cannot be created or started.
     """
 
@@ -242,8 +244,10 @@ class McapRecorder:
         max_file_size: int = 0,
         max_file_duration_s: float = 0.0,
         opener: Callable[[Path], BinaryIO] = open_unbuffered,
+        attachment_time_ns: int | None = None,
     ):
         self._path = Path(path)
+        self._attachment_time_ns = attachment_time_ns
         if compression not in COMPRESSIONS:
             raise RecorderError(path, f"compression {compression!r} is not one of "
                                       f"{', '.join(COMPRESSIONS)}")
@@ -314,7 +318,7 @@ class McapRecorder:
         file of a split bag has them, so that each one is a complete run log header)."""
         writer = Writer(self._sink, chunk_size=self._chunk_size, compression=self._compression)
         writer.start(profile=PROFILE, library=f"vm_ros/{VM_ROS_VERSION} {LIBRARY_IDENTIFIER}")
-        now = time.time_ns()
+        now = time.time_ns() if self._attachment_time_ns is None else self._attachment_time_ns
         for name, record in self._metadata.items():
             writer.add_metadata(name, record)
         for name, data in self._attachments.items():

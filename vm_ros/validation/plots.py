@@ -347,7 +347,9 @@ def _joint_row(axes, key, run) -> None:
                   mew=2, label=ref["label"])
     ax_a.axhline(0, color="grey", lw=0.5)
     ax_a.set(xlabel="joint angle (deg)", ylabel=f"{what} (N m)")
-    ax_a.set_title(f"model peak {run['peak_n_m']:.1f} N m; others' passive torque down to "
+    ax_a.set_title(f"model peak {run['peak_n_m']:.1f} N m "
+                   f"({run['peak_n_m'] / run['published_peak_n_m']:.2f} of the published peak); "
+                   "others' passive torque down to "
                    f"{s.total('other').min():.1f} N m", fontsize=9)
     ax_a.set_ylim(min(0.0, 1.1 * s.total("other").min()), None)
     ax_a.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)

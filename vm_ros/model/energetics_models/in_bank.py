@@ -36,8 +36,8 @@ from vm_ros.model.energetics_models.vm_state import (
 COMPONENTS = ("activation_maintenance", "shortening_lengthening", "basal", "mechanical_work",
               "total")
 TOTAL = COMPONENTS.index("total")
-# muscle-steps per chunk of a series: (k, n, 2) temporaries of about 160 kB (measured at 1000
-# muscles: chunks of 10 steps cost 2/3 of whole 100-step batches per step)
+# muscle-steps per chunk of a series: (k, n, 2) temporaries of about 160 kB, which stay in the
+# cache (cheaper per step than whole batches: docs/performance.md)
 CHUNK_MUSCLE_STEPS = 10_000
 
 

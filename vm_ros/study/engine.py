@@ -1,0 +1,175 @@
+"""Run a study on Dask distributed: the client submits one task per run that has no finished
+record, records each run as its future completes and remakes the table at the end.
+
+Where things happen:
+- scheduling, retries and lost workers are Dask's: ``client.submit(execute, task,
+  retries=study.retries)``; a worker that dies (SIGKILL, out of memory) has its tasks rerun on
+  another by the scheduler, up to ``distributed.scheduler.allowed-failures`` times, after which
+  the run is recorded as failed (KilledWorker);
+- the records are written by the client (vm_ros.study.table.RecordStore) as
+  ``distributed.as_completed`` yields each future, so a finished row is on the client's disk
+  before anything else happens, and one file per run id means a run that ran twice is recorded
+  once;
+- logs are written by the workers under ``DIR/runs/`` (a folder every worker must see: the
+  same machine, or a shared file system on a cluster);
+- Ctrl-C (KeyboardInterrupt in the client) cancels the runs not yet finished, writes the table
+  of those that did and closes the cluster.
+
+The embedded cluster (no --scheduler) is a ``LocalCluster`` of one single-threaded worker
+process per core, bound to 127.0.0.1, without a dashboard.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import uuid
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from distributed.diagnostics.plugin import WorkerPlugin
+
+from vm_ros.study.study_file import Study
+from vm_ros.study.table import (
+    PARAMS_DIR,
+    RUNS_DIR,
+    RecordStore,
+    failed_record,
+    write_atomically,
+    write_table,
+)
+from vm_ros.study.task import STATUS_OK, RunTask, Verb, execute, one_line
+
+LOOPBACK = "127.0.0.1"
+
+
+@dataclass(frozen=True)
+class Engine:
+    """Where runs execute: ``scheduler`` (address of a running Dask scheduler) or an embedded
+    LocalCluster of ``workers`` processes (default: one per core)."""
+
+    scheduler: str | None = None
+    workers: int | None = None
+
+    def open(self):
+        """(client, cluster or None); close both with :func:`close`."""
+        import logging
+
+        from distributed import Client, LocalCluster
+
+        if self.scheduler:
+            return Client(self.scheduler), None
+        cluster = LocalCluster(n_workers=self.workers or os.cpu_count() or 1,
+                               threads_per_worker=1, processes=True, host=LOOPBACK,
+                               dashboard_address=None, silence_logs=logging.ERROR)
+        client = Client(cluster)
+        client.register_plugin(IgnoreInterrupt())
+        return client, cluster
+
+
+class IgnoreInterrupt(WorkerPlugin):
+    """The embedded cluster's workers (and those the nannies restart) ignore SIGINT: Ctrl-C in
+    the terminal reaches the whole process group, and it is the client that stops the study
+    and closes the cluster."""
+
+    def setup(self, worker) -> None:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def close(client, cluster) -> None:
+    client.close()
+    if cluster is not None:
+        cluster.close()
+
+
+@dataclass
+class StudySummary:
+    """What ``run_study`` did: runs in the study, skipped (finished before), ok and failed now,
+    not finished (interrupted), table rows."""
+
+    runs: int
+    skipped: int = 0
+    ok: int = 0
+    failed: int = 0
+    interrupted: int = 0
+    rows: int = 0
+
+    def line(self) -> str:
+        text = (f"{self.runs} runs: {self.skipped} finished before, {self.ok} ok, "
+                f"{self.failed} failed")
+        if self.interrupted:
+            text += f", {self.interrupted} not finished (interrupted)"
+        return f"{text}; {self.rows} table rows"
+
+
+def prepare(study: Study, out_dir: Path) -> None:
+    """The study folder: runs/, params/ (model files of model.* changes, by content) and a copy
+    of the study file."""
+    out_dir = Path(out_dir)
+    (out_dir / RUNS_DIR).mkdir(parents=True, exist_ok=True)
+    params = out_dir / PARAMS_DIR
+    for spec in study.runs:
+        if spec.params_text is not None and not (params / spec.params_name).exists():
+            params.mkdir(exist_ok=True)
+            write_atomically(params / spec.params_name, spec.params_text.encode())
+    write_atomically(out_dir / "study.yaml", study.path.read_bytes())
+
+
+def tasks(study: Study, out_dir: Path, verbs: Mapping[str, Verb]) -> list[RunTask]:
+    out_dir = Path(out_dir).resolve()
+    found = []
+    for spec in study.runs:
+        argv = list(spec.argv)
+        if spec.params_text is not None:
+            argv += ["--params", str(out_dir / PARAMS_DIR / spec.params_name)]
+        found.append(RunTask(spec.run_id, verbs[spec.verb], tuple(argv),
+                             str(out_dir / RUNS_DIR / f"{spec.run_id}.mcap"),
+                             study.start_time_ns))
+    return found
+
+
+def run_study(study: Study, out_dir: Path, client, verbs: Mapping[str, Verb],
+              say: Callable[[str], None] = print,
+              on_record: Callable[[dict], None] = lambda record: None) -> StudySummary:
+    """Run the study's runs that have no finished record on ``client`` with ``verbs`` (name ->
+    Verb: simulate, recompute); record each as it completes (``on_record`` is called after),
+    then write the table. KeyboardInterrupt cancels what is left, writes the table and is
+    re-raised."""
+    from distributed import as_completed
+
+    out_dir = Path(out_dir)
+    prepare(study, out_dir)
+    store = RecordStore(out_dir)
+    finished = store.finished(study)
+    todo = [task for task in tasks(study, out_dir, verbs) if task.run_id not in finished]
+    summary = StudySummary(len(study.runs), skipped=len(finished))
+    say(f"study {study.name}: {len(study.runs)} runs, {len(finished)} finished before, "
+        f"{len(todo)} to run")
+    session = uuid.uuid4().hex[:8]  # keys unique to this session on a shared scheduler
+    futures = {client.submit(execute, task, key=f"vm_ros-run-{task.run_id}-{session}",
+                             retries=study.retries, pure=False): task for task in todo}
+    try:
+        for done, future in enumerate(as_completed(futures), start=1):
+            task = futures.pop(future)  # nothing of a finished run is kept
+            try:
+                record = future.result()
+            except Exception as error:  # raised after Dask's retries, or KilledWorker
+                record = failed_record(task.run_id, one_line(error))
+            future.release()
+            store.write(record)
+            ok = record["status"] == STATUS_OK
+            summary.ok += ok
+            summary.failed += not ok
+            say(f"[{done}/{len(todo)}] {task.run_id} {record['status']}"
+                + (f": {record['error']}" if record.get("error") else ""))
+            on_record(record)
+    except KeyboardInterrupt:
+        client.cancel(list(futures))  # those not finished
+        summary.interrupted = len(todo) - summary.ok - summary.failed
+        summary.rows = write_table(study, out_dir)
+        print(f"vm-ros study: interrupted; {summary.line()}", file=sys.stderr)
+        raise
+    summary.rows = write_table(study, out_dir)
+    return summary
