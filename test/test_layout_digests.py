@@ -7,7 +7,12 @@ The DIGESTS below were computed by the code before the change (commit bb0d40a), 
 file as a script against that commit's source:
 
     git worktree add ../vm_ros-bb0d40a bb0d40a
+    cp config/muscles.yaml ../vm_ros-bb0d40a/config/   # the library the logs attach (below)
     PYTHONPATH=../vm_ros-bb0d40a:test .venv/bin/python test/test_layout_digests.py
+
+The logs attach the shipped muscle library, so its bytes are in the digests: they were computed
+with today's config/muscles.yaml in that commit's source (its entries are those of bb0d40a; the
+file since gained comment lines), and change when the file does.
 
 A digest covers every message (channel topic and type, log time, publish time, raw CDR bytes),
 every attachment and the metadata except the library versions and the paths of the files read
@@ -37,10 +42,10 @@ COMPUTED_WITH = {"numpy": "2.4.6", "scipy": "1.17.1", "mcap": "1.6.0"}
 DIGESTS = {
     "bank_numpy": "66233637afe147b291f732637155f9100f30887739b8ec7a56d9a1e7a265f906",
     "bank_auto": "eef3c545b6724a49b9becc3b1b55cc74c47067dd959d4630bcb3b471b9c1d0ba",
-    "knee": "902f3ceeb7027016852a6c47cd5e6cdcdf04d7ad179a1aace4839f88f7b647b9",
-    "leg": "910cae86050a2767fe825711ec10199a7a444b6210f4183dcb635189dcb914fa",
-    "knee_recomputed": "d62e3cfb50608b5c2a859a1416197ed443dc49ae5698050d8f862b0191039d3d",
-    "leg_recomputed": "49a45a23f4561fc6880781e704ee7a9dffb0d67e0dd2544a26d2dcc0a60b11cc",
+    "knee": "0ef73c5f845d1f3e900e43622e98dfcb942090f8c90d18a0cf2e658e157cc8be",
+    "leg": "7a0da8be36158e5982b280dea45e50ea2960a7840d32514a4b462456ecd9d519",
+    "knee_recomputed": "e24813821b2e421a959fcb8751e1a5f9280a5036381005ffb87d6678dd6f18c6",
+    "leg_recomputed": "9617fbabc546350362c98c5a88f882b22113613c30fc0c8ebcdd30a20418a456",
 }
 
 
@@ -117,10 +122,11 @@ def log_digests(directory: Path) -> dict:
 # A motion run with inputs slower than the model (path lengths extrapolated between
 # joint_states), publish 200 Hz, telemetry 100 Hz and every published energetics model, and its
 # recompute: computed by the code before the offline runs went by blocks for joint space and
-# recompute read logs as arrays (commit 8817190), as above against that commit's source
+# recompute read logs as arrays (commit 8817190), as above against that commit's source with
+# today's config/muscles.yaml
 SLOW_LEG_DIGESTS = {
-    "leg_slow": "4af89ab9beec90add179034c07daaa5e0f0fb2415d3f5cdd0f0f4655c3c22dae",
-    "leg_slow_recomputed": "8939b45fd21d0403242c8d6b4568174202fa7d3a3908e630212b95db4f09c4d6",
+    "leg_slow": "d291bb2bbaa746b1a0022be48cb7f231e6008691e57e9efc5263a1a2106b6919",
+    "leg_slow_recomputed": "b09ccc231d689c2e90ff81ebcaf9e808a876758528dc0184cb40bf97a554f5e9",
 }
 
 
