@@ -40,6 +40,7 @@ setup(
             "ros-sensor-msgs==5.3.6",
             "ros-geometry-msgs==5.3.6",
             "ros-diagnostic-msgs==5.3.6",
+            "ros-trajectory-msgs==5.3.6",
         ],
         "plot": ["matplotlib>=3.6"],
         # the compiled model step (vm_ros.model.kernel); without it the NumPy step is used

@@ -47,6 +47,17 @@ def parse_storage(path, text: str, what: str) -> StorageTable:
     return StorageTable(header, labels, [row.split() for row in body[1:]])
 
 
+def read_storage(path, what: str) -> StorageTable:
+    """Read and split a storage file; VmRosError ``"<what> <path>: ..."`` when it cannot be
+    read or is not one."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError as exc:
+        raise VmRosError(f"{what} {path}: cannot read ({exc.strerror or exc})") from exc
+    return parse_storage(path, text, what)
+
+
 def numeric_rows(path, labels, rows, what: str):
     """The data rows as a finite float array (n_rows, len(labels)); VmRosError otherwise."""
     import numpy as np
@@ -63,4 +74,29 @@ def numeric_rows(path, labels, rows, what: str):
     return data
 
 
-__all__ = ["StorageTable", "numeric_rows", "parse_storage"]
+def check_increasing(path, time, what: str) -> None:
+    """VmRosError naming the first data row (1-based) whose time does not increase."""
+    import numpy as np
+
+    back = np.diff(time) <= 0
+    if np.any(back):
+        raise VmRosError(f"{what} {path}: times must increase strictly (row "
+                         f"{int(np.argmax(back)) + 2} does not)")
+
+
+def read_columns(path, what: str):
+    """(time (n,), {label: column (n,)}, labels in file order) of a numeric storage file
+    whose times increase strictly; VmRosError ``"<what> <path>: ..."`` otherwise (a label given
+    twice included)."""
+    table = read_storage(path, what)
+    data = numeric_rows(path, table.labels, table.rows, what)
+    check_increasing(path, data[:, 0], what)
+    labels = table.labels[1:]
+    if len(set(labels)) != len(labels):
+        twice = sorted({label for label in labels if labels.count(label) > 1})
+        raise VmRosError(f"{what} {path}: column(s) {', '.join(twice)} appear twice")
+    return data[:, 0], {label: data[:, i + 1] for i, label in enumerate(labels)}, labels
+
+
+__all__ = ["StorageTable", "check_increasing", "numeric_rows", "parse_storage", "read_columns",
+           "read_storage"]

@@ -150,6 +150,12 @@ def joint_efforts_fields(efforts, time_ns: int, frame_id: str = "") -> dict:
     }
 
 
+def muscle_drive_fields(names, drive, time_ns: int) -> dict:
+    """sensor_msgs/JointState fields of muscle_drive: the drive U per muscle (position[])."""
+    return {"header": {"stamp": stamp_fields(time_ns), "frame_id": ""}, "name": list(names),
+            "position": np.asarray(drive, dtype=float).tolist(), "velocity": [], "effort": []}
+
+
 def joint_effort_commands_fields(efforts) -> dict:
     """std_msgs/Float64MultiArray fields of joint_effort_commands: tau in ``joints`` order."""
     return _joint_array_fields(efforts.effort)

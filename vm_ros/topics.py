@@ -25,11 +25,18 @@ TOPIC_JOINT_STATES = "joint_states"
 TOPIC_JOINT_EFFORTS = "joint_efforts"
 TOPIC_JOINT_EFFORT_COMMANDS = "joint_effort_commands"
 TOPIC_JOINT_WORK = "joint_work"  # logged by offline runs only (vm_ros.offline.runner)
+# live coordination (muscle_node with coordination.enabled; vm_ros.node.effort_targets)
+TOPIC_JOINT_EFFORT_TRAJECTORY = "joint_effort_trajectory"
+TOPIC_JOINT_EFFORT_TARGETS = "joint_effort_targets"
+TOPIC_JOINT_EFFORT_TARGETS_ARRAY = "joint_effort_targets_array"
+TOPIC_MUSCLE_DRIVE = "muscle_drive"
+TOPIC_JOINT_RESERVES = "joint_reserves"
 
 TYPE_JOINT_STATE = "sensor_msgs/msg/JointState"
 TYPE_FLOAT64_MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
 TYPE_FLOAT64 = "std_msgs/msg/Float64"
 TYPE_DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
+TYPE_JOINT_TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
 
 # the roles of an input topic: what its values are and where they go
 DRIVE = "drive"  # drive U per muscle, in [0, 1] (NodeInputs.on_drive)
@@ -117,6 +124,11 @@ TOPIC_TYPES = {
     TOPIC_JOINT_EFFORTS: TYPE_JOINT_STATE,
     TOPIC_JOINT_EFFORT_COMMANDS: TYPE_FLOAT64_MULTI_ARRAY,
     TOPIC_JOINT_WORK: TYPE_FLOAT64_MULTI_ARRAY,
+    TOPIC_JOINT_EFFORT_TRAJECTORY: TYPE_JOINT_TRAJECTORY,
+    TOPIC_JOINT_EFFORT_TARGETS: TYPE_JOINT_STATE,
+    TOPIC_JOINT_EFFORT_TARGETS_ARRAY: TYPE_FLOAT64_MULTI_ARRAY,
+    TOPIC_MUSCLE_DRIVE: TYPE_JOINT_STATE,
+    TOPIC_JOINT_RESERVES: TYPE_JOINT_STATE,
 }
 
 __all__ = [
@@ -140,6 +152,11 @@ __all__ = [
     "TOPIC_FORCE",
     "TOPIC_JOINT_EFFORTS",
     "TOPIC_JOINT_EFFORT_COMMANDS",
+    "TOPIC_JOINT_EFFORT_TARGETS",
+    "TOPIC_JOINT_EFFORT_TARGETS_ARRAY",
+    "TOPIC_JOINT_EFFORT_TRAJECTORY",
+    "TOPIC_JOINT_RESERVES",
+    "TOPIC_MUSCLE_DRIVE",
     "TOPIC_JOINT_STATES",
     "TOPIC_JOINT_WORK",
     "TOPIC_KINEMATICS",
@@ -148,4 +165,5 @@ __all__ = [
     "TYPE_FLOAT64",
     "TYPE_FLOAT64_MULTI_ARRAY",
     "TYPE_JOINT_STATE",
+    "TYPE_JOINT_TRAJECTORY",
 ]

@@ -33,6 +33,10 @@ Sections (all but study and node-memory by default; --only picks some):
             study on the embedded Dask LocalCluster (the study extra), 64 runs of the 30 s knee
             extension (fibre mix x recovery kernel) on 1 and 2 workers, speed-up and overhead
             per run; the client's memory over 1000 short runs (vm_ros_bench.study_bench)
+  coordination
+            live coordination per publish period without ROS (vm_ros_bench.coordination_bench):
+            the receding-horizon solve and the period's model steps at 100 Hz with a 1 kHz
+            model, 18 and 80 muscles; latency (solve), CPU per simulated second, load average
   node-memory
             runs only when named (--only node-memory; 7 minutes): muscle_node's resident
             memory over a long run, 100 muscles at 1 kHz, publish 100 Hz, MCAP as a rosbag2
@@ -81,9 +85,10 @@ from vm_ros.child_process import loopback_only, module_command
 from vm_ros.errors import VmRosError
 from vm_ros_bench import FOLDER, child_environment
 
-SECTIONS = ("model", "natural", "offline", "decode", "node", "joint", "study", "node-memory")
-DEFAULT_SECTIONS = ("model", "natural", "offline", "decode", "node",
-                    "joint")  # node-memory and study: when named
+SECTIONS = ("model", "natural", "offline", "decode", "node", "joint", "coordination", "study",
+            "node-memory")
+DEFAULT_SECTIONS = ("model", "natural", "offline", "decode", "node", "joint",
+                    "coordination")  # node-memory and study: when named
 MEMORY_DURATION_S, MEMORY_QUICK_DURATION_S = 300.0, 60.0  # node-memory window
 MEMORY_WARMUP_S, MEMORY_QUICK_WARMUP_S = 120.0, 5.0
 MEMORY_SPLIT_S = 60.0  # bag split (log time); shorter windows: a fifth of the window
@@ -406,6 +411,13 @@ def _csv_rows(results: dict) -> list[dict]:
         _joint_csv_rows(results["joint"], add)
     if "node-memory" in results:
         _memory_csv_rows(results["node-memory"], add)
+    for r in results.get("coordination", []):
+        case = f"{r['muscles']} muscles, {r['settings']}, publish {r['publish_rate_hz']:g} Hz"
+        for key in ("solve_ms_median", "solve_ms_p99", "period_ms_median", "period_ms_p99",
+                    "load_average_start"):
+            add("coordination", case, key, r[key], "")
+        add("coordination", case, "cpu_percent_one_core", r["cpu_percent_one_core"], "",
+            "< 100 %", r["cpu_percent_one_core"] < 100.0)
     if "study" in results and "error" not in results["study"]:
         from vm_ros_bench import study_bench
 
@@ -611,7 +623,7 @@ def _measure(name: str, measure, results: dict, out: Path) -> None:
 
 
 def run(args) -> int:
-    from vm_ros_bench import decode_bench, model_bench
+    from vm_ros_bench import coordination_bench, decode_bench, model_bench
 
     sections = args.only or list(DEFAULT_SECTIONS)
     repeats = args.repeats or (3 if args.quick else 7)
@@ -665,6 +677,8 @@ def run(args) -> int:
         ("node", lambda: _node_rows(node_duration, out)),
         ("joint", lambda: _joint_section(out, args.quick, repeats, min_seconds,
                                          node_duration)),
+        ("coordination", lambda: coordination_bench.bench_coordination(
+            seconds=1.0 if args.quick else 3.0, progress=_say)),
         ("study", lambda: _study_section(args.quick)),
         ("node-memory", lambda: _node_memory_row(
             args.node_duration or (MEMORY_QUICK_DURATION_S if args.quick else MEMORY_DURATION_S),

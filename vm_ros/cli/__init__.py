@@ -42,6 +42,8 @@ VERBS = {
     "compare-energetics": ("compare_energetics", "every published muscle energetics model "
                                                  "against Tsianos 2012 on the same runs (table "
                                                  "and figures)"),
+    "coordinate": ("coordinate", "solve the drives whose forward run reproduces a motion's joint "
+                                 "moments at least cost; drives, forces, reserves, run log"),
     "study": ("study", "batch studies on Dask: many runs (inputs x parameter changes), one "
                        "results table (needs the study extra)"),
     "bag": ("bag", "bag directories: reindex (write metadata.yaml from the .mcap files, as "

@@ -75,7 +75,7 @@ from vm_ros.node.replay import (
     node_config,
     node_joint_space,
 )
-from vm_ros.offline.runner import OfflineRun, RecordedInputs
+from vm_ros.offline.runner import STEADY_START, OfflineRun, RecordedInputs
 from vm_ros.progress import Progress
 from vm_ros.recording.bag import shown_log_path
 from vm_ros.recording.run_log import (
@@ -302,7 +302,8 @@ def run(args, on_outcome: Callable[[RunOutcome], None] | None = None) -> int:
         else:
             inputs = RecordedInputs(recorded, bank.n, offline.sink)
         result = offline.run(inputs, n_steps, should_stop=stop, progress=progress.update,
-                             publish_start=node is not None)
+                             publish_start=node is not None,
+                             steady_start=info.extra.get(STEADY_START) == "yes")
     status = recorder.status
     print(f"recomputed {result.steps * timing.dt_s:.3f} s of {', '.join(bank.names)} "
           f"({config.recruitment} recruitment, {bank.recovery_mode} recovery)")

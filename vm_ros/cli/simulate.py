@@ -108,7 +108,7 @@ from vm_ros.offline.excitations import (
     load_excitations,
 )
 from vm_ros.offline.input_series import load_input_series
-from vm_ros.offline.runner import OfflineResult, OfflineRun, SampledInputs
+from vm_ros.offline.runner import STEADY_START, OfflineResult, OfflineRun, SampledInputs
 from vm_ros.offline.scenarios import load_scenario, scenario_names
 from vm_ros.progress import Progress
 from vm_ros.recording.bag import shown_log_path
@@ -381,14 +381,19 @@ def _positive(name: str, value: float) -> float:
     return value
 
 
-def run(args, on_outcome: Callable[[RunOutcome], None] | None = None) -> int:
-    """The verb; ``on_outcome`` (vm_ros.study) gets what the run computed when it succeeded."""
+def run(args, on_outcome: Callable[[RunOutcome], None] | None = None,
+        verb: str = "simulate", extra: dict | None = None) -> int:
+    """The verb; ``on_outcome`` (vm_ros.study) gets what the run computed when it succeeded;
+    ``verb`` and ``extra`` (metadata entries; STEADY_START "yes" starts the activation at the
+    steady state of the first drive) for a verb that runs its drives through this one
+    (`vm-ros coordinate`)."""
+    extra = dict(extra or {})
     models = energetics_models_option(args.energetics_models)
     _check_options(args)
     source = _motion_source(args) if args.motion else _source(args)
     duration = _positive("--duration", source.duration_s if args.duration is None
                          else args.duration)
-    warnings = InputWarnings("simulate", args.strict)
+    warnings = InputWarnings(verb, args.strict)
     warnings.extend(source.check(duration))
     timing = RunTiming(
         dt_s=_positive("--dt", args.dt),
@@ -402,8 +407,8 @@ def run(args, on_outcome: Callable[[RunOutcome], None] | None = None) -> int:
     bank = config.make_bank()
     input_period_ns = timing.dt_ns * timing.steps_per(args.input_rate or timing.model_rate_hz)
     out_path = args.out or default_log_path(source.name)
-    info = RunInfo(config, timing, "simulate", time_base=OFFLINE_TIME_BASE,
-                   extra={**source.extra, "duration_s": repr(duration)})
+    info = RunInfo(config, timing, verb, time_base=OFFLINE_TIME_BASE,
+                   extra={**source.extra, **extra, "duration_s": repr(duration)})
     n_steps = round(duration / timing.dt_s)
     # signals stay caught until the log is closed, so that SIGTERM cannot cut the file short
     with StopOnSignal() as stop, open_run_log(
@@ -414,7 +419,8 @@ def run(args, on_outcome: Callable[[RunOutcome], None] | None = None) -> int:
         offline = OfflineRun(bank, timing, recorder)
         inputs = source.make_inputs(bank, offline, input_period_ns)
         result = offline.run(inputs, n_steps, should_stop=stop, progress=progress.update,
-                             publish_start=source.publish_start)
+                             publish_start=source.publish_start,
+                             steady_start=extra.get(STEADY_START) == "yes")
     status = recorder.status
     print(f"simulated {result.steps * timing.dt_s:.3f} s of {', '.join(bank.names)} "
           f"({config.recruitment} recruitment, {bank.recovery_mode} recovery, dt "
@@ -438,12 +444,12 @@ def run(args, on_outcome: Callable[[RunOutcome], None] | None = None) -> int:
     for line in warnings.closing_lines():
         print(line)
     if stop.signum:
-        print(f"vm-ros simulate: stopped by signal {stop.signum} at t = "
+        print(f"vm-ros {verb}: stopped by signal {stop.signum} at t = "
               f"{result.steps * timing.dt_s:.3f} s; the log is complete up to there",
               file=sys.stderr)
         return stop.exit_code
     if not status.ok:
-        print(f"vm-ros simulate: error: {status.error}", file=sys.stderr)
+        print(f"vm-ros {verb}: error: {status.error}", file=sys.stderr)
         return 1
     if on_outcome is not None:
         on_outcome(RunOutcome(rows, totals, result.steps * timing.dt_s))

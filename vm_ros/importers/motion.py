@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from vm_ros.errors import VmRosError
-from vm_ros.storage import numeric_rows, parse_storage
+from vm_ros.storage import check_increasing, numeric_rows, read_storage
 
 IN_DEGREES = {"yes": True, "no": False}  # the header's inDegrees values (case-insensitive)
 RADIAN_LIMIT = 2.0 * np.pi   # rad: no joint angle in radians is beyond a full turn
@@ -94,11 +94,7 @@ def _label(label: str, kind: str = "value") -> str | None:
 def read_motion(path) -> Motion:
     """Read a .mot/.sto file; VmRosError naming the file and the problem."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8", errors="replace")
-    except OSError as exc:
-        raise VmRosError(f"motion {path}: cannot read ({exc.strerror or exc})") from exc
-    table = parse_storage(path, text, "motion")
+    table = read_storage(path, "motion")
     in_degrees = table.header.get("indegrees")
     if in_degrees is None:
         raise VmRosError(f"motion {path}: the header has no 'inDegrees=yes|no' line, so the "
@@ -109,9 +105,7 @@ def read_motion(path) -> Motion:
     in_degrees = IN_DEGREES[in_degrees.lower()]
     labels = table.labels
     data = numeric_rows(path, labels, table.rows, "motion")
-    if np.any(np.diff(data[:, 0]) <= 0):
-        raise VmRosError(f"motion {path}: times must increase strictly (row "
-                         f"{int(np.argmax(np.diff(data[:, 0]) <= 0)) + 2} does not)")
+    check_increasing(path, data[:, 0], "motion")
     keep = [(i, name) for i, name in enumerate(map(_label, labels)) if i > 0 and name]
     if not keep:
         raise VmRosError(f"motion {path}: no coordinate columns")

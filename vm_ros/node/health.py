@@ -57,6 +57,20 @@ ISSUE_KINDS = {
                                 "entries for muscles whose path comes from joint_states through "
                                 "the geometry are ignored (lengths stay consistent with the "
                                 "moment arms), the rest of the message is used"),
+    "target_wrong_size": ("rejected: effort targets wrong size (messages)",
+                          "message dropped: joint names and efforts differ in number, an unnamed "
+                          "array is not one effort per joint of joints, or a trajectory has no "
+                          "points or joint names"),
+    "target_non_finite": ("rejected: effort targets NaN or inf (messages)",
+                          "message dropped: an effort of a known joint is NaN or inf"),
+    "target_duplicate_name": ("rejected: effort targets duplicate joint (messages)",
+                              "message dropped: a joint is named twice"),
+    "target_bad_time": ("rejected: effort trajectory times (messages)",
+                        "message dropped: a point's time_from_start is negative or not "
+                        "increasing"),
+    "target_unknown_joint": ("ignored: effort targets unknown joints (entries)",
+                             "entries whose joint is not in the joints parameter are ignored, "
+                             "the rest of the message is used"),
     "stale_excitation": ("stale: excitation (events)",
                          "excitation older than input_timeout_s: stale_input_policy applies "
                          "(hold: drive held; zero_drive: drive 0; pause: model paused)"),

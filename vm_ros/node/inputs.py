@@ -125,6 +125,9 @@ class NodeInputs:
         self.last_excitation_ns: int | None = None
         self.last_kinematics_ns: int | None = None
         self.drive_stale = np.ones(self.n, dtype=bool)
+        # muscles whose drive does not come from the excitation topics (live coordination):
+        # never stale for excitation (exempt_drive)
+        self.drive_exempt = np.zeros(self.n, dtype=bool)
         self.length_stale = np.ones(self.n, dtype=bool)
         self._was_stale = {"excitation": True, "kinematics": True}
         # per topic: (names object, size) and what _select made of them, for a publisher that
@@ -347,7 +350,8 @@ class NodeInputs:
                 and now_ns - self.length_time_ns.min() <= timeout
                 and self.drive_seen.all() and self.length_seen.all()):
             return []  # fresh as at the last call: drive_stale and length_stale stay all False
-        self.drive_stale = ~self.drive_seen | (now_ns - self.drive_time_ns > timeout)
+        self.drive_stale = (~self.drive_seen | (now_ns - self.drive_time_ns > timeout)) \
+            & ~self.drive_exempt
         self.length_stale = np.where(self.length_seen, now_ns - self.length_time_ns > timeout,
                                      ~self.length_initial)
         issues = []
@@ -361,6 +365,14 @@ class NodeInputs:
                                     behaviour=stale_behaviour(name, policy)))
             self._was_stale[name] = now_stale
         return issues
+
+    def exempt_drive(self, muscles) -> None:
+        """The drive of ``muscles`` (indices) comes from elsewhere (live coordination): their
+        excitation is never stale (the caller replaces their drive in what sample_many gives)."""
+        self.drive_exempt = self.drive_exempt.copy()
+        self.drive_exempt[np.asarray(muscles, dtype=int)] = True
+        self.drive_seen = self.drive_seen | self.drive_exempt
+        self.drive_time_ns[self.drive_exempt] = np.iinfo(np.int64).max // 2  # never older
 
     @property
     def any_stale(self) -> bool:

@@ -32,6 +32,26 @@ JOINT_OUTPUT_TOPICS = (
      "joint efforts in joints order (with geometry)"),
 )
 
+# with coordination.enabled (vm_ros.node.effort_targets); not in vm_ros.topics.INPUT_TOPICS: the
+# node-log replay and the offline runner have no conditioning for them
+COORDINATION_INPUT_TOPICS = (
+    (tp.TOPIC_JOINT_EFFORT_TRAJECTORY, tp.TYPE_JOINT_TRAJECTORY,
+     "planned joint efforts (N m or N): joint_names, points' time_from_start and effort[] "
+     "(with coordination.enabled)"),
+    (tp.TOPIC_JOINT_EFFORT_TARGETS, tp.TYPE_JOINT_STATE,
+     "target joint efforts as a stream: name[], effort[] (with coordination.enabled)"),
+    (tp.TOPIC_JOINT_EFFORT_TARGETS_ARRAY, tp.TYPE_FLOAT64_MULTI_ARRAY,
+     "target joint efforts as a stream, one per joint in joints order (with "
+     "coordination.enabled)"),
+)
+COORDINATION_OUTPUT_TOPICS = (
+    (tp.TOPIC_MUSCLE_DRIVE, tp.TYPE_JOINT_STATE,
+     "drive per muscle as used by the last step (position[]) (with coordination.enabled)"),
+    (tp.TOPIC_JOINT_RESERVES, tp.TYPE_JOINT_STATE,
+     "target minus joint effort (effort[], N m or N) by joint; 0 where untracked (with "
+     "coordination.enabled)"),
+)
+
 ROS_ARGS, ROS_ARGS_END = "--ros-args", "--"
 
 
@@ -65,9 +85,9 @@ def argument_parser() -> argparse.ArgumentParser:
     parameters."""
     lines = [f"  {p.name} ({p.kind}, default {p.default!r}): {p.describe()}" for p in PARAMS]
     epilog = ["inputs (reliable, keep last qos_depth; relative names):",
-              *_topic_lines(input_topics(geometry=True)),
+              *_topic_lines(input_topics(geometry=True) + COORDINATION_INPUT_TOPICS),
               "outputs (reliable, keep last qos_depth):",
-              *_topic_lines(OUTPUT_TOPICS + JOINT_OUTPUT_TOPICS),
+              *_topic_lines(OUTPUT_TOPICS + JOINT_OUTPUT_TOPICS + COORDINATION_OUTPUT_TOPICS),
               "parameters:", *lines,
               "The node interface (layouts, bad inputs, diagnostics) is described in "
               "docs/node.md and the README."]
@@ -78,5 +98,6 @@ def argument_parser() -> argparse.ArgumentParser:
         epilog="\n".join(epilog))
 
 
-__all__ = ["JOINT_OUTPUT_TOPICS", "MODEL_OUTPUT_TOPICS", "OUTPUT_TOPICS", "argument_parser",
-           "input_topics", "user_arguments"]
+__all__ = ["COORDINATION_INPUT_TOPICS", "COORDINATION_OUTPUT_TOPICS", "JOINT_OUTPUT_TOPICS",
+           "MODEL_OUTPUT_TOPICS", "OUTPUT_TOPICS", "argument_parser", "input_topics",
+           "user_arguments"]

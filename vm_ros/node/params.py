@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import yaml
 
-from vm_ros.errors import ConfigError, InputError
+from vm_ros.errors import ConfigError, InputError, VmRosError
 from vm_ros.model.params import DRIVE_LAWS, RECOVERY_MODES, SCHEMES
 
 PARAMS_SOURCE = "<parameters>"  # ConfigError.path for a bad parameter value
@@ -147,6 +147,32 @@ PARAMS = (
     ParamSpec("joints", [], "string_array", "-",
               "Robot joint names in the order of joint_efforts and joint_effort_commands ([] = "
               "every geometry coordinate in the file's order, under its robot name)"),
+    ParamSpec("coordination.enabled", False, "bool", "-",
+              "Live coordination (needs a geometry): the joint-driven muscles' drives are solved "
+              "each publish period over a receding horizon so that their joint efforts follow "
+              "the targets of joint_effort_trajectory or joint_effort_targets(_array) at least "
+              "cost; excitation is not used for them"),
+    ParamSpec("coordination.horizon_s", 0.15, "double", "s",
+              "Look-ahead of the receding horizon (at least one publish period is used)",
+              low=0.005, high=2.0),
+    ParamSpec("coordination.blocks", 3, "integer", "blocks",
+              "Piecewise-constant drive blocks over the horizon (the first is the next publish "
+              "period)", low=1, high=20),
+    ParamSpec("coordination.sample_period_s", 0.005, "double", "s",
+              "Step of the horizon's forward runs and spacing of the tracked samples (rounded to "
+              "divide the publish period)", low=0.001, high=0.1),
+    ParamSpec("coordination.cost", "tsianos2012", "string", "-",
+              "Cost beside tracking, a name of the coordination costs: tsianos2012 (VM's "
+              "metabolic rate), drive2 (sum of drive^2) or a published energetics model's "
+              "rate on VM's state"),
+    ParamSpec("coordination.effort_weight", 0.0, "double", "(N m)^2 per W or per drive^2",
+              "Weight of the cost against tracking error ((N m)^2 per W for tsianos2012, per "
+              "drive^2 for drive2; 0 = the cost's default: 0.001 and 0.1)", low=0.0, high=1e6),
+    ParamSpec("coordination.smoothness", 1.0, "double", "(N m)^2 per drive^2",
+              "Weight of drive changes from one block to the next", low=0.0, high=1e6),
+    ParamSpec("coordination.lag_window_s", 2.0, "double", "s",
+              "Window of published steps over which diagnostics report the tracking lag and "
+              "error", low=0.05, high=60.0),
     ParamSpec("qos_depth", 10, "integer", "messages",
               "History depth of every subscription and publisher", low=1, high=10000),
     ParamSpec("diagnostics_period_s", 1.0, "double", "s",
@@ -202,6 +228,14 @@ class NodeConfig:
     geometry: str
     joint_map: str
     joints: tuple
+    coordination_enabled: bool
+    coordination_horizon_s: float
+    coordination_blocks: int
+    coordination_sample_period_s: float
+    coordination_cost: str
+    coordination_effort_weight: float
+    coordination_smoothness: float
+    coordination_lag_window_s: float
     qos_depth: int
     diagnostics_period_s: float
     executor: str
@@ -266,11 +300,24 @@ class NodeConfig:
         from vm_ros.joint_space import parse_joint_map
 
         parse_joint_map(self.joint_map, PARAMS_SOURCE)  # syntax; coordinates: JointSpace
-        for name in ("joint_map", "joints"):
-            value = getattr(self, name)
+        for name in ("joint_map", "joints", "coordination.enabled"):
+            value = getattr(self, name.replace(".", "_"))
             if value and not self.geometry:
                 raise ConfigError(PARAMS_SOURCE, name, _plain(value),
                                   "needs a geometry file (the geometry parameter)")
+        if self.coordination_enabled:
+            from vm_ros.coordination import costs  # not for --help: loads the model
+
+            try:
+                costs.cost_named(self.coordination_cost)
+            except VmRosError as exc:
+                raise ConfigError(PARAMS_SOURCE, "coordination.cost", self.coordination_cost,
+                                  str(exc)) from None
+        if self.coordination_enabled and self.mcap_enabled:
+            raise ConfigError(PARAMS_SOURCE, "coordination.enabled", True,
+                              "not recorded yet: a run log of live coordination could not be "
+                              "recomputed (its drives come from no input topic); set "
+                              "mcap.enabled false")
 
     def overrides_mapping(self) -> dict:
         """The ``overrides`` parameter parsed: ``{muscle: {field: value}}``."""

@@ -19,6 +19,11 @@ vm_ros.node.health. Topics (relative names, so namespaces and remapping apply):
 Every publisher and subscription accepts the standard ``qos_overrides`` parameters (history,
 depth, reliability).
 
+Live coordination (``coordination.enabled``, vm_ros.node.live_coordination): in
+``joint_effort_trajectory`` (JointTrajectory), ``joint_effort_targets`` (JointState),
+``joint_effort_targets_array`` (Float64MultiArray); out ``muscle_drive`` and ``joint_reserves``
+(JointState); the joint-driven muscles' drives solved each publish period.
+
 Joint space (vm_ros.joint_space): node muscles that the geometry covers are driven from
 joint_states; each published step's tendon forces go back through the moment arms of the joint
 sample that step used, as generalized forces in the robot's convention.
@@ -61,16 +66,18 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.qos_overriding_options import InvalidQosOverridesError, QoSOverridingOptions
-from rclpy.serialization import serialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 from rclpy.utilities import remove_ros_args
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray
+from trajectory_msgs.msg import JointTrajectory
 
 from vm_ros import telemetry as tm
 from vm_ros import topics as tp
 from vm_ros.errors import ConfigError, VmRosError
+from vm_ros.joint_space import JointEfforts
 from vm_ros.node import interface
 from vm_ros.node.health import (
     ISSUE_KINDS,
@@ -85,6 +92,7 @@ from vm_ros.node.health import (
 )
 from vm_ros.node.inputs import InputLimits, NodeInputs, node_receivers
 from vm_ros.node.joint_inputs import JointInputs
+from vm_ros.node.live_coordination import LiveCoordination
 from vm_ros.node.params import PARAMS, PARAMS_SOURCE, NodeConfig, ParamSpec
 from vm_ros.node.params import runtime_parameter_names as _runtime_names
 from vm_ros.node.recording import NodeRunLog, node_run_extra
@@ -106,11 +114,14 @@ _WITH_MESSAGE_INFO = inspect.Signature(
 
 # (topic, message class, description) from vm_ros.node.interface (type names there)
 _MESSAGE_CLASSES = {tm.TYPE_JOINT_STATE: JointState, tm.TYPE_FLOAT64_MULTI_ARRAY: Float64MultiArray,
-                    tm.TYPE_FLOAT64: Float64, tm.TYPE_DIAGNOSTIC_ARRAY: DiagnosticArray}
-OUTPUT_TOPICS, MODEL_OUTPUT_TOPICS, JOINT_OUTPUT_TOPICS = (
+                    tm.TYPE_FLOAT64: Float64, tm.TYPE_DIAGNOSTIC_ARRAY: DiagnosticArray,
+                    tm.TYPE_JOINT_TRAJECTORY: JointTrajectory}
+(OUTPUT_TOPICS, MODEL_OUTPUT_TOPICS, JOINT_OUTPUT_TOPICS, COORDINATION_INPUT_TOPICS,
+ COORDINATION_OUTPUT_TOPICS) = (
     tuple((topic, _MESSAGE_CLASSES[type_name], text) for topic, type_name, text in table)
     for table in (interface.OUTPUT_TOPICS, interface.MODEL_OUTPUT_TOPICS,
-                  interface.JOINT_OUTPUT_TOPICS))
+                  interface.JOINT_OUTPUT_TOPICS, interface.COORDINATION_INPUT_TOPICS,
+                  interface.COORDINATION_OUTPUT_TOPICS))
 
 _ROS_TYPES = {"bool": ParameterType.PARAMETER_BOOL, "integer": ParameterType.PARAMETER_INTEGER,
               "double": ParameterType.PARAMETER_DOUBLE, "string": ParameterType.PARAMETER_STRING,
@@ -224,6 +235,9 @@ class MuscleNode(Node):
         self.joint_inputs = (JointInputs(self.joint_space, self.inputs)
                              if self.joint_space is not None else None)
         self.scheduler = StepScheduler(c.step_ns, c.max_catch_up_steps, c.steps_per_tick)
+        self.coordination = (LiveCoordination(self.bank, self.joint_space, self.inputs, c,
+                                              c.step_ns * 1e-9 * c.publish_every_steps)
+                             if c.coordination_enabled else None)
         self.issues = IssueLog(LOG_THROTTLE_S)
         self._gaps: dict[str, SequenceGaps] = {}  # input topic -> publication sequence gaps
         self._wrong_type_publishers: set = set()  # (topic, endpoint gid) seen
@@ -281,7 +295,10 @@ class MuscleNode(Node):
             outputs += JOINT_OUTPUT_TOPICS
         if self.bank.energetics_models:
             outputs += MODEL_OUTPUT_TOPICS
-        self._input_types = {topic: msg_type for topic, msg_type, _ in inputs}
+        targets = COORDINATION_INPUT_TOPICS if self.coordination is not None else ()
+        if self.coordination is not None:
+            outputs += COORDINATION_OUTPUT_TOPICS
+        self._input_types = {topic: msg_type for topic, msg_type, _ in inputs + list(targets)}
         qos_values = {name: p.value for name, p in self._parameter_overrides.items()
                       if name.startswith("qos_overrides.")}
         for name, value in qos_values.items():  # rcl prints an rcutils warning block for these
@@ -297,6 +314,11 @@ class MuscleNode(Node):
                     msg_type, topic, self._receiver(topic, msg_type), stream_qos(depth),
                     qos_overriding_options=overridable, raw=True)
                 for topic, msg_type, _ in inputs}
+            self._subscriptions_by_topic.update({
+                topic: self.create_subscription(
+                    msg_type, topic, self._target_receiver(topic, msg_type), stream_qos(depth),
+                    qos_overriding_options=overridable, raw=True)
+                for topic, msg_type, _ in targets})
         except (RuntimeError, InvalidQosOverridesError, InvalidParameterTypeException) as exc:
             named = {k: v for k, v in qos_values.items()
                      if k in str(exc) or str(v) in str(exc)} or qos_values
@@ -415,6 +437,40 @@ class MuscleNode(Node):
     def _on_joint_states(self, names, position, velocity, now_ns: int):
         return self.joint_inputs.on_joint_states(names, position, velocity, now_ns)
 
+    def _target_receiver(self, topic: str, msg_type):
+        """The receiver of a live-coordination target topic (vm_ros.node.effort_targets):
+        deserialised by rclpy, an undecodable message counted; losses counted as for the other
+        inputs. Not logged (coordination.enabled excludes mcap.enabled)."""
+        targets = self.coordination.targets
+        handle = {
+            tm.TOPIC_JOINT_EFFORT_TRAJECTORY: lambda msg, now_ns: targets.on_trajectory(
+                msg.joint_names, msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec,
+                [p.time_from_start.sec * 1_000_000_000 + p.time_from_start.nanosec
+                 for p in msg.points], [p.effort for p in msg.points], now_ns),
+            tm.TOPIC_JOINT_EFFORT_TARGETS: lambda msg, now_ns: targets.on_stream(
+                topic, msg.name, msg.effort, now_ns),
+            tm.TOPIC_JOINT_EFFORT_TARGETS_ARRAY: lambda msg, now_ns: targets.on_stream(
+                topic, None, msg.data, now_ns),
+        }[topic]
+        gaps = self._gaps[topic] = SequenceGaps()
+
+        def receive(data, info=None) -> None:
+            if info is None:  # the EventsExecutor's call (see _receiver)
+                data, info = data
+            lost = gaps.add(info.get("publication_sequence_number"))
+            if lost:
+                self._report([Issue("input_lost", f"{topic}: {lost} message(s) lost before "
+                                    "the node took them", count=lost)])
+            try:
+                msg = deserialize_message(data, msg_type)
+            except Exception as exc:  # corrupt bytes: never let them stop the node
+                self._report([Issue("undecodable", f"{topic}: {type(exc).__name__}: {exc}")])
+                return
+            self._report(handle(msg, self.get_clock().now().nanoseconds))
+
+        receive.__signature__ = _WITH_MESSAGE_INFO
+        return receive
+
     def _check_publisher_types(self) -> None:
         """Publishers of another message type on an input topic are never matched, so nothing
         of theirs arrives: count each one once and say so (rmw_fastrtps accepts the
@@ -519,6 +575,12 @@ class MuscleNode(Node):
         done = 0
         while done < due:  # batches that end at a publish step or at the last step due
             count = min(due - done, every - self.scheduler.total_steps % every)
+            if self.coordination is not None:  # the joint-driven muscles' drives: solved at
+                # the start of each publish period, held over it
+                if self.scheduler.total_steps % every == 0:
+                    self.coordination.solve(self.bank.restore_point(),
+                                            self.scheduler.model_time_ns, joints)
+                u[done:done + count, self.coordination.index] = self.coordination.drive
             self._run_batch(u[done:done + count], lp[done:done + count],
                             vp[done:done + count], joints)
             done += count
@@ -605,6 +667,19 @@ class MuscleNode(Node):
                      fill_message(Float64MultiArray(),
                                   tm.joint_effort_commands_fields(efforts)))):
                 self._send_bytes(topic, serialize_message(msg), stamp_ns, now_ns)
+            if self.coordination is not None:
+                self._publish_coordination(out, efforts, stamp_ns, now_ns)
+
+    def _publish_coordination(self, out, efforts, stamp_ns: int, now_ns: int) -> None:
+        """muscle_drive (the drive every muscle used) and joint_reserves (target - effort)."""
+        reserves = JointEfforts(efforts.names, efforts.position, efforts.velocity,
+                                self.coordination.reserves(stamp_ns, efforts))
+        for topic, fields in (
+                (tm.TOPIC_MUSCLE_DRIVE, tm.muscle_drive_fields(self.bank.names, out.excitation,
+                                                               stamp_ns)),
+                (tm.TOPIC_JOINT_RESERVES, tm.joint_efforts_fields(reserves, stamp_ns))):
+            self._send_bytes(topic, serialize_message(fill_message(JointState(), fields)),
+                             stamp_ns, now_ns)
 
     # --- diagnostics ------------------------------------------------------------------------
 
@@ -638,6 +713,8 @@ class MuscleNode(Node):
         ]
         if self.joint_inputs is not None:
             values += [("joint_states age (s)", self.joint_inputs.age_s(now_ns))]
+        if self.coordination is not None:
+            values += self.coordination.diagnostics(now_ns)
         values += [(lost_key(topic), gaps.lost if gaps.supported is not False else
                     "not counted: the rmw gives no sequence numbers")
                    for topic, gaps in self._gaps.items()]

@@ -12,7 +12,8 @@ run log's zero-order hold: the step uses the latest input with log_time <= t_k. 
 models, energy_rate_models) are written every
 ``timing.steps_per(publish_rate_hz)`` steps and telemetry every
 ``timing.steps_per(telemetry_rate_hz)`` steps, stamped and logged at the end of the step. The
-bank starts at rest, at static equilibrium for the path length held at the start time; with
+bank starts at rest (or, with ``steady_start``, with its activation at the steady state of the
+first drive), at static equilibrium for the path length held at the start time; with
 ``publish_start`` (as muscle_node does) that initial state is published too, at the start time.
 
 Inputs with a ``joint_efforts(force)`` method (joint space: NodeReplayInputs, MotionInputs) also
@@ -57,6 +58,8 @@ from vm_ros.recording.run_log import (
 )
 from vm_ros.recording.writer import McapRecorder
 
+# metadata entry of a run that starts at the steady state of its first drive (value "yes")
+STEADY_START = "steady_start"
 _RETRY_S = 0.001
 _RETRIES = 5000  # an offline run waits up to 5 s for room in the recorder queue, then drops
 # messages handed to the recorder and not yet written before another block is handed over (a
@@ -453,13 +456,17 @@ class OfflineRun:
 
     def run(self, inputs, n_steps: int, should_stop: Callable[[], bool] = lambda: False,
             progress: Callable[[int, int], None] | None = None,
-            publish_start: bool = False, block_steps: int = BLOCK_STEPS) -> OfflineResult:
+            publish_start: bool = False, block_steps: int = BLOCK_STEPS,
+            steady_start: bool = False) -> OfflineResult:
         """Step ``n_steps`` from the timing's start; ``block_steps`` 0 runs the step-by-step
-        loop (always used with joint efforts), else blocks of about that many steps."""
+        loop (always used with joint efforts), else blocks of about that many steps;
+        ``steady_start``: the activation starts at the steady state of the first drive instead
+        of at rest (STEADY_START in a log's metadata; `vm-ros coordinate`'s runs)."""
         t = self.timing
         start = int(t.start_time_ns or 0)
-        _, lp, _ = inputs.advance_to(start)
-        initial = self.bank.reset(path_length=lp, time_s=start * 1e-9)
+        u, lp, _ = inputs.advance_to(start)
+        initial = self.bank.reset(path_length=lp, time_s=start * 1e-9,
+                                  excitation=u if steady_start else None)
         joint_efforts = getattr(inputs, "joint_efforts", None)
         joints = _JointRecord(t.dt_s)
         forces, times = [], []

@@ -28,6 +28,7 @@ from vm_ros.validation.paper import (
     check_lumped_cost,
 )
 from vm_ros.validation.results import CheckResult, Criterion
+from vm_ros.validation.walk import check_walk
 
 CHECKS: dict[str, Callable[..., CheckResult]] = {
     "fig2": check_fig2_energy_velocity,
@@ -42,6 +43,7 @@ CHECKS: dict[str, Callable[..., CheckResult]] = {
     "held_out": check_held_out,
     "cost": check_lumped_cost,
     "joint_torque": check_joint_torque,
+    "walk": check_walk,
 }
 
 

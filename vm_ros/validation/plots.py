@@ -15,6 +15,7 @@ import numpy as np  # noqa: E402
 from vm_ros.validation import JOINT_TORQUE_BANDS, CheckResult, published_ratio  # noqa: E402
 from vm_ros.validation.knee_extension_plot import plot_fig7  # noqa: E402
 from vm_ros.validation.plot_style import finish  # noqa: E402
+from vm_ros.validation.walk_plot import plot_walk  # noqa: E402
 
 
 def plot_fig2(result: CheckResult, path: Path) -> None:
@@ -381,4 +382,4 @@ def plot_joint_torque(result: CheckResult, path: Path) -> None:
 PLOTS = {"fig2": plot_fig2, "fig3": plot_fig3, "fig4": plot_fig4, "fig5": plot_fig5,
          "fig6": plot_fig6, "fig7": plot_fig7, "fig9": plot_fig9, "fig10": plot_fig10,
          "cost": plot_cost, "joint_torque": plot_joint_torque, "steps": plot_lumped_steps,
-         "held_out": plot_held_out}
+         "held_out": plot_held_out, "walk": plot_walk}

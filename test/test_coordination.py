@@ -1,0 +1,176 @@
+"""Coordination from motion (vm_ros.coordination): exactness checks against independent numbers.
+
+One coordinate q (rad) crossed by muscles whose path lengths are L = 0.318 - r q (moment arm r,
+inside the soleus' valid lengths); drives solved so that r^T F of the forward run follows a
+target moment. Independent references: the static equilibrium of MuscleBank.reset (no forward
+run, no solver), and a scalar static optimisation solved with SciPy on it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+from scipy import optimize
+
+from vm_ros.coordination.problem import build_problem
+from vm_ros.coordination.solver import SolverOptions, solve
+from vm_ros.coordination.targets import JointMomentTargets
+from vm_ros.geometry import Coordinate, MusclePath, PolynomialGeometry
+from vm_ros.model import MuscleBank
+from vm_ros.model.params import load_muscle_library
+from vm_ros.node.motion_inputs import JointMotion
+
+LENGTH_AT_ZERO_M = 0.318   # inside the soleus' path lengths (0.305-0.332 m)
+
+
+def library(tmp_path, **muscles) -> str:
+    """A library of soleus copies, ``name={field: value}`` overriding fields of each."""
+    soleus = load_muscle_library()["soleus"]
+    entries = {name: {**soleus, **fields} for name, fields in muscles.items()}
+    path = tmp_path / "muscles.yaml"
+    path.write_text(yaml.safe_dump({"muscles": entries}))
+    return str(path)
+
+
+def geometry(arms: dict) -> PolynomialGeometry:
+    """One coordinate q in [-0.6, 0.6] rad; muscle name -> moment arm r (m): L = 0.318 - r q."""
+    return PolynomialGeometry(
+        [Coordinate("q", "rad", -0.6, 0.6)],
+        [MusclePath(name, ("q",), (0.0,), (1.0,), [[0], [1]], [LENGTH_AT_ZERO_M, -r])
+         for name, r in arms.items()], backend="numpy")
+
+
+def motion(duration_s: float, amplitude_rad: float = 0.0) -> JointMotion:
+    """q = amplitude sin(pi t / duration): one slow half swing (rest when amplitude 0)."""
+    t = np.linspace(0.0, duration_s, int(round(duration_s * 100)) + 1)
+    w = np.pi / duration_s
+    return JointMotion("analytic", ("q",), t, amplitude_rad * np.sin(w * t)[:, None],
+                       amplitude_rad * w * np.cos(w * t)[:, None], 0.0)
+
+
+def solved(tmp_path, fields: dict, arms: dict, moment, duration_s=1.0, amplitude_rad=0.0,
+           **options):
+    """The solution of the muscles ``fields`` (library overrides) with moment arms ``arms``
+    following ``moment(t)`` (N m) at 50 frames per second."""
+    names = list(arms)
+    bank = MuscleBank.from_config(names, library=library(tmp_path, **fields))
+    move = motion(duration_s, amplitude_rad)
+    times = np.linspace(0.0, duration_s, int(round(duration_s * 50)) + 1)
+    targets = JointMomentTargets(times, ("q",), np.asarray(moment(times), float)[:, None],
+                                 "analytic")
+    problem = build_problem(geometry(arms), move, targets, names)
+    return bank, solve(bank, problem, SolverOptions(**options))
+
+
+def steady_force(tmp_path, fields: dict, name: str, drive: float) -> float:
+    """Tendon force (N) at static equilibrium at L = 0.318 m for a constant drive: the bank's
+    reset, no forward run."""
+    bank = MuscleBank.from_config([name], library=library(tmp_path, **{name: fields}))
+    return float(bank.reset(path_length=[LENGTH_AT_ZERO_M], excitation=[drive]).force[0])
+
+
+@pytest.mark.parametrize("cost", ["tsianos2012", "drive2"])
+def test_two_identical_muscles_share_the_moment_equally(tmp_path, cost):
+    _, result = solved(tmp_path, {"a": {}, "b": {}}, {"a": 0.02, "b": 0.02},
+                       lambda t: 12.0 - 4.0 * np.cos(2 * np.pi * t), amplitude_rad=0.1,
+                       cost=cost)
+    force = result.forward.force
+    assert np.max(np.abs(force[:, 0] - force[:, 1])) <= 1e-3 * np.max(force)
+    assert np.allclose(result.drives[:, 0], result.drives[:, 1], atol=1e-6)
+
+
+@pytest.mark.xfail(strict=True, reason="measured: the drives start near the optimum (0.19 / 0.73) "
+                   "and drift to 0.69 / 0.70 in mid run, the reserves held within 0.3 N m: the "
+                   "one-sided sensitivity misses VM's sign-dependent response to a drive "
+                   "change (docs/coordination.md; open)")
+def test_drive_squared_static_case_is_the_static_optimisation_solution(tmp_path):
+    """Constant pose and moment, arms 0.02 and 0.04 m: min Ua^2 + Ub^2 subject to
+    0.02 F(Ua) + 0.04 F(Ub) = 30 N m, F the static-equilibrium force of the drive (reset),
+    solved in one variable with SciPy."""
+    arms = {"a": 0.02, "b": 0.04}
+    target = 30.0
+    _, result = solved(tmp_path, {"a": {}, "b": {}}, arms, lambda t: np.full_like(t, target),
+                       duration_s=0.6, cost="drive2", smoothness=0.0)
+    force = dict.fromkeys(arms)
+
+    def f(u):
+        if force.get(u) is None:
+            force[u] = steady_force(tmp_path, {}, "a", u)
+        return force[u]
+
+    def partner(ua):  # Ub meeting the moment for a given Ua
+        return optimize.brentq(lambda ub: 0.02 * f(ua) + 0.04 * f(ub) - target, 0.0, 1.0,
+                               xtol=1e-10)
+
+    low = 0.0 if 0.04 * f(1.0) >= target else optimize.brentq(
+        lambda ua: 0.02 * f(ua) + 0.04 * f(1.0) - target, 0.0, 1.0)
+    best = optimize.minimize_scalar(lambda ua: ua ** 2 + partner(ua) ** 2,
+                                    bounds=(low, 1.0), method="bounded",
+                                    options={"xatol": 1e-6})
+    expected = np.array([best.x, partner(best.x)])
+    middle = len(result.drives) // 2
+    assert result.drives[middle] == pytest.approx(expected, abs=0.01)
+    assert expected[1] > 1.5 * expected[0]   # the longer arm carries more: not a trivial split
+
+
+def test_forward_run_moments_follow_a_slow_target_within_one_percent_of_peak(tmp_path):
+    """An agonist pair and an antagonist over a slow swing; default cost (VM's energy). The
+    first 0.1 s are held to the RMS only: the run starts at the steady state of the first drive
+    node, which also drives the first 40 ms (measured: 1.7 % of peak at t = 0)."""
+    peak = 15.0
+    _, result = solved(tmp_path, {"a": {}, "b": {"fpcsa_slow": 0.4}, "c": {}},
+                       {"a": 0.02, "b": 0.03, "c": -0.02},
+                       lambda t: 10.0 - 5.0 * np.cos(2 * np.pi * t / 1.5), duration_s=1.5,
+                       amplitude_rad=0.1)
+    after_start = result.problem.frame_times_s >= 0.1
+    assert np.max(np.abs(result.reserves[after_start])) <= 0.01 * peak
+    assert np.sqrt(np.mean(result.reserves ** 2)) <= 0.01 * peak
+    assert result.infeasible == []
+
+
+def test_targets_beyond_the_muscles_are_named_with_the_moment_they_lack(tmp_path):
+    """Two soleus copies at 0.02 m give at most 2 x 0.02 x F(U = 1) isometric; a 0.2 s bump to
+    110 N m exceeds that, and the frames inside it are named."""
+    capacity = 2 * 0.02 * steady_force(tmp_path, {}, "a", 1.0)
+    assert 40.0 < capacity < 100.0
+
+    def moment(t):
+        return np.where((t >= 0.5) & (t <= 0.7), 110.0, 10.0)
+
+    _, result = solved(tmp_path, {"a": {}, "b": {}}, {"a": 0.02, "b": 0.02}, moment,
+                       duration_s=1.2, max_iterations=4)
+    named = {round(f.time_s, 3): f for f in result.infeasible}
+    inside = [t for t in result.problem.frame_times_s if 0.5 <= t <= 0.7]
+    assert sorted(named) == pytest.approx(inside)
+    for frame in named.values():
+        assert frame.coordinate == "q"
+        assert frame.lacking == pytest.approx(110.0 - capacity, rel=0.05)
+    assert result.summary.peak[0] >= 110.0 - capacity
+
+
+@pytest.mark.xfail(strict=True, reason="measured: under drive2 at 10 % of capacity the solver "
+                   "settles on drives 0.02 (slow) / 0.37 (fast), a local optimum: the static "
+                   "optimum of the same forces is about 0.20 / 0.28 (open)")
+def test_energy_loads_the_slow_muscle_at_low_moment_and_recruits_the_fast_one_as_it_rises(
+        tmp_path):
+    """Tsianos 2012, Discussion B: a slow and a fast muscle of equal strength (same mass and
+    L0, so the same F0) and moment arm, held isometric at a constant moment. Under VM's energy
+    cost the slow muscle carries more of a low moment than under drive^2, and the fast muscle's
+    share grows as the moment rises; under drive^2 the drives are equal when the two muscles'
+    static forces per drive are (they differ by under 15 % here: compared with that)."""
+    fields = {"slow": {"fpcsa_slow": 1.0}, "fast": {"fpcsa_slow": 0.0}}
+    arms = {"slow": 0.02, "fast": 0.02}
+    capacity = 0.02 * sum(steady_force(tmp_path, fields[m], m, 1.0) for m in fields)
+    shares = {}
+    for level in (0.1, 0.5):
+        for cost in ("tsianos2012", "drive2"):
+            result = solved(tmp_path, fields, arms, lambda t, m=level * capacity:
+                            np.full_like(t, m), duration_s=0.6, cost=cost)[1]
+            force = result.forward.force[len(result.forward.force) // 2]
+            shares[level, cost] = force[0] / force.sum()
+            if cost == "drive2":
+                middle = result.drives[len(result.drives) // 2]
+                assert middle[0] == pytest.approx(middle[1], rel=0.15)
+    assert shares[0.1, "tsianos2012"] > shares[0.1, "drive2"]
+    assert shares[0.5, "tsianos2012"] < shares[0.1, "tsianos2012"]

@@ -1,0 +1,231 @@
+"""muscle_node's live coordination over ROS: a planned torque profile (JointTrajectory efforts) in,
+the muscles' joint_efforts out within 5 % RMS of it; muscle_drive and joint_reserves; stream
+targets with the tracking lag and error in /diagnostics; every bad target message counted. The
+knee of test_joint_space's small geometry, extended by vasti and rectus femoris. In-process rclpy
+(test/conftest.py); simulated time where the test paces the model, so that the result does not
+depend on the machine's load."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from test_joint_space import small_geometry
+
+from vm_ros import telemetry as tm
+from vm_ros.geometry import write_geometry
+from vm_ros.node.health import ISSUE_KINDS
+
+pytestmark = pytest.mark.ros
+
+MUSCLES = ["vasti", "rectus_femoris"]
+JOINT_NAMES = ["hip_flexion", "knee_angle", "ankle_angle"]
+MS = 1_000_000
+T0 = 1_000 * MS
+PERIOD_NS = 10 * MS
+
+
+def knee_pose(t_s: float) -> tuple[list, list]:
+    """Positions and velocities of JOINT_NAMES: the knee swings 1 +- 0.3 rad at 0.5 Hz."""
+    w = 2 * math.pi * 0.5
+    return [0.2, 1.0 + 0.3 * math.sin(w * t_s), 0.0], [0.0, 0.3 * w * math.cos(w * t_s), 0.0]
+
+
+def knee_target(t_s):
+    """An extension moment (negative knee flexion) of 30 +- 20 N m at 0.5 Hz."""
+    return -(30.0 + 20.0 * np.sin(2 * np.pi * 0.5 * np.asarray(t_s)))
+
+
+class CoordinationProbe:
+    """The conftest probe plus joint_states, the target topics out, and the coordination
+    outputs in."""
+
+    def __init__(self, ros):
+        from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+        from sensor_msgs.msg import JointState
+        from std_msgs.msg import Float64MultiArray
+        from trajectory_msgs.msg import JointTrajectory
+
+        self.base = ros.probe()
+        node = self.base.node
+        keep = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000,
+                          reliability=ReliabilityPolicy.RELIABLE)
+        self.efforts, self.drives, self.reserves = [], [], []
+        for topic, store in ((tm.TOPIC_JOINT_EFFORTS, self.efforts),
+                             (tm.TOPIC_MUSCLE_DRIVE, self.drives),
+                             (tm.TOPIC_JOINT_RESERVES, self.reserves)):
+            node.create_subscription(JointState, topic, store.append, keep)
+        self.joint_states = node.create_publisher(JointState, tm.TOPIC_JOINT_STATES, keep)
+        self.trajectory = node.create_publisher(JointTrajectory,
+                                                tm.TOPIC_JOINT_EFFORT_TRAJECTORY, keep)
+        self.targets = node.create_publisher(JointState, tm.TOPIC_JOINT_EFFORT_TARGETS, keep)
+        self.targets_array = node.create_publisher(Float64MultiArray,
+                                                   tm.TOPIC_JOINT_EFFORT_TARGETS_ARRAY, keep)
+
+    def publishers(self):
+        return (self.joint_states, self.trajectory, self.targets, self.targets_array)
+
+    def send_joints(self, t_s: float):
+        self.joint_states.publish(self.base.joint_state(JOINT_NAMES, *knee_pose(t_s)))
+
+    def send_trajectory(self, names, times_s, efforts, stamp_ns: int = 0):
+        from builtin_interfaces.msg import Duration, Time
+        from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+        msg = JointTrajectory()
+        msg.header.stamp = Time(sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000)
+        msg.joint_names = list(names)
+        for t, effort in zip(times_s, efforts, strict=True):
+            ns = int(round(t * 1e9))
+            msg.points.append(JointTrajectoryPoint(
+                effort=[float(e) for e in effort],
+                time_from_start=Duration(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)))
+        self.trajectory.publish(msg)
+
+
+@pytest.fixture
+def geometry_file(tmp_path):
+    return str(write_geometry(small_geometry(), tmp_path / "geometry.yaml"))
+
+
+def coordinating_node(ros, geometry_file, **params):
+    params = {"muscles": MUSCLES, "geometry": geometry_file, "joints": ["knee_angle"],
+              "coordination__enabled": True, **params}
+    node = ros.muscle_node(**params)
+    probe = CoordinationProbe(ros)
+    assert ros.spin_until(lambda: all(p.get_subscription_count() > 0 for p in probe.publishers())
+                          and all(node._publishers_by_topic[t].get_subscription_count() > 0
+                                  for t in (tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_MUSCLE_DRIVE,
+                                            tm.TOPIC_JOINT_RESERVES)), timeout_s=10)
+    return node, probe
+
+
+def stamp_ns(msg) -> int:
+    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+
+def set_clock(ros, probe, node, time_ns: int) -> None:
+    """Publish /clock until the node's clock shows ``time_ns`` and a model tick ran after."""
+    ticks = node.ticks
+
+    def done():
+        if node.get_clock().now().nanoseconds != time_ns:
+            probe.base.send_clock(time_ns)
+            return False
+        return node.ticks > ticks
+    assert ros.spin_until(done, timeout_s=10), f"clock {time_ns} not reached"
+
+
+def test_a_planned_profile_replayed_gives_its_joint_efforts(ros, geometry_file):
+    """Simulated time, 100 Hz periods for 3 s: the knee moves as joint_states say, the planned
+    profile (points every 20 ms from T0) asks for an extension moment of 30 +- 20 N m. After the
+    first second (the start from rest), joint_efforts are within 5 % RMS of the target's peak
+    (the issue's bound for the walk replayed over ROS); joint_reserves are target - effort,
+    muscle_drive carries every muscle's drive in [0, 1]."""
+    node, probe = coordinating_node(ros, geometry_file, use_sim_time=True,
+                                    stale_input_policy="hold", input_timeout_s=1000.0)
+    set_clock(ros, probe, node, T0)
+    times = np.arange(0.0, 4.0, 0.02)
+    probe.send_trajectory(["knee_angle"], times, knee_target(times)[:, None], stamp_ns=T0)
+    assert ros.spin_until(lambda: node.coordination.targets.kind == "planned profile")
+
+    def send_pose(t_ns):
+        before = node.joint_inputs.sample
+        probe.send_joints((t_ns - T0) * 1e-9)
+        assert ros.spin_until(lambda: node.joint_inputs.sample is not before, timeout_s=10)
+
+    send_pose(T0)
+    periods = 300
+    for k in range(1, periods + 1):
+        set_clock(ros, probe, node, T0 + k * PERIOD_NS)
+        send_pose(T0 + k * PERIOD_NS)
+    assert ros.spin_until(lambda: len(probe.efforts) >= periods
+                          and len(probe.reserves) == len(probe.efforts), timeout_s=20)
+    start_ns = node.scheduler.anchor_ns
+    assert start_ns <= T0 + 2 * PERIOD_NS
+    stamps = np.array([stamp_ns(m) for m in probe.efforts])
+    effort = np.array([m.effort[0] for m in probe.efforts])
+    target = np.interp(stamps, T0 + np.round(times * 1e9), knee_target(times))  # as planned
+    late = stamps >= start_ns + 1_000 * MS
+    assert late.sum() >= 150
+    rms = np.sqrt(np.mean((effort[late] - target[late]) ** 2))
+    print(f"planned profile over ROS: RMS error {rms:.3f} N m = "
+          f"{100 * rms / np.abs(target).max():.2f} % of the target's peak "
+          f"({late.sum()} published steps after the first second)")
+    assert rms < 0.05 * np.abs(target).max()
+    by_stamp = {stamp_ns(m): m for m in probe.reserves}
+    for msg, tau, want in zip([m for m, keep in zip(probe.efforts, late, strict=True) if keep],
+                              effort[late], target[late], strict=True):
+        reserve = by_stamp[stamp_ns(msg)]
+        assert list(reserve.name) == ["knee_angle"]
+        assert reserve.effort[0] == pytest.approx(want - tau, abs=1e-9)
+    drives = np.array([m.position for m in probe.drives])
+    assert list(probe.drives[-1].name) == MUSCLES
+    assert np.all((drives >= 0) & (drives <= 1)) and drives[-50:].max() > 0.01
+    assert node.issues.counts["stale_excitation"] == 0
+
+
+def test_stream_targets_report_lag_and_error_and_bad_targets_are_counted(ros, geometry_file):
+    """Real time: a constant stream target (Float64MultiArray in joints order, then JointState
+    by name) with the knee held: /diagnostics names the source and reports the tracking lag and
+    error; each kind of bad target message is counted and the node keeps stepping."""
+    node, probe = coordinating_node(ros, geometry_file, diagnostics_period_s=0.2,
+                                    input_timeout_s=1000.0, stale_input_policy="hold")
+    from std_msgs.msg import Float64MultiArray
+
+    probe.send_joints(0.0)
+    assert ros.spin_until(lambda: node.scheduler.started, timeout_s=10)
+    probe.targets_array.publish(Float64MultiArray(data=[-25.0]))
+    assert ros.spin_until(lambda: node.coordination.targets.kind == "stream")
+
+    def diagnostics_have_tracking():
+        values = probe.base.last_diagnostics()
+        return values.get("coordination targets") == "stream" and \
+            values.get("tracking lag (s)") not in (None, "nan")
+    assert ros.spin_until(diagnostics_have_tracking, timeout_s=30)
+    values = probe.base.last_diagnostics()
+    assert 0.0 <= float(values["tracking lag (s)"]) <= 0.15
+    assert float(values["tracking error RMS (N m)"]) >= 0.0
+
+    bad = [  # (kind, send)
+        ("target_wrong_size", lambda: probe.targets_array.publish(
+            Float64MultiArray(data=[1.0, 2.0]))),
+        ("target_non_finite", lambda: probe.targets.publish(
+            _effort_state(probe, ["knee_angle"], [float("nan")]))),
+        ("target_duplicate_name", lambda: probe.targets.publish(
+            _effort_state(probe, ["knee_angle", "knee_angle"], [1.0, 2.0]))),
+        ("target_unknown_joint", lambda: probe.targets.publish(
+            _effort_state(probe, ["elbow"], [1.0]))),
+        ("target_bad_time", lambda: probe.send_trajectory(
+            ["knee_angle"], [0.2, 0.1], [[1.0], [2.0]])),
+        ("target_wrong_size", lambda: probe.send_trajectory(
+            ["knee_angle"], [0.1, 0.2], [[1.0], [2.0, 3.0]])),
+    ]
+    for kind, send in bad:
+        before = node.issues.counts[kind]
+        send()
+        assert ros.spin_until(lambda k=kind, b=before: node.issues.counts[k] > b,
+                              timeout_s=10), kind
+    assert node.coordination.targets.kind == "stream"  # no bad message replaced the source
+    ticks = node.ticks
+    assert ros.spin_until(lambda: node.ticks > ticks + 5, timeout_s=10)
+    probe.targets.publish(_effort_state(probe, ["knee_angle"], [-10.0]))
+    assert ros.spin_until(lambda: node.coordination.targets.robot_at([0])[0, 0] == -10.0)
+    labels = {kind: ISSUE_KINDS[kind][0] for kind, _ in bad}
+    assert ros.spin_until(lambda: all(
+        int(probe.base.last_diagnostics().get(label, "0")) >= 1 for label in labels.values()),
+        timeout_s=10)
+
+
+def _effort_state(probe, names, effort):
+    msg = probe.base.joint_state(names)
+    msg.effort = list(effort)
+    return msg
+
+
+def test_coordination_needs_a_geometry_and_no_recording(ros):
+    from vm_ros.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="coordination.enabled"):
+        ros.muscle_node(muscles=MUSCLES, coordination__enabled=True)

@@ -1,0 +1,112 @@
+"""The walk item's measures (vm_ros.validation.walk) on synthetic solutions with known answers,
+and its skip without the walk's files."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from vm_ros.validation import CHECKS, CheckSkippedError
+from vm_ros.validation import walk as w
+from vm_ros.validation.walk_reference import MuscleSeries
+
+CYCLE = (1.0, 2.0)   # right heel strikes (s)
+
+
+def _solution(times, drives, moments=None, targets=None, metabolic=None, muscles=None):
+    n = len(times)
+    targets = np.column_stack([np.sin(2 * np.pi * times)] * 6) * 100 if targets is None else targets
+    drives = np.asarray(drives, dtype=float).reshape(n, -1)
+    return w.WalkSolution("test", times, muscles or tuple(f"m{k}" for k in range(drives.shape[1])),
+                          drives, drives * 1000.0, w.TRACKED,
+                          targets if moments is None else moments, targets,
+                          np.full(n, 100.0) if metabolic is None else metabolic)
+
+
+def test_spike_frames_flag_only_the_jump():
+    t = np.linspace(0, 1, 61)
+    targets = np.sin(2 * np.pi * t)[:, None] * 100
+    targets[20, 0] += 50.0
+    spikes = w.spike_frames(targets, 0.10)
+    assert np.flatnonzero(spikes[:, 0]).tolist() == [20]
+
+
+def test_tracking_errors_of_a_constant_offset():
+    """Muscle moments 2 N m above targets of peak 100 N m: 2 % RMS and max; a 50 N m spike in
+    the targets is counted and left out of the max."""
+    t = np.linspace(0, 1, 61)
+    targets = np.column_stack([np.sin(2 * np.pi * t)] * 6) * 100
+    moments = targets + 2.0
+    targets[15, 1] += 50.0
+    moments[15, 1] = targets[15, 1] - 20.0   # missed spike
+    out = w.tracking_errors(_solution(t, np.zeros(61), moments, targets), 0.10)
+    assert out["hip_flexion_r"]["rms_of_peak"] == pytest.approx(0.02)
+    assert out["hip_flexion_r"]["max_of_peak"] == pytest.approx(0.02)
+    knee = out["knee_angle_r"]
+    assert knee["spikes"] == 1
+    assert knee["max_of_peak"] == pytest.approx(2.0 / 150.0)
+    assert knee["spike_max_of_peak"] == pytest.approx(20.0 / 150.0)
+
+
+def test_window_means_of_a_ramp_over_the_cycle():
+    """A drive rising linearly over the cycle from heel strike: its normalised mean over 0-12 %
+    is 0.06 and over 50-100 % is 0.75."""
+    t = np.linspace(0.5, 2.5, 2001)
+    u = np.clip(t - 1.0, 0.0, 1.0)
+    means = w.window_means(t, u, CYCLE, {"a": (0, 12), "b": (50, 100)})
+    assert means["a"] == pytest.approx(0.06, abs=1e-3)
+    assert means["b"] == pytest.approx(0.75, abs=1e-3)
+
+
+def test_high_frequency_share_of_two_equal_sines():
+    t = np.arange(0, 2.0, 0.001)
+    values = np.column_stack([np.sin(2 * np.pi * t) + np.sin(2 * np.pi * 20 * t),
+                              np.sin(2 * np.pi * 3 * t), np.full_like(t, 0.4)])
+    share = w.high_frequency_share(t, values, 6.0)
+    np.testing.assert_allclose(share, [0.5, 0.0, 0.0], atol=1e-9)
+
+
+def test_net_metabolic_references_at_one_metre_per_second():
+    """ACSM: 0.1 mL/kg/min per m/min at 60 m/min = 6 mL/kg/min; Waters: 11.9 - 3.5 mL/kg/min;
+    both times 20.41 J/mL / 60 s."""
+    config, _ = w.load_walk_config()
+    refs = w.net_metabolic_references(config["metabolic"], 1.0)
+    assert refs["ACSM walking equation"] == pytest.approx(6.0 * 20.41 / 60)
+    assert refs["Waters 1983 young adults"] == pytest.approx(8.4 * 20.41 / 60)
+
+
+def test_evaluate_walk_criteria_on_a_made_up_solution():
+    """Perfect tracking, a soleus drive active only in 31-50 % of the cycle, 160 W over 80 kg
+    (2 W/kg) and forces equal to the reference's: tracking and timing pass, the metabolic ratio
+    is 2 / the reference's."""
+    config, _ = w.load_walk_config()
+    t = np.linspace(0.5, 2.5, 241)
+    percent = 100 * (t - 1.0)
+    soleus = ((percent >= 31) & (percent <= 50)).astype(float)
+    solution = _solution(t, soleus, metabolic=np.full(len(t), 160.0), muscles=("soleus_r",))
+    reference = MuscleSeries("SO", t, ("soleus_r",), solution.forces_n + 5.0, "N")
+    criteria, data = w.evaluate_walk(solution, {"strikes": list(CYCLE), "mass_kg": 80.0,
+                                                "speed_m_per_s": 1.0, "so_forces": reference},
+                                     config)
+    by_name = {c.description: c for c in criteria}
+    assert all(by_name[f"test: {c} RMS error / peak"].passed for c in w.TRACKED)
+    assert by_name["test: soleus_r drive in [31, 50] % (active)"].value == pytest.approx(1.0)
+    assert by_name["test: soleus_r drive in [62, 87] % (silent)"].value == pytest.approx(0.0)
+    assert data["forces_vs_so"]["soleus_r"]["r"] == pytest.approx(1.0)
+    assert data["metabolic_w_per_kg"] == pytest.approx(2.0)
+    acsm = [c for c in criteria if "ACSM" in c.description][0]
+    assert acsm.value == pytest.approx(2.0 / (6.0 * 20.41 / 60))
+
+
+def test_walk_item_is_skipped_without_the_walks_files(monkeypatch, tmp_path):
+    monkeypatch.setenv("VM_ROS_DATA", str(tmp_path))
+    with pytest.raises(CheckSkippedError, match="scripts/fetch-gait-data"):
+        CHECKS["walk"]()
+
+
+def test_cocontraction_share():
+    """Coordinate 0: two muscles pull 10 and -10 N m (all cancels: 0.5); coordinate 1: both
+    +5 N m (none: 0); coordinate 2: 30 and -10 (10 of 40 opposed: 0.25)."""
+    arms = np.array([[[1.0, 0.5, 3.0], [-1.0, 0.5, -1.0]]])   # (T=1, n=2, C=3)
+    forces = np.array([[10.0, 10.0]])
+    np.testing.assert_allclose(w.cocontraction_share(arms, forces), [0.5, 0.0, 0.25])

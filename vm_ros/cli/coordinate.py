@@ -1,0 +1,283 @@
+"""Solve the drives of a geometry's muscles over a motion so that the joint moments of a forward
+run of the full model (drive filter, activation, fascicle mass, tendon) reproduce target joint
+moments at least cost (docs/coordination.md), and write:
+
+  drives.sto      drive per muscle at the drive nodes (OpenSim storage, the motion's time axis;
+                  `vm-ros simulate --excitations` and OpenSim read it)
+  forces.sto      tendon force per muscle (N) at the target frames
+  reserves.sto    reserve moment per coordinate (N m or N) at the target frames
+  coordination.mcap  the run log of the drives (as `vm-ros simulate --motion` writes it, the
+                  activation starting at the steady state of the first drive; `vm-ros recompute`
+                  reproduces its forces and energy)
+  coordination.png   drives over time (heat map), forces, target and muscle moments with the
+                  reserves, mean metabolic rate per muscle
+
+and print per coordinate the reserves (RMS, peak, % of the target's peak), the frames where the
+target exceeds what the muscles can give (with the moment they lack), muscles at their limit,
+whole-body metabolic rate and, with --speed and --body-mass, the cost of transport.
+
+Targets (--targets): an inverse-dynamics .sto (OpenSim's ID output names), mujoco[:MODEL] or
+opensim-id:MODEL.osim[,LOADS.xml][,lowpass=HZ] (vm_ros.coordination.targets). Coordinates of the
+targets no muscle crosses (pelvis, lumbar) are left to the reserves and listed.
+Costs (--cost): tsianos2012 (VM's metabolic energy, default), drive2, or a published energetics
+model's name (vm_ros.coordination.costs).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from vm_ros.errors import VmRosError
+
+# metadata entries of the run log
+COST_KEY, SOLVE_KEY = "coordination_cost", "coordination_solve"
+LIMIT_DRIVE = 0.99          # a muscle whose drive reaches this is "at its limit"
+GRAVITY_M_PER_S2 = 9.81     # cost of transport: P / (m g v)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from vm_ros.coordination.costs import COST_NAMES, DEFAULT_COST
+    from vm_ros.coordination.solver import SolverOptions
+    from vm_ros.coordination.targets import SPEC_HELP
+
+    defaults = SolverOptions()
+    parser.add_argument("--geometry", type=Path, required=True, metavar="GEOMETRY.yaml",
+                        help="vm_ros.geometry file (vm-ros import-osim / import-mjcf)")
+    parser.add_argument("--motion", type=Path, required=True, metavar="FILE.mot|.sto",
+                        help="the motion (IK result); units from its header")
+    parser.add_argument("--targets", required=True, metavar="SPEC", help=SPEC_HELP)
+    parser.add_argument("--library", type=Path, metavar="MUSCLES.yaml",
+                        help="muscle library (e.g. the muscles.yaml of vm-ros import-osim)")
+    parser.add_argument("--params", type=Path, metavar="MODEL.yaml", help="model parameters")
+    parser.add_argument("--muscles", metavar="A,B", help="these muscles only (default: the "
+                        "geometry's muscles in the library)")
+    parser.add_argument("--cost", default=DEFAULT_COST, choices=COST_NAMES,
+                        help=f"cost to minimise (default {DEFAULT_COST})")
+    parser.add_argument("--muscle-weight", action="append", default=[], metavar="MUSCLE=W",
+                        help="weight of a muscle's cost (default 1; repeatable)")
+    parser.add_argument("--smoothness", type=float, default=defaults.smoothness, metavar="S2",
+                        help=f"weight of mean (dU/dt)^2, s^2 (default {defaults.smoothness:g})")
+    parser.add_argument("--reserve-weight", type=float, default=defaults.reserve_weight,
+                        help=f"weight of mean (reserve / peak)^2 (default "
+                             f"{defaults.reserve_weight:g})")
+    parser.add_argument("--node-step", type=float, default=defaults.node_step_s, metavar="S",
+                        help=f"time between drive nodes (default {defaults.node_step_s:g} s)")
+    parser.add_argument("--iterations", type=int, default=defaults.max_iterations,
+                        help=f"kept iterations at most (default {defaults.max_iterations})")
+    parser.add_argument("--dt", type=float, default=0.001, metavar="S",
+                        help="model step (default 0.001 s)")
+    parser.add_argument("--speed", type=float, metavar="M/S",
+                        help="walking speed, for the cost of transport")
+    parser.add_argument("--body-mass", type=float, metavar="KG",
+                        help="body mass, for W/kg and the cost of transport")
+    parser.add_argument("--out", type=Path, default=Path("out/coordination"), metavar="DIR",
+                        help="output folder (default out/coordination)")
+    parser.add_argument("--progress", action="store_true",
+                        help="one line per iteration on stderr even when it is not a terminal")
+
+
+def _weights(texts) -> dict:
+    weights = {}
+    for text in texts:
+        name, sep, value = text.partition("=")
+        try:
+            weights[name.strip()] = float(value)
+        except ValueError:
+            sep = ""
+        if not sep:
+            raise VmRosError(f"--muscle-weight {text!r}: give MUSCLE=WEIGHT, e.g. soleus_r=2")
+    return weights
+
+
+def write_storage(path: Path, title: str, times_s, labels, values) -> Path:
+    """An OpenSim storage file (.sto): header, labels, one row per time."""
+    lines = [title, "version=1", f"nRows={len(times_s)}", f"nColumns={len(labels) + 1}",
+             "inDegrees=no", "endheader", "\t".join(["time", *labels])]
+    lines += ["\t".join(f"{v:.9g}" for v in (t, *row)) for t, row in zip(times_s, values,
+                                                                          strict=True)]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _muscles(args, geometry) -> tuple:
+    from vm_ros.model.params import load_muscle_library
+
+    if args.muscles:
+        chosen = tuple(m.strip() for m in args.muscles.split(",") if m.strip())
+        unknown = [m for m in chosen if m not in geometry.muscle_names]
+        if unknown:
+            raise VmRosError(f"--muscles: {unknown[0]!r} has no path in {args.geometry}")
+        return chosen
+    library = load_muscle_library(args.library)
+    chosen = tuple(m for m in geometry.muscle_names if m in library)
+    if not chosen:
+        raise VmRosError(f"none of the geometry's muscles is in the muscle library "
+                         f"{args.library or 'shipped with vm_ros'}: give --library")
+    return chosen
+
+
+def _report_lines(result, rate_w, body_mass, speed) -> list[str]:
+    p, s = result.problem, result.summary
+    lines = [f"{'coordinate':<22} {'target peak':>11} {'reserve RMS':>11} {'peak':>9} "
+             f"{'RMS %':>6} {'peak %':>7}"]
+    for j, name in enumerate(s.coordinates):
+        unit = "N m" if p.units[j] == "rad" else "N"
+        lines.append(f"{name:<22} {s.target_peak[j]:>7.1f} {unit:<3} {s.rms[j]:>11.2f} "
+                     f"{s.peak[j]:>9.2f} {s.rms_percent[j]:>6.2f} {s.peak_percent[j]:>7.1f}")
+    if p.uncrossed:
+        lines.append(f"crossed by no muscle, left to the reserves: {', '.join(p.uncrossed)}")
+    if result.infeasible:
+        shown = "; ".join(f"{f.coordinate} at {f.time_s:.3f} s lacks {f.lacking:.1f}"
+                          for f in result.infeasible[:8])
+        more = f" (+{len(result.infeasible) - 8} more)" if len(result.infeasible) > 8 else ""
+        lines.append(f"beyond the muscles' capacity at {len(result.infeasible)} frame(s): "
+                     f"{shown}{more}")
+    else:
+        lines.append("every target frame is within the muscles' capacity")
+    limit = [m for m, u in zip(p.muscles, result.forward.drive_steps.max(axis=0), strict=True)
+             if u >= LIMIT_DRIVE]
+    lines.append(f"muscles at their limit (drive >= {LIMIT_DRIVE:g}): "
+                 f"{', '.join(limit) if limit else 'none'}")
+    mean = rate_w.mean(axis=0)
+    total = float(mean.sum())
+    per_kg = f", {total / body_mass:.2f} W/kg" if body_mass else ""
+    lines.append(f"metabolic rate (Tsianos 2012), mean over the motion: {total:.1f} W{per_kg}; "
+                 "per muscle: " + ", ".join(f"{m} {w:.1f}" for m, w in zip(p.muscles, mean,
+                                                                       strict=True)))
+    if body_mass and speed:
+        lines.append(f"cost of transport: {total / (body_mass * GRAVITY_M_PER_S2 * speed):.3f} "
+                     f"(P / (m g v), {total / (body_mass * speed):.2f} J/(kg m))")
+    iterations = len(result.history) - 1
+    lines.append(f"solved in {iterations} iteration(s), {result.forward_runs} forward runs, "
+                 f"{result.seconds:.1f} s ({result.options.cost} cost "
+                 f"{result.cost_value:.4g} {_cost_unit(result.options.cost)})")
+    return lines
+
+
+def _cost_unit(name: str) -> str:
+    from vm_ros.coordination.costs import cost_named
+
+    return cost_named(name).unit
+
+
+def _figure(path: Path, result, rate_w) -> Path | None:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return None
+    p = result.problem
+    fig, axes = plt.subplots(2, 2, figsize=(14, 9))
+    t = np.arange(p.n_steps) * p.dt_s
+    ax = axes[0, 0]
+    image = ax.imshow(result.forward.drive_steps.T, aspect="auto", origin="lower",
+                      extent=(0, p.duration_s, -0.5, len(p.muscles) - 0.5), vmin=0, vmax=1,
+                      cmap="viridis", interpolation="nearest")
+    ax.set(yticks=range(len(p.muscles)), yticklabels=p.muscles, xlabel="time (s)",
+           title="drive U")
+    fig.colorbar(image, ax=ax)
+    ax = axes[0, 1]
+    ax.plot(np.arange(p.n_steps + 1) * p.dt_s, result.forward.force, lw=1)
+    ax.set(xlabel="time (s)", ylabel="tendon force (N)", title="forces (forward run)")
+    ax = axes[1, 0]
+    for j, name in enumerate(p.coordinates):
+        line, = ax.plot(p.frame_times_s, p.target[:, j], lw=1, label=name)
+        ax.plot(p.frame_times_s, result.moments[:, j], "--", color=line.get_color(), lw=1)
+        ax.fill_between(p.frame_times_s, 0, result.reserves[:, j], color=line.get_color(),
+                        alpha=0.25)
+    ax.set(xlabel="time (s)", ylabel="N m (N)",
+           title="target (solid), muscles (dashed), reserve (shaded)")
+    ax.legend(fontsize=7)
+    ax = axes[1, 1]
+    ax.barh(range(len(p.muscles)), rate_w.mean(axis=0))
+    ax.set(yticks=range(len(p.muscles)), yticklabels=p.muscles,
+           xlabel="mean metabolic rate (W, Tsianos 2012)", title="energy")
+    del t
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def run(args) -> int:
+    from vm_ros.cli import simulate
+    from vm_ros.coordination.costs import COSTS, vm_rate
+    from vm_ros.coordination.problem import build_problem
+    from vm_ros.coordination.solver import SolverOptions, solve
+    from vm_ros.coordination.targets import load_targets
+    from vm_ros.geometry import load_geometry
+    from vm_ros.importers.motion import read_motion
+    from vm_ros.model.run_config import RunConfig
+    from vm_ros.node.motion_inputs import JointMotion
+    from vm_ros.offline.runner import STEADY_START
+
+    for name in ("speed", "body_mass"):
+        value = getattr(args, name)
+        if value is not None and not value > 0:
+            raise VmRosError(f"--{name.replace('_', '-')} must be > 0 (got {value})")
+    geometry = load_geometry(args.geometry)
+    motion = read_motion(args.motion)
+    muscles = _muscles(args, geometry)
+    crossed = sorted({c for m in geometry.muscles if m.name in muscles for c in m.coordinates})
+    joint_motion = JointMotion.from_motion(motion, geometry, crossed, {})
+    targets = load_targets(args.targets, geometry=geometry, motion=joint_motion)
+    options = SolverOptions(cost=args.cost, muscle_weights=_weights(args.muscle_weight),
+                            node_step_s=args.node_step, reserve_weight=args.reserve_weight,
+                            smoothness=args.smoothness, max_iterations=args.iterations)
+    options.check(muscles)
+    config = RunConfig(muscles, geometry=args.geometry, library=args.library,
+                       params=args.params,
+                       energetics_models=COSTS[args.cost].bank_models)
+    bank = config.make_bank()
+    problem = build_problem(geometry, joint_motion, targets, muscles, dt_s=args.dt)
+    verbose = args.progress or sys.stderr.isatty()
+
+    def progress(it):
+        if verbose:
+            print(f"iteration {len(progress.seen)}: J {it.objective:.4g}, reserves RMS "
+                  f"{np.max(it.rms_percent):.2f} % of peak at worst, {it.runs} runs, "
+                  f"{it.seconds:.1f} s", file=sys.stderr)
+        progress.seen.append(it)
+
+    progress.seen = []
+    started = time.perf_counter()
+    result = solve(bank, problem, options, progress=progress)
+    out = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    axis = joint_motion.start_s
+    drives = write_storage(out / "drives.sto", "vm_ros coordinate drives",
+                           axis + result.node_times_s, muscles, result.drives)
+    write_storage(out / "forces.sto", "vm_ros coordinate forces (N)",
+                  axis + problem.frame_times_s, muscles, result.forward.force_frames)
+    write_storage(out / "reserves.sto", "vm_ros coordinate reserves (N m or N)",
+                  axis + problem.frame_times_s, problem.coordinates, result.reserves)
+    rate = vm_rate(result.forward.trajectory, result.forward.drive_steps)
+    for line in _report_lines(result, rate, args.body_mass, args.speed):
+        print(line)
+    if targets.unmatched:
+        print(f"targets {targets.source}: not coordinates of the motion, left to the reserves: "
+              f"{', '.join(targets.unmatched)}")
+    figure = _figure(out / "coordination.png", result, rate)
+    parser = argparse.ArgumentParser(prog="vm-ros coordinate")
+    simulate.add_arguments(parser)
+    argv = ["--motion", str(args.motion), "--geometry", str(args.geometry), "--excitations",
+            str(drives), "--muscles", ",".join(muscles), "--dt", repr(args.dt),
+            "--duration", repr(problem.duration_s), "--out", str(out / "coordination.mcap")]
+    argv += [a for name in ("library", "params") if getattr(args, name)
+             for a in (f"--{name}", str(getattr(args, name)))]
+    extra = {STEADY_START: "yes", COST_KEY: args.cost, "targets": targets.source,
+             SOLVE_KEY: f"{len(result.history) - 1} iterations, max reserve RMS "
+                        f"{np.max(result.summary.rms_percent):.3f} % of peak"}
+    print(f"run log of the drives (vm-ros simulate --motion, steady start; "
+          f"{time.perf_counter() - started:.1f} s so far):")
+    code = simulate.run(parser.parse_args(argv), verb="coordinate", extra=extra)
+    print(f"wrote {drives}, {out / 'forces.sto'}, {out / 'reserves.sto'}"
+          + (f", {figure}" if figure else ""))
+    return code

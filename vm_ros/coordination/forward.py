@@ -1,0 +1,183 @@
+"""Forward runs of the full bank over a prescribed motion, and their sensitivity to the drives.
+
+Drives are given at nodes t_j = j h (j = 0 .. N - 1, the last at or after the motion's end) and
+interpolated linearly to each model step's start (as an excitation table is, vm_ros.recording.
+excitations); the bank starts at static equilibrium with its activation at the steady state of
+the first step's drive (a run from rest would spend its first 0.2-0.3 s activating), then
+MuscleBank.run steps the whole motion: drive filter, activation, fascicle mass, tendon.
+
+Because the motion is prescribed, muscle i's force and energy depend only on muscle i's drive.
+So one run probes every muscle at once, and the sensitivity of forces and costs to the drive
+nodes comes from ``groups`` perturbed runs: run g raises (or, near 1, lowers) by ``delta`` every
+node j with j mod groups = g, of every muscle; the change at times in [t_{j-1}, t_{j-1} +
+groups h) is put down to node j. This is exact for a model whose response to a drive change
+has faded within groups h - 2 h (the hat function's width); the activation's 90 % rise time is
+0.2-0.3 s and a drive change leaves a tail for longer, so groups h >= 0.8 s is the default
+(``memory_s``; with 0.4 s two identical muscles drifted apart in the tests). Results beyond the
+window are
+dropped (a truncated Jacobian: it slows the iteration, it does not change what it converges to,
+the forward run being exact).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import sparse
+
+from vm_ros.coordination.problem import CoordinationProblem
+
+
+def hat_matrix(sample_times_s: np.ndarray, node_step_s: float, n_nodes: int) -> sparse.csr_matrix:
+    """(len(sample_times), n_nodes) linear interpolation between nodes j h (held past the last)."""
+    t = np.clip(np.asarray(sample_times_s, dtype=float) / node_step_s, 0.0, n_nodes - 1)
+    low = np.minimum(np.floor(t).astype(int), n_nodes - 2) if n_nodes > 1 else np.zeros(
+        len(t), int)
+    w = t - low if n_nodes > 1 else np.zeros(len(t))
+    rows = np.arange(len(t))
+    if n_nodes == 1:
+        return sparse.csr_matrix((np.ones(len(t)), (rows, low)), shape=(len(t), 1))
+    return sparse.csr_matrix((np.concatenate([1 - w, w]), (np.concatenate([rows, rows]),
+                                                           np.concatenate([low, low + 1]))),
+                             shape=(len(t), n_nodes))
+
+
+@dataclass
+class ForwardOutput:
+    """One forward run.
+
+    | field | shape | unit |
+    | --- | --- | --- |
+    | drive_steps | (k, n) | drive of each step |
+    | force | (k + 1, n) | N, tendon force at model times 0, dt, ..., k dt |
+    | force_frames | (T, n) | N, at the target frames |
+    | rates | dict name -> (k, n) | the per-muscle cost rates of each step (costs.py) |
+    | trajectory | Trajectory | MuscleBank.run's outputs |
+    """
+
+    drive_steps: np.ndarray
+    force: np.ndarray
+    force_frames: np.ndarray
+    rates: dict
+    trajectory: object
+
+
+class ForwardModel:
+    """Forward runs of ``bank`` over ``problem`` with drives at nodes every ``node_step_s``;
+    ``rate_functions``: name -> f(trajectory, drive_steps) -> (k, n) per-muscle rates kept
+    with each run (the costs')."""
+
+    def __init__(self, bank, problem: CoordinationProblem, node_step_s: float,
+                 rate_functions: dict, memory_s: float = 0.8):
+        self.bank = bank
+        self.problem = problem
+        self.node_step_s = float(node_step_s)
+        self.n_nodes = int(np.ceil(problem.duration_s / self.node_step_s - 1e-9)) + 1
+        self.node_times_s = np.arange(self.n_nodes) * self.node_step_s
+        step_starts = np.arange(problem.n_steps) * problem.dt_s
+        self.steps = hat_matrix(step_starts, self.node_step_s, self.n_nodes)
+        # force at model times 0 .. k dt, interpolated to the frames
+        times = np.arange(problem.n_steps + 1) * problem.dt_s
+        position = np.clip(problem.frame_times_s / problem.dt_s, 0, problem.n_steps)
+        low = np.minimum(np.floor(position).astype(int), problem.n_steps - 1)
+        w = position - low
+        rows = np.arange(len(position))
+        self.frames = sparse.csr_matrix(
+            (np.concatenate([1 - w, w]), (np.concatenate([rows, rows]),
+                                          np.concatenate([low, low + 1]))),
+            shape=(len(position), len(times)))
+        self.rate_functions = dict(rate_functions)
+        self.groups = max(2, min(self.n_nodes, int(np.ceil(memory_s / self.node_step_s)) + 2))
+        self.runs = 0
+        self._initial_states: dict = {}
+
+    def run(self, nodes: np.ndarray) -> ForwardOutput:
+        """The forward run of drives ``nodes`` (N, n) in [0, 1]."""
+        p = self.problem
+        drive = np.clip(np.ascontiguousarray(self.steps @ nodes), 0.0, 1.0)
+        initial = self._initial(drive[0])
+        trajectory = self.bank.run(p.dt_s, drive, p.path_length, p.path_velocity)
+        self.runs += 1
+        force = np.vstack([initial.force[None, :], trajectory.force])
+        rates = {name: f(trajectory, drive) for name, f in self.rate_functions.items()}
+        return ForwardOutput(drive, force, self.frames @ force, rates, trajectory)
+
+    def _initial(self, drive: np.ndarray):
+        """The bank reset to the steady state of ``drive`` at the first path length; the
+        last few such states are kept (perturbed runs share the first drive)."""
+        key = drive.tobytes()
+        kept = self._initial_states.get(key)
+        if kept is None:
+            out = self.bank.reset(path_length=self.problem.path_length[0], excitation=drive)
+            if len(self._initial_states) >= 4:
+                self._initial_states.pop(next(iter(self._initial_states)))
+            kept = self._initial_states[key] = (self.bank.state, out)
+        self.bank.set_state(kept[0])
+        return kept[1]
+
+    def windows(self, group: int) -> list[tuple[int, int, int]]:
+        """(node, first, end) of the nodes of ``group``: the forces at model times (first,
+        end] dt and the steps first .. end - 1 are put down to that node (module docstring);
+        first < 0 for node 0, whose drive also sets the initial state (force at time 0)."""
+        p = self.problem
+        span = int(round(self.groups * self.node_step_s / p.dt_s))
+        out = []
+        for j in range(group, self.n_nodes, self.groups):
+            first = int(round((j - 1) * self.node_step_s / p.dt_s))
+            out.append((j, first, min(p.n_steps + 1, first + span)))
+        return out
+
+    def sensitivity(self, nodes: np.ndarray, base: ForwardOutput, delta: float = 0.02):
+        """d(force at frames)/d(node drive) per muscle as a sparse (T, N) matrix each, and
+        d(integral of each rate)/d(node drive) (N, n) per rate name, from ``groups`` perturbed
+        runs around ``nodes`` (module docstring)."""
+        p = self.problem
+        n = nodes.shape[1]
+        frame_step = np.clip(p.frame_times_s / p.dt_s, 0, p.n_steps)
+        step = np.where(nodes + delta <= 1.0, delta, -delta)
+        rows = [[] for _ in range(n)]
+        cols = [[] for _ in range(n)]
+        vals = [[] for _ in range(n)]
+        grads = {name: np.zeros_like(nodes) for name in self.rate_functions}
+        for g in range(self.groups):
+            windows = self.windows(g)
+            perturbed = nodes.copy()
+            chosen = [j for j, _, _ in windows]
+            perturbed[chosen] += step[chosen]
+            out = self.run(perturbed)
+            d_frames = out.force_frames - base.force_frames
+            for j, first, end in windows:
+                inside = np.flatnonzero((frame_step > first) & (frame_step <= end))
+                for i in range(n):
+                    rows[i].append(inside)
+                    cols[i].append(np.full(len(inside), j))
+                    vals[i].append(d_frames[inside, i] / step[j, i])
+                for name, rate in out.rates.items():
+                    start = max(first, 0)
+                    change = (rate[start:end] - base.rates[name][start:end]).sum(axis=0)
+                    grads[name][j] = change * p.dt_s / step[j]
+        shape = (len(p.frame_times_s), self.n_nodes)
+        jac = [sparse.csr_matrix((np.concatenate(vals[i]), (np.concatenate(rows[i]),
+                                                            np.concatenate(cols[i]))),
+                                 shape=shape) for i in range(n)]
+        return jac, grads
+
+    def gains(self, nodes: np.ndarray, base: ForwardOutput, delta: float = 0.02):
+        """From one run with every node of every muscle perturbed: the local gain of force to
+        drive at the frames (T, n), dF_i(t_f) / dU_i(t_f), and d(integral of each rate)/d(node
+        drive) (N, n) per rate name with the rate's change put down to the step's own drive
+        (no lag). Used to rescale a banded sensitivity between its full computations."""
+        step = np.where(nodes + delta <= 1.0, delta, -delta)
+        out = self.run(nodes + step)
+        p = self.problem
+        hat = hat_matrix(p.frame_times_s, self.node_step_s, self.n_nodes)
+        at_frames, per_step = hat @ step, self.steps @ step
+        # where raised and lowered nodes meet the step is small: no gain there (NaN; 0 rate)
+        gain = np.divide(out.force_frames - base.force_frames, at_frames,
+                         out=np.full_like(at_frames, np.nan), where=np.abs(at_frames) > delta / 2)
+        grads = {name: self.steps.T @ np.divide(rate - base.rates[name], per_step,
+                                                out=np.zeros_like(per_step),
+                                                where=np.abs(per_step) > delta / 2) * p.dt_s
+                 for name, rate in out.rates.items()}
+        return gain, grads

@@ -1,0 +1,336 @@
+"""Receding-horizon coordination: the drives of the next period that make the muscles' joint
+moments follow target joint moments over a horizon ahead (muscle_node's live coordination;
+pure NumPy/SciPy, no rclpy).
+
+Each period of p model steps of dt, from the bank's state x0, with the coming path lengths
+L(t) and moment arms r(t) of the m coordinated muscles and the targets tau(t) over the horizon
+of k >= p steps, the drives are piecewise constant in B blocks (block 0 is the next period, the
+rest of the horizon is split evenly), U of shape (B, m), each in [0, 1], and
+
+    minimise  (1/S) sum_s sum_j (M_j(t_s; U) - tau_j(t_s))^2                  tracking, (N m)^2
+              + cost(U)                   vm_ros.coordination.costs: tsianos2012 (default), ...
+              + smoothness * (|U_0 - u_prev|^2 + sum_{b>0} |U_b - U_{b-1}|^2)
+
+    M(t; U) = r(t)^T F(t; U), F the tendon forces of a forward run of the full model from x0
+    (drive filter, activation, fascicle mass, tendon), t_s every ``eval_step_s`` of the horizon.
+
+Solved by one Gauss-Newton step per period about the previous plan shifted by one block. The
+path is prescribed, so muscle i's force depends on its own drive only: the derivatives of every
+force with respect to block b of every drive come from one run with all of block b raised by
+``probe_drive``. The B + 1 runs (nominal, one per block) are one MuscleBank.run of a bank holding
+B + 1 copies of the muscles. The linearised problem is a bounded linear least squares
+(box_qp, a primal active-set method); block 0 is applied, the rest seeds the next period.
+
+What is approximated: a secant linearisation per period (force is not linear in drive); the
+horizon's motion is what the caller predicts (muscle_node: the latest joint sample moved on by its
+velocity); moments beyond the horizon are not seen (a rise that needs more lead than the horizon
+arrives late; the activation of VM rises 50 % in 77-132 ms, issue 30).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from vm_ros.coordination import costs  # a room below this one (docs/architecture.md)
+from vm_ros.model import MuscleBank
+
+DRIVE_FLOOR_WEIGHT = 1e-3  # (N m)^2 per drive^2: keeps the energy cost's quadratic part > 0
+
+
+@dataclass(frozen=True)
+class HorizonSettings:
+    """The receding-horizon problem's constants (module docstring).
+
+    | field | unit | meaning |
+    | horizon_s | s | look-ahead H (>= one period) |
+    | blocks | - | B drive blocks over the horizon (block 0 = the next period) |
+    | cost | - | a name of vm_ros.coordination.costs.COSTS |
+    | effort_weight | (N m)^2 per W, per drive^2 for drive2 | weight of the cost (None: RATE_WEIGHT
+      or DRIVE2_WEIGHT) |
+    | smoothness | (N m)^2 per drive^2 | weight of drive changes between blocks |
+    | eval_step_s | s | spacing of the tracked samples t_s |
+    | probe_drive | 1 | drive step of the derivative runs (a secant: from rest, force over
+      150 ms grows much faster than linearly with drive) |
+    """
+
+    horizon_s: float = 0.15
+    blocks: int = 3
+    cost: str = "tsianos2012"
+    effort_weight: float | None = None
+    smoothness: float = 1.0
+    eval_step_s: float = 0.005
+    probe_drive: float = 0.2
+
+
+@dataclass(frozen=True)
+class Probe:
+    """What the cost terms see of one linearisation (B blocks, m muscles, S tracked samples).
+
+    | field | shape | unit |
+    | nominal | (B, m) | 1, the plan linearised about |
+    | delta | (B, m) | 1, the drive step of each derivative run |
+    | block_weight | (B,) | 1, each block's share of the horizon |
+    | energy_rate | (m,) | W (drive2: 1), horizon mean of each muscle's cost rate, nominal plan |
+    | energy_slope | (B, m) | its change per unit drive of block b |
+    """
+
+    nominal: np.ndarray
+    delta: np.ndarray
+    block_weight: np.ndarray
+    energy_rate: np.ndarray
+    energy_slope: np.ndarray
+
+
+def _drive2(probe: Probe, weight: float) -> tuple[np.ndarray, np.ndarray]:
+    """sum_b w_b sum_i u_bi^2 (OpenSim static optimisation's sum a^2, drive for activation):
+    exact."""
+    return 2.0 * weight * np.repeat(probe.block_weight[:, None], probe.nominal.shape[1], 1), \
+        np.zeros_like(probe.nominal)
+
+
+def _rate(probe: Probe, weight: float) -> tuple[np.ndarray, np.ndarray]:
+    """The horizon mean of an energy rate summed over the muscles, linearised: dE_i/dU_bi from
+    the derivative runs (a drive^2 floor of DRIVE_FLOOR_WEIGHT keeps the problem strictly
+    convex)."""
+    diag, _ = _drive2(probe, DRIVE_FLOOR_WEIGHT)
+    return diag, weight * np.maximum(probe.energy_slope, 0.0)
+
+
+# The costs are those of the offline coordination, by name (vm_ros.coordination.costs.COSTS:
+# tsianos2012, the default, drive2 and the published energetics models on VM's state); the
+# window's term: exact for the quadratic drive2, linearised for the rates. Default weights: on
+# the slow elbow motion of test_coordination_live.py (peak 10 N m) tracking stays within 1.2 %
+# RMS of peak with them; ten times larger weights gave 8 % (measured once).
+RATE_WEIGHT, DRIVE2_WEIGHT = 1e-3, 0.1   # (N m)^2 per W, (N m)^2 per drive^2
+
+
+def window_term(name: str) -> tuple[Callable[[Probe, float], tuple], float]:
+    """(term(probe, weight) -> (D, g), default weight) of the cost ``name``: the cost is
+    1/2 U D U + g U + const, D and g of shape (B, m); VmRosError for an unknown name."""
+    cost = costs.cost_named(name)
+    return (_drive2, DRIVE2_WEIGHT) if cost.quadratic else (_rate, RATE_WEIGHT)
+
+
+@dataclass(frozen=True)
+class WindowPlan:
+    """One period's solution.
+
+    | field | shape | unit |
+    | drive | (m,) | 1, drives of the next period (block 0) |
+    | plan | (B, m) | 1, every block |
+    | predicted_moment | (S, c) | N m (N), M(t_s) of the linearised plan |
+    """
+
+    drive: np.ndarray
+    plan: np.ndarray
+    predicted_moment: np.ndarray
+
+
+def block_edges(k: int, p: int, blocks: int) -> np.ndarray:
+    """Step indices [0, p, ..., k] of the blocks: block 0 is the first p steps, the other
+    blocks split the remaining k - p steps evenly (fewer blocks when there are fewer steps)."""
+    rest = max(min(blocks - 1, k - p), 0)
+    return np.concatenate(([0], p + np.round(np.linspace(0, k - p, rest + 1)).astype(int)))
+
+
+def solve_window(forces, moment_arm, target, tracked, probe: Probe, settings: HorizonSettings,
+                 previous_drive) -> WindowPlan:
+    """The linearised problem of one period, solved (the one function that poses and solves it:
+    another solver replaces this one).
+
+    forces: (B + 1, S, m) N at the tracked samples, run 0 nominal, run b + 1 with block b
+    raised by probe.delta[b]; moment_arm (S, m, c) m; target (S, c) N m; tracked (c,) bool;
+    previous_drive (m,) the drive applied last period.
+    """
+    n_blocks, m = probe.nominal.shape
+    sens = (forces[1:] - forces[0]) / probe.delta[:, None, :]          # (B, S, m) N per drive
+    moment0 = np.einsum("smc,sm->sc", moment_arm, forces[0])            # (S, c)
+    jac = np.einsum("smc,bsm->scbm", moment_arm, sens)                  # (S, c, B, m)
+    jac = jac[:, tracked].reshape(-1, n_blocks * m)
+    x0 = probe.nominal.ravel()
+    rhs = (target - moment0)[:, tracked].ravel() + jac @ x0
+    scale = 1.0 / max(len(moment0), 1)
+    hessian = scale * (jac.T @ jac)                      # 1/2 x H x - f x, tracking
+    linear = scale * (jac.T @ rhs)
+    term, default = window_term(settings.cost)
+    diag, lin = term(probe, default if settings.effort_weight is None else settings.effort_weight)
+    hessian[np.diag_indices_from(hessian)] += diag.ravel()
+    linear -= lin.ravel()
+    if settings.smoothness > 0:
+        change = np.eye(n_blocks * m) - np.eye(n_blocks * m, k=-m)  # U_b - U_{b-1}
+        hessian += settings.smoothness * (change.T @ change)
+        linear[:m] += settings.smoothness * np.asarray(previous_drive, dtype=float)
+    solution = np.empty_like(x0)
+    for group in coupled_groups(hessian):  # independent problems: muscles sharing no joint
+        solution[group] = box_qp(hessian[np.ix_(group, group)], linear[group], x0[group])
+    plan = solution.reshape(n_blocks, m)
+    predicted = moment0 + np.einsum("smc,bsm,bm->sc", moment_arm, sens, plan - probe.nominal)
+    return WindowPlan(plan[0].copy(), plan, predicted)
+
+
+def coupled_groups(hessian) -> list[np.ndarray]:
+    """Indices of the connected components of the nonzero pattern of ``hessian``: unknowns in
+    different groups do not interact (muscles that share no tracked joint), so each group is
+    its own problem (80 muscles over 27 joints: a solve of 3-variable problems instead of one
+    of 240 variables)."""
+    from scipy.sparse.csgraph import connected_components
+
+    count, labels = connected_components(hessian != 0.0, directed=False)
+    return [np.flatnonzero(labels == k) for k in range(count)]
+
+
+def box_qp(hessian, linear, start, tol: float = 1e-12) -> np.ndarray:
+    """argmin 1/2 x H x - f x over 0 <= x <= 1, H symmetric positive definite: a primal
+    active-set method from ``start`` (clipped into the box). Each iteration solves the free
+    variables' equations with the others at their bounds, steps as far as the box allows toward
+    that point, and frees the bound variable whose multiplier has the wrong sign the most; at
+    most 3 n + 10 iterations (the last iterate is feasible either way). NumPy's solve on the
+    free block: LAPACK's least-squares drivers (scipy's lsq_linear, np.linalg.lstsq) took
+    100-600 ms per call for 54 unknowns on a loaded 2-core machine with OpenBLAS threads, the
+    solve 0.04 ms."""
+    x = np.clip(np.asarray(start, dtype=float), 0.0, 1.0)
+    at_lo, at_hi = x <= 0.0, x >= 1.0
+    bound_value = np.where(at_hi, 1.0, 0.0)
+    threshold = tol * max(float(np.abs(linear).max()), 1.0)
+    for _ in range(3 * len(x) + 10):
+        free = ~(at_lo | at_hi)
+        bound_value = np.where(at_hi, 1.0, 0.0)
+        goal = np.where(free, x, bound_value)
+        if free.any():
+            rest = hessian[np.ix_(free, ~free)] @ bound_value[~free]
+            goal[free] = np.linalg.solve(hessian[np.ix_(free, free)], linear[free] - rest)
+        step = goal - x
+        with np.errstate(divide="ignore", invalid="ignore"):
+            room = np.where(step > 0, (1.0 - x) / step, np.where(step < 0, -x / step, np.inf))
+        room = np.where(free, room, np.inf)
+        blocking = int(np.argmin(room))
+        if room[blocking] < 1.0:
+            x = np.clip(x + room[blocking] * step, 0.0, 1.0)
+            x[blocking] = 1.0 if step[blocking] > 0 else 0.0
+            at_hi[blocking], at_lo[blocking] = x[blocking] == 1.0, x[blocking] == 0.0
+            continue
+        x = np.clip(goal, 0.0, 1.0)
+        gradient = hessian @ x - linear
+        wrong = np.where(at_lo, -gradient, np.where(at_hi, gradient, 0.0))
+        worst = int(np.argmax(wrong))
+        if wrong[worst] <= threshold:
+            break
+        at_lo[worst] = at_hi[worst] = False
+    return x
+
+
+def _replicated(state, index, copies: int):
+    """The bank state of muscles ``index``, ``copies`` times along the muscle axis."""
+    from vm_ros.model.layout import STATE_NAMES, BankState
+
+    return BankState(time_s=float(state.time_s), **{
+        name: np.concatenate([getattr(state, name)[index]] * copies) for name in STATE_NAMES})
+
+
+class RecedingHorizon:
+    """The live coordinator of the muscles ``index`` of ``bank`` (module docstring). It owns
+    its probe bank (B + 1 copies of those muscles, no published energetics models) and the plan
+    carried from one period to the next; the caller's bank is never stepped here.
+
+    The forward runs step ``probe_dt_s``: ``settings.eval_step_s`` rounded so that a whole
+    number of them make the period (``period_s``); the tracked samples are the ends of those
+    steps. The fixed step's force at 5 ms steps is within 1.5 % of its force at 1 ms (a 150 ms
+    run at drive 0.5 on a moving path, five library muscles; test_coordination_live.py): the
+    probe needs the derivatives, and each period starts again from the caller's state.
+    """
+
+    def __init__(self, bank: MuscleBank, index, period_s: float,
+                 settings: HorizonSettings = HorizonSettings()):
+        self.cost = costs.cost_named(settings.cost)  # VmRosError for an unknown name
+        self.index = np.asarray(index, dtype=int)
+        self.settings = settings
+        self.period_steps = max(int(round(period_s / settings.eval_step_s)), 1)
+        self.probe_dt_s = period_s / self.period_steps
+        self.steps = max(int(round(settings.horizon_s / self.probe_dt_s)), self.period_steps)
+        self.edges = block_edges(self.steps, self.period_steps, settings.blocks)
+        self.n_blocks = len(self.edges) - 1
+        self.m = len(self.index)
+        specs = [bank.specs[i] for i in self.index]
+        self.probe_bank = MuscleBank(specs * (self.n_blocks + 1), bank.params,
+                                     recruitment=bank.recruitment.name,
+                                     recovery_mode=bank.recovery_mode, backend=bank.backend,
+                                     energetics_models=self.cost.bank_models)
+        self.plan = np.zeros((self.n_blocks, self.m))
+        self.drive = np.zeros(self.m)  # applied last period
+
+    @property
+    def start_offsets_s(self) -> np.ndarray:
+        """(k,) s after the window start at which each probe step starts (path lengths)."""
+        return self.probe_dt_s * np.arange(self.steps)
+
+    @property
+    def end_offsets_s(self) -> np.ndarray:
+        """(k,) s after the window start at which each probe step ends (targets, moment arms)."""
+        return self.probe_dt_s * np.arange(1, self.steps + 1)
+
+    def _drive_series(self, plans) -> np.ndarray:
+        """(k, R m) drives of R plans (R, B, m), each block held over its steps."""
+        per_step = np.repeat(plans, np.diff(self.edges), axis=1)          # (R, k, m)
+        return np.ascontiguousarray(per_step.transpose(1, 0, 2).reshape(self.steps, -1))
+
+    def solve(self, state, path_length, path_velocity, moment_arm, target,
+              tracked=None) -> WindowPlan:
+        """The drives of the next period.
+
+        state: the caller's BankState at the window start; path_length, path_velocity: (k, m)
+        m and m/s of the coordinated muscles at ``start_offsets_s``; moment_arm (k, m, c) m and
+        target (k, c) N m at ``end_offsets_s``; tracked (c,) bool (None: all).
+        """
+        target = np.asarray(target, dtype=float)
+        tracked = (np.ones(target.shape[1], dtype=bool) if tracked is None
+                   else np.asarray(tracked, dtype=bool))
+        nominal = np.concatenate([self.plan[1:], self.plan[-1:]])  # shifted by one period
+        step = self.settings.probe_drive
+        delta = np.where(nominal + step <= 1.0, step, -step)
+        copies = self.n_blocks + 1
+        plans = np.repeat(nominal[None], copies, axis=0)
+        for b in range(self.n_blocks):
+            plans[b + 1, b] += delta[b]
+        self.probe_bank.set_state(_replicated(state, self.index, copies))
+        reps = (1, copies)
+        drives = self._drive_series(plans)
+        run = self.probe_bank.run(self.probe_dt_s, drives, np.tile(path_length, reps),
+                                  np.tile(path_velocity, reps))
+        forces = run.force.reshape(self.steps, copies, self.m).transpose(1, 0, 2)
+        rates = self.cost.rate(run, drives, self.cost.bank_models).mean(axis=0).reshape(
+            copies, self.m)
+        probe = Probe(nominal, delta, np.diff(self.edges) / self.steps, rates[0],
+                      (rates[1:] - rates[0]) / delta)
+        plan = solve_window(forces, moment_arm, target, tracked, probe, self.settings,
+                            self.drive)
+        self.plan, self.drive = plan.plan, plan.drive
+        return plan
+
+
+def tracking_lag(times_s, target, achieved, max_lag_s: float) -> tuple[float, float]:
+    """(lag s, RMS error at that lag) of ``achieved`` (n, c) behind ``target`` (n, c), both at
+    ``times_s`` (n,) increasing: the shift in [0, max_lag_s] (on the samples' own spacing) that
+    minimises the RMS of achieved(t) - target(t - lag) over all coordinates. (nan, nan) with
+    fewer than two samples."""
+    times_s = np.asarray(times_s, dtype=float)
+    target, achieved = np.asarray(target, float), np.asarray(achieved, float)
+    if len(times_s) < 2:
+        return float("nan"), float("nan")
+    step = float(np.median(np.diff(times_s)))
+    best = (float("nan"), float("inf"))
+    for shift in range(int(max_lag_s / step + 1e-9) + 1):
+        if len(times_s) - shift < 2:
+            break
+        error = achieved[shift:] - target[:len(target) - shift]
+        rms = float(np.sqrt(np.mean(error ** 2)))
+        if rms < best[1]:
+            best = (shift * step, rms)
+    return best
+
+
+__all__ = ["DRIVE2_WEIGHT", "RATE_WEIGHT", "HorizonSettings", "Probe", "RecedingHorizon",
+           "WindowPlan", "block_edges", "box_qp", "coupled_groups", "solve_window",
+           "tracking_lag", "window_term"]

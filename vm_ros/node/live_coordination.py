@@ -1,0 +1,123 @@
+"""muscle_node's live coordination (``coordination.enabled``), between the node's inputs and the
+model-side coordinator (vm_ros.coordination.receding); no rclpy here.
+
+Each publish period, before the model steps it:
+
+- the targets over the horizon (vm_ros.node.effort_targets) in the model's convention, for the
+  joints of ``joints``;
+- the horizon's motion: each joint-driven muscle's latest path length moved on by its velocity
+  (as NodeInputs holds them; the node's extrapolation_max_s cap is not applied in the
+  prediction, the range clamp is), with the moment arms of the latest joint sample held;
+- RecedingHorizon.solve from the bank's state gives the joint-driven muscles' drives for the
+  period. Before any target arrives their drive is 0.
+
+After each publish: the reserve of each tracked joint, target - joint effort (robot convention,
+0 where untracked), and a history for the tracking lag and error of /diagnostics
+(vm_ros.coordination.receding.tracking_lag over ``coordination.lag_window_s``).
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+
+import numpy as np
+
+from vm_ros.blas_threads import limit_blas_threads
+from vm_ros.coordination import receding  # a room below the node (docs/architecture.md)
+from vm_ros.joint_space import JointEfforts, JointSpace
+from vm_ros.node.effort_targets import EffortTargets
+from vm_ros.node.health import DurationWindow
+
+
+def horizon_settings(config) -> receding.HorizonSettings:
+    """The coordinator's constants from the node's parameters (NodeConfig)."""
+    return receding.HorizonSettings(horizon_s=config.coordination_horizon_s,
+                           blocks=config.coordination_blocks, cost=config.coordination_cost,
+                           eval_step_s=config.coordination_sample_period_s,
+                           effort_weight=config.coordination_effort_weight or None,
+                           smoothness=config.coordination_smoothness)
+
+
+class LiveCoordination:
+    """Targets, the coordinator and the tracking history of one muscle_node (module docstring)."""
+
+    def __init__(self, bank, space: JointSpace, inputs, config, period_s: float):
+        self.space, self.inputs = space, inputs
+        limit_blas_threads(1)  # the node is one thread (vm_ros.blas_threads)
+        self.index = space.driven_index
+        self.targets = EffortTargets(space)
+        self.coordinator = receding.RecedingHorizon(bank, self.index, period_s,
+                                                    horizon_settings(config))
+        inputs.exempt_drive(self.index)
+        keep = max(int(round(config.coordination_lag_window_s / period_s)), 2)
+        self.history: deque = deque(maxlen=keep)  # (stamp ns, target, effort, tracked) robot
+        self.max_lag_s = config.coordination_horizon_s
+        self.solve_times = DurationWindow()
+        self.drive = np.zeros(len(self.index))  # of the current period
+
+    def _horizon_paths(self, t0_ns: int) -> tuple[np.ndarray, np.ndarray]:
+        """(k, m) path length (m) and velocity (m/s) of the joint-driven muscles at the starts of
+        the coordinator's steps."""
+        inputs, i = self.inputs, self.index
+        t = t0_ns + np.round(self.coordinator.start_offsets_s * 1e9).astype(np.int64)
+        since_s = np.maximum(t[:, None] - inputs.length_time_ns[i], 0) * 1e-9
+        length = inputs.length_m[i] + inputs.velocity_m_per_s[i] * since_s
+        lo, hi = (bound[i] for bound in inputs.path_bounds())
+        clamped = np.minimum(np.maximum(length, lo), hi)
+        velocity = np.where(clamped == length, inputs.velocity_m_per_s[i], 0.0)
+        return clamped, velocity
+
+    def solve(self, state, t0_ns: int, sample) -> None:
+        """Set ``drive``, the joint-driven muscles' drives for the period starting at ``t0_ns``,
+        from the bank's ``state`` and the joint ``sample`` (JointInputs.sample) held."""
+        if self.targets.kind is None or sample is None:
+            self.drive = np.zeros(len(self.index))
+            return
+        started = time.perf_counter_ns()
+        c = self.coordinator
+        ends = t0_ns + np.round(c.end_offsets_s * 1e9).astype(np.int64)
+        length, velocity = self._horizon_paths(t0_ns)
+        arms = np.broadcast_to(sample.moment_arm[:, self.space.output],
+                               (c.steps, len(self.index), len(self.space.output)))
+        plan = c.solve(state, length, velocity, arms, self.targets.at(ends),
+                       self.targets.tracked)
+        self.solve_times.add(time.perf_counter_ns() - started)
+        self.drive = plan.drive
+
+    def reserves(self, stamp_ns: int, efforts: JointEfforts) -> np.ndarray:
+        """Target - effort (robot convention) per joint of ``joints`` at a published step, 0
+        where untracked; kept for the tracking diagnostics."""
+        tracked = self.targets.tracked
+        target = self.targets.robot_at([stamp_ns])[0]
+        reserve = np.where(tracked, target - efforts.effort, 0.0)
+        if tracked.any():
+            self.history.append((stamp_ns, target, np.asarray(efforts.effort, float), tracked))
+        return reserve
+
+    def diagnostics(self, now_ns: int) -> list[tuple[str, object]]:
+        """/diagnostics entries (key with unit, value)."""
+        _, solve_p99, solve_max = self.solve_times.percentiles_ms()
+        age = (None if self.targets.last_message_ns is None
+               else max(now_ns - self.targets.last_message_ns, 0) * 1e-9)
+        values = [("coordination targets", self.targets.kind or "none yet"),
+                  ("coordination target age (s)", age),
+                  ("coordination solve time p99 (ms)", solve_p99),
+                  ("coordination solve time max (ms)", solve_max)]
+        rows = [h for h in self.history if np.array_equal(h[3], self.targets.tracked)]
+        if len(rows) >= 2:
+            times = np.array([h[0] for h in rows]) * 1e-9
+            columns = self.targets.tracked
+            target = np.array([h[1][columns] for h in rows])
+            effort = np.array([h[2][columns] for h in rows])
+            lag, lag_rms = receding.tracking_lag(times, target, effort, self.max_lag_s)
+            values += [("tracking error RMS (N m)", float(np.sqrt(np.mean((effort - target)
+                                                                          ** 2)))),
+                       ("tracking lag (s)", lag),
+                       ("tracking error RMS at that lag (N m)", lag_rms),
+                       ("reserve peak (N m)", float(np.abs(target - effort).max()))]
+        self.solve_times.clear()
+        return values
+
+
+__all__ = ["LiveCoordination", "horizon_settings"]
