@@ -459,7 +459,8 @@ class OfflineRun:
             publish_start: bool = False, block_steps: int = BLOCK_STEPS,
             steady_start: bool = False) -> OfflineResult:
         """Step ``n_steps`` from the timing's start; ``block_steps`` 0 runs the step-by-step
-        loop (always used with joint efforts), else blocks of about that many steps;
+        loop (also used for inputs with joint efforts but no ``block_efforts``), else blocks of
+        about that many steps;
         ``steady_start``: the activation starts at the steady state of the first drive instead
         of at rest (STEADY_START in a log's metadata; `vm-ros coordinate`'s runs)."""
         t = self.timing
