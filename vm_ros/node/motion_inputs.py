@@ -135,7 +135,7 @@ def parse_hold(texts, geometry) -> dict[str, float]:
     """``["knee_angle_r=30deg", "pelvis_ty=0.9m"]`` -> ``{"knee_angle_r": 0.5236, ...}`` in rad
     or m. The unit is required (deg or rad for a rotational coordinate, m, cm or mm for a
     translational one) and the value must lie in the geometry's box; VmRosError otherwise."""
-    hold = {}
+    hold, given = {}, {}
     names = geometry.coordinate_names
     for text in texts or ():
         name, sep, value = (part.strip() for part in text.partition("="))
@@ -143,6 +143,10 @@ def parse_hold(texts, geometry) -> dict[str, float]:
         if not sep or not name or match is None:
             raise VmRosError(f"--hold {text!r}: expected COORDINATE=VALUE with a unit, e.g. "
                              "knee_angle_r=30deg or pelvis_ty=0.9m")
+        if name in given:
+            raise VmRosError(f"--hold {name}: given twice ({given[name]!r} and {text!r}); "
+                             "hold each coordinate once")
+        given[name] = text
         if name not in names:
             raise VmRosError(f"--hold {name}: not a coordinate of the geometry (it has: "
                              f"{', '.join(names)})")
