@@ -7,19 +7,49 @@ The data_files lay out an ament prefix, so that `pip install .` and `colcon buil
     share/vm_ros/package.xml, config/*.yaml, msg/*.msg
     lib/vm_ros/muscle_node                             sh shim that execs <prefix>/bin/muscle_node
     lib/vm_ros/mujoco_sim_node                         the same for <prefix>/bin/mujoco_sim_node
+
+`colcon build` (without --symlink-install) runs `setup.py install`; InstallAndWarm then compiles
+the model step into Numba's cache, as `make venv` does, so that the node's first start does not.
 """
 
+import os
+import subprocess
+import sys
 from glob import glob
 
 from setuptools import find_packages, setup
+from setuptools.command.install import install
 
 PACKAGE = "vm_ros"
+WARM_UP = "from vm_ros.model import kernel; kernel.warm_up()"
+
+
+class InstallAndWarm(install):
+    """`setup.py install`, then the model step compiled (or loaded) into Numba's cache by the
+    installed copy in a child process (vm_ros.model.kernel.warm_up: one cache per machine and
+    Python, not per install location). Skipped where Numba is not importable, and for a wheel
+    (pip builds one into a staging root, and `make venv` warms after installing); a failed
+    warm-up is one line, not a failed install: the first start then compiles."""
+
+    def run(self):
+        super().run()
+        if self.root is not None:  # a staging tree (bdist_wheel): not where it will run
+            return
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+            p for p in (self.install_lib, os.environ.get("PYTHONPATH")) if p))
+        if subprocess.run([sys.executable, "-c", "import numba"], env=env,
+                          capture_output=True).returncode != 0:
+            return
+        if subprocess.run([sys.executable, "-c", WARM_UP], env=env).returncode != 0:
+            print(f"vm_ros: the model step was not compiled now (python3 -c '{WARM_UP}' "
+                  "does it; else the first start does)", file=sys.stderr)
 
 setup(
     name=PACKAGE,
     version="0.1.0",
     description="Virtual Muscle model (force and partitioned energetics) with a ROS 2 node",
     license="Apache-2.0",
+    cmdclass={"install": InstallAndWarm},
     python_requires=">=3.10",
     packages=find_packages(exclude=["test", "test.*", "tests", "tests.*"]),
     include_package_data=False,

@@ -57,6 +57,11 @@ def test_joint_section_quickest_writes_every_item(tmp_path, capsys):
                 "model_time_skipped_s", "rate_joint_states_sent_hz", "rate_joint_efforts_hz"):
         assert key in node, key
 
+    motion = joint["motion"]
+    assert motion["muscles"] == imported["library_muscles"] and motion["motion_s"] == 1.0
+    assert motion["simulate_s_min"] <= motion["simulate_s"] <= motion["simulate_s_max"]
+    assert motion["log"].startswith("log: ") and motion["model_s"] > 0
+
     loops = {(r["model"], r["root"]): r for r in joint["closed_loop"]}
     assert set(loops) == {("myoelbow", "fixed base"), ("myolegs", "pelvis fixed"),
                           ("myolegs", "pelvis free")}
@@ -80,6 +85,6 @@ def test_joint_section_without_mujoco_says_why(tmp_path, monkeypatch, capsys):
     assert main([*QUICKEST, "--out", str(out)]) == 0
     joint = json.loads((out / "bench.json").read_text())["joint"]
     assert joint["geometry"] == {"skipped": reason} and joint["node"] == {"skipped": reason}
-    assert joint["closed_loop"] == [{"skipped": reason}]
+    assert joint["closed_loop"] == [{"skipped": reason}] and joint["motion"] == {"skipped": reason}
     assert {r["metric"] for r in _csv(out)} == {"skipped"}
     assert "skipped" in capsys.readouterr().out

@@ -15,7 +15,7 @@ from vm_ros.model import MuscleBank
 from vm_ros.node.params import NodeConfig
 from vm_ros.node.replay import NodeConditioning
 from vm_ros.offline.runner import RecordedInputs
-from vm_ros.recording.run_log import RecordedEvent
+from vm_ros.recording.run_log import EventTable, RecordedEvent
 
 MUSCLES = ["vasti", "rectus_femoris"]
 MS = 1_000_000
@@ -59,6 +59,14 @@ class _Run:
         assert {"drive_b", "muscle_kinematics_b"} <= set(topics)  # asked from the table
         return [e for e in self._events if e.topic in topics]
 
+    def event_table(self, topics):
+        names = tuple(topics)
+        events = self.events(names)
+        return EventTable(names, tuple(self.get(name) for name in names),
+                          np.array([e.time_ns for e in events], dtype=np.int64),
+                          np.array([names.index(e.topic) for e in events]),
+                          np.array([e.index for e in events]), [e.data for e in events])
+
 
 class _Series:
     def __init__(self, **fields):
@@ -70,6 +78,9 @@ class _Series:
 
 class _Pending:
     def add_one(self, *args):
+        pass
+
+    def add_each(self, *args):
         pass
 
 

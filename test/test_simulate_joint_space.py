@@ -238,6 +238,51 @@ def test_bad_inputs_are_one_line_and_exit_2(tmp_path):
     assert not Path(out).exists()
 
 
+def test_more_mistakes_are_one_line_and_exit_2(tmp_path):
+    """Mistakes a first user makes with files and options: each one line naming the fix, exit 2,
+    no log written (a usage error too: argparse's usage is not printed first)."""
+    geometry = write_geometry_file(tmp_path)
+    motion = leg_motion(tmp_path / "leg.mot")
+    one_frame = write_motion(tmp_path / "one.mot", [0.0], {"hip_flexion": [0.0],
+                                                           "knee_angle": [10.0]})
+    backwards = write_motion(tmp_path / "back.mot", [0.0, 0.2, 0.1],
+                             {"hip_flexion": [0, 1, 2], "knee_angle": [10, 20, 30]})
+    not_storage = tmp_path / "walk.csv"
+    not_storage.write_text("time,hip_flexion,knee_angle\n0,0,10\n0.1,1,20\n")
+    header = "controls\nversion=1\ninDegrees=no\nendheader\ntime\tvasti\trectus_femoris\n"
+    nan_drive = tmp_path / "nan.sto"
+    nan_drive.write_text(header + "0\tnan\t0.1\n0.2\t0.2\t0.1\n")
+    text_drive = tmp_path / "text.sto"
+    text_drive.write_text(header + "0\tabc\t0.1\n0.2\t0.2\t0.1\n")
+    with_geometry = ["--geometry", str(geometry)]
+    cases = [
+        (["--motion", str(tmp_path / "missing.mot"), *with_geometry], "cannot read"),
+        (["--motion", str(motion), "--geometry", str(motion)], "not a vm_ros geometry file"),
+        (["--motion", str(motion), "--geometry", str(tmp_path / "missing.yaml")],
+         "missing.yaml: cannot read the geometry file"),  # no "field '-' = None"
+        (["--motion", str(not_storage), *with_geometry], "not an OpenSim .mot/.sto file"),
+        (["--motion", str(backwards), *with_geometry], "times must increase strictly"),
+        (["--motion", str(one_frame), *with_geometry], "a single time: give --duration S"),
+        (["--motion", str(motion), *with_geometry, "--excitations", str(nan_drive)],
+         "non-finite values"),
+        (["--motion", str(motion), *with_geometry, "--excitations", str(text_drive)],
+         "a data row is not numbers"),
+        (["--motion", str(motion), *with_geometry, "--hold", "knee_angle=10deg", "--hold",
+          "knee_angle=20deg"], "--hold knee_angle: given twice"),
+        (["--motion", str(motion), *with_geometry, "--excitation", "nan"],
+         "--excitation must be a finite number"),
+        (["--motion", str(motion), *with_geometry, "--duration", "-1"],
+         "--duration must be > 0"),
+        (["--motion", str(motion), *with_geometry, "--excitation", "high"],
+         "argument --excitation: invalid float value: 'high' (usage: vm-ros simulate --help)"),
+    ]
+    out = tmp_path / "x.mcap"
+    for args, expected in cases:
+        line = _error_of([*args, "--out", str(out)])
+        assert line.startswith("vm-ros simulate: error:") and expected in line, (args, line)
+    assert not out.exists()
+
+
 def _controls(path: Path, times, vasti, rectus=None) -> Path:
     """An OpenSim controls file (CMC's form: NAME columns) for the leg's two muscles."""
     rectus = vasti if rectus is None else rectus

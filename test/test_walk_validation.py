@@ -102,3 +102,11 @@ def test_walk_item_is_skipped_without_the_walks_files(monkeypatch, tmp_path):
     monkeypatch.setenv("VM_ROS_DATA", str(tmp_path))
     with pytest.raises(CheckSkippedError, match="scripts/fetch-gait-data"):
         CHECKS["walk"]()
+
+
+def test_cocontraction_share():
+    """Coordinate 0: two muscles pull 10 and -10 N m (all cancels: 0.5); coordinate 1: both
+    +5 N m (none: 0); coordinate 2: 30 and -10 (10 of 40 opposed: 0.25)."""
+    arms = np.array([[[1.0, 0.5, 3.0], [-1.0, 0.5, -1.0]]])   # (T=1, n=2, C=3)
+    forces = np.array([[10.0, 10.0]])
+    np.testing.assert_allclose(w.cocontraction_share(arms, forces), [0.5, 0.0, 0.25])

@@ -33,10 +33,14 @@ class VmRosError(Exception):
     """Base class of every error vm_ros raises on purpose."""
 
 
+FILE_FIELDS = ("-", "<file>")  # ConfigError.field of an error about the file as a whole
+
+
 class ConfigError(VmRosError):
     """A configuration file or override is invalid.
 
-    Attributes: ``path`` (file, or ``"<overrides>"``), ``field`` (dotted name), ``value``.
+    Attributes: ``path`` (file, or ``"<overrides>"``), ``field`` (dotted name; ``"-"`` or
+    ``"<file>"``: the file as a whole, and the message names no field), ``value``.
     """
 
     def __init__(self, path, field: str, value, reason: str):
@@ -44,7 +48,8 @@ class ConfigError(VmRosError):
         self.field = field
         self.value = value
         self.reason = reason
-        super().__init__(f"{self.path}: field '{field}' = {plain_value(value)}: {reason}")
+        where = "" if field in FILE_FIELDS else f" field '{field}' = {plain_value(value)}:"
+        super().__init__(f"{self.path}:{where} {reason}")
 
 
 class InputError(VmRosError):

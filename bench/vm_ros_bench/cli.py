@@ -225,7 +225,7 @@ def _joint_section(out: Path, quick: bool, repeats: int, min_seconds: float,
     if reason is not None:
         _say(f"joint: skipped, {reason}")
         return {"geometry": {"skipped": reason}, "node": {"skipped": reason},
-                "closed_loop": [{"skipped": reason}]}
+                "motion": {"skipped": reason}, "closed_loop": [{"skipped": reason}]}
     from vm_ros.geometry.mujoco_backend import load_model
 
     used = load_model(joint_bench.MODEL).describe()  # a bare myo-sim name wins (load_model)
@@ -246,12 +246,16 @@ def _joint_section(out: Path, quick: bool, repeats: int, min_seconds: float,
         "--joint-rate", "1000", "--model-rate", "1000", "--publish-rate", "100",
         "--duration", str(node_duration_s), "--warmup", "2" if quick else "5",
         "--workdir", str(out / "node-joint")], node_duration_s)
+    _say(f"joint: simulate --motion, {joint_bench.MOTION_S:g} s of {joint_bench.MODEL} ...")
+    motion = joint_bench.bench_motion(imported, repeats=max(1, repeats // 2),
+                                      duration_s=1.0 if quick else joint_bench.MOTION_S,
+                                      progress=_say)
     _say("joint: closed loop ...")
     loops = joint_bench.bench_closed_loop(
         joint_bench.closed_loop_cases(imported["library"], cache),
         duration_s=0.2 if quick else 2.0, repeats=repeats, progress=_say)
     return {"model_used": used, "import": imported, "geometry": geometry, "node": node,
-            "closed_loop": loops}
+            "motion": motion, "closed_loop": loops}
 
 
 KERNEL_SERIAL_COUNTS = (1, 64, 100, 1000, 10000)
@@ -374,6 +378,12 @@ def _csv_rows(results: dict) -> list[dict]:
             add("offline", case, "model alone (MuscleBank.run)", logged["model_s"], "s")
             add("offline", case, "simulate / model alone", logged["simulate_over_model"], "ratio",
                 "<= 5", logged["simulate_over_model"] <= 5.0)
+            if "recompute_s" in logged:
+                ratio = logged["recompute_over_simulate_paired"]
+                add("offline", "its recompute (vm-ros recompute of that log), in process",
+                    "recompute wall", logged["recompute_s"], "s")
+                add("offline", "its recompute (vm-ros recompute of that log), in process",
+                    "recompute / simulate (paired)", ratio, "ratio", "<= 2", ratio <= 2.0)
             if "cli_s" in logged:
                 add("offline", "the same as a vm-ros simulate process", "wall", logged["cli_s"],
                     "s")
@@ -550,6 +560,21 @@ def _joint_csv_rows(joint: dict, add) -> None:
                            "publish_rate_hz", "mcap", "input") and \
                     not isinstance(value, (list, dict)):
                 add("joint", case, key, value, "")
+    motion = joint.get("motion")
+    if motion and "skipped" in motion:
+        add("joint", "simulate --motion", "skipped", motion["skipped"], "")
+    elif motion:
+        case = (f"simulate --motion {motion['model']} {motion['motion_s']:g} s, "
+                f"{motion['muscles']} m, in process")
+        from vm_ros_bench.joint_bench import MOTION_S
+
+        # the target is for MOTION_S of motion; a --quick run's is scaled to its length
+        target = motion["target_s"] * motion["motion_s"] / MOTION_S
+        add("joint", case, "wall", motion["simulate_s"], "s", f"< {target:g} s",
+            motion["simulate_s"] < target, motion["simulate_s_min"], motion["simulate_s_max"])
+        add("joint", case, "model alone (MuscleBank.run)", motion["model_s"], "s")
+        add("joint", case, "simulate / model alone (paired)",
+            motion["simulate_over_model_paired"], "ratio")
     for r in joint["closed_loop"]:
         if "skipped" in r:
             add("joint", "closed loop", "skipped", r["skipped"], "")

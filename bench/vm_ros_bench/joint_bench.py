@@ -16,6 +16,12 @@ muscle_node from joint_states (vm_ros_bench.node_bench.run_joint_node_benchmark)
   has no option for this, the bench edits the MjSpec before compiling), and as shipped (the body
   falls onto the floor; the root height at the start and end of the last repeat is reported).
 
+- Motion (``bench_motion``): `vm-ros simulate --motion` in this process over MOTION_S of
+  myolegs motion (every coordinate a sinusoid inside its box, frames at 100 Hz, drive 0.2 for
+  every muscle of the imported library; model 1 kHz, inputs 1 kHz, publish 100 Hz, log written),
+  against the model alone (MuscleBank.run of the same muscles over as many steps, fixed inputs)
+  measured right before it in each repeat: wall time (target < 1 s) and the paired ratio.
+
 The myolegs geometry and muscle library come from ``vm-ros import-mjcf``'s Python API
 (``import_myolegs``), imported once into a cache folder and reused while the model, the import
 options and the MuJoCo, myo-sim and vm_ros versions are the same. The quick variant imports
@@ -50,6 +56,9 @@ ACCURACY_POSES = 200            # of them, compared against MuJoCo
 IMPORTS = {"full": {"degree": 6, "samples": 1000},      # vm-ros import-mjcf's defaults
            "quick": {"degree": 3, "samples": 100}}
 STAMP = "bench_import.json"
+MOTION_S = 10.0                 # seconds of motion of bench_motion
+MOTION_FRAME_S = 0.01           # its frame interval
+MOTION_TARGET_S = 1.0           # issue 33: 10 s of myolegs motion in < 1 s in process
 IMPORTER_MODULES = ("importers/mjcf.py", "importers/common.py", "geometry/fit.py",
                     "geometry/file.py", "geometry/mujoco_backend.py")
 
@@ -305,6 +314,81 @@ def bench_closed_loop(cases: list[dict], duration_s: float = 2.0, repeats: int =
     return rows
 
 
-__all__ = ["IMPORTS", "bench_closed_loop", "bench_geometry", "closed_loop_cases",
+def write_motion(geometry_path, path, duration_s: float = MOTION_S) -> Path:
+    """An OpenSim .mot (degrees) of every coordinate of the geometry: coordinate j at
+    mid + 0.4 (upper - lower) sin(2 pi (0.3 + 0.1 j) t), frames every MOTION_FRAME_S."""
+    from vm_ros.geometry import load_geometry
+
+    geometry = load_geometry(geometry_path)
+    t = np.arange(0.0, duration_s + MOTION_FRAME_S / 2, MOTION_FRAME_S)
+    columns = [np.degrees((c.lower + c.upper) / 2 + 0.4 * (c.upper - c.lower)
+                          * np.sin(2 * np.pi * (0.3 + 0.1 * j) * t))
+               for j, c in enumerate(geometry.coordinates)]
+    lines = ["bench motion", "version=1", f"nRows={len(t)}",
+             f"nColumns={len(columns) + 1}", "inDegrees=yes", "endheader",
+             "\t".join(["time", *geometry.coordinate_names])]
+    lines += ["\t".join(repr(float(v)) for v in (t[i], *(c[i] for c in columns)))
+              for i in range(len(t))]
+    Path(path).write_text("\n".join(lines) + "\n")
+    return Path(path)
+
+
+def bench_motion(imported: dict, repeats: int = 7, duration_s: float = MOTION_S,
+                 progress=None) -> dict:
+    """`vm-ros simulate --motion` of ``write_motion`` through the imported myolegs geometry and
+    library, in this process, against the model alone (module docstring)."""
+    import contextlib
+    import tempfile
+
+    from vm_ros.cli import main
+    from vm_ros.model import MuscleBank, load_muscle_library
+
+    geometry, library = imported["geometry"], imported["library"]
+    known = load_muscle_library(library)
+    with tempfile.TemporaryDirectory(prefix="vm_ros-bench-motion-") as tmp:
+        motion = write_motion(geometry, Path(tmp) / "motion.mot", duration_s)
+        arguments = ["simulate", "--motion", str(motion), "--geometry", str(geometry),
+                     "--library", str(library), "--excitation", "0.2", "--out",
+                     str(Path(tmp) / "motion.mcap")]
+        names = None
+        walls, models, text = [], [], ""
+        for k in range(repeats + 1):  # the first: warm-up (compilation, caches), not counted
+            buffer = io.StringIO()
+            if names is not None:
+                bank = MuscleBank.from_config(names, library=library)
+                steps = int(round(duration_s / DT_S))
+                lp = np.tile(bank.l0t_m + bank.l0_m, (steps, 1))
+                bank.reset(lp[0])
+                start = time.perf_counter()
+                bank.run(DT_S, np.full_like(lp, 0.2), lp, np.zeros_like(lp))
+                model_s = time.perf_counter() - start
+            start = time.perf_counter()
+            with contextlib.redirect_stdout(buffer):
+                code = main(arguments)
+            wall = time.perf_counter() - start
+            if code != 0:
+                raise RuntimeError(f"vm-ros simulate --motion exited with {code}")
+            text = buffer.getvalue()
+            if names is None:
+                from vm_ros.geometry import load_geometry
+
+                names = [m for m in load_geometry(geometry).muscle_names if m in known]
+            if k:
+                walls.append(wall)
+                models.append(model_s)
+    result = {"model": MODEL, "muscles": len(names), "motion_s": duration_s,
+              "repeats": repeats, "simulate_s": statistics.median(walls),
+              "simulate_s_min": min(walls), "simulate_s_max": max(walls),
+              "model_s": statistics.median(models),
+              "simulate_over_model_paired": statistics.median(
+                  w / m for w, m in zip(walls, models, strict=True)),
+              "target_s": MOTION_TARGET_S, "log": text.strip().splitlines()[-1]}
+    if progress:
+        progress(f"simulate --motion {MODEL} {duration_s:g} s: {result['simulate_s']:.2f} s "
+                 f"(model alone {result['model_s']:.2f} s)")
+    return result
+
+
+__all__ = ["IMPORTS", "bench_closed_loop", "bench_geometry", "bench_motion", "closed_loop_cases",
            "derived_library", "fixed_root_model", "import_myolegs", "missing_extra",
-           "time_calls"]
+           "time_calls", "write_motion"]

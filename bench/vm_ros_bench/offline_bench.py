@@ -9,8 +9,12 @@ Each repeat times, back to back on the same machine state:
   channels (inputs at 1 kHz, outputs and telemetry at 100 Hz) written to a rosbag2 bag
   directory (one MCAP file and metadata.yaml), closed |
 | cli_s | ``python -m vm_ros.cli simulate`` as a child process (adds start-up and imports) |
+| recompute_s | vm_ros.cli.recompute.run in this process on the log simulate_s just wrote (read,
+  rerun, write a new log), right after it: the pair gives recompute_over_simulate (issue 33:
+  <= 2) |
 
-Medians over the repeats; the ratios are of the medians.
+Medians over the repeats; the ratios are of the medians, and ``recompute_over_simulate_paired``
+the median of each repeat's own ratio (robust to the load changing between repeats).
 """
 
 from __future__ import annotations
@@ -51,21 +55,32 @@ def _simulate_args(out: Path, duration_s: float | None) -> list[str]:
     return args + (["--duration", repr(duration_s)] if duration_s else [])
 
 
-def _simulate_in_process(out: Path, duration_s: float | None) -> tuple[float, str]:
-    """Wall time (s) of vm_ros.cli.simulate.run and its last output line."""
-    from vm_ros.cli import simulate
+def _in_process(verb: str, argv: list[str]) -> tuple[float, str]:
+    """Wall time (s) of vm_ros.cli.<verb>.run with ``argv``, and its last output line."""
+    import importlib
 
+    module = importlib.import_module(f"vm_ros.cli.{verb}")
     parser = argparse.ArgumentParser()
-    simulate.add_arguments(parser)
-    args = parser.parse_args(_simulate_args(out, duration_s))
+    module.add_arguments(parser)
+    args = parser.parse_args(argv)
     text = io.StringIO()
     start = time.perf_counter()
     with contextlib.redirect_stdout(text):
-        code = simulate.run(args)
+        code = module.run(args)
     wall = time.perf_counter() - start
     if code != 0:
-        raise RuntimeError(f"vm-ros simulate exited with {code}: {text.getvalue()[-300:]}")
+        raise RuntimeError(f"vm-ros {verb} exited with {code}: {text.getvalue()[-300:]}")
     return wall, text.getvalue().strip().splitlines()[-1]
+
+
+def _simulate_in_process(out: Path, duration_s: float | None) -> tuple[float, str]:
+    """Wall time (s) of vm_ros.cli.simulate.run and its last output line."""
+    return _in_process("simulate", _simulate_args(out, duration_s))
+
+
+def _recompute_in_process(log: Path, out: Path) -> float:
+    """Wall time (s) of vm_ros.cli.recompute.run of ``log`` into ``out``."""
+    return _in_process("recompute", [str(log), "--out", str(out)])[0]
 
 
 def _simulate_cli(out: Path, duration_s: float | None) -> float:
@@ -80,7 +95,7 @@ def bench_offline_logged(repeats: int = 3, duration_s: float | None = None, cli:
                          progress=None) -> dict:
     """Medians over ``repeats`` of the model alone, simulate in process and (``cli``) as a
     child process; see the module docstring."""
-    model, logged, child, log_line = [], [], [], ""
+    model, logged, child, again, log_line = [], [], [], [], ""
     with tempfile.TemporaryDirectory(prefix="vm_ros-bench-offline-") as tmp:
         out = Path(tmp) / "knee"  # a bag directory
         _model_alone(1.0)  # warm-up: compilation and caches
@@ -88,17 +103,24 @@ def bench_offline_logged(repeats: int = 3, duration_s: float | None = None, cli:
             model.append(_model_alone(duration_s))
             wall, log_line = _simulate_in_process(out, duration_s)
             logged.append(wall)
+            again.append(_recompute_in_process(out, Path(tmp) / "knee-recomputed.mcap"))
             if cli:
                 child.append(_simulate_cli(out, duration_s))
     result = {"scenario": SCENARIO, "duration_s": duration_s or 180.0, "repeats": repeats,
               "model_s": statistics.median(model), "simulate_s": statistics.median(logged),
               "model_s_all": model, "simulate_s_all": logged, "log": log_line}
     result["simulate_over_model"] = result["simulate_s"] / result["model_s"]
+    result.update({"recompute_s": statistics.median(again), "recompute_s_all": again,
+                   "recompute_over_simulate": statistics.median(again) / result["simulate_s"],
+                   "recompute_over_simulate_paired": statistics.median(
+                       r / s for r, s in zip(again, logged, strict=True))})
     if child:
         result["cli_s"] = statistics.median(child)
         result["cli_s_all"] = child
         result["cli_over_model"] = result["cli_s"] / result["model_s"]
     if progress:
         progress(f"knee extension logged: simulate {result['simulate_s']:.2f} s, model alone "
-                 f"{result['model_s']:.2f} s, ratio {result['simulate_over_model']:.1f}")
+                 f"{result['model_s']:.2f} s, ratio {result['simulate_over_model']:.1f}; "
+                 f"recompute {result['recompute_s']:.2f} s, "
+                 f"{result['recompute_over_simulate_paired']:.2f} x simulate")
     return result

@@ -55,13 +55,22 @@ def _module_name(verb: str) -> str:
     return f"vm_ros.cli.{VERBS[verb][0]}"
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """argparse's parser whose usage errors are one line and exit 2, as every other bad input
+    (argparse prints the whole usage first: 18 lines for `vm-ros simulate`); the verbs' parsers
+    are of this class too (add_subparsers makes them of the parent's)."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (usage: {self.prog} --help)\n")
+
+
 def build_parser(argv=None) -> argparse.ArgumentParser:
     """The parser with every verb in this version (its module present); the module of the verb
     that ``argv`` gives (its first argument that is not an option) is imported and adds its
     arguments, the others are named with their help only."""
     argv = sys.argv[1:] if argv is None else list(argv)
     given = next((a for a in argv if not a.startswith("-")), None)
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="vm-ros",
         description="Virtual Muscle force and fibre-type energetics: offline tools for vm_ros.",
     )

@@ -478,6 +478,7 @@ def run_closed_loop(args) -> int:
                                                          env=module_environment())
         _wait(executor, lambda: driver.efforts > 0, args.startup_timeout, processes,
               "waiting for muscle_node's first joint_efforts")
+        driver.stop_listening()
         loop_start = time.monotonic()
         print(f"vm-ros demo: the loop is closed; {args.duration:g} s of {args.model}...",
               file=sys.stderr)

@@ -391,6 +391,9 @@ def run(args, on_outcome: Callable[[RunOutcome], None] | None = None,
     models = energetics_models_option(args.energetics_models)
     _check_options(args)
     source = _motion_source(args) if args.motion else _source(args)
+    if args.duration is None and not source.duration_s > 0:
+        raise VmRosError(f"the inputs ({source.name}) span {source.duration_s:g} s, a single "
+                         "time: give --duration S, or inputs with at least two times")
     duration = _positive("--duration", source.duration_s if args.duration is None
                          else args.duration)
     warnings = InputWarnings(verb, args.strict)

@@ -68,14 +68,26 @@ def _compile():
                     if c < n_q:
                         gradient[current, c] += dl_dx[j] / slot_scale[current, j]
             return length, gradient
-    _evaluate = evaluate
-    return evaluate
+
+        @numba.njit(cache=True, fastmath=False, error_model="numpy")
+        def evaluate_many(poses, slot_coordinate, slot_offset, slot_scale, term_muscle,
+                          term_exponent, term_coefficient, max_degree):
+            lengths = np.zeros((poses.shape[0], slot_coordinate.shape[0]))
+            gradients = np.zeros((poses.shape[0], slot_coordinate.shape[0], poses.shape[1]))
+            for k in range(poses.shape[0]):
+                lengths[k], gradients[k] = evaluate(
+                    poses[k], slot_coordinate, slot_offset, slot_scale, term_muscle,
+                    term_exponent, term_coefficient, max_degree)
+            return lengths, gradients
+    _evaluate = evaluate, evaluate_many
+    return _evaluate
 
 
-def compiled_evaluator(packed):
+def compiled_evaluator(packed, many: bool = False):
     """A function q -> (L, dL/dq) over ``packed`` (terms must be grouped by muscle, as
-    PackedPolynomials.pack makes them)."""
-    evaluate = _compile()
+    PackedPolynomials.pack makes them); with ``many``, poses (k, n_q) -> (L (k, n), dL/dq
+    (k, n, n_q)), each pose's the same numbers as one call."""
+    evaluate = _compile()[1 if many else 0]
     arrays = (np.ascontiguousarray(packed.slot_coordinate),
               np.ascontiguousarray(packed.slot_offset), np.ascontiguousarray(packed.slot_scale),
               np.ascontiguousarray(packed.term_muscle),

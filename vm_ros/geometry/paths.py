@@ -237,6 +237,10 @@ class JointGeometry:
     def evaluate(self, q, qdot=None) -> GeometryOutput:  # pragma: no cover - interface
         raise NotImplementedError
 
+    def evaluate_many(self, q, qdot) -> list[GeometryOutput]:
+        """``evaluate`` at each pose of q, qdot (k, n_q)."""
+        return [self.evaluate(pose, speed) for pose, speed in zip(q, qdot, strict=True)]
+
 
 class PolynomialGeometry(JointGeometry):
     """Path lengths and moment arms of many muscles from fitted polynomials (NumPy only; the
@@ -287,6 +291,7 @@ class PolynomialGeometry(JointGeometry):
 
             if kernel.available():
                 self._compiled = kernel.compiled_evaluator(self.packed)
+                self._compiled_many = kernel.compiled_evaluator(self.packed, many=True)
             elif backend == "compiled":
                 raise ValueError("backend 'compiled' needs Numba (pip install '.[fast]')")
         self.backend = "compiled" if self._compiled is not None else "numpy"
@@ -305,6 +310,20 @@ class PolynomialGeometry(JointGeometry):
         length, gradient = self.lengths_and_gradients(q_used)
         return GeometryOutput(length, gradient @ qdot_used, -gradient, q_used, qdot_used,
                               clamped)
+
+    def evaluate_many(self, q, qdot) -> list[GeometryOutput]:
+        """``evaluate`` at each pose of q, qdot (k, n_q), the polynomials of every pose in one
+        compiled call (the NumPy evaluator: pose by pose); the same numbers as k calls."""
+        q, qdot = np.asarray(q, dtype=float), np.asarray(qdot, dtype=float)
+        shape = (len(q), len(self.coordinates))
+        if (self._compiled is None or not len(q) or q.shape != shape or qdot.shape != shape
+                or not (np.isfinite(q).all() and np.isfinite(qdot).all())):
+            return super().evaluate_many(q, qdot)  # check_pose's errors, pose by pose
+        q_used, qdot_used, clamped = clamp_to_box(q, qdot, self._lower, self._upper)
+        lengths, gradients = self._compiled_many(q_used)
+        # each velocity as evaluate computes it (a stacked matmul may sum in another order)
+        return [GeometryOutput(lengths[k], gradients[k] @ qdot_used[k], -gradients[k],
+                               q_used[k], qdot_used[k], clamped[k]) for k in range(len(q))]
 
 
 __all__ = ["COUPLING_POINTS", "Coordinate", "CoupledCoordinate", "FitReport", "GeometryOutput",

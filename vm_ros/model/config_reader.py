@@ -50,7 +50,10 @@ class ParamInfo:
 def load_yaml(path: Path) -> dict:
     try:
         with open(path, encoding="utf-8") as handle:
-            data = yaml.safe_load(handle)
+            # libyaml's parser where PyYAML has it (the same safe constructor and resolver:
+            # the same values), as vm_ros.geometry.file reads geometry files: an imported
+            # library of 80 muscles took longer to parse in Python than to simulate 10 s
+            data = yaml.load(handle, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
     except OSError as exc:
         raise ConfigError(path, "<file>", None, f"cannot read: {exc.strerror}") from exc
     except yaml.YAMLError as exc:

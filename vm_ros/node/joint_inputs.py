@@ -114,6 +114,7 @@ class JointInputs:
         self._default_q = np.clip(0.0, geometry.lower, geometry.upper)
         lo, hi = geometry_length_range(geometry, space.rows)
         inputs.allow_path_range(space.driven_index, lo, hi)
+        self._expected: dict = {}  # time_ns -> (pose q, pose qdot, GeometryOutput): expect()
 
     @property
     def ready(self) -> bool:
@@ -208,6 +209,47 @@ class JointInputs:
         self.last_message_ns = now_ns
         return issues
 
+    def expect(self, names: tuple, positions, velocities, times_ns) -> None:
+        """joint_states messages about to come (rows of ``positions``, ``velocities`` (k, m), at
+        ``times_ns``, all naming ``names`` and no other joint in between): the poses each will be
+        evaluated at if the joints named by none of them stay as they are, evaluated now at once
+        (geometry.evaluate_many). on_joint_states uses an expected output only when its pose is
+        the expected one, bit for bit; otherwise it evaluates as usual."""
+        positions = np.asarray(positions, dtype=float)
+        issues, index, entries = self._select(names, positions.shape[1])
+        self._expected = {}
+        if index is None or index.size == 0 or issues:
+            return
+        times = np.asarray(times_ns, dtype=np.int64)[:, None]
+        seen = self.seen.copy()
+        seen[index] = True
+        q, qdot = np.tile(self.q, (len(times), 1)), np.tile(self.qdot, (len(times), 1))
+        q_time = np.tile(self.q_time_ns, (len(times), 1))
+        with np.errstate(over="ignore", invalid="ignore"):
+            q[:, index], qdot[:, index] = self.space.map.to_model(
+                index, positions[:, entries], np.asarray(velocities, dtype=float)[:, entries])
+            q_time[:, index] = times
+            q_now, qdot_now = self._extrapolated(q, qdot, seen, q_time, times)
+        pose_q, pose_qdot = self._pose(q_now, qdot_now, seen)
+        usable = np.isfinite(pose_q).all(axis=1) & np.isfinite(pose_qdot).all(axis=1)
+        rows = np.flatnonzero(usable)
+        outputs = self.space.geometry.evaluate_many(pose_q[rows], pose_qdot[rows])
+        self._expected = {int(times[k, 0]): (pose_q[k], pose_qdot[k], out)
+                          for k, out in zip(rows.tolist(), outputs, strict=True)}
+
+    def _pose(self, q, qdot, seen) -> tuple[np.ndarray, np.ndarray]:
+        """The pose the geometry is evaluated at: coordinates never received at their default,
+        velocity 0."""
+        return np.where(seen, q, self._default_q), np.where(seen, qdot, 0.0)
+
+    def _geometry_at(self, q, qdot, now_ns: int):
+        """geometry.evaluate(q, qdot), or the output expect() computed for this pose."""
+        expected = self._expected.pop(int(now_ns), None)
+        if (expected is not None and expected[0].tobytes() == q.tobytes()
+                and expected[1].tobytes() == qdot.tobytes()):
+            return expected[2]
+        return self.space.geometry.evaluate(q, qdot)
+
     def _extrapolated(self, q, qdot, seen, q_time, now_ns) -> tuple[np.ndarray, np.ndarray]:
         """Coordinates at ``now_ns``: each held one moved on by its velocity for at most
         extrapolation_max_s since it was received (velocity 0 beyond), as NodeInputs moves path
@@ -225,8 +267,7 @@ class JointInputs:
         a coordinate in ``index`` (all at the first sample) to NodeInputs. Returns (the sample, or
         None when NodeInputs rejected the paths; issues)."""
         space, issues = self.space, []
-        out = space.geometry.evaluate(np.where(seen, q, self._default_q),
-                                      np.where(seen, qdot, 0.0))
+        out = self._geometry_at(*self._pose(q, qdot, seen), now_ns)
         clamped = index[out.clamped[index]]
         if clamped.size:
             shown = clamped[:3]
@@ -261,6 +302,18 @@ class JointInputs:
         position, velocity, effort = self.space.map.to_robot(out, sample.q[out],
                                                              sample.qdot[out], tau[out])
         return JointEfforts(self.space.output_names, position, velocity, effort)
+
+    def efforts_many(self, samples: list[JointSample], forces) -> JointEfforts:
+        """``efforts`` of k steps: ``samples`` the joint sample of each step, ``forces`` (k, n)
+        their outputs; JointEfforts with (k, n_joints) arrays. Step by step through
+        ``efforts`` itself: the product r^T F's last bits depend on how BLAS is handed the
+        arrays (a stacked matmul, or a row of a block instead of a fresh array, sum in
+        another order for the 80-muscle leg)."""
+        rows = [self.efforts(sample, force) for sample, force in zip(samples, forces,
+                                                                      strict=True)]
+        return JointEfforts(self.space.output_names,
+                            *(np.array([getattr(row, key) for row in rows])
+                              for key in ("position", "velocity", "effort")))
 
 
 __all__ = ["JointInputs", "JointSample", "geometry_length_range"]

@@ -41,7 +41,9 @@ from vm_ros.importers.motion import Motion
 from vm_ros.joint_space import JointMap
 from vm_ros.model.units import UNITS, units_for
 from vm_ros.node.replay import NodeConditioning
-from vm_ros.offline.excitations import ExcitationSeries
+from vm_ros.offline.excitations import ExcitationSeries, interpolate_rows
+from vm_ros.offline.runner import INPUT_RANK
+from vm_ros.recording import bulk
 from vm_ros.recording import messages as msgs
 
 
@@ -91,15 +93,13 @@ class JointMotion:
 
     def at(self, t_s: float) -> tuple[np.ndarray, np.ndarray]:
         """(q, qdot) at ``t_s`` from the first frame (linear between frames, held outside)."""
-        time = self.time_s
-        if t_s <= time[0] or len(time) == 1:
-            return self.q[0].copy(), self.qdot[0].copy()
-        if t_s >= time[-1]:
-            return self.q[-1].copy(), self.qdot[-1].copy()
-        i = int(np.searchsorted(time, t_s, side="right")) - 1
-        w = (t_s - time[i]) / (time[i + 1] - time[i])
-        return (self.q[i] + w * (self.q[i + 1] - self.q[i]),
-                self.qdot[i] + w * (self.qdot[i + 1] - self.qdot[i]))
+        q, qdot = self.at_many(np.array([t_s]))
+        return q[0], qdot[0]
+
+    def at_many(self, times_s) -> tuple[np.ndarray, np.ndarray]:
+        """(q, qdot) (k, m) at each of ``times_s`` (``at`` at each, element for element)."""
+        return (interpolate_rows(self.time_s, self.q, times_s),
+                interpolate_rows(self.time_s, self.qdot, times_s))
 
 
 SPLINE_DEGREE = 5  # quintic: its velocity is smooth to the third derivative
@@ -135,7 +135,7 @@ def parse_hold(texts, geometry) -> dict[str, float]:
     """``["knee_angle_r=30deg", "pelvis_ty=0.9m"]`` -> ``{"knee_angle_r": 0.5236, ...}`` in rad
     or m. The unit is required (deg or rad for a rotational coordinate, m, cm or mm for a
     translational one) and the value must lie in the geometry's box; VmRosError otherwise."""
-    hold = {}
+    hold, given = {}, {}
     names = geometry.coordinate_names
     for text in texts or ():
         name, sep, value = (part.strip() for part in text.partition("="))
@@ -143,6 +143,10 @@ def parse_hold(texts, geometry) -> dict[str, float]:
         if not sep or not name or match is None:
             raise VmRosError(f"--hold {text!r}: expected COORDINATE=VALUE with a unit, e.g. "
                              "knee_angle_r=30deg or pelvis_ty=0.9m")
+        if name in given:
+            raise VmRosError(f"--hold {name}: given twice ({given[name]!r} and {text!r}); "
+                             "hold each coordinate once")
+        given[name] = text
         if name not in names:
             raise VmRosError(f"--hold {name}: not a coordinate of the geometry (it has: "
                              f"{', '.join(names)})")
@@ -286,6 +290,9 @@ class MotionInputs:
         while self._next_ns <= time_ns:
             self._log_and_apply(self._next_ns)
             self._next_ns += self.period_ns
+        return self._sample(time_ns)
+
+    def _sample(self, time_ns: int):
         if not self.conditioning.ready:
             raise VmRosError(f"motion {self.motion.source}: the joint_states at "
                              f"{time_ns * 1e-9:.6f} s give no usable path lengths "
@@ -294,6 +301,55 @@ class MotionInputs:
 
     def joint_efforts(self, force):
         return self.conditioning.joint_efforts(force)
+
+    def block(self, step_starts_ns: np.ndarray, first_step: int, pending):
+        """advance_to for every step start of ``step_starts_ns`` (increasing): the inputs of
+        each step, (k, n) each. The samples due are taken at once (interpolated as arrays,
+        their messages encoded in bulk into ``pending`` at the step that takes them,
+        ``first_step`` + index, as SampledInputs.block does, the geometry evaluated at their
+        poses at once: JointInputs.expect), then handed to the conditioning one by one as
+        advance_to hands them. ``block_samples`` then holds the joint sample each step used
+        (block_efforts)."""
+        last = int(step_starts_ns[-1])
+        count = max(0, (last - self._next_ns) // self.period_ns + 1)
+        times = self._next_ns + self.period_ns * np.arange(count, dtype=np.int64)
+        t_s = (times - self._start_ns) * 1e-9
+        drive = self.excitations.at_many(self.motion.start_s + t_s)
+        q, qdot = self.motion.at_many(t_s)
+        robot_q, robot_qdot, _ = self._map.to_robot(self._index, q, qdot, 0.0)
+        if count:
+            slots = first_step + np.searchsorted(step_starts_ns, times, side="left")
+            muscles = bulk.joint_state_layout(self.muscles, position=len(self.muscles))
+            joints = bulk.joint_state_layout(self._robot_names, position=len(self._index),
+                                             velocity=len(self._index))
+            pending.add(slots * 16 + INPUT_RANK, tm.TOPIC_EXCITATION,
+                        muscles.encode(times, position=drive), times)
+            pending.add(slots * 16 + INPUT_RANK + 1, tm.TOPIC_JOINT_STATES,
+                        joints.encode(times, position=robot_q, velocity=robot_qdot), times)
+        conditioning, names = self.conditioning, tuple(self._robot_names)
+        if conditioning.joints is not None:
+            conditioning.joints.expect(names, robot_q, robot_qdot, times)
+        u, lp, vp, self.block_samples = [], [], [], []
+        applied = np.searchsorted(times, step_starts_ns, side="right").tolist()
+        done = 0
+        for step, time_ns in enumerate(step_starts_ns.tolist()):
+            for i in range(done, applied[step]):  # as _log_and_apply, values as decoded
+                at = int(times[i])
+                conditioning.on_excitation(self.muscles, drive[i], at)
+                conditioning.on_joint_states(names, robot_q[i], robot_qdot[i], at)
+            done = applied[step]
+            sample = self._sample(time_ns)
+            for rows, value in zip((u, lp, vp), sample, strict=True):
+                rows.append(value)
+            self.block_samples.append(conditioning.joints.sample
+                                      if conditioning.joints is not None else None)
+        self._next_ns += count * self.period_ns
+        return tuple(np.array(rows) for rows in (u, lp, vp))
+
+    def block_efforts(self, forces):
+        """The joint efforts of each step of the last block (``forces`` (k, n), the steps'
+        outputs) through the joint sample it used: JointEfforts with (k, n_joints) arrays."""
+        return self.conditioning.joints.efforts_many(self.block_samples, forces)
 
 
 __all__ = ["COUPLER_TOLERANCE", "JointMotion", "MotionInputs", "box_warnings", "coupled_columns",

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vm_ros.errors import ConfigError, plain_value
+from vm_ros.errors import FILE_FIELDS, ConfigError, plain_value
 from vm_ros.joint_space import JointSpace
 from vm_ros.model import MuscleBank
 from vm_ros.model.run_config import RunConfig
@@ -69,7 +69,7 @@ def build_model(config: NodeConfig) -> NodeModel:
         inner = exc.__cause__
         if exc.field != "geometry" or not isinstance(inner, ConfigError):
             raise
-        field = "" if inner.field in ("-", "<file>") else f"field '{inner.field}': "
+        field = "" if inner.field in FILE_FIELDS else f"field '{inner.field}': "
         raise ConfigError(PARAMS_SOURCE, "geometry", c.geometry,
                           f"{field}{inner.reason}") from exc
     driven = joint_space.driven if joint_space is not None else ()
@@ -102,7 +102,7 @@ def _against_parameter(exc: ConfigError, c: NodeConfig, run_config: RunConfig) -
         name, value = "model", c.model
     else:
         return exc
-    field = "" if exc.field == "<file>" else f"field '{exc.field}': "
+    field = "" if exc.field in FILE_FIELDS else f"field '{exc.field}': "
     return ConfigError(PARAMS_SOURCE, name, value or str(exc.path), f"{field}{exc.reason}")
 
 

@@ -77,14 +77,29 @@ class ExcitationSeries:
 
     def at(self, t_s: float) -> np.ndarray:
         """(n,) drives at time ``t_s`` (linear between rows, held outside)."""
-        time, table = self.time_s, self.values
-        if t_s <= time[0]:
-            return table[0].copy()
-        if t_s >= time[-1]:
-            return table[-1].copy()
-        i = int(np.searchsorted(time, t_s, side="right")) - 1
-        w = (t_s - time[i]) / (time[i + 1] - time[i])
-        return table[i] + w * (table[i + 1] - table[i])
+        return self.at_many(np.array([t_s]))[0]
+
+    def at_many(self, times_s) -> np.ndarray:
+        """(k, n) drives at each of ``times_s`` (``at`` at each, element for element)."""
+        return interpolate_rows(self.time_s, self.values, times_s)
+
+
+def interpolate_rows(time_s, table, times_s) -> np.ndarray:
+    """Rows of ``table`` (k_table, n) at ``time_s`` (increasing), linear between them and held
+    outside, at each of ``times_s`` (k,): (k, n), row i + w (row i+1 - row i) with
+    w = (t - time i) / (time i+1 - time i)."""
+    times_s = np.asarray(times_s, dtype=float)
+    out = np.empty((len(times_s), table.shape[1]))
+    first, last = times_s <= time_s[0], times_s >= time_s[-1]
+    out[first] = table[0]
+    out[last & ~first] = table[-1]
+    inside = ~(first | last)
+    if inside.any():
+        t = times_s[inside]
+        i = np.searchsorted(time_s, t, side="right") - 1
+        w = (t - time_s[i]) / (time_s[i + 1] - time_s[i])
+        out[inside] = table[i] + w[:, None] * (table[i + 1] - table[i])
+    return out
 
 
 def constant_excitation(muscles, drive: float) -> ExcitationSeries:

@@ -22,15 +22,17 @@ the moment arms of the joint sample the step used; the joint work is summed step
 (tau . qdot dt, robot convention, with the joint velocities of that sample) and logged with
 every output on joint_work (cumulative, J per joint): the one joint work every summary prints.
 
-Without joint efforts the run goes by blocks: the inputs of a few thousand steps are taken at
-once (SampledInputs.block samples them and builds their messages in bulk; other inputs are
-advanced step by step with their messages held back), one MuscleBank.run steps the bank over
-the block keeping the state at every publish or telemetry tick (snapshot_every), the messages
-of the block are built in bulk from those arrays (vm_ros.recording.bulk) in the order the
-step-by-step loop writes them, and handed to the recorder as one block (write_block: whole
-chunks, no call per message). The log is the same message for message (``block_steps=0`` runs
-the step-by-step loop, the reference kept for joint space and for the tests); a stop request
-is seen between blocks (at most 1e6 muscle-steps), not between steps.
+The run goes by blocks: the inputs of a few thousand steps are taken at once
+(SampledInputs.block, RecordedInputs.block and MotionInputs.block take them and build their
+messages in bulk; other inputs are advanced step by step with their messages held back), one
+MuscleBank.run steps the bank over the block keeping the state at every publish or telemetry
+tick (snapshot_every), the joint efforts of every step come at once from the inputs'
+``block_efforts`` (joint space: MotionInputs), the messages of the block are built in bulk from
+those arrays (vm_ros.recording.bulk) in the order the step-by-step loop writes them, and handed
+to the recorder as one block (write_block: whole chunks, no call per message). The log is the
+same message for message (``block_steps=0`` runs the step-by-step loop, the reference kept for
+the tests and for inputs with joint efforts but no ``block_efforts``: a node log's replay); a
+stop request is seen between blocks (at most 1e6 muscle-steps), not between steps.
 """
 
 from __future__ import annotations
@@ -69,10 +71,11 @@ BLOCK_STEPS = 5000  # steps whose inputs are taken, and messages built, at once
 # for the block, about 1 s at 1000 muscles
 _BLOCK_MUSCLE_STEPS = 1_000_000
 # order of the messages written at one step (stepwise loop): inputs after outputs
-_INPUT_RANK, _OUTPUT_RANK = 8, 0
+INPUT_RANK, _OUTPUT_RANK = 10, 0
 _OUTPUT_ORDER = {tm.TOPIC_FORCE: 0, tm.TOPIC_ENERGY_RATE: 1, tm.TOPIC_ENERGY_RATE_TOTAL: 2,
                  tm.TOPIC_ENERGY_TOTAL: 3, tm.TOPIC_ENERGY_RATE_MODELS: 4,
-                 msgs.TOPIC_TELEMETRY: 5}
+                 tm.TOPIC_JOINT_EFFORTS: 5, tm.TOPIC_JOINT_EFFORT_COMMANDS: 6,
+                 tm.TOPIC_JOINT_WORK: 7, msgs.TOPIC_TELEMETRY: 8}
 # with published energetics models a block holds their rates, M x 5 values per muscle-step
 # (MuscleBank.run): blocks of at most this many muscle-step-values of them (about 80 MB)
 _BLOCK_MODEL_VALUES = 10_000_000
@@ -98,7 +101,7 @@ class LogSink:
 
     def write_bytes(self, topic: str, data: bytes, time_ns: int) -> None:
         if self.pending is not None:
-            self.pending.add_one(self.slot * 16 + _INPUT_RANK, topic, data, time_ns)
+            self.pending.add_one(self.slot * 16 + INPUT_RANK, topic, data, time_ns)
             return
         if self.recorder is None:
             return
@@ -157,18 +160,22 @@ class _Pending:
         self.data.append(data)
         self.times.append(time_ns)
 
-    def add(self, keys, topic: str, data: list, times_ns) -> None:
+    def add_each(self, keys, topics: list, data: list, times_ns) -> None:
+        """Messages each with its own topic."""
         self.keys.extend(np.asarray(keys, dtype=np.int64).tolist())
-        self.topics.extend([topic] * len(data))
+        self.topics.extend(topics)
         self.data.extend(data)
         self.times.extend(np.asarray(times_ns, dtype=np.int64).tolist())
+
+    def add(self, keys, topic: str, data: list, times_ns) -> None:
+        self.add_each(keys, [topic] * len(data), data, times_ns)
 
     def flush(self, sink: LogSink, steps: int) -> None:
         """Write in key order (stable) what the stepwise loop writes in ``steps`` steps (the
         outputs at the end of the last one, not the inputs of the next), drop the rest."""
         keys = np.asarray(self.keys, dtype=np.int64)
         order = np.argsort(keys, kind="stable")
-        order = order[keys[order] < steps * 16 + _INPUT_RANK]
+        order = order[keys[order] < steps * 16 + INPUT_RANK]
         sink.write_many([self.topics[i] for i in order], [self.data[i] for i in order],
                         [self.times[i] for i in order])
         self.__init__()
@@ -247,9 +254,9 @@ class SampledInputs:
             n = len(self.names)
             excitation = bulk.joint_state_layout(self.names, position=n)
             kinematics = bulk.joint_state_layout(self.names, position=n, velocity=n)
-            pending.add(slots * 16 + _INPUT_RANK, tm.TOPIC_EXCITATION,
+            pending.add(slots * 16 + INPUT_RANK, tm.TOPIC_EXCITATION,
                         excitation.encode(samples, position=taken[0]), samples)
-            pending.add(slots * 16 + _INPUT_RANK + 1, tm.TOPIC_KINEMATICS,
+            pending.add(slots * 16 + INPUT_RANK + 1, tm.TOPIC_KINEMATICS,
                         kinematics.encode(samples, position=taken[1], velocity=taken[2]),
                         samples)
             rows = [np.concatenate([row, array]) for row, array in zip(rows, taken,
@@ -287,8 +294,7 @@ class RecordedInputs:
             if row.role not in self._hold and series is not None and len(series):
                 raise RunLogError(run.path, f"{row.name} without node_parameters: the joint "
                                             "conditioning of this log is not known")
-        self._events = run.events(tp.input_topic_names())
-        self._event_times = np.array([e.time_ns for e in self._events], dtype=np.int64)
+        self._events = run.event_table(tp.input_topic_names())
         self._next = 0
         kinematics = run.get(tm.TOPIC_KINEMATICS)
         if kinematics is None or len(kinematics) == 0:
@@ -297,7 +303,7 @@ class RecordedInputs:
 
     @property
     def last_time_ns(self) -> int:
-        return self._events[-1].time_ns if self._events else 0
+        return int(self._events.time_ns[-1]) if len(self._events) else 0
 
     def _apply(self, topic: str, series, i: int) -> None:
         row = tp.input_topic(topic)
@@ -314,8 +320,9 @@ class RecordedInputs:
         self.vp[ok] = np.where(np.isfinite(vp[ok]), vp[ok], 0.0)
 
     def advance_to(self, time_ns: int):
-        while self._next < len(self._events) and self._events[self._next].time_ns <= time_ns:
-            event = self._events[self._next]
+        while (self._next < len(self._events)
+               and self._events.time_ns[self._next] <= time_ns):
+            event = self._events.event(self._next)
             if event.series is not None:  # a message that did not decode changes nothing
                 self._apply(event.topic, event.series, event.index)
             if event.data is not None:
@@ -332,26 +339,28 @@ class RecordedInputs:
         inputs held over each step, (k, n) each; the messages applied by each step go to
         ``pending`` at that step (``first_step`` + index), in event order. The updates of
         each muscle are carried forward over the events (the latest one that applies wins)."""
-        begin = self._next
-        end = int(np.searchsorted(self._event_times, step_starts_ns[-1], side="right"))
-        events = self._events[begin:end]
-        times = self._event_times[begin:end]
+        table, begin = self._events, self._next
+        end = int(np.searchsorted(table.time_ns, step_starts_ns[-1], side="right"))
+        times = table.time_ns[begin:end]
+        topic, index = table.topic[begin:end], table.index[begin:end]
         slots = first_step + np.searchsorted(step_starts_ns, times, side="left")
-        for event, slot in zip(events, slots.tolist(), strict=True):
-            if event.data is not None:
-                pending.add_one(slot * 16 + _INPUT_RANK, event.topic, event.data, event.time_ns)
+        data = table.data[begin:end]
+        kept = [k for k, item in enumerate(data) if item is not None]
+        pending.add_each(slots[kept] * 16 + INPUT_RANK, [table.names[t] for t in
+                                                          topic[kept].tolist()],
+                         [data[k] for k in kept], times[kept])
         applied = np.searchsorted(times, step_starts_ns, side="right")  # events per step
-        n, count = len(self.u), len(events)
+        n, count = len(self.u), end - begin
         u_new, lp_new, vp_new = (np.full((count, n), np.nan) for _ in range(3))
-        for row in tp.INPUT_TOPICS:
-            chosen = [i for i, e in enumerate(events) if e.topic == row.name
-                      and e.series is not None]
-            if not chosen:
+        for order, name in enumerate(table.names):
+            chosen = np.flatnonzero((topic == order) & (index >= 0))
+            if not len(chosen):
                 continue
-            series = events[chosen[0]].series
-            rows = [events[i].index for i in chosen]
+            row = tp.input_topic(name)
+            series = table.series[order]
             self._hold_block[row.role]((u_new, lp_new, vp_new), chosen,
-                                       *(series.fields[field][rows] for field in row.fields))
+                                       *(series.fields[field][index[chosen]]
+                                         for field in row.fields))
         u = _carried(u_new, ~np.isnan(u_new), applied, self.u)
         updated = ~np.isnan(lp_new)
         lp = _carried(lp_new, updated, applied, self.lp)
@@ -450,7 +459,8 @@ class OfflineRun:
             publish_start: bool = False, block_steps: int = BLOCK_STEPS,
             steady_start: bool = False) -> OfflineResult:
         """Step ``n_steps`` from the timing's start; ``block_steps`` 0 runs the step-by-step
-        loop (always used with joint efforts), else blocks of about that many steps;
+        loop (also used for inputs with joint efforts but no ``block_efforts``), else blocks of
+        about that many steps;
         ``steady_start``: the activation starts at the steady state of the first drive instead
         of at rest (STEADY_START in a log's metadata; `vm-ros coordinate`'s runs)."""
         t = self.timing
@@ -467,9 +477,10 @@ class OfflineRun:
             joints.sample(efforts)
             forces.append(initial.force.copy())
             times.append(start)
-        if joint_efforts is None and block_steps > 0:
+        if block_steps > 0 and (joint_efforts is None or hasattr(inputs, "block_efforts")):
             steps, out, interrupted = self._run_blocks(inputs, n_steps, should_stop, progress,
-                                                       block_steps, forces, times)
+                                                       block_steps, forces, times,
+                                                       joints if joint_efforts else None)
         else:
             steps, out, interrupted = self._run_stepwise(inputs, n_steps, should_stop, progress,
                                                          joint_efforts, joints, forces, times)
@@ -523,9 +534,11 @@ class OfflineRun:
             self.sink.pending = None
         return tuple(np.array([row[i] for row in rows], dtype=float) for i in range(3))
 
-    def _run_blocks(self, inputs, n_steps, should_stop, progress, block_steps, forces, times):
+    def _run_blocks(self, inputs, n_steps, should_stop, progress, block_steps, forces, times,
+                    joints=None):
         """The run by blocks (module docstring): one MuscleBank.run per block, with the state
-        kept at every tick (snapshot_every)."""
+        kept at every tick (snapshot_every); with ``joints`` (a _JointRecord) the joint efforts
+        of every step from the inputs' block_efforts."""
         t = self.timing
         dt_ns, start = t.dt_ns, int(t.start_time_ns or 0)
         per_publish, per_telemetry = t.steps_per(t.publish_rate_hz), t.steps_per(
@@ -552,9 +565,17 @@ class OfflineRun:
             steps = k + tick * (1 + np.arange(count // tick, dtype=np.int64))  # at each tick
             published = steps % per_publish == 0 if per_publish else steps < 0
             recorded = steps % per_telemetry == 0 if per_telemetry else steps < 0
-            ticks.add(run, steps - k - 1, start + steps * dt_ns, steps, published, recorded,
-                      lp, vp)
             rows = steps[published] - k - 1
+            joint = None
+            if joints is not None:
+                efforts = inputs.block_efforts(run.force)
+                work = joints.steps(efforts)
+                joint = {"joint_position": efforts.position, "joint_velocity": efforts.velocity,
+                         "joint_effort": efforts.effort, "joint_work": work}
+                joints.sample_many(efforts, rows)
+                ticks.joint_names = joints.names
+            ticks.add(run, steps - k - 1, start + steps * dt_ns, steps, published, recorded,
+                      lp, vp, joint)
             forces.extend(run.force[rows])
             times.extend((start + steps[published] * dt_ns).tolist())
             k += count
@@ -574,6 +595,7 @@ class _Ticks:
         self.equations = bank.equations
         self.outputs = bulk.OutputLayouts(bank.names, bank.energetics_models)
         self.record = bulk.telemetry_layout(bank.names)
+        self.joint_names: tuple = ()
         self._clear()
 
     def _clear(self) -> None:
@@ -581,10 +603,11 @@ class _Ticks:
         self.recorded: list[dict] = []
 
     def add(self, run, rows, times_ns, slots, published, recorded, path_length,
-            path_velocity) -> None:
+            path_velocity, joint: dict | None = None) -> None:
         """The ticks of one MuscleBank.run: ``rows`` (m,) its rows at the ticks (one per
         snapshot), their end times and slots (step counts), and which of them publish and
-        record telemetry; path_length, path_velocity: the run's inputs (k, n)."""
+        record telemetry; path_length, path_velocity: the run's inputs (k, n); ``joint``: the
+        joint efforts' position, velocity, effort and cumulative work of every step (k, J)."""
         record, snap = run.record, run.snapshots
         energy_totals = np.array([energy.sum() for energy in snap.energy_j])
         rate_totals = np.array([rates[:, 3].sum() for rates in record.energy_rates[rows]])
@@ -597,7 +620,8 @@ class _Ticks:
                 "energy_rate": tm.energy_rate_rows(record.energy_components[at],
                                                 record.energy_rates[at]),
                 "rate_total": rate_totals[j], "energy_total": energy_totals[j],
-                **({} if self.outputs.models is None else {"models": run.energy_rate_models[at]})})
+                **({} if self.outputs.models is None else {"models": run.energy_rate_models[at]}),
+                **{key: values[at] for key, values in (joint or {}).items()}})
         if np.any(recorded):
             at, j = rows[recorded], np.flatnonzero(recorded)
             eq, excitation = self.equations, record.excitation[at]
@@ -632,6 +656,8 @@ class _Ticks:
             encoded = self.outputs.encode_many(
                 stamps, p["position"], p["velocity"], p["effort"], p["energy_rate"],
                 p["rate_total"], p["energy_total"], p.get("models"))
+            if "joint_effort" in p:
+                encoded += _joint_messages(self.joint_names, p, stamps)
             for topic, messages in encoded:
                 pending.add(keys + _OUTPUT_ORDER[topic], topic, messages, stamps)
         if self.recorded:
@@ -641,6 +667,20 @@ class _Ticks:
             stamps = r.pop("time")
             pending.add(keys, msgs.TOPIC_TELEMETRY, self.record.encode(stamps, **r), stamps)
         self._clear()
+
+
+def _joint_messages(names, published: dict, stamps_ns) -> list:
+    """[(topic, [bytes])] of joint_efforts (joints ``names``), joint_effort_commands and
+    joint_work at the ticks (telemetry.joint_efforts_fields, joint_effort_commands_fields and
+    joint_work_fields, in bulk)."""
+    n = len(names)
+    state = bulk.joint_state_layout(names, n, n, n)
+    array = bulk.multi_array_layout([{"label": "joint", "size": n, "stride": n}], n)
+    return [(tm.TOPIC_JOINT_EFFORTS, state.encode(
+                stamps_ns, position=published["joint_position"],
+                velocity=published["joint_velocity"], effort=published["joint_effort"])),
+            (tm.TOPIC_JOINT_EFFORT_COMMANDS, array.encode(data=published["joint_effort"])),
+            (tm.TOPIC_JOINT_WORK, array.encode(data=published["joint_work"]))]
 
 
 def _energies(by_fibre) -> np.ndarray:
@@ -667,6 +707,23 @@ class _JointRecord:
         self.names = tuple(efforts.names)
         power = efforts.effort * efforts.velocity
         self.work = power * self.dt_s if self.work is None else self.work + power * self.dt_s
+
+    def steps(self, efforts) -> np.ndarray:
+        """``step`` for each row of ``efforts`` (k, J arrays): the work summed after each step,
+        (k, J), added step by step as ``step`` adds it."""
+        self.names = tuple(efforts.names)
+        added = efforts.effort * efforts.velocity * self.dt_s
+        if self.work is None:
+            work = np.cumsum(added, axis=0)
+        else:
+            work = np.cumsum(np.concatenate([self.work[None, :], added]), axis=0)[1:]
+        self.work = work[-1].copy()
+        return work
+
+    def sample_many(self, efforts, rows) -> None:
+        """``sample`` of the rows ``rows`` of ``efforts`` (k, J arrays)."""
+        self.samples.extend(np.stack([efforts.position[rows], efforts.velocity[rows],
+                                      efforts.effort[rows]], axis=1))
 
     def work_so_far(self, efforts) -> np.ndarray | None:
         """The work summed over the steps so far (J per joint; zeros before any step), None

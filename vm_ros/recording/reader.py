@@ -21,6 +21,7 @@ from collections.abc import Callable, Container, Iterator
 from pathlib import Path
 from typing import NamedTuple
 
+import numpy as np
 from mcap.data_stream import ReadDataStream
 from mcap.opcode import Opcode
 from mcap.reader import make_reader
@@ -94,27 +95,101 @@ _RECORD = struct.Struct("<BQ")  # opcode, length of what follows
 _MESSAGE = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time
 
 
-def _chunk_records(chunk: Chunk):
-    """The records of a chunk, decompressed and CRC-checked by mcap's own function before any is
-    returned: Message records as (channel id, log time, publish time, data) tuples, Schema and
-    Channel records as mcap parses them, others skipped (as mcap's breakup_chunk does, without
-    an object per message). Raises when the chunk is corrupt."""
+class ChunkMessages(NamedTuple):
+    """The Message records of one chunk, in chunk order, as arrays: ``channel_id`` and
+    ``log_time_ns`` (k,), ``publish_time_ns`` (k,), and where each message's data lies in
+    ``data`` (``begin``, ``end``, (k,) offsets); ``others``: the Schema and Channel records, each
+    with the number of messages before it."""
+
+    data: bytes
+    channel_id: np.ndarray
+    log_time_ns: np.ndarray
+    publish_time_ns: np.ndarray
+    begin: np.ndarray
+    end: np.ndarray
+    others: list
+
+    def payloads(self, rows) -> list[bytes]:
+        """The data of the messages ``rows`` (indices into the arrays), as bytes."""
+        data = self.data
+        return [data[a:b] for a, b in zip(self.begin[rows].tolist(), self.end[rows].tolist(),
+                                          strict=True)]
+
+
+def _chunk_messages(chunk: Chunk) -> ChunkMessages:
+    """A chunk decompressed and CRC-checked by mcap's own function, its records walked once
+    (only each record's opcode and length are read one by one); Message fields gathered as
+    arrays, Schema and Channel records parsed as mcap parses them, others skipped (as mcap's
+    breakup_chunk does, without an object per message). Raises when the chunk is corrupt."""
     stream, size = get_chunk_data_stream(chunk, validate_crc=True)
     data = stream.read(size)
-    records, offset = [], 0
+    bodies, ends, others, offset = [], [], [], 0
+    message, unpack, header = Opcode.MESSAGE, _RECORD.unpack_from, _RECORD.size
     while offset < size:
-        opcode, length = _RECORD.unpack_from(data, offset)
-        body, offset = offset + _RECORD.size, offset + _RECORD.size + length
-        if offset > size:
-            raise ValueError(f"a record of the chunk runs past its end ({offset} > {size})")
-        if opcode == Opcode.MESSAGE:
-            channel_id, _, log_time, publish_time = _MESSAGE.unpack_from(data, body)
-            records.append((channel_id, log_time, publish_time,
-                            data[body + _MESSAGE.size:offset]))
+        opcode, length = unpack(data, offset)
+        body, offset = offset + header, offset + header + length
+        if opcode == message:
+            bodies.append(body)
+            ends.append(offset)
         elif opcode in (Opcode.SCHEMA, Opcode.CHANNEL):
             record_stream = ReadDataStream(io.BytesIO(data[body:offset]))
-            records.append((Schema if opcode == Opcode.SCHEMA else Channel).read(record_stream))
+            others.append((len(bodies), (Schema if opcode == Opcode.SCHEMA else Channel).read(
+                record_stream)))
+    if offset > size:
+        raise ValueError(f"a record of the chunk runs past its end ({offset} > {size})")
+    body = np.array(bodies, dtype=np.int64)
+    end = np.array(ends, dtype=np.int64)
+    if np.any(end - body < _MESSAGE.size):
+        raise ValueError("a message record of the chunk is shorter than its fields")
+    raw = np.frombuffer(data, dtype=np.uint8)
+
+    def field(at: int, dtype: str) -> np.ndarray:
+        width = np.dtype(dtype).itemsize
+        cells = raw[(body + at)[:, None] + np.arange(width)]
+        return np.ascontiguousarray(cells).view(dtype).ravel().astype(np.int64)
+
+    return ChunkMessages(data, field(0, "<u2"), field(6, "<u8"), field(14, "<u8"),
+                         body + _MESSAGE.size, end, others)
+
+
+def _chunk_records(chunk: Chunk) -> list:
+    """The records of a chunk (_chunk_messages) in chunk order: Message records as (channel id,
+    log time, publish time, data) tuples, Schema and Channel records as mcap parses them."""
+    return _chunk_records_of(_chunk_messages(chunk))
+
+
+def _chunk_records_of(parts: ChunkMessages) -> list:
+    """_chunk_records of a chunk already split."""
+    messages = list(zip(parts.channel_id.tolist(), parts.log_time_ns.tolist(),
+                        parts.publish_time_ns.tolist(),
+                        parts.payloads(np.arange(len(parts.begin))), strict=True))
+    records, done = [], 0
+    for position, record in parts.others:
+        records.extend(messages[done:position])
+        records.append(record)
+        done = position
+    records.extend(messages[done:])
     return records
+
+
+class MessageBatch(NamedTuple):
+    """Messages of one channel from one chunk, in file order (LogReader.batches): ``rows`` of
+    ``chunk``; their bytes are sliced out when ``data`` is asked for."""
+
+    topic: str
+    type_name: str
+    encoding: str
+    chunk: ChunkMessages
+    rows: np.ndarray
+
+    @property
+    def data(self) -> list[bytes]:
+        """CDR bytes of each message, as recorded."""
+        return self.chunk.payloads(self.rows)
+
+    @property
+    def log_time_ns(self) -> np.ndarray:
+        return self.chunk.log_time_ns[self.rows]
 
 
 class LogReader:
@@ -152,6 +227,58 @@ class LogReader:
         attachments, schemas and channels are collected on the way. The files of a split bag are
         read one after the other (each has its own schemas and channels); the log is complete
         when every file is."""
+        for item in self._items():
+            if not isinstance(item, ChunkMessages):
+                self._collect(item)
+                continue
+            for record in _chunk_records_of(item):
+                if not isinstance(record, tuple):
+                    self._collect(record)
+                    continue
+                channel_id, log_time, publish_time, data = record
+                channel = self._channel(channel_id, 1)
+                if channel is not None and (topics is None or channel.topic in topics):
+                    yield RecordedMessage(channel.topic, self._type_name(channel), data,
+                                          log_time, publish_time, channel.message_encoding)
+
+    def batches(self, topics: Container[str] | None = None) -> Iterator[MessageBatch]:
+        """The messages of ``messages``, as batches: per chunk, those of each channel together
+        (in file order within a channel; channels in the order of their first message)."""
+        for item in self._items():
+            if not isinstance(item, ChunkMessages):
+                self._collect(item)
+                continue
+            done = 0
+            for position, record in [*item.others, (len(item.begin), None)]:
+                yield from self._batches(item, done, position, topics)
+                if record is not None:
+                    self._collect(record)
+                done = position
+
+    def _batches(self, chunk: ChunkMessages, begin: int, end: int,
+                 topics) -> Iterator[MessageBatch]:
+        ids = chunk.channel_id[begin:end]
+        if not len(ids):
+            return
+        found, first = np.unique(ids, return_index=True)
+        for channel_id in found[np.argsort(first)].tolist():
+            rows = begin + np.flatnonzero(ids == channel_id)
+            channel = self._channel(channel_id, len(rows))
+            if channel is not None and (topics is None or channel.topic in topics):
+                yield MessageBatch(channel.topic, self._type_name(channel),
+                                   channel.message_encoding, chunk, rows)
+
+    def _channel(self, channel_id: int, count: int) -> Channel | None:
+        """The channel record of ``channel_id``; None (``count`` messages counted in
+        ``unknown_channels``) when it was never declared."""
+        channel = self.channels.get(channel_id)
+        if channel is None:
+            self.unknown_channels[channel_id] = self.unknown_channels.get(channel_id, 0) + count
+        return channel
+
+    def _items(self) -> Iterator:
+        """Each file's records in order, a chunk as its ChunkMessages (module docstring for how
+        a file cut short or a split bag is read)."""
         done = 0
         for index, path in enumerate(self.files):
             if index:
@@ -163,17 +290,17 @@ class LogReader:
                 if path.stat().st_size == 0:  # killed as it was created
                     self.stop_reason = f"{path.name} is empty"
                     return
-            yield from self._file_messages(path, topics, done)
+            yield from self._file_items(path, done)
             done += path.stat().st_size
 
-    def _file_messages(self, path: Path, topics, done: int) -> Iterator[RecordedMessage]:
+    def _file_items(self, path: Path, done: int) -> Iterator:
         with open(path, "rb") as stream:
             records = _Records(stream).records
             count = 0
             while True:
                 try:
                     record = next(records)
-                    inside = _chunk_records(record) if isinstance(record, Chunk) else [record]
+                    item = _chunk_messages(record) if isinstance(record, Chunk) else record
                 except StopIteration:
                     break
                 except Exception as exc:  # truncated or corrupt: keep what was read
@@ -182,22 +309,9 @@ class LogReader:
                     self.stop_reason = f"{type(exc).__name__}: {exc}".rstrip(": ")
                     return
                 count += 1
-                for item in inside:
-                    if isinstance(item, tuple):
-                        yield from self._message(item, topics)
-                    else:
-                        self._collect(item)
+                yield item
                 if self._progress is not None:
                     self._progress(done + stream.tell(), self.size)
-
-    def _message(self, message: tuple, topics) -> Iterator[RecordedMessage]:
-        channel_id, log_time, publish_time, data = message
-        channel = self.channels.get(channel_id)
-        if channel is None:
-            self.unknown_channels[channel_id] = self.unknown_channels.get(channel_id, 0) + 1
-        elif topics is None or channel.topic in topics:
-            yield RecordedMessage(channel.topic, self._type_name(channel), data, log_time,
-                                  publish_time, channel.message_encoding)
 
     def _collect(self, record) -> None:
         if isinstance(record, Header):

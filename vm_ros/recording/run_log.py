@@ -46,6 +46,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple
 
+import numpy as np
 import yaml
 
 from vm_ros import telemetry as tm
@@ -387,6 +388,28 @@ class RecordedEvent(NamedTuple):
 
 
 @dataclass
+class EventTable:
+    """RunLog.events as arrays: message k is of topic ``names[topic[k]]`` (its series
+    ``series[topic[k]]``), logged at ``time_ns[k]``, row ``index[k]`` of that series (-1: it did
+    not decode), recorded bytes ``data[k]`` (None when not kept)."""
+
+    names: tuple
+    series: tuple
+    time_ns: np.ndarray
+    topic: np.ndarray
+    index: np.ndarray
+    data: list
+
+    def __len__(self) -> int:
+        return len(self.time_ns)
+
+    def event(self, k: int) -> RecordedEvent:
+        topic, index = int(self.topic[k]), int(self.index[k])
+        return RecordedEvent(int(self.time_ns[k]), self.names[topic],
+                             self.series[topic] if index >= 0 else None, index, self.data[k])
+
+
+@dataclass
 class RunLog:
     """A run log read back (read_run). ``series`` is keyed by recorded topic name; ``get(name)``
     finds a base name such as ``muscle_force`` as the run recorded it (RunInfo.log_topic).
@@ -428,20 +451,40 @@ class RunLog:
         by log time, then the order of ``names``, then file order. For a topic read raw the
         messages that did not decode are included (``series`` None), so that they can be copied
         verbatim; a consumer skips them, as muscle_node dropped them."""
-        keyed = []
+        table = self.event_table(names)
+        return [table.event(i) for i in range(len(table))]
+
+    def event_table(self, names: Iterable[str]) -> EventTable:
+        """``events(names)`` as arrays (EventTable), sorted at once."""
+        names = tuple(names)
+        times, topics, rows, decoded, data = [], [], [], [], []
+        found = []
         for order, name in enumerate(names):
             series = self.get(name)
+            found.append(series)
             if series is not None:
-                raw = series.raw
-                keyed.extend(((int(t), order, i, 1), RecordedEvent(
-                    int(t), name, series, i, None if raw is None else raw[i]))
-                    for i, t in enumerate(series.time_ns))
+                count = len(series)
+                times.append(np.asarray(series.time_ns, dtype=np.int64))
+                topics.append(np.full(count, order))
+                rows.append(np.arange(count))
+                decoded.append(np.ones(count, dtype=bool))
+                data.extend(series.raw if series.raw is not None else [None] * count)
             skipped = self.skipped.get(self.log_topic(name))
-            for position, t, data in (skipped.raw or ()) if skipped is not None else ():
-                keyed.append(((int(t), order, position, 0),
-                              RecordedEvent(int(t), name, None, -1, data)))
-        keyed.sort(key=lambda item: item[0])
-        return [event for _, event in keyed]
+            kept = (skipped.raw or ()) if skipped is not None else ()
+            if kept:
+                times.append(np.array([t for _, t, _ in kept], dtype=np.int64))
+                topics.append(np.full(len(kept), order))
+                rows.append(np.array([position for position, _, _ in kept]))
+                decoded.append(np.zeros(len(kept), dtype=bool))
+                data.extend(item for _, _, item in kept)
+        if not times:
+            return EventTable(names, tuple(found), np.zeros(0, dtype=np.int64),
+                              np.zeros(0, dtype=int), np.zeros(0, dtype=int), [])
+        time_ns, topic, row, ok = (np.concatenate(parts) for parts in (times, topics, rows,
+                                                                      decoded))
+        order = np.lexsort((ok, row, topic, time_ns))  # stable: then the order added
+        return EventTable(names, tuple(found), time_ns[order], topic[order],
+                          np.where(ok, row, -1)[order], [data[i] for i in order.tolist()])
 
     def config(self, directory) -> RunConfig:
         """The run's RunConfig with its attached model and library YAML (and geometry, when it
@@ -480,7 +523,7 @@ def read_run(path, topics: Iterable[str] | None = None, raw: Iterable[str] = (),
     builders: dict[str, SeriesBuilder] = {}
     info: RunInfo | None = None
     wanted = keep_raw = joint_topics = None
-    for message in reader.messages():
+    for batch in reader.batches():
         if info is None:
             info = _run_info(reader, path)
         if wanted is None:
@@ -488,16 +531,16 @@ def read_run(path, topics: Iterable[str] | None = None, raw: Iterable[str] = (),
             wanted = None if topics is None else {log_topic(t) for t in topics}
             keep_raw = {log_topic(t) for t in raw}
             joint_topics = {log_topic(t) for t in JOINT_TOPICS}
-        if wanted is not None and message.topic not in wanted:
+        if wanted is not None and batch.topic not in wanted:
             continue
-        builder = builders.get(message.topic)
+        builder = builders.get(batch.topic)
         if builder is None:
-            joint = message.topic in joint_topics
+            joint = batch.topic in joint_topics
             columns = info.config.muscles if info is not None and not joint else None
-            builder = builders[message.topic] = SeriesBuilder(
-                message.topic, message.type_name, columns, message.topic in keep_raw,
-                message.encoding, grow_columns=joint)
-        builder.add(message.data, message.log_time_ns)
+            builder = builders[batch.topic] = SeriesBuilder(
+                batch.topic, batch.type_name, columns, batch.topic in keep_raw,
+                batch.encoding, grow_columns=joint)
+        builder.add_many(batch.data, batch.log_time_ns)
     if info is None:
         info = _run_info(reader, path)
     skipped = {topic: b.skipped for topic, b in builders.items() if b.skipped.count}

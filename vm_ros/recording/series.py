@@ -112,7 +112,12 @@ def _type_problem(type_name: str, encoding: str):
 class SeriesBuilder:
     """Accumulates one channel's messages (CDR) and builds its TopicSeries; the messages that
     do not decode go to ``skipped`` instead. JointState values go onto ``columns`` by name; with
-    ``grow_columns`` (and no columns) each new name adds a column (earlier rows NaN there)."""
+    ``grow_columns`` (and no columns) each new name adds a column (earlier rows NaN there).
+
+    JointState messages laid out as the first one (same names and array lengths, told apart by
+    their length and constant bytes, compared as arrays over a batch: add_many) are not decoded
+    one by one: build() reads their values at once from their bytes. Every other message is
+    decoded by itself (a "decoded row")."""
 
     def __init__(self, topic: str, type_name: str, columns: tuple | None, keep_raw: bool,
                  encoding: str = MESSAGE_ENCODING, grow_columns: bool = False):
@@ -120,37 +125,32 @@ class SeriesBuilder:
         self.grow = grow_columns and not columns
         self.columns = [] if self.grow else columns
         self.index = {name: i for i, name in enumerate(columns or ())}
-        self.times: list[int] = []
-        self.rows: dict[str, list] = {}
+        self._count = 0
+        self._times: list[np.ndarray] = []  # log times, in parts
+        self._decoded: list[int] = []  # which messages are decoded rows
+        self.rows: dict[str, list] = {}  # field -> values of the decoded rows (None: none)
         self.raw = [] if keep_raw else None
         self.messages: list | None = None
         self.layout = None
         self.names = None
         self.skipped = SkippedMessages(raw=[] if keep_raw else None)
         self._decode, self._problem = _type_problem(type_name, encoding)
-        # JointState messages laid out as the first one (same names and array lengths) are
-        # decoded at once in build(); (layout, constant byte ranges, column of each name)
+        # (layout, constant byte ranges, column of each name) of the first JointState, and
+        # the messages laid out so: (message indices, their records)
         self._fixed = None
-        self._fixed_rows: list[int] = []
-        self._fixed_data: list[bytes] = []
+        self._fixed_parts: list[tuple[np.ndarray, np.ndarray]] = []
 
     def __len__(self) -> int:
         """Messages decoded so far."""
-        return len(self.times)
+        return self._count
 
     def add(self, data: bytes, log_time_ns: int) -> bool:
         """Decode one message into the series; False (and counted in ``skipped``) when its
         bytes do not decode."""
-        problem = self._problem
         if self._fixed is not None and self._matches_fixed(data):
-            self._fixed_rows.append(len(self.times))
-            self._fixed_data.append(data)
-            for values in self.rows.values():
-                values.append(None)  # filled in build()
-            self.times.append(log_time_ns)
-            if self.raw is not None:
-                self.raw.append(data)
+            self._add_fixed([data], np.array([log_time_ns], dtype=np.int64))
             return True
+        problem = self._problem
         if problem is None:
             try:
                 msg = self._decode(data)
@@ -161,7 +161,7 @@ class SeriesBuilder:
             skipped.count += 1
             skipped.reason = skipped.reason or problem
             if skipped.raw is not None:
-                skipped.raw.append((len(self.times), log_time_ns, data))
+                skipped.raw.append((self._count, log_time_ns, data))
             return False
         row = self._row(msg)
         if row is None:
@@ -171,12 +171,57 @@ class SeriesBuilder:
         else:
             for key, value in row.items():
                 if key not in self.rows:  # a field first seen now: earlier rows lack it
-                    self.rows[key] = [None] * len(self.times)
+                    self.rows[key] = [None] * len(self._decoded)
                 self.rows[key].append(value)
-        self.times.append(log_time_ns)
+            self._decoded.append(self._count)
+            for values in self.rows.values():
+                if len(values) < len(self._decoded):  # a field this row lacks
+                    values.append(None)
+        self._times.append(np.array([log_time_ns], dtype=np.int64))
+        self._count += 1
         if self.raw is not None:
             self.raw.append(data)
         return True
+
+    def add_many(self, data: list, log_time_ns) -> None:
+        """add() for each message, in order; the messages laid out as the first JointState are
+        recognised as arrays (their lengths and constant bytes), not one by one."""
+        times = np.asarray(log_time_ns, dtype=np.int64)
+        i = 0
+        while i < len(data) and self._fixed is None:
+            self.add(data[i], int(times[i]))
+            i += 1
+        if i == len(data):
+            return
+        data, times = data[i:], times[i:]
+        layout, constant, _ = self._fixed
+        lengths = np.fromiter(map(len, data), dtype=np.int64, count=len(data))
+        candidates = np.flatnonzero(lengths == layout.size)
+        matches = np.zeros(len(data), dtype=bool)
+        if len(candidates):
+            cells = np.frombuffer(b"".join([data[j] for j in candidates.tolist()]),
+                                  dtype=np.uint8).reshape(len(candidates), layout.size)
+            same = np.ones(len(candidates), dtype=bool)
+            for begin, end, part in constant:
+                same &= (cells[:, begin:end] == np.frombuffer(part, dtype=np.uint8)).all(axis=1)
+            matches[candidates[same]] = True
+        done = 0
+        for j in [*np.flatnonzero(~matches).tolist(), len(data)]:
+            if j > done:
+                self._add_fixed(data[done:j], times[done:j])
+            if j < len(data):
+                self.add(data[j], int(times[j]))
+            done = j + 1
+
+    def _add_fixed(self, data: list, times: np.ndarray) -> None:
+        """Messages known to be laid out as the first JointState: kept as records."""
+        layout = self._fixed[0]
+        records = np.frombuffer(b"".join(data), dtype=layout.dtype)
+        self._fixed_parts.append((self._count + np.arange(len(data)), records))
+        self._times.append(times)
+        self._count += len(data)
+        if self.raw is not None:
+            self.raw.extend(data)
 
     def _by_name(self, names, values) -> np.ndarray:
         """Values of a JointState array on the columns (NaN where missing); name-less values
@@ -251,16 +296,15 @@ class SeriesBuilder:
         layout, constant, _ = self._fixed
         return len(data) == layout.size and all(data[a:b] == part for a, b, part in constant)
 
-    def _fill_fixed(self) -> None:
-        """Decode the messages put aside by add() at once, as _row would."""
-        if not self._fixed_rows:
-            return
+    def _fixed_values(self) -> tuple[np.ndarray, dict]:
+        """(message indices, field -> values) of the messages kept as records, as _row would
+        give them."""
         layout, _, columns = self._fixed
-        records = np.frombuffer(b"".join(self._fixed_data), dtype=layout.dtype)
-        stamps = (records["sec"].astype(np.int64) * 1_000_000_000
-                  + records["nanosec"].astype(np.int64)).tolist()
+        index = np.concatenate([rows for rows, _ in self._fixed_parts])
+        records = np.concatenate([part for _, part in self._fixed_parts])
+        values = {"stamp_ns": records["sec"].astype(np.int64) * 1_000_000_000
+                  + records["nanosec"].astype(np.int64)}
         width = len(self.columns) if self.columns else None
-        values = {}
         for key in _JOINT_ARRAYS:
             array = records[key] if key in layout.fields else None
             if width is None:
@@ -270,20 +314,41 @@ class SeriesBuilder:
             if array is not None:
                 full[:, columns] = array
             values[key] = full
-        rows = self.rows
-        for j, i in enumerate(self._fixed_rows):
-            rows["stamp_ns"][i] = stamps[j]
-            for key in _JOINT_ARRAYS:
-                rows[key][i] = values[key][j]
-        self._fixed_rows, self._fixed_data = [], []
+        return index, values
+
+    def _field(self, key: str, fixed_index, fixed: np.ndarray | None) -> np.ndarray:
+        """One field over every message: the decoded rows' values and the records' as one
+        array (_stack's result, built without a list per message when the rows agree)."""
+        decoded = self.rows.get(key, [None] * len(self._decoded))
+        if fixed is not None:
+            if all(type(v) is int for v in decoded) and fixed.ndim == 1:
+                out = np.empty(self._count, dtype=np.int64)
+            elif all(isinstance(v, np.ndarray) and v.shape == fixed.shape[1:]
+                     for v in decoded) and fixed.ndim == 2:
+                out = np.empty((self._count, fixed.shape[1]))
+            else:
+                out = None
+            if out is not None:
+                out[fixed_index] = fixed
+                if decoded:
+                    out[self._decoded] = decoded
+                return out
+        values = [None] * self._count
+        for i, value in zip(self._decoded, decoded, strict=True):
+            values[i] = value
+        if fixed is not None:
+            for i, value in zip(fixed_index.tolist(), list(fixed), strict=True):
+                values[i] = int(value) if fixed.ndim == 1 else value
+        return _stack(values)
 
     def build(self) -> TopicSeries:
-        self._fill_fixed()
-        count = len(self.times)
-        fields = {key: _stack(values + [None] * (count - len(values)))
-                  for key, values in self.rows.items()}
-        return TopicSeries(self.topic, self.type_name, np.asarray(self.times, dtype=np.int64),
-                           fields, self.names, self.layout, self.raw, self.messages)
+        fixed_index, fixed = (self._fixed_values() if self._fixed_parts
+                              else (np.zeros(0, dtype=np.int64), {}))
+        fields = {key: self._field(key, fixed_index, fixed.get(key))
+                  for key in dict.fromkeys([*self.rows, *fixed])}
+        times = (np.concatenate(self._times) if self._times else np.zeros(0, dtype=np.int64))
+        return TopicSeries(self.topic, self.type_name, times, fields, self.names, self.layout,
+                           self.raw, self.messages)
 
 
 _JOINT_ARRAYS = ("position", "velocity", "effort")

@@ -36,7 +36,6 @@ import sys
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock as ClockMsg
@@ -45,7 +44,7 @@ from std_msgs.msg import Float64MultiArray
 
 from vm_ros.errors import VmRosError
 from vm_ros.geometry.mujoco_backend import MujocoGeometry, require_mujoco
-from vm_ros.node.shell import run_node
+from vm_ros.node.shell import make_executor, run_node
 from vm_ros.telemetry import TOPIC_JOINT_EFFORT_COMMANDS, TOPIC_JOINT_STATES
 
 NODE_NAME = "mujoco_sim_node"
@@ -243,7 +242,7 @@ def _argument_parser() -> argparse.ArgumentParser:
 def main(args=None) -> int:
     """mujoco_sim_node [--help] [--ros-args ...]: init, node, spin, destroy, shutdown."""
     return run_node(NODE_NAME, _argument_parser(), MujocoSimNode,
-                    lambda node: SingleThreadedExecutor(), args)
+                    lambda node: make_executor("events"), args)
 
 
 if __name__ == "__main__":

@@ -56,7 +56,10 @@ class WalkSolution:
     | coordinates | (C,) | |
     | moments_nm | (T, C) | N m, r^T F of the forward run |
     | targets_nm | (T, C) | N m, the inverse-dynamics targets |
-    | metabolic_w | (T,) | W, summed over the muscles (no basal rate) |
+    | metabolic_w | (T,) | W, VM's rate summed over the muscles (no basal rate) |
+    | metabolic_parts_w | (T, 3) | W, its activation, cross-bridge and recovery parts |
+    | model_rates_w | name -> (T,) | W, each published model's rate on the same state |
+    | cocontraction | (C,) | opposing share of the muscle moments per coordinate |
     """
 
     label: str
@@ -68,6 +71,9 @@ class WalkSolution:
     moments_nm: np.ndarray
     targets_nm: np.ndarray
     metabolic_w: np.ndarray
+    metabolic_parts_w: np.ndarray | None = None
+    model_rates_w: dict | None = None
+    cocontraction: np.ndarray | None = None
 
 
 def load_walk_config(path=None) -> tuple[dict, Path]:
@@ -219,11 +225,11 @@ def evaluate_walk(solution: WalkSolution, context: dict, config: dict
                                  f"{reference.source}", median,
                                  crit[f"force_correlation_median_{key}"]))
     inside, _ = cycle_percent(solution.times_s, strikes)
-    t = solution.times_s[inside]
-    rate = float(np.trapezoid(solution.metabolic_w[inside], t) / (t[-1] - t[0])) / (
-        context["mass_kg"]) if inside.sum() > 1 else float("nan")
+    rate = _cycle_mean(solution.metabolic_w, solution.times_s, inside) / context["mass_kg"]
     references = net_metabolic_references(config["metabolic"], context["speed_m_per_s"])
     data["metabolic_w_per_kg"] = rate
+    data.update(_metabolic_breakdown(solution, inside, context["mass_kg"]))
+    criteria.extend(_reported(solution.label, data))
     data["metabolic_references"] = references
     for name, value in references.items():
         criteria.append(Criterion(f"{solution.label}: net metabolic power / {name} "
@@ -231,6 +237,64 @@ def evaluate_walk(solution: WalkSolution, context: dict, config: dict
                                   crit["metabolic_ratio_low"]["low"],
                                   crit["metabolic_ratio_high"]["high"]))
     return criteria, data
+
+
+def _cycle_mean(values, times_s, inside) -> float:
+    t = times_s[inside]
+    return float(np.trapezoid(values[inside], t) / (t[-1] - t[0])) if inside.sum() > 1 \
+        else float("nan")
+
+
+def _metabolic_breakdown(solution: WalkSolution, inside, mass_kg: float) -> dict:
+    """What the metabolic rate is made of, over the cycle: the parts' shares (activation,
+    cross-bridge, recovery), each published model's W/kg on the same state, the rate per
+    newton of summed muscle force (W/N), and the co-contraction share per coordinate."""
+    t = solution.times_s
+    out = {"w_per_newton": _cycle_mean(solution.metabolic_w, t, inside)
+           / max(_cycle_mean(solution.forces_n.sum(axis=1), t, inside), 1e-12)}
+    if solution.metabolic_parts_w is not None:
+        total = _cycle_mean(solution.metabolic_w, t, inside)
+        out["metabolic_parts_share"] = {
+            part: _cycle_mean(solution.metabolic_parts_w[:, j], t, inside) / total
+            for j, part in enumerate(("activation", "cross-bridge", "recovery"))}
+    if solution.model_rates_w is not None:
+        out["model_w_per_kg"] = {name: _cycle_mean(rate, t, inside) / mass_kg
+                                 for name, rate in solution.model_rates_w.items()}
+    if solution.cocontraction is not None:
+        out["cocontraction"] = dict(zip(solution.coordinates, solution.cocontraction.tolist(),
+                                        strict=True))
+    return out
+
+
+def _reported(label: str, data: dict) -> list[Criterion]:
+    """Numbers shown beside the criteria, without a bound (Criterion 'reported')."""
+    out = [Criterion(f"{label}: net metabolic power (W/kg), right cycle",
+                     data["metabolic_w_per_kg"]),
+           Criterion(f"{label}: metabolic rate per newton of muscle force (W/N)",
+                     data["w_per_newton"])]
+    out += [Criterion(f"{label}: {part} share of VM's rate", share)
+            for part, share in data.get("metabolic_parts_share", {}).items()]
+    out += [Criterion(f"{label}: {name} on the same state (W/kg)", value)
+            for name, value in data.get("model_w_per_kg", {}).items()]
+    out += [Criterion(f"{label}: co-contraction share, {name}", value)
+            for name, value in data.get("cocontraction", {}).items()]
+    out += [Criterion(f"{label}: {name} max error / peak on {t['spikes']} spike frames",
+                      t["spike_max_of_peak"])
+            for name, t in data["tracking"].items() if t["spikes"]]
+    return out
+
+
+def context_reported(context: dict) -> list[Criterion]:
+    """The references' own numbers, shown once: belt speed, OpenSim's Umberger probe over the
+    CMC walk, and OpenSim SO against CMC (median force correlation)."""
+    from vm_ros.validation.walk_reference import compare
+
+    so_cmc = compare(context["so_forces"], context["cmc_forces"])
+    return [Criterion("walk: treadmill belt speed (m/s)", context["speed_m_per_s"]),
+            Criterion("OpenSim Umberger 2010 probe over CMC (W/kg)",
+                      context["umberger"]["per_kg"]),
+            Criterion("OpenSim SO against CMC: median force correlation",
+                      float(np.median([v["r"] for v in so_cmc.values()])))]
 
 
 def _walk_context(files, config) -> dict:
@@ -247,42 +311,71 @@ def _walk_context(files, config) -> dict:
             "cmc_forces": wr.cmc_forces(files), "umberger": wr.umberger_probe(files)}
 
 
-# the walk's strengths (import-osim --specific-tension): the model's own F0, and the import's
-# default, reported beside it (issue 30)
-STRENGTHS = {"model F0": "vm", "default import": "60"}
+# the walk's strengths (import-osim --specific-tension, --strength): the model's own F0 with the
+# masses of measured volumes (60 N/cm^2), and the import's default (VM's 31.8 N/cm^2 on those
+# masses: 0.53 x the model's F0), reported beside it (issue 30). Not `--specific-tension vm`: it
+# keeps F0 by making every mass 60 / 31.8 = 1.89 x larger, and VM's metabolic rate scales with
+# mass (the same drives and forces on the walk: 6.85 against 3.63 W/kg)
+STRENGTHS = {"model F0": ("60", "model"), "default import": ("60", "vm")}
 COSTS = ("drive2", "tsianos2012")   # the classic and VM's own energy (vm_ros.coordination.costs)
 
 
-def import_walk(files, strength: str, out_dir):
-    """The walk's model imported as `vm-ros import-osim --motion IK --specific-tension
-    STRENGTH` does, into ``out_dir``: (geometry, library path)."""
+def import_walk(files, strength: tuple[str, str], out_dir):
+    """The walk's model imported as `vm-ros import-osim --motion IK --specific-tension S
+    --strength F` does for ``strength`` (S, F), into ``out_dir``: (geometry, library path)."""
     import io
 
-    from vm_ros.importers.common import ImportChoices, specific_tension_option
+    from vm_ros.importers.common import ImportChoices, specific_tension_option, strength_option
     from vm_ros.importers.osim import OsimOptions, import_osim
 
+    tension, factor = strength
     done = import_osim(files["model"], out_dir, OsimOptions(motions=(str(files["motion"]),)),
-                       ImportChoices(specific_tension_option(strength)), progress=False,
-                       file=io.StringIO())
+                       ImportChoices(specific_tension_option(tension),
+                                     strength=strength_option(factor)),
+                       progress=False, file=io.StringIO())
     return done.geometry, Path(out_dir) / "muscles.yaml"
 
 
-def solution_from_result(label: str, result, motion) -> WalkSolution:
+def cocontraction_share(moment_arm, forces) -> np.ndarray:
+    """(C,): per coordinate, sum over frames of the moment muscles spend against each other,
+    (sum_i |r_i F_i| - |sum_i r_i F_i|) / 2, over the sum of sum_i |r_i F_i| (0: no muscle
+    works against another; 0.5: all moment cancels). ``moment_arm`` (T, n, C), ``forces``
+    (T, n)."""
+    each = moment_arm * forces[:, :, None]
+    gross = np.abs(each).sum(axis=1)
+    opposing = (gross - np.abs(each.sum(axis=1))) / 2.0
+    return opposing.sum(axis=0) / np.maximum(gross.sum(axis=0), 1e-12)
+
+
+def solution_from_result(label: str, result, motion, specs, params) -> WalkSolution:
     """A WalkSolution from a vm_ros.coordination solve: drives, forces and moments at the
-    target frames, the muscles' summed VM metabolic rate (W) interpolated from the model steps
-    to the frames."""
-    from vm_ros.coordination.costs import vm_rate
+    target frames; the forward run replayed with every published energetics model
+    (MuscleBank energetics_models='all') for VM's rate, its parts and the models' rates,
+    summed over the muscles and interpolated from the model steps to the frames."""
+    from vm_ros.coordination.costs import MODEL_TOTAL
+    from vm_ros.model.bank import MuscleBank
 
     problem = result.problem
     frames = problem.frame_times_s
     drives = np.column_stack([np.interp(frames, result.node_times_s, result.drives[:, i])
                               for i in range(result.drives.shape[1])])
-    forward = result.forward
-    steps = np.arange(forward.drive_steps.shape[0]) * problem.dt_s
-    rate = vm_rate(forward.trajectory, forward.drive_steps).sum(axis=1)
+    drive_steps = result.forward.drive_steps
+    bank = MuscleBank(specs, params, "lumped", energetics_models="all")
+    bank.reset(path_length=problem.path_length[0], excitation=drive_steps[0])
+    replay = bank.run(problem.dt_s, drive_steps, problem.path_length, problem.path_velocity)
+    steps = np.arange(drive_steps.shape[0]) * problem.dt_s
+
+    def at_frames(per_step):
+        return np.interp(frames, steps, per_step)
+
+    parts = replay.record.energy_rates.sum(axis=1)   # (k, 4): activation, cross-bridge, ...
+    models = {name: at_frames(replay.energy_rate_models[:, :, m, MODEL_TOTAL].sum(axis=1))
+              for m, name in enumerate(bank.energetics_models)}
     return WalkSolution(label, frames + motion.start_s, tuple(problem.muscles), drives,
-                        forward.force_frames, tuple(problem.coordinates), result.moments,
-                        problem.target, np.interp(frames, steps, rate))
+                        result.forward.force_frames, tuple(problem.coordinates), result.moments,
+                        problem.target, at_frames(parts[:, 3]),
+                        np.column_stack([at_frames(parts[:, j]) for j in range(3)]), models,
+                        cocontraction_share(problem.moment_arm, result.forward.force_frames))
 
 
 def solve_walk(files, config, params) -> list[WalkSolution]:
@@ -318,7 +411,7 @@ def solve_walk(files, config, params) -> list[WalkSolution]:
                 bank = MuscleBank(specs, params, "lumped")
                 result = solve(bank, problem, SolverOptions(cost=cost))
                 solutions.append(solution_from_result(f"{cost}, {strength_label}", result,
-                                                      motion))
+                                                      motion, specs, params))
     return solutions
 
 
@@ -345,6 +438,7 @@ def check_walk(params=None) -> CheckResult:
                          "forward run of the full model, with drives timed like walking EMG, "
                          "forces like OpenSim's, and a metabolic rate comparable with "
                          "calorimetry (issue 30)")
+    result.criteria.extend(context_reported(context))
     for solution in solutions:
         criteria, data = evaluate_walk(solution, context, config)
         result.criteria.extend(criteria)
@@ -354,6 +448,6 @@ def check_walk(params=None) -> CheckResult:
     return result
 
 
-__all__ = ["TRACKED", "WalkSolution", "check_walk", "evaluate_walk", "high_frequency_share",
-           "load_walk_config", "net_metabolic_references", "spike_frames", "tracking_errors",
-           "window_means"]
+__all__ = ["TRACKED", "WalkSolution", "check_walk", "cocontraction_share", "evaluate_walk",
+           "high_frequency_share", "load_walk_config", "net_metabolic_references",
+           "spike_frames", "tracking_errors", "window_means"]
