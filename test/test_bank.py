@@ -219,3 +219,21 @@ def test_lumped_slow_fibres_are_recruited_first():
     out = bank.reset(lp, excitation=[0.3])  # below U2 = 0.8 * 0.5 = 0.4 (vasti ~50 % slow)
     assert bank.fpcsa[0, SLOW] * bank.ur[0] > 0.3
     assert out.effective_activation[0, 0] > 0 and out.effective_activation[0, 1] == 0.0
+
+
+def test_replicated_copies_step_as_their_originals():
+    """A bank of 3 copies of two muscles, given each copy its own drive, gives every copy the
+    force of the original muscle stepped alone at that drive."""
+    bank = MuscleBank.from_config(["soleus", "tibialis_anterior"])
+    copies = bank.replicated(3)
+    assert copies.names == bank.names * 3
+    drives = np.array([0.1, 0.2, 0.5, 0.6, 0.9, 1.0])
+    lengths = np.tile(rest_path_length(bank), 3)
+    copies.reset(path_length=lengths, excitation=drives)
+    together = copies.run(1e-3, np.tile(drives, (20, 1)), np.tile(lengths, (20, 1))).force[-1]
+    for copy in range(3):
+        part = slice(2 * copy, 2 * copy + 2)
+        bank.reset(path_length=lengths[part], excitation=drives[part])
+        alone = bank.run(1e-3, np.tile(drives[part], (20, 1)),
+                         np.tile(lengths[part], (20, 1))).force[-1]
+        np.testing.assert_allclose(together[part], alone, rtol=1e-12, atol=1e-9)

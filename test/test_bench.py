@@ -198,3 +198,23 @@ def test_bench_decode_section_times_the_node_decoder_beside_rclpy(tmp_path):
     stream = [r for r in rows if ", stream (load " in r["case"]]
     assert len(stream) == 1 and stream[0]["target"] == "<= 20 us"
     assert float(stream[0]["value"]) > 0 and stream[0]["met"] in ("True", "False")
+
+
+def test_coordination_walk_runs_only_when_named_and_says_why_it_skips(monkeypatch, tmp_path):
+    """Without the walk's files the section is one row saying where they are missing; with a
+    measured row, each coordinate is held to 3 % of peak and the solve to 10 s."""
+    from vm_ros_bench import cli as bench
+    from vm_ros_bench.coordination_bench import bench_walk
+
+    assert "coordination-walk" in bench.SECTIONS
+    assert "coordination-walk" not in bench.DEFAULT_SECTIONS
+    monkeypatch.setenv("VM_ROS_DATA", str(tmp_path))
+    rows = bench_walk(progress=lambda *_: None)
+    assert len(rows) == 1 and str(tmp_path) in rows[0]["skipped"]
+    assert [r["metric"] for r in bench._csv_rows({"coordination-walk": rows})] == ["skipped"]
+    measured = {"case": "default", "rms_percent": {"hip": 2.9, "knee": 3.1},
+                "forward_runs": 20, "seconds": 9.0, "load_average_start": 1.0}
+    met = {r["metric"]: r["met"] for r in bench._csv_rows({"coordination-walk": [measured]})
+           if r["target"]}
+    assert met == {"reserve_rms_percent hip": True, "reserve_rms_percent knee": False,
+                   "seconds": True}
