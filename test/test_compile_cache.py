@@ -27,7 +27,7 @@ INSTALLED = Path(vm_ros.__file__).parent
 _GEOMETRY = """
 import numpy as np
 from vm_ros.geometry import kernel
-evaluate = kernel._compile()
+evaluate = kernel._compile()[0]
 length, gradient = evaluate(np.zeros(1), np.zeros((1, 1), dtype=np.int64), np.zeros((1, 1)),
                             np.ones((1, 1)), np.zeros(1, dtype=np.int64),
                             np.ones((1, 1), dtype=np.int64), np.ones(1), 1)

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vm_ros.coordination import costs  # a room below this one (docs/architecture.md)
+from vm_ros.coordination import costs
 from vm_ros.model import MuscleBank
 
 DRIVE_FLOOR_WEIGHT = 1e-3  # (N m)^2 per drive^2: keeps the energy cost's quadratic part > 0

@@ -167,7 +167,7 @@ def _mujoco_model_source(model: str, geometry) -> str:
 def targets_from_mujoco(model: str, geometry, motion) -> JointMomentTargets:
     """MuJoCo inverse dynamics of the motion (module docstring)."""
     from vm_ros.geometry.mujoco_backend import MujocoGeometry, require_mujoco
-    from vm_ros.node.motion_inputs import velocity_from_positions
+    from vm_ros.importers.motion import velocity_from_positions
 
     mujoco = require_mujoco()
     name = _mujoco_model_source(model, geometry)

@@ -29,7 +29,6 @@ reproduces the run.
 from __future__ import annotations
 
 import re
-import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -37,7 +36,7 @@ import numpy as np
 
 from vm_ros import telemetry as tm
 from vm_ros.errors import VmRosError
-from vm_ros.importers.motion import Motion
+from vm_ros.importers.motion import Motion, velocity_from_positions
 from vm_ros.joint_space import JointMap
 from vm_ros.model.units import UNITS, units_for
 from vm_ros.node.replay import NodeConditioning
@@ -100,32 +99,6 @@ class JointMotion:
         """(q, qdot) (k, m) at each of ``times_s`` (``at`` at each, element for element)."""
         return (interpolate_rows(self.time_s, self.q, times_s),
                 interpolate_rows(self.time_s, self.qdot, times_s))
-
-
-SPLINE_DEGREE = 5  # quintic: its velocity is smooth to the third derivative
-
-
-def velocity_from_positions(time_s, q) -> np.ndarray:
-    """dq/dt at the frames: the derivative of FITPACK's quintic smoothing spline of ``q``
-    (scipy.interpolate.UnivariateSpline, k = 5) with the smoothing s = n sigma^2, sigma the noise
-    estimated from the fourth differences (var(diff4) = 70 sigma^2 for white noise). End
-    conditions: none imposed, the ends are fitted like the rest (no natural or clamped
-    condition; numpy.gradient's one-sided difference is first order there). With fewer frames
-    than the spline needs (6), numpy.gradient. For 30 (1 - cos(2 pi t)) deg at 100 Hz, which
-    starts at rest, test/test_simulate_joint_space.py holds the velocity at t = 0 within
-    0.2 deg/s of 0 (numpy.gradient's one-sided difference: 5.9 deg/s)."""
-    from scipy.interpolate import UnivariateSpline, make_interp_spline
-
-    time_s, q = np.asarray(time_s, dtype=float), np.asarray(q, dtype=float)
-    if len(time_s) <= SPLINE_DEGREE:
-        return np.gradient(q, time_s) if len(time_s) > 1 else np.zeros_like(q)
-    sigma = float(np.std(np.diff(q, 4))) / np.sqrt(70.0)
-    if sigma == 0.0:  # a polynomial of degree < 4: the interpolating spline is exact
-        return make_interp_spline(time_s, q, k=SPLINE_DEGREE).derivative()(time_s)
-    with warnings.catch_warnings():  # FITPACK's "fp not within tol of s": the fit is returned
-        warnings.simplefilter("ignore", UserWarning)
-        spline = UnivariateSpline(time_s, q, k=SPLINE_DEGREE, s=len(q) * sigma ** 2)
-    return spline.derivative()(time_s)
 
 
 _HOLD_VALUE = re.compile(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(\S*)\s*")
