@@ -74,6 +74,19 @@ SCIPY_1_10_NAMES = {
     ("scipy.stats", "qmc"),  # 1.7
     ("scipy.stats.qmc", "LatinHypercube"),  # 1.7 (its rng= keyword is 1.15: seed= is used)
     ("scipy.stats.qmc", "scale"),  # 1.7
+    # coordination: present in Debian 12's python3-scipy 1.10.1 (hasattr on its modules; linprog's
+    # method="highs" is its default there)
+    ("scipy", "optimize"),
+    ("scipy", "sparse"),
+    ("scipy.optimize", "linprog"),
+    ("scipy.sparse", "csr_matrix"),
+    ("scipy.sparse", "diags"),
+    ("scipy.sparse", "identity"),
+    ("scipy.sparse", "kron"),
+    ("scipy.sparse", "vstack"),
+    ("scipy.sparse", "linalg"),
+    ("scipy.sparse.linalg", "spsolve"),
+    ("scipy.sparse.csgraph", "connected_components"),
 }
 
 
