@@ -246,7 +246,7 @@ def test_coordination_myolegs_runs_only_when_named_on_a_gait_like_motion():
     assert at(hip_left, 0.5) == pytest.approx(at(hip, 0.0))
     assert not mtp.any()
     measured = {"muscles": 78, "motion_s": 10.0, "rms_percent": {"hip": 2.0},
-                "forward_runs": 20, "targets_s": 1.0, "load_average_start": 1.0,
+                "forward_runs": 20, "cpu_s": 50.0, "targets_s": 1.0, "load_average_start": 1.0,
                 "infeasible_frames": 0, "seconds": 61.0}
     met = {r["metric"]: r["met"] for r in bench._csv_rows({"coordination-myolegs": measured})
            if r["target"]}

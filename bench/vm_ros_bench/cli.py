@@ -358,7 +358,7 @@ def _myolegs_csv_rows(r: dict | None, add) -> None:
     case = f"myolegs, {r['muscles']} muscles, {r['motion_s']:g} s gait-like motion"
     for name, value in r["rms_percent"].items():
         add("coordination-myolegs", case, f"reserve_rms_percent {name}", value, "%")
-    for key in ("forward_runs", "targets_s", "load_average_start", "infeasible_frames"):
+    for key in ("forward_runs", "cpu_s", "targets_s", "load_average_start", "infeasible_frames"):
         add("coordination-myolegs", case, key, r[key], "s" if key.endswith("_s") else "")
     add("coordination-myolegs", case, "seconds", r["seconds"], "s",
         f"< {MYOLEGS_TARGET_S:g} s", r["seconds"] < MYOLEGS_TARGET_S)

@@ -217,8 +217,10 @@ def bench_myolegs(cache, progress=print, duration_s: float = MYOLEGS_S) -> dict:
     """`vm-ros coordinate` on myo-sim's myolegs (the joint section's import, cached in
     ``cache``/myolegs): ``gait_motion`` written as a .mot, targets ``mujoco`` (MuJoCo's inverse
     dynamics of the motion, the root held in space), every muscle of the library, default
-    options: seconds of the targets and of the solve, forward runs, reserve RMS per coordinate
-    (% of its target's peak), the load average before. ``skipped`` without the mujoco extra."""
+    options: seconds of the targets and of the solve (wall, and the process's CPU time: the
+    machine's other load does not count in it), the seconds at each kept iterate (the first:
+    after the two stages' start), forward runs, reserve RMS per coordinate (% of its target's
+    peak), the load average before and after. ``skipped`` without the mujoco extra."""
     import tempfile
     from pathlib import Path
 
@@ -251,16 +253,18 @@ def bench_myolegs(cache, progress=print, duration_s: float = MYOLEGS_S) -> dict:
     specs = resolve_muscles(muscles, imported["library"], None, params.generic.ur_default)
     problem = build_problem(geometry, motion, targets, muscles)
     load = os.getloadavg()[0]
-    started = time.perf_counter()
+    started, cpu = time.perf_counter(), time.process_time()
     result = solve(MuscleBank(specs, params, "lumped"), problem, SolverOptions())
-    seconds = time.perf_counter() - started
+    seconds, cpu_s = time.perf_counter() - started, time.process_time() - cpu
     rms = dict(zip(problem.coordinates, result.summary.rms_percent.tolist(), strict=True))
     peak = dict(zip(problem.coordinates, problem.peak.tolist(), strict=True))
     progress(f"coordination-myolegs: {len(muscles)} muscles, {duration_s:g} s: worst reserve "
              f"RMS {max(rms.values()):.2f} % of peak, {result.forward_runs} runs, "
-             f"{seconds:.1f} s (targets {targets_s:.1f} s)")
+             f"{seconds:.1f} s ({cpu_s:.1f} s of CPU; targets {targets_s:.1f} s)")
     return {"muscles": len(muscles), "coordinates": len(problem.coordinates),
             "motion_s": duration_s, "frames": len(problem.frame_times_s),
             "rms_percent": rms, "target_peak": peak, "forward_runs": result.forward_runs,
-            "seconds": seconds, "targets_s": targets_s, "load_average_start": load,
+            "seconds": seconds, "cpu_s": cpu_s, "targets_s": targets_s,
+            "kept_step_s": [it.seconds for it in result.history],
+            "load_average_start": load, "load_average_end": os.getloadavg()[0],
             "infeasible_frames": len(result.infeasible)}
