@@ -1,6 +1,6 @@
 """Receding-horizon coordination: the drives of the next period that make the muscles' joint
 moments follow target joint moments over a horizon ahead (muscle_node's live coordination;
-pure NumPy/SciPy, no rclpy).
+NumPy, SciPy and OSQP, no rclpy).
 
 Each period of p model steps of dt, from the bank's state x0, with the coming path lengths
 L(t) and moment arms r(t) of the m coordinated muscles and the targets tau(t) over the horizon
@@ -18,8 +18,9 @@ Solved by one Gauss-Newton step per period about the previous plan shifted by on
 path is prescribed, so muscle i's force depends on its own drive only: the derivatives of every
 force with respect to block b of every drive come from one run with all of block b raised by
 ``probe_drive``. The B + 1 runs (nominal, one per block) are one MuscleBank.run of a bank holding
-B + 1 copies of the muscles. The linearised problem is a bounded linear least squares
-(box_qp, a primal active-set method); block 0 is applied, the rest seeds the next period.
+B + 1 copies of the muscles. The linearised problem is a bounded QP, solved by OSQP (BoxQP: set
+up once, updated and warm started each period); block 0 is applied, the rest seeds the next
+period.
 
 What is approximated: a secant linearisation per period (force is not linear in drive); the
 horizon's motion is what the caller predicts (muscle_node: the latest joint sample moved on by its
@@ -29,6 +30,7 @@ arrives late; the activation of VM rises 50 % in 77-132 ms, issue 30).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -136,90 +138,130 @@ def block_edges(k: int, p: int, blocks: int) -> np.ndarray:
     return np.concatenate(([0], p + np.round(np.linspace(0, k - p, rest + 1)).astype(int)))
 
 
+def tracking_hessian(moment_arm, sens, tracked) -> np.ndarray:
+    """(B m, B m) sum_s J_s^T J_s of the tracking term, J_s[c, (b, i)] = r_sic dF_si/dU_bi, as
+    the Hadamard products (r_s r_s^T) o (dF_bs dF_b's^T): without the (S c, B m) Jacobian, whose
+    dense product cost 80 muscles most of a period. Moment arms equal at every sample (as
+    muscle_node holds them) are multiplied once."""
+    n_blocks, _, m = sens.shape
+    arms = moment_arm[:, :, tracked]                                     # (S, m, c)
+    if np.array_equal(arms.min(axis=0), arms.max(axis=0)):
+        coupling = arms[0] @ arms[0].T                                   # (m, m)
+        gram = np.einsum("bsi,dsj->bidj", sens, sens, optimize=True)     # (B, m, B, m)
+        hessian = gram * coupling[None, :, None, :]
+    else:
+        hessian = np.einsum("sic,sjc,bsi,dsj->bidj", arms, arms, sens, sens, optimize=True)
+    return hessian.reshape(n_blocks * m, n_blocks * m)
+
+
 def solve_window(forces, moment_arm, target, tracked, probe: Probe, settings: HorizonSettings,
-                 previous_drive) -> WindowPlan:
+                 previous_drive, qp: BoxQP | None = None) -> WindowPlan:
     """The linearised problem of one period, solved (the one function that poses and solves it:
     another solver replaces this one).
 
     forces: (B + 1, S, m) N at the tracked samples, run 0 nominal, run b + 1 with block b
     raised by probe.delta[b]; moment_arm (S, m, c) m; target (S, c) N m; tracked (c,) bool;
-    previous_drive (m,) the drive applied last period.
+    previous_drive (m,) the drive applied last period; qp: the BoxQP to solve it with (kept
+    from period to period for its set-up and warm start; None: a new one).
     """
     n_blocks, m = probe.nominal.shape
     sens = (forces[1:] - forces[0]) / probe.delta[:, None, :]          # (B, S, m) N per drive
     moment0 = np.einsum("smc,sm->sc", moment_arm, forces[0])            # (S, c)
-    jac = np.einsum("smc,bsm->scbm", moment_arm, sens)                  # (S, c, B, m)
-    jac = jac[:, tracked].reshape(-1, n_blocks * m)
     x0 = probe.nominal.ravel()
-    rhs = (target - moment0)[:, tracked].ravel() + jac @ x0
     scale = 1.0 / max(len(moment0), 1)
-    hessian = scale * (jac.T @ jac)                      # 1/2 x H x - f x, tracking
-    linear = scale * (jac.T @ rhs)
+    arms = moment_arm[:, :, tracked]
+    residual = (target - moment0)[:, tracked]                           # (S, c)
+    # J^T (residual + J x0) without J: J^T v = sum_s dF_bs o (r_s v_s)
+    linear = scale * np.einsum("bsi,si->bi", sens,
+                               np.einsum("sic,sc->si", arms, residual)).ravel()
+    hessian = scale * tracking_hessian(moment_arm, sens, tracked)      # 1/2 x H x - f x
+    linear += hessian @ x0
     term, default = window_term(settings.cost)
     diag, lin = term(probe, default if settings.effort_weight is None else settings.effort_weight)
     hessian[np.diag_indices_from(hessian)] += diag.ravel()
     linear -= lin.ravel()
     if settings.smoothness > 0:
-        change = np.eye(n_blocks * m) - np.eye(n_blocks * m, k=-m)  # U_b - U_{b-1}
-        hessian += settings.smoothness * (change.T @ change)
+        hessian += settings.smoothness * smoothness_matrix(n_blocks, m)
         linear[:m] += settings.smoothness * np.asarray(previous_drive, dtype=float)
-    solution = np.empty_like(x0)
-    for group in coupled_groups(hessian):  # independent problems: muscles sharing no joint
-        solution[group] = box_qp(hessian[np.ix_(group, group)], linear[group], x0[group])
+    solution = (qp or BoxQP()).solve(hessian, linear, x0)
     plan = solution.reshape(n_blocks, m)
     predicted = moment0 + np.einsum("smc,bsm,bm->sc", moment_arm, sens, plan - probe.nominal)
     return WindowPlan(plan[0].copy(), plan, predicted)
 
 
-def coupled_groups(hessian) -> list[np.ndarray]:
-    """Indices of the connected components of the nonzero pattern of ``hessian``: unknowns in
-    different groups do not interact (muscles that share no tracked joint), so each group is
-    its own problem (80 muscles over 27 joints: a solve of 3-variable problems instead of one
-    of 240 variables)."""
-    from scipy.sparse.csgraph import connected_components
+@functools.lru_cache(maxsize=4)
+def smoothness_matrix(n_blocks: int, m: int) -> np.ndarray:
+    """D^T D of the block-to-block changes U_b - U_{b-1} (U_{-1} fixed: the applied drive);
+    made once per size (read-only)."""
+    change = np.eye(n_blocks * m) - np.eye(n_blocks * m, k=-m)
+    product = change.T @ change
+    product.flags.writeable = False
+    return product
 
-    count, labels = connected_components(hessian != 0.0, directed=False)
-    return [np.flatnonzero(labels == k) for k in range(count)]
+
+class BoxQP:
+    """argmin 1/2 x H x - f x over 0 <= x <= 1, H symmetric positive definite, by OSQP (an
+    operator-splitting QP solver), set up once for the nonzero pattern of H's upper triangle and,
+    while a later H's nonzeros stay within that pattern, updated in place (values of H, f) and
+    warm started from ``start`` (the caller's previous plan) instead of set up again. Muscles
+    that share no tracked joint are separate blocks of H; OSQP's sparse factorisation keeps them
+    apart without splitting the problem here.
+
+    Tolerances: OSQP_EPS absolute and relative, without OSQP's solution polishing (OSQP 1.1.3's
+    C code prints a line on stdout whenever polishing finds no active bound, whatever
+    ``verbose``: every period of a node); on random problems of 8 unknowns the answer equals a
+    tight L-BFGS-B reference within 1e-6 (test_coordination_live.py). A solve that OSQP does not
+    report solved (SOLVED) is counted in ``unsolved`` and its iterate, clipped into the box, is
+    used (the start when the iterate is not finite).
+    """
+
+    def __init__(self):
+        self._solver = None
+        self._pattern: np.ndarray | None = None   # (n, n) bool, upper triangle
+        self._index = None                         # (rows, cols) of P's values in CSC order
+        self.unsolved = 0
+
+    def _setup(self, hessian, linear, pattern) -> None:
+        import osqp
+        from scipy import sparse
+
+        n = len(linear)
+        self._pattern = pattern
+        cols, rows = np.nonzero(pattern.T)          # column-major: CSC order of P's values
+        self._index = (rows, cols)
+        upper = sparse.csc_matrix((hessian[rows, cols], (rows, cols)), shape=(n, n))
+        upper.sort_indices()
+        self._solver = osqp.OSQP()
+        self._solver.setup(P=upper, q=-linear, A=sparse.identity(n, format="csc"),
+                           l=np.zeros(n), u=np.ones(n), verbose=False, warm_starting=True,
+                           polishing=False, eps_abs=OSQP_EPS, eps_rel=OSQP_EPS,
+                           max_iter=OSQP_MAX_ITER)
+
+    def solve(self, hessian, linear, start) -> np.ndarray:
+        upper = np.triu(hessian) != 0.0
+        upper[np.diag_indices_from(upper)] = True
+        if self._pattern is None or self._pattern.shape != upper.shape \
+                or np.any(upper & ~self._pattern):
+            self._setup(hessian, linear, upper)
+        else:
+            self._solver.update(q=-linear, Px=hessian[self._index])
+        self._solver.warm_start(x=np.clip(np.asarray(start, dtype=float), 0.0, 1.0))
+        result = self._solver.solve(raise_error=False)
+        if result.info.status_val not in SOLVED:
+            self.unsolved += 1
+        x = result.x
+        if x is None or not np.all(np.isfinite(x)):
+            return np.clip(np.asarray(start, dtype=float), 0.0, 1.0)
+        return np.clip(x, 0.0, 1.0)
 
 
-def box_qp(hessian, linear, start, tol: float = 1e-12) -> np.ndarray:
-    """argmin 1/2 x H x - f x over 0 <= x <= 1, H symmetric positive definite: a primal
-    active-set method from ``start`` (clipped into the box). Each iteration solves the free
-    variables' equations with the others at their bounds, steps as far as the box allows toward
-    that point, and frees the bound variable whose multiplier has the wrong sign the most; at
-    most 3 n + 10 iterations (the last iterate is feasible either way). NumPy's solve on the
-    free block: LAPACK's least-squares drivers (scipy's lsq_linear, np.linalg.lstsq) took
-    100-600 ms per call for 54 unknowns on a loaded 2-core machine with OpenBLAS threads, the
-    solve 0.04 ms."""
-    x = np.clip(np.asarray(start, dtype=float), 0.0, 1.0)
-    at_lo, at_hi = x <= 0.0, x >= 1.0
-    bound_value = np.where(at_hi, 1.0, 0.0)
-    threshold = tol * max(float(np.abs(linear).max()), 1.0)
-    for _ in range(3 * len(x) + 10):
-        free = ~(at_lo | at_hi)
-        bound_value = np.where(at_hi, 1.0, 0.0)
-        goal = np.where(free, x, bound_value)
-        if free.any():
-            rest = hessian[np.ix_(free, ~free)] @ bound_value[~free]
-            goal[free] = np.linalg.solve(hessian[np.ix_(free, free)], linear[free] - rest)
-        step = goal - x
-        with np.errstate(divide="ignore", invalid="ignore"):
-            room = np.where(step > 0, (1.0 - x) / step, np.where(step < 0, -x / step, np.inf))
-        room = np.where(free, room, np.inf)
-        blocking = int(np.argmin(room))
-        if room[blocking] < 1.0:
-            x = np.clip(x + room[blocking] * step, 0.0, 1.0)
-            x[blocking] = 1.0 if step[blocking] > 0 else 0.0
-            at_hi[blocking], at_lo[blocking] = x[blocking] == 1.0, x[blocking] == 0.0
-            continue
-        x = np.clip(goal, 0.0, 1.0)
-        gradient = hessian @ x - linear
-        wrong = np.where(at_lo, -gradient, np.where(at_hi, gradient, 0.0))
-        worst = int(np.argmax(wrong))
-        if wrong[worst] <= threshold:
-            break
-        at_lo[worst] = at_hi[worst] = False
-    return x
+OSQP_EPS, OSQP_MAX_ITER = 1e-7, 4000
+SOLVED = (1, 2)  # OSQP_SOLVED, OSQP_SOLVED_INACCURATE
+
+
+def box_qp(hessian, linear, start) -> np.ndarray:
+    """argmin 1/2 x H x - f x over 0 <= x <= 1 (a one-off BoxQP)."""
+    return BoxQP().solve(hessian, linear, start)
 
 
 def _replicated(state, index, copies: int):
@@ -260,6 +302,7 @@ class RecedingHorizon:
                                      energetics_models=self.cost.bank_models)
         self.plan = np.zeros((self.n_blocks, self.m))
         self.drive = np.zeros(self.m)  # applied last period
+        self.qp = BoxQP()  # set up at the first period, updated after
 
     @property
     def start_offsets_s(self) -> np.ndarray:
@@ -305,7 +348,7 @@ class RecedingHorizon:
         probe = Probe(nominal, delta, np.diff(self.edges) / self.steps, rates[0],
                       (rates[1:] - rates[0]) / delta)
         plan = solve_window(forces, moment_arm, target, tracked, probe, self.settings,
-                            self.drive)
+                            self.drive, self.qp)
         self.plan, self.drive = plan.plan, plan.drive
         return plan
 
@@ -332,5 +375,5 @@ def tracking_lag(times_s, target, achieved, max_lag_s: float) -> tuple[float, fl
 
 
 __all__ = ["DRIVE2_WEIGHT", "RATE_WEIGHT", "HorizonSettings", "Probe", "RecedingHorizon",
-           "WindowPlan", "block_edges", "box_qp", "coupled_groups", "solve_window",
-           "tracking_lag", "window_term"]
+           "BoxQP", "WindowPlan", "block_edges", "box_qp", "solve_window",
+           "tracking_hessian", "tracking_lag", "window_term"]
