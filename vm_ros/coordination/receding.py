@@ -35,6 +35,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+import osqp
+from scipy import sparse
 
 from vm_ros.coordination import costs
 from vm_ros.model import MuscleBank
@@ -222,9 +224,6 @@ class BoxQP:
         self.unsolved = 0
 
     def _setup(self, hessian, linear, pattern) -> None:
-        import osqp
-        from scipy import sparse
-
         n = len(linear)
         self._pattern = pattern
         cols, rows = np.nonzero(pattern.T)          # column-major: CSC order of P's values
