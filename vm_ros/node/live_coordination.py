@@ -46,6 +46,7 @@ class LiveCoordination:
         self.space, self.inputs = space, inputs
         limit_blas_threads(1)  # the node is one thread (vm_ros.blas_threads)
         self.index = space.driven_index
+        self.names = [bank.names[i] for i in self.index]
         self.targets = EffortTargets(space)
         self.coordinator = receding.RecedingHorizon(bank, self.index, period_s,
                                                     horizon_settings(config))
