@@ -140,20 +140,45 @@ def block_edges(k: int, p: int, blocks: int) -> np.ndarray:
     return np.concatenate(([0], p + np.round(np.linspace(0, k - p, rest + 1)).astype(int)))
 
 
+def coupled_pairs(moment_arm, tracked) -> tuple[np.ndarray, np.ndarray]:
+    """(i, j), every ordered pair of muscles that cross a common tracked joint (a nonzero moment
+    arm at some sample), and every (i, i): where the tracking term couples muscle i's drives to
+    muscle j's. 80 muscles over 27 joints: 320 pairs of the 6400."""
+    crosses = np.any(moment_arm[:, :, tracked] != 0.0, axis=0).astype(float)   # (m, c)
+    share = crosses @ crosses.T > 0.0
+    np.fill_diagonal(share, True)
+    return np.nonzero(share)
+
+
 def tracking_hessian(moment_arm, sens, tracked) -> np.ndarray:
-    """(B m, B m) sum_s J_s^T J_s of the tracking term, J_s[c, (b, i)] = r_sic dF_si/dU_bi, as
-    the Hadamard products (r_s r_s^T) o (dF_bs dF_b's^T): without the (S c, B m) Jacobian, whose
-    dense product cost 80 muscles most of a period. Moment arms equal at every sample (as
-    muscle_node holds them) are multiplied once."""
+    """(B m, B m) sum_s J_s^T J_s of the tracking term, J_s[c, (b, i)] = r_sic dF_si/dU_bi,
+    dense (window_hessian's entries, for tests and small problems)."""
     n_blocks, _, m = sens.shape
-    arms = moment_arm[:, :, tracked]                                     # (S, m, c)
-    if np.array_equal(arms.min(axis=0), arms.max(axis=0)):
-        coupling = arms[0] @ arms[0].T                                   # (m, m)
-        gram = np.einsum("bsi,dsj->bidj", sens, sens, optimize=True)     # (B, m, B, m)
-        hessian = gram * coupling[None, :, None, :]
-    else:
-        hessian = np.einsum("sic,sjc,bsi,dsj->bidj", arms, arms, sens, sens, optimize=True)
-    return hessian.reshape(n_blocks * m, n_blocks * m)
+    rows, cols, values = window_entries(moment_arm, sens, tracked)
+    hessian = np.zeros((n_blocks * m, n_blocks * m))
+    hessian[rows, cols] = values
+    return hessian
+
+
+def window_entries(moment_arm, sens, tracked) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The nonzero entries (rows, cols, values) of the tracking Hessian sum_s J_s^T J_s, both
+    triangles, unknown (b, i) at b m + i:
+
+        H[(b, i), (d, j)] = sum_s (sum_c r_sic r_sjc) dF_bsi dF_dsj
+
+    over the coupled_pairs (i, j) only: without the (S c, B m) Jacobian or a dense (B m)^2
+    matrix, whose products cost 80 muscles most of a period."""
+    n_blocks, _, m = sens.shape
+    arms = moment_arm[:, :, tracked]
+    if np.array_equal(arms, np.broadcast_to(arms[:1], arms.shape)):
+        arms = arms[:1]  # held over the horizon (muscle_node): one sample stands for all
+    i, j = coupled_pairs(arms, np.ones(arms.shape[2], dtype=bool))
+    coupling = np.einsum("spc,spc->sp", arms[:, i], arms[:, j])                 # (S or 1, P)
+    values = np.einsum("bsp,dsp->bdp", sens[:, :, i] * coupling, sens[:, :, j])  # (B, B, P)
+    blocks = np.arange(n_blocks) * m
+    rows = np.broadcast_to((blocks[:, None, None] + i), values.shape).ravel()
+    cols = np.broadcast_to((blocks[None, :, None] + j), values.shape).ravel()
+    return rows, cols, values.ravel()
 
 
 def solve_window(forces, moment_arm, target, tracked, probe: Probe, settings: HorizonSettings,
@@ -167,35 +192,43 @@ def solve_window(forces, moment_arm, target, tracked, probe: Probe, settings: Ho
     from period to period for its set-up and warm start; None: a new one).
     """
     n_blocks, m = probe.nominal.shape
+    n = n_blocks * m
     sens = (forces[1:] - forces[0]) / probe.delta[:, None, :]          # (B, S, m) N per drive
     moment0 = np.einsum("smc,sm->sc", moment_arm, forces[0])            # (S, c)
     x0 = probe.nominal.ravel()
     scale = 1.0 / max(len(moment0), 1)
     arms = moment_arm[:, :, tracked]
     residual = (target - moment0)[:, tracked]                           # (S, c)
-    # J^T (residual + J x0) without J: J^T v = sum_s dF_bs o (r_s v_s)
+    # 1/2 x H x - f x: f = J^T (residual + J x0) without J, J^T v = sum_s dF_bs o (r_s v_s)
     linear = scale * np.einsum("bsi,si->bi", sens,
                                np.einsum("sic,sc->si", arms, residual)).ravel()
-    hessian = scale * tracking_hessian(moment_arm, sens, tracked)      # 1/2 x H x - f x
-    linear += hessian @ x0
+    rows, cols, values = window_entries(moment_arm, sens, tracked)
+    values = scale * values
+    linear += np.bincount(rows, values * x0[cols], minlength=n)        # + H x0
     term, default = window_term(settings.cost)
     diag, lin = term(probe, default if settings.effort_weight is None else settings.effort_weight)
-    hessian[np.diag_indices_from(hessian)] += diag.ravel()
     linear -= lin.ravel()
+    # the cost's diagonal and the smoothness D^T D (same muscle, blocks b and d) on the entries
+    # (b, i), (d, i), which the pairs (i, i) hold
+    same = rows % m == cols % m
+    b, d = rows[same] // m, cols[same] // m
+    values[same] += np.where(b == d, diag.ravel()[rows[same]], 0.0)
     if settings.smoothness > 0:
-        hessian += settings.smoothness * smoothness_matrix(n_blocks, m)
+        values[same] += settings.smoothness * smoothness_matrix(n_blocks)[b, d]
         linear[:m] += settings.smoothness * np.asarray(previous_drive, dtype=float)
-    solution = (qp or BoxQP()).solve(hessian, linear, x0)
+    upper = rows <= cols
+    solution = (qp or BoxQP()).solve_entries(rows[upper], cols[upper], values[upper], linear, x0)
     plan = solution.reshape(n_blocks, m)
-    predicted = moment0 + np.einsum("smc,bsm,bm->sc", moment_arm, sens, plan - probe.nominal)
+    change = np.einsum("bsm,bm->sm", sens, plan - probe.nominal)        # (S, m) N
+    predicted = moment0 + np.einsum("smc,sm->sc", moment_arm, change)
     return WindowPlan(plan[0].copy(), plan, predicted)
 
 
 @functools.lru_cache(maxsize=4)
-def smoothness_matrix(n_blocks: int, m: int) -> np.ndarray:
-    """D^T D of the block-to-block changes U_b - U_{b-1} (U_{-1} fixed: the applied drive);
-    made once per size (read-only)."""
-    change = np.eye(n_blocks * m) - np.eye(n_blocks * m, k=-m)
+def smoothness_matrix(n_blocks: int) -> np.ndarray:
+    """D^T D of one muscle's block-to-block changes U_b - U_{b-1} (U_{-1} fixed: the applied
+    drive), (B, B); made once per size (read-only)."""
+    change = np.eye(n_blocks) - np.eye(n_blocks, k=-1)
     product = change.T @ change
     product.flags.writeable = False
     return product
@@ -203,8 +236,8 @@ def smoothness_matrix(n_blocks: int, m: int) -> np.ndarray:
 
 class BoxQP:
     """argmin 1/2 x H x - f x over 0 <= x <= 1, H symmetric positive definite, by OSQP (an
-    operator-splitting QP solver), set up once for the nonzero pattern of H's upper triangle and,
-    while a later H's nonzeros stay within that pattern, updated in place (values of H, f) and
+    operator-splitting QP solver), set up once for the entries of H's upper triangle and, while
+    a later H has the same entries (rows and columns), updated in place (values of H, f) and
     warm started from ``start`` (the caller's previous plan) instead of set up again. Muscles
     that share no tracked joint are separate blocks of H; OSQP's sparse factorisation keeps them
     apart without splitting the problem here.
@@ -219,31 +252,32 @@ class BoxQP:
 
     def __init__(self):
         self._solver = None
-        self._pattern: np.ndarray | None = None   # (n, n) bool, upper triangle
-        self._index = None                         # (rows, cols) of P's values in CSC order
+        self._entries: tuple | None = None   # (n, rows, cols) of the set-up
+        self._order = None                   # the entries in P's CSC order
         self.unsolved = 0
 
-    def _setup(self, hessian, linear, pattern) -> None:
+    def _setup(self, rows, cols, values, linear) -> None:
         n = len(linear)
-        self._pattern = pattern
-        cols, rows = np.nonzero(pattern.T)          # column-major: CSC order of P's values
-        self._index = (rows, cols)
-        upper = sparse.csc_matrix((hessian[rows, cols], (rows, cols)), shape=(n, n))
-        upper.sort_indices()
+        self._entries = (n, rows.copy(), cols.copy())
+        self._order = np.lexsort((rows, cols))  # by column, then row: CSC
+        indptr = np.concatenate(([0], np.cumsum(np.bincount(cols, minlength=n))))
+        upper = sparse.csc_matrix((values[self._order], rows[self._order], indptr),
+                                  shape=(n, n))
         self._solver = osqp.OSQP()
         self._solver.setup(P=upper, q=-linear, A=sparse.identity(n, format="csc"),
                            l=np.zeros(n), u=np.ones(n), verbose=False, warm_starting=True,
                            polishing=False, eps_abs=OSQP_EPS, eps_rel=OSQP_EPS,
                            max_iter=OSQP_MAX_ITER)
 
-    def solve(self, hessian, linear, start) -> np.ndarray:
-        upper = np.triu(hessian) != 0.0
-        upper[np.diag_indices_from(upper)] = True
-        if self._pattern is None or self._pattern.shape != upper.shape \
-                or np.any(upper & ~self._pattern):
-            self._setup(hessian, linear, upper)
+    def solve_entries(self, rows, cols, values, linear, start) -> np.ndarray:
+        """H given by its upper triangle's entries (rows <= cols, each once, every diagonal
+        entry among them)."""
+        known = self._entries
+        if known is None or known[0] != len(linear) or not (
+                np.array_equal(known[1], rows) and np.array_equal(known[2], cols)):
+            self._setup(rows, cols, values, linear)
         else:
-            self._solver.update(q=-linear, Px=hessian[self._index])
+            self._solver.update(q=-linear, Px=values[self._order])
         self._solver.warm_start(x=np.clip(np.asarray(start, dtype=float), 0.0, 1.0))
         result = self._solver.solve(raise_error=False)
         if result.info.status_val not in SOLVED:
@@ -252,6 +286,13 @@ class BoxQP:
         if x is None or not np.all(np.isfinite(x)):
             return np.clip(np.asarray(start, dtype=float), 0.0, 1.0)
         return np.clip(x, 0.0, 1.0)
+
+    def solve(self, hessian, linear, start) -> np.ndarray:
+        """H dense (n, n): its upper triangle's nonzeros and the diagonal are the entries."""
+        upper = np.triu(hessian) != 0.0
+        upper[np.diag_indices_from(upper)] = True
+        rows, cols = np.nonzero(upper)
+        return self.solve_entries(rows, cols, hessian[rows, cols], linear, start)
 
 
 OSQP_EPS, OSQP_MAX_ITER = 1e-7, 4000
@@ -374,5 +415,6 @@ def tracking_lag(times_s, target, achieved, max_lag_s: float) -> tuple[float, fl
 
 
 __all__ = ["DRIVE2_WEIGHT", "RATE_WEIGHT", "HorizonSettings", "Probe", "RecedingHorizon",
-           "BoxQP", "WindowPlan", "block_edges", "box_qp", "solve_window",
-           "tracking_hessian", "tracking_lag", "window_term"]
+           "BoxQP", "WindowPlan", "block_edges", "box_qp", "coupled_pairs", "solve_window",
+           "tracking_hessian", "tracking_lag", "window_entries",
+           "window_term"]
