@@ -188,13 +188,15 @@ def test_the_tracking_hessian_equals_the_jacobians_product():
                                    rtol=1e-12, atol=1e-12)
 
 
-def test_the_probe_step_of_5_ms_gives_the_forces_of_1_ms_steps():
-    """The coordinator's forward runs step 5 ms: on a 150 ms run at drive 0.5 from drive 0.2's
-    steady state, on a path moving 1 cm at 1 Hz, five library muscles' forces at 50, 100 and
-    150 ms are within 1.5 % of those of 1 ms steps."""
+@pytest.mark.parametrize(("probe_dt", "rtol"), [(5e-3, 0.015), (1e-2, 0.04)])
+def test_the_probe_step_gives_the_forces_of_1_ms_steps(probe_dt, rtol):
+    """The coordinator's forward runs step coordination.sample_period_s (5 ms by default): on a
+    150 ms run at drive 0.5 from drive 0.2's steady state, on a path moving 1 cm at 1 Hz, five
+    library muscles' forces at 50, 100 and 150 ms are within 1.5 % (5 ms steps) and 4 % (10 ms
+    steps) of those of 1 ms steps (measured 1.3 % and 3.5 %)."""
     names = ["biceps_long_head", "brachialis", "triceps_long_head", "soleus", "vasti"]
     forces = {}
-    for dt in (1e-3, 5e-3):
+    for dt in (1e-3, probe_dt):
         bank = MuscleBank.from_config(names)
         mid = mid_lengths(bank)
         k = int(round(0.15 / dt))
@@ -203,4 +205,4 @@ def test_the_probe_step_of_5_ms_gives_the_forces_of_1_ms_steps():
         run = bank.run(dt, np.full((k, 5), 0.5), mid + 0.01 * np.sin(2 * np.pi * t)[:, None],
                        np.repeat((0.01 * 2 * np.pi * np.cos(2 * np.pi * t))[:, None], 5, 1))
         forces[dt] = run.force[[int(round(x / dt)) - 1 for x in (0.05, 0.1, 0.15)]]
-    np.testing.assert_allclose(forces[5e-3], forces[1e-3], rtol=0.015)
+    np.testing.assert_allclose(forces[probe_dt], forces[1e-3], rtol=rtol)

@@ -8,7 +8,7 @@ with its drives, as the node does. Muscles: the shipped library's, repeated unde
 make up the count; each crosses one of ``n / 3`` coordinates (rounded up) with a moment arm of
 +-3 cm (flexors and extensors in turn); path lengths swing about the middle of each muscle's
 range at 1 Hz; targets 30 % of each coordinate's flexor capacity at full drive, at 1 Hz.
-Default settings (horizon 0.15 s, 3 blocks, the tsianos2012 cost).
+Default settings (horizon 0.15 s, 3 blocks, samples every 5 ms, the tsianos2012 cost).
 
 Reported: per period, the solve (the latency from a period's start to its drives) and the
 period's whole work, wall-clock median, p99 and max over 3 s of model time after 0.5 s of
