@@ -187,6 +187,7 @@ def test_stream_targets_report_lag_and_error_and_bad_targets_are_counted(ros, ge
     assert ros.spin_until(diagnostics_have_tracking, timeout_s=30)
     values = probe.base.last_diagnostics()
     assert 0.0 <= float(values["tracking lag (s)"]) <= 0.15
+    assert values["coordination QP not solved (periods)"] == "0"
     assert float(values["tracking error RMS (N m)"]) >= 0.0
 
     bad = [  # (kind, send)
