@@ -324,8 +324,9 @@ class RecedingHorizon:
     muscles; test_coordination_live.py): the probe needs the derivatives, and each period starts
     again from the caller's state. 10 ms would halve the probe run, most of an 80-muscle
     period's work, but with it the drives of two identical muscles on one joint (8 N m held)
-    oscillated over the first periods and split apart by up to 0.25 (at 5 ms: 4e-13; measured
-    once)."""
+    oscillated over the first periods and split apart by up to 0.25 (at 5 ms: 4e-13; the same
+    with the active-set QP solver this replaced: a property of the coarser probe, not of OSQP;
+    measured once)."""
 
     def __init__(self, bank: MuscleBank, index, period_s: float,
                  settings: HorizonSettings = HorizonSettings()):
