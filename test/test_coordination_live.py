@@ -143,7 +143,7 @@ def test_tracking_lag_finds_a_known_delay():
 
 def test_box_qp_matches_an_independent_bounded_solver():
     """Random strictly convex problems with some bounds active, in one BoxQP updated from problem
-    to problem (OSQP set up once, warm started) and on a changed sparsity pattern (set up again):
+    to problem (OSQP set up once, warm started) and on other nonzero entries (set up again):
     its minimiser equals scipy's L-BFGS-B's (a quasi-Newton method, not OSQP's splitting) to
     1e-6; a one-off box_qp too."""
     from scipy.optimize import minimize
@@ -153,7 +153,7 @@ def test_box_qp_matches_an_independent_bounded_solver():
     for k in range(20):
         a = rng.normal(size=(12, 8))
         hessian = a.T @ a + 0.1 * np.eye(8)
-        if k >= 10:  # two uncoupled groups: a pattern within the first, updated in place
+        if k >= 10:  # two uncoupled groups: other entries, set up again, then updated
             hessian[:4, 4:] = hessian[4:, :4] = 0.0
         linear = rng.normal(scale=4.0, size=8)
         start = rng.uniform(size=8)
