@@ -162,9 +162,12 @@ def test_box_qp_matches_an_independent_bounded_solver():
                              method="L-BFGS-B",
                              bounds=[(0.0, 1.0)] * 8, options={"ftol": 1e-15, "gtol": 1e-12})
         active += int(np.sum((reference.x < 1e-9) | (reference.x > 1 - 1e-9)))
+        solver = qp._solver
         for x in (qp.solve(hessian, linear, start), box_qp(hessian, linear, start)):
             np.testing.assert_allclose(x, reference.x, atol=1e-6)
             assert np.all((x >= 0) & (x <= 1))
+        # same entries as the problem before: OSQP updated, not set up again
+        assert (qp._solver is solver) == (k not in (0, 10))
     assert active >= 20  # bounds active in the references
     qp.solve(np.eye(3), np.ones(3), np.zeros(3))  # another size: set up again
     assert qp.unsolved == 0
