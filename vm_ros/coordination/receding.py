@@ -17,8 +17,8 @@ rest of the horizon is split evenly), U of shape (B, m), each in [0, 1], and
 Solved by one Gauss-Newton step per period about the previous plan shifted by one block. The
 path is prescribed, so muscle i's force depends on its own drive only: the derivatives of every
 force with respect to block b of every drive come from one run with all of block b raised by
-``probe_drive``. The B + 1 runs (nominal, one per block) are one MuscleBank.run of a bank holding
-B + 1 copies of the muscles. The linearised problem is a bounded QP, solved by OSQP (BoxQP: set
+``probe_drive``. The B + 1 runs (nominal, one per block) run as banks of copies of the muscles,
+block by block (RecedingHorizon). The linearised problem is a bounded QP, solved by OSQP (BoxQP: set
 up once, updated and warm started each period); block 0 is applied, the rest seeds the next
 period.
 
@@ -40,6 +40,7 @@ from scipy import sparse
 
 from vm_ros.coordination import costs
 from vm_ros.model import MuscleBank
+from vm_ros.model.layout import STATE_NAMES, BankState
 
 DRIVE_FLOOR_WEIGHT = 1e-3  # (N m)^2 per drive^2: keeps the energy cost's quadratic part > 0
 
@@ -306,16 +307,27 @@ def box_qp(hessian, linear, start) -> np.ndarray:
 
 def _replicated(state, index, copies: int):
     """The bank state of muscles ``index``, ``copies`` times along the muscle axis."""
-    from vm_ros.model.layout import STATE_NAMES, BankState
-
     return BankState(time_s=float(state.time_s), **{
         name: np.concatenate([getattr(state, name)[index]] * copies) for name in STATE_NAMES})
 
 
+def _with_first_again(state, m: int):
+    """``state`` with its first ``m`` muscles appended once more."""
+    return BankState(time_s=float(state.time_s), **{
+        name: np.concatenate([getattr(state, name), getattr(state, name)[:m]])
+        for name in STATE_NAMES})
+
+
 class RecedingHorizon:
     """The live coordinator of the muscles ``index`` of ``bank`` (module docstring). It owns
-    its probe bank (B + 1 copies of those muscles, no published energetics models) and the plan
-    carried from one period to the next; the caller's bank is never stepped here.
+    its probe banks (2, ..., B + 1 copies of those muscles, no published energetics models) and
+    the plan carried from one period to the next; the caller's bank is never stepped here.
+
+    The probe runs block by block: over block s the nominal plan and the copies that raise
+    blocks 0..s; the copy that raises block s starts at the block's start from the nominal's
+    state there (before it, its drives are the nominal's, and every muscle's arithmetic is its
+    own, so that is the state it would have reached). 3 blocks over 30 steps: 102 copy-steps
+    instead of 120.
 
     The forward runs step ``probe_dt_s``: ``settings.eval_step_s`` rounded so that a whole
     number of them make the period (``period_s``); the tracked samples are the ends of those
@@ -340,10 +352,11 @@ class RecedingHorizon:
         self.n_blocks = len(self.edges) - 1
         self.m = len(self.index)
         specs = [bank.specs[i] for i in self.index]
-        self.probe_bank = MuscleBank(specs * (self.n_blocks + 1), bank.params,
-                                     recruitment=bank.recruitment.name,
-                                     recovery_mode=bank.recovery_mode, backend=bank.backend,
-                                     energetics_models=self.cost.bank_models)
+        self.probe_banks = [MuscleBank(specs * (s + 2), bank.params,
+                                       recruitment=bank.recruitment.name,
+                                       recovery_mode=bank.recovery_mode, backend=bank.backend,
+                                       energetics_models=self.cost.bank_models)
+                            for s in range(self.n_blocks)]
         self.plan = np.zeros((self.n_blocks, self.m))
         self.drive = np.zeros(self.m)  # applied last period
         self.qp = BoxQP()  # set up at the first period, updated after
@@ -358,10 +371,30 @@ class RecedingHorizon:
         """(k,) s after the window start at which each probe step ends (targets, moment arms)."""
         return self.probe_dt_s * np.arange(1, self.steps + 1)
 
-    def _drive_series(self, plans) -> np.ndarray:
-        """(k, R m) drives of R plans (R, B, m), each block held over its steps."""
-        per_step = np.repeat(plans, np.diff(self.edges), axis=1)          # (R, k, m)
-        return np.ascontiguousarray(per_step.transpose(1, 0, 2).reshape(self.steps, -1))
+    def _probe(self, state, plans, path_length, path_velocity) -> tuple:
+        """(forces N, cost rates) (B + 1, k, m) of the nominal plan (copy 0) and of the plans
+        raising block b (copy b + 1), block by block (class docstring)."""
+        m, edges = self.m, self.edges
+        per_step = np.repeat(plans, np.diff(edges), axis=1)               # (B + 1, k, m)
+        forces, rates = np.empty_like(per_step), np.empty_like(per_step)
+        current = _replicated(state, self.index, 2)
+        for s, bank in enumerate(self.probe_banks):
+            a, b, copies = edges[s], edges[s + 1], s + 2
+            if s > 0:  # block s's copy starts from the nominal's state
+                current = _with_first_again(current, m)
+            drives = np.ascontiguousarray(
+                per_step[:copies, a:b].transpose(1, 0, 2).reshape(b - a, copies * m))
+            bank.set_state(current)
+            run = bank.run(self.probe_dt_s, drives, np.tile(path_length[a:b], (1, copies)),
+                           np.tile(path_velocity[a:b], (1, copies)))
+            current = bank.restore_point()
+            forces[:copies, a:b] = run.force.reshape(b - a, copies, m).transpose(1, 0, 2)
+            rates[:copies, a:b] = self.cost.rate(run, drives, self.cost.bank_models).reshape(
+                b - a, copies, m).transpose(1, 0, 2)
+        for block in range(1, self.n_blocks):  # before its block, a copy is the nominal
+            forces[block + 1, :edges[block]] = forces[0, :edges[block]]
+            rates[block + 1, :edges[block]] = rates[0, :edges[block]]
+        return forces, rates
 
     def solve(self, state, path_length, path_velocity, moment_arm, target,
               tracked=None) -> WindowPlan:
@@ -381,14 +414,8 @@ class RecedingHorizon:
         plans = np.repeat(nominal[None], copies, axis=0)
         for b in range(self.n_blocks):
             plans[b + 1, b] += delta[b]
-        self.probe_bank.set_state(_replicated(state, self.index, copies))
-        reps = (1, copies)
-        drives = self._drive_series(plans)
-        run = self.probe_bank.run(self.probe_dt_s, drives, np.tile(path_length, reps),
-                                  np.tile(path_velocity, reps))
-        forces = run.force.reshape(self.steps, copies, self.m).transpose(1, 0, 2)
-        rates = self.cost.rate(run, drives, self.cost.bank_models).mean(axis=0).reshape(
-            copies, self.m)
+        forces, rates = self._probe(state, plans, path_length, path_velocity)
+        rates = rates.mean(axis=1)
         probe = Probe(nominal, delta, np.diff(self.edges) / self.steps, rates[0],
                       (rates[1:] - rates[0]) / delta)
         plan = solve_window(forces, moment_arm, target, tracked, probe, self.settings,
