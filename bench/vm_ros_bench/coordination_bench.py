@@ -31,10 +31,11 @@ from vm_ros.model.params import load_muscle_library
 
 DT_S, PERIOD_STEPS = 1e-3, 10
 ARM_M = 0.03
-# (muscles, settings name): default settings, and for 80 muscles also a lighter problem
+# (muscles, settings name): default settings, and for 80 muscles also two lighter problems
 LIGHT = HorizonSettings(blocks=2, eval_step_s=0.01)
-CASES = ((18, "default"), (80, "default"), (80, "blocks 2, samples every 10 ms"))
-SETTINGS = {"default": HorizonSettings(), "blocks 2, samples every 10 ms": LIGHT}
+CASES = ((18, "default"), (80, "default"), (80, "blocks 2"), (80, "blocks 2, samples every 10 ms"))
+SETTINGS = {"default": HorizonSettings(), "blocks 2": HorizonSettings(blocks=2),
+            "blocks 2, samples every 10 ms": LIGHT}
 
 
 def muscle_bank(n: int) -> MuscleBank:
