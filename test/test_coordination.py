@@ -123,7 +123,7 @@ def test_drive_squared_static_case_is_the_static_optimisation_solution(tmp_path)
 @pytest.mark.parametrize("refine", [0, 2])
 def test_forward_run_moments_follow_a_slow_target_within_one_percent_of_peak(tmp_path, refine):
     """An agonist pair and an antagonist over a slow swing; default cost (VM's energy), the two
-    stages alone and with two polish steps. The first 0.1 s are held to the RMS only: the run
+    stages alone and with two Gauss-Newton steps. The first 0.1 s are held to the RMS only: the run
     starts at the steady state of the first drive node, which also drives the first 40 ms
     (measured: 2.0 % of peak at t = 0)."""
     peak = 15.0

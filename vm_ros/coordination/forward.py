@@ -162,22 +162,3 @@ class ForwardModel:
                                                             np.concatenate(cols[i]))),
                                  shape=shape) for i in range(n)]
         return jac, grads
-
-    def gains(self, nodes: np.ndarray, base: ForwardOutput, delta: float = 0.02):
-        """From one run with every node of every muscle perturbed: the local gain of force to
-        drive at the frames (T, n), dF_i(t_f) / dU_i(t_f), and d(integral of each rate)/d(node
-        drive) (N, n) per rate name with the rate's change put down to the step's own drive
-        (no lag). Used to rescale a banded sensitivity between its full computations."""
-        step = np.where(nodes + delta <= 1.0, delta, -delta)
-        out = self.run(nodes + step)
-        p = self.problem
-        hat = hat_matrix(p.frame_times_s, self.node_step_s, self.n_nodes)
-        at_frames, per_step = hat @ step, self.steps @ step
-        # where raised and lowered nodes meet the step is small: no gain there (NaN; 0 rate)
-        gain = np.divide(out.force_frames - base.force_frames, at_frames,
-                         out=np.full_like(at_frames, np.nan), where=np.abs(at_frames) > delta / 2)
-        grads = {name: self.steps.T @ np.divide(rate - base.rates[name], per_step,
-                                                out=np.zeros_like(per_step),
-                                                where=np.abs(per_step) > delta / 2) * p.dt_s
-                 for name, rate in out.rates.items()}
-        return gain, grads
