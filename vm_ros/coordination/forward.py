@@ -12,9 +12,8 @@ nodes comes from ``groups`` perturbed runs: run g raises (or, near 1, lowers) by
 node j with j mod groups = g, of every muscle; the change at times in [t_{j-1}, t_{j-1} +
 groups h) is put down to node j. This is exact for a model whose response to a drive change
 has faded within groups h - 2 h (the hat function's width); the activation's 90 % rise time is
-0.2-0.3 s and a drive change leaves a tail for longer, so groups h >= 0.8 s is the default
-(``memory_s``; with 0.4 s two identical muscles drifted apart in the tests). Results beyond the
-window are
+0.2-0.3 s and a drive change leaves a tail for longer: ``memory_s`` (config/coordination.yaml,
+0.6 s, measured on the walk) sets groups = memory_s / h + 2. Results beyond the window are
 dropped (a truncated Jacobian: it slows the iteration, it does not change what it converges to,
 the forward run being exact).
 """
