@@ -286,7 +286,7 @@ class StepQP:
         # each muscle's (frame, coordinate) pairs it crosses
         self.crossed = [np.flatnonzero(np.any(problem.moment_arm[:, i, :] != 0, axis=0))
                         for i in range(self.n)]
-        self.solver = None
+        self.solver = self.pattern = None
 
     def _hessian(self, damping: float) -> sparse.csc_matrix:
         du = self.curvature + sparse.identity(self.size) * (damping / self.size)
@@ -322,10 +322,12 @@ class StepQP:
         low = np.concatenate([rho, -u])
         high = np.concatenate([rho, 1.0 - u])
         hessian, constraints = self._hessian(damping), self._constraints(jac)
-        if self.solver is None:
-            self.solver = osqp.OSQP()
+        pattern = (hessian.nnz, constraints.nnz)
+        if self.solver is None or pattern != self.pattern:   # set up once (same sparsity)
+            self.solver, self.pattern = osqp.OSQP(), pattern
             self.solver.setup(P=hessian, q=q, A=constraints, l=low, u=high, verbose=False,
-                              eps_abs=self.o.qp_eps, eps_rel=self.o.qp_eps, polishing=False)
+                              eps_abs=self.o.qp_eps, eps_rel=self.o.qp_eps, polishing=False,
+                              warm_starting=True)
         else:
             self.solver.update(Px=hessian.data, Ax=constraints.data, q=q, l=low, u=high)
         out = self.solver.solve(raise_error=False)
