@@ -111,7 +111,7 @@ class BoundMissedError(AssertionError):
 
 @pytest.mark.xfail(raises=BoundMissedError, strict=True, reason=(
     "issue 30's 5 % RMS of peak is not met by muscle_node's live coordination at its default "
-    "settings: measured 3.8-8.7 % (hip_flexion_l worst); the node's other outputs are checked"))
+    "settings (measured: docs/coordination.md, 'Replayed over ROS'); the other checks hold"))
 def test_the_walk_replayed_as_a_planned_profile(ros, walk):
     """Default coordination settings. Drives in [0, 1] for every muscle, no stale input, a
     joint_efforts message per period of the walk; then each coordinate's RMS error / peak
