@@ -50,7 +50,8 @@ def test_relative_drive_law_at_its_limits():
     # docs/model.md section 5c, with hand-chosen constants
     lumped = dataclasses.replace(LP, drive_law="relative_drive", relative_rise_poly=(0.1,),
                                  relative_rise_power=2.0, relative_fall_poly=(0.6,),
-                                 relative_fall_power=4.0, drive_tau_min=1e-4)
+                                 relative_fall_power=4.0, relative_fall_floor=0.05,
+                                 drive_tau_min=1e-4)
     r = _lumped(0.4, params=lumped)
 
     def tau(u, ueff, active=1.0):
@@ -73,7 +74,7 @@ def test_firing_fraction():
 
 
 def _lumped(fs, ur=0.8, params=LP):
-    return rc.LumpedRecruitment(np.array([[fs, 1 - fs]]), np.array([ur]), params, 0.05)
+    return rc.LumpedRecruitment(np.array([[fs, 1 - fs]]), np.array([ur]), params)
 
 
 def test_lumped_recruitment_capped_at_full_recruitment_of_each_type():

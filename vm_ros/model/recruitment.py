@@ -129,13 +129,6 @@ def firing_fraction(f_eff, f_env):
 
 
 @jitable
-def mid_activation_fall_time_constant(tf3, tf4):
-    """The firing-rate fall time constant (tf3 + tf4 Af) / L at Af = 1/2 and L = L0 (s): the
-    rate at which a unit that stops firing lets go, in the middle of its activation range."""
-    return tf3 + 0.5 * tf4
-
-
-@jitable
 def relative_drive_tau(u, ueff, active, t_rise, rise_power, t_fall, fall_floor, fall_power,
                        tau_min):
     """Time constant (s) of the filtered drive Ueff, relative_drive law (docs/model.md section 5d).
@@ -146,8 +139,8 @@ def relative_drive_tau(u, ueff, active, t_rise, rise_power, t_fall, fall_floor, 
     unit's does; up to T_r when units are recruited on top of active ones, which build up behind
     them.
     U < Ueff: T_U = T_f0 + T_f (1 - U / Ueff)^p: T_f0 + T_f on release (W held while the firing
-    rate, and with it Af, decays as in natural units), near T_f0 for a small fall: T_f0 is the
-    slow fibres' :func:`mid_activation_fall_time_constant`, at which derecruited units let go.
+    rate, and with it Af, decays as in natural units), near T_f0 for a small fall: the pace at
+    which derecruited units let go.
     Held at or above ``tau_min``.
     """
     up = u >= ueff
@@ -212,7 +205,6 @@ class LumpedRecruitment(_OnePoolPerFibreType):
     """One lumped unit per fibre type (Tsianos 2012 Appendix A), the default scheme."""
 
     params: LumpedParams
-    slow_fall_s: float  # T_f0 of the relative_drive law (s): mid_activation_fall_time_constant
     name: str = "lumped"
 
     @cached_property
@@ -235,8 +227,8 @@ class LumpedRecruitment(_OnePoolPerFibreType):
         c, p = self.coefficients, self.params
         if p.drive_law == "relative_drive":
             return relative_drive_tau(u, ueff, active, c.relative_rise, p.relative_rise_power,
-                                      c.relative_fall,
-                                      self.slow_fall_s, p.relative_fall_power,
+                                      c.relative_fall, p.relative_fall_floor,
+                                      p.relative_fall_power,
                                       p.drive_tau_min)
         return lumped_drive_tau(u, ueff, c.t_rise, c.t_fall, p.t_rise_step_scale)
 
@@ -394,9 +386,7 @@ class ContinuousRecruitment(_OnePoolPerFibreType):
 def make_recruitment(scheme: str, fpcsa, ur, params):
     """Build the scheme named ``scheme`` from (n, 2) PCSA fractions, (n,) Ur and ModelParams."""
     if scheme == "lumped":
-        fibre = params.fibre
-        slow_fall = mid_activation_fall_time_constant(fibre.tf3[SLOW], fibre.tf4[SLOW])
-        return LumpedRecruitment(fpcsa, ur, params.lumped, float(slow_fall))
+        return LumpedRecruitment(fpcsa, ur, params.lumped)
     if scheme == "natural":
         return NaturalRecruitment(fpcsa, ur, params.natural)
     if scheme == "continuous":
