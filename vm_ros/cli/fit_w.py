@@ -75,7 +75,7 @@ FILTER_DIGITS = 4
 
 def _rounded(value, rounding):
     if isinstance(value, tuple):
-        return [rounding(float(v)) for v in value]
+        return tuple(rounding(float(v)) for v in value)
     return rounding(float(value))
 
 
@@ -88,8 +88,10 @@ def _write_params_yaml(source: Path, lumped, fields, rounding, how: str, path: P
     section = data["recruitment"]["lumped"]
     section["drive_law"]["value"] = lumped.drive_law
     for name in fields:
+        value = rounding(getattr(lumped, name))
         section[name] = {
-            "value": rounding(getattr(lumped, name)), "unit": section[name]["unit"], "tag": "R",
+            "value": list(value) if isinstance(value, tuple) else value,
+            "unit": section[name]["unit"], "tag": "R",
             "source": f"{how}; value before the fit {section[name]['value']}",
         }
     path.write_text(yaml.safe_dump(data, sort_keys=False, width=100), encoding="utf-8")
