@@ -14,6 +14,12 @@ The logs attach the shipped muscle library, so its bytes are in the digests: the
 with today's config/muscles.yaml in that commit's source (its entries are those of bb0d40a; the
 file since gained comment lines), and change when the file does.
 
+The model's constants are in the digests too: when the drive filter's constants became the fit's
+output (config/model.yaml recruitment.lumped.relative_*, a new one among them, which the code of
+bb0d40a and 8817190 cannot read), DIGESTS and SLOW_LEG_DIGESTS were recomputed by the same
+procedure against the source of that change (commit cf33c05, a clean worktree, this file run
+against it as above; SLOW_LEG_DIGESTS by ``slow_leg_digests``).
+
 A digest covers every message (channel topic and type, log time, publish time, raw CDR bytes),
 every attachment and the metadata except the library versions and the paths of the files read
 (``*_file``: the attachments hold their bytes). It depends on the numerical
@@ -40,12 +46,12 @@ from vm_ros.model import MuscleBank
 START_NS = 1_700_000_000_123_456_789
 COMPUTED_WITH = {"numpy": "2.4.6", "scipy": "1.17.1", "mcap": "1.6.0"}
 DIGESTS = {
-    "bank_numpy": "66233637afe147b291f732637155f9100f30887739b8ec7a56d9a1e7a265f906",
-    "bank_auto": "eef3c545b6724a49b9becc3b1b55cc74c47067dd959d4630bcb3b471b9c1d0ba",
-    "knee": "0ef73c5f845d1f3e900e43622e98dfcb942090f8c90d18a0cf2e658e157cc8be",
-    "leg": "7a0da8be36158e5982b280dea45e50ea2960a7840d32514a4b462456ecd9d519",
-    "knee_recomputed": "e24813821b2e421a959fcb8751e1a5f9280a5036381005ffb87d6678dd6f18c6",
-    "leg_recomputed": "9617fbabc546350362c98c5a88f882b22113613c30fc0c8ebcdd30a20418a456",
+    "bank_numpy": "918b11d24f54c5ceef0a59f9a4fa0a0721d9a4fc788175837361c60a75ebca8a",
+    "bank_auto": "4969f4fe349882b40d4b526d4395a93baf8d968d92c21b082bc5adb30def19bc",
+    "knee": "a211a68dfdd95c63cc5c7cb90283820b26fb22eae1fd07218af5e144688bf793",
+    "leg": "b8b786b046da37219cbe52f7b3712847125deb0473cd1a0024898d71f06740df",
+    "knee_recomputed": "fa1defefd4312d6cc3a80f9c35f7325b661f586ec996abc5bb4f94d79c2bbf34",
+    "leg_recomputed": "2fb19fb27c5df0ad5f08fdc4e54f207e1f9f7887ad7683442c5cc0c726a19885",
 }
 
 
@@ -125,8 +131,8 @@ def log_digests(directory: Path) -> dict:
 # recompute read logs as arrays (commit 8817190), as above against that commit's source with
 # today's config/muscles.yaml
 SLOW_LEG_DIGESTS = {
-    "leg_slow": "d291bb2bbaa746b1a0022be48cb7f231e6008691e57e9efc5263a1a2106b6919",
-    "leg_slow_recomputed": "b09ccc231d689c2e90ff81ebcaf9e808a876758528dc0184cb40bf97a554f5e9",
+    "leg_slow": "60214084808b4c6e691ad0d4a0768ff81ca7e802c12e10fd27ae1f14c8a00fb3",
+    "leg_slow_recomputed": "35a2bcfff3e75eb565e50da43220a7a4382673f157d733d10f54883746edbc0d",
 }
 
 

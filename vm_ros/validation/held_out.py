@@ -2,8 +2,9 @@
 
 Items 4, 5 and 11 compare the two schemes on the paper's steady states and sinusoids and on nine
 steps; the drive filter was fitted (vm_ros.model.lumped_fit.fit_drive_filter) on a fixed training
-drive of steps and slow sinusoids at L0. This item draws drives the fit never sees, from the
-seeds in HELD_OUT_SEEDS (numpy's default_rng; the fit uses no random drive at all):
+drive of steps, slow sinusoids, ramps of other lengths and pulse trains from other seeds
+(lumped_fit.TRAINING_SEEDS), at L0. This item draws drives the fit never sees, from the seeds in
+HELD_OUT_SEEDS (numpy's default_rng):
 
 | family | drive | fascicle |
 | pulses_l0 | random levels 0-1 (one in five at rest), each held 50-400 ms | L0 |
