@@ -297,7 +297,7 @@ def _drive_loop(dt, count, lumped, natural, relative_drive, u_in, out_u, drive, 
         # would stop its vectorisation (the other schemes' constants are NaN, never selected).
         ueff_old = drive[i]
         # lumped, relative-drive law: the slow pool (pool 0) says how active the units already are
-        active = rc.firing_fraction(
+        active = rc.firing_match(
             f_eff_slow[i],
             act.firing_envelope(u, c[ROW_C_THRESHOLD, i], s[S.fmin], s[S.fmax]),
         )
