@@ -18,7 +18,8 @@ The model's constants are in the digests too: when the drive filter's constants 
 output (config/model.yaml recruitment.lumped.relative_*, a new one among them, which the code of
 bb0d40a and 8817190 cannot read), DIGESTS and SLOW_LEG_DIGESTS were recomputed by the same
 procedure against the source of that change (commit cf33c05, a clean worktree, this file run
-against it as above; SLOW_LEG_DIGESTS by ``slow_leg_digests``).
+against it as above; SLOW_LEG_DIGESTS by ``slow_leg_digests``), and again when the drive filter's
+fall came to follow the lumped unit's firing, against commit 1476522.
 
 A digest covers every message (channel topic and type, log time, publish time, raw CDR bytes),
 every attachment and the metadata except the library versions and the paths of the files read
@@ -46,12 +47,12 @@ from vm_ros.model import MuscleBank
 START_NS = 1_700_000_000_123_456_789
 COMPUTED_WITH = {"numpy": "2.4.6", "scipy": "1.17.1", "mcap": "1.6.0"}
 DIGESTS = {
-    "bank_numpy": "918b11d24f54c5ceef0a59f9a4fa0a0721d9a4fc788175837361c60a75ebca8a",
-    "bank_auto": "4969f4fe349882b40d4b526d4395a93baf8d968d92c21b082bc5adb30def19bc",
-    "knee": "a211a68dfdd95c63cc5c7cb90283820b26fb22eae1fd07218af5e144688bf793",
-    "leg": "b8b786b046da37219cbe52f7b3712847125deb0473cd1a0024898d71f06740df",
-    "knee_recomputed": "fa1defefd4312d6cc3a80f9c35f7325b661f586ec996abc5bb4f94d79c2bbf34",
-    "leg_recomputed": "2fb19fb27c5df0ad5f08fdc4e54f207e1f9f7887ad7683442c5cc0c726a19885",
+    "bank_numpy": "8ba958b2e9d45d4517f2d9a2395b2e8a7815d465473d0c2bf40d049747536d54",
+    "bank_auto": "6993f04ec446d3a9e8b420897981c5443d3a3733d2ce5459132ab035667daf80",
+    "knee": "5655d5bb56dbc579abfe6fc85eb33fe1fd4a78c6a533519e2315c4cd9ff47f08",
+    "leg": "3f41009b0f221ff1bedd43d15858932bb65a08b45144bc9cc58bd72435ab41e3",
+    "knee_recomputed": "de1b88fb2073519dfae53c1ba6acc73f996d4d4c198469158bc51655cc987a52",
+    "leg_recomputed": "2ccc2e0284d87ab3cfe36fedd6bf168aa5ed634ae75ab528061e7e1c083bd432",
 }
 
 
@@ -131,8 +132,8 @@ def log_digests(directory: Path) -> dict:
 # recompute read logs as arrays (commit 8817190), as above against that commit's source with
 # today's config/muscles.yaml
 SLOW_LEG_DIGESTS = {
-    "leg_slow": "60214084808b4c6e691ad0d4a0768ff81ca7e802c12e10fd27ae1f14c8a00fb3",
-    "leg_slow_recomputed": "35a2bcfff3e75eb565e50da43220a7a4382673f157d733d10f54883746edbc0d",
+    "leg_slow": "467ed28524c1e3b8733d13efe995a0ac2c5087122a1fceafe88e280bab8d4bbc",
+    "leg_slow_recomputed": "4f130a928d6d249bd019b1ae3d14832adf63a2600fcc6a4a7c2652983cc79804",
 }
 
 

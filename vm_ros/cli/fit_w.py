@@ -51,7 +51,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--ur", type=float, default=0.8,
                         help="drive at which all units are recruited (default 0.8)")
     parser.add_argument("--fpcsa-slow", type=float, nargs="+", default=list(DEFAULT_FPCSA_GRID),
-                        metavar="F", help="slow PCSA fractions to fit over (default 0.2 ... 0.8)")
+                        metavar="F", help="slow PCSA fractions to fit W over (default 0.2 ... "
+                        "0.8; the drive filter has its own grid, lumped_fit.DRIVE_FILTER_GRID)")
     parser.add_argument("--units", type=int, default=50,
                         help="natural units per fibre type in the reference ensemble (default 50)")
     parser.add_argument("--drive-filter", action="store_true",
