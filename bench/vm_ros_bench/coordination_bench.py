@@ -181,15 +181,17 @@ MYOLEGS_S, MYOLEGS_FRAME_S, MYOLEGS_TARGET_S = 10.0, 0.01, 60.0
 GAIT_CYCLE_S = 1.1   # s per stride (both legs), about 109 steps per minute
 # Gait-like sagittal angles (deg) over the gait cycle phase p (0 = heel strike): an offset plus
 # bumps a exp(k (cos 2 pi (p - c) - 1)) for (a, c, k); shaped after the normal-walking curves
-# of Perry 1992 (hip about 30 deg flexed at heel strike, 8 deg extended in terminal stance;
+# of Perry 1992 (hip about 27 deg flexed at heel strike, 8 deg extended in terminal stance;
 # knee 20 deg in loading response, 60 deg in initial swing; ankle 7 deg plantarflexion after
-# heel strike, 12 deg dorsiflexion in terminal stance, 20 deg plantarflexion at toe-off), drawn
-# from those landmarks, not fitted to data. The left leg half a cycle later; every other
-# coordinate of the model held at 0 (inside every range of myolegs).
+# heel strike, 11 deg dorsiflexion in terminal stance, 22 deg plantarflexion at toe-off), drawn
+# from those landmarks, not fitted to data; bump widths such that the angular accelerations
+# stay within 34 / 132 / 129 rad/s^2 (hip, knee, ankle: the curves' second derivative at a
+# 1.1 s stride). The left leg half a cycle later; every other coordinate of the model held at
+# 0 (inside every range of myolegs).
 GAIT_ANGLES_DEG = {"hip_flexion": (-10.0, ((40.0, 0.95, 1.5),)),
-                   "knee_angle": (3.0, ((17.0, 0.15, 25.0), (57.0, 0.72, 12.0))),
-                   "ankle_angle": (0.0, ((-7.0, 0.07, 60.0), (12.0, 0.45, 12.0),
-                                         (-20.0, 0.63, 50.0)))}
+                   "knee_angle": (2.0, ((18.0, 0.15, 6.0), (58.0, 0.72, 4.0))),
+                   "ankle_angle": (0.0, ((-7.0, 0.07, 12.0), (12.0, 0.42, 5.0),
+                                         (-22.0, 0.63, 10.0)))}
 
 
 def gait_angles_deg(joint: str, phase) -> np.ndarray:
