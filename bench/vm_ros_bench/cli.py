@@ -1,7 +1,8 @@
 """Measure the model, the offline runner and muscle_node against vm_ros's speed targets; write
 the results (JSON and CSV) and print a table.
 
-Sections (all but coordination-walk, study and node-memory by default; --only picks some):
+Sections (all but coordination-walk, report-walk, study and node-memory by default; --only picks
+some):
   model     MuscleBank.step for 1, 10, 100, 1000 muscles (lumped units, energetics on,
             dt 1 ms), compiled (Numba) and NumPy back ends; the published energetics models'
             cost at 1000 muscles; the kernel per muscle-step: run against repeated step at 1,
@@ -43,6 +44,11 @@ Sections (all but coordination-walk, study and node-memory by default; --only pi
             F0, default options and --refine 6; reserve RMS per coordinate (% of peak; target
             < 3 %), forward runs, seconds (target < 10 s), load average. Skipped with the reason
             when the walk is not fetched (scripts/fetch-gait-data).
+  report-walk
+            runs only when named (--only report-walk; about a minute): vm-ros report of
+            opensim-models' Gait10dof18musc walk simulated with its CMC controls (18 muscles),
+            with and without plots; the plotting time is the difference (target < 5 s).
+            Skipped with the reason when the walk is not fetched (scripts/fetch-gait-data).
   node-memory
             runs only when named (--only node-memory; 7 minutes): muscle_node's resident
             memory over a long run, 100 muscles at 1 kHz, publish 100 Hz, MCAP as a rosbag2
@@ -92,7 +98,7 @@ from vm_ros.errors import VmRosError
 from vm_ros_bench import FOLDER, child_environment
 
 SECTIONS = ("model", "natural", "offline", "decode", "node", "joint", "coordination",
-            "coordination-walk", "study", "node-memory")
+            "coordination-walk", "report-walk", "study", "node-memory")
 DEFAULT_SECTIONS = ("model", "natural", "offline", "decode", "node", "joint",
                     "coordination")  # node-memory and study: when named
 MEMORY_DURATION_S, MEMORY_QUICK_DURATION_S = 300.0, 60.0  # node-memory window
@@ -438,6 +444,16 @@ def _csv_rows(results: dict) -> list[dict]:
         add("coordination-walk", case, "load_average_start", r["load_average_start"], "")
         add("coordination-walk", case, "seconds", r["seconds"], "s", f"< {WALK_TARGET_S:g} s",
             r["seconds"] < WALK_TARGET_S)
+    r = results.get("report-walk")
+    if r and "skipped" in r:
+        add("report-walk", "Gait10dof18musc walk", "skipped", r["skipped"], "")
+    elif r and "plotting_s" in r:
+        case = "Gait10dof18musc walk, 18 muscles, CMC controls"
+        add("report-walk", case, "report", r["report_s"], "s")
+        add("report-walk", case, "report --no-plots", r["no_plots_s"], "s")
+        add("report-walk", case, "plotting (the difference)", r["plotting_s"], "s",
+            f"< {r['target_s']:g} s", r["plotting_s"] < r["target_s"])
+        add("report-walk", case, "load_average_start", r["load_average_start"], "")
     if "study" in results and "error" not in results["study"]:
         from vm_ros_bench import study_bench
 
@@ -643,7 +659,7 @@ def _measure(name: str, measure, results: dict, out: Path) -> None:
 
 
 def run(args) -> int:
-    from vm_ros_bench import coordination_bench, decode_bench, model_bench
+    from vm_ros_bench import coordination_bench, decode_bench, model_bench, offline_bench
 
     sections = args.only or list(DEFAULT_SECTIONS)
     repeats = args.repeats or (3 if args.quick else 7)
@@ -700,6 +716,8 @@ def run(args) -> int:
         ("coordination", lambda: coordination_bench.bench_coordination(
             seconds=1.0 if args.quick else 3.0, progress=_say)),
         ("coordination-walk", lambda: coordination_bench.bench_walk(progress=_say)),
+        ("report-walk", lambda: offline_bench.bench_report_walk(
+            repeats=1 if args.quick else 3, progress=_say)),
         ("study", lambda: _study_section(args.quick)),
         ("node-memory", lambda: _node_memory_row(
             args.node_duration or (MEMORY_QUICK_DURATION_S if args.quick else MEMORY_DURATION_S),

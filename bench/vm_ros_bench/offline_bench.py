@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
+import os
 import statistics
 import subprocess
 import tempfile
@@ -123,4 +124,46 @@ def bench_offline_logged(repeats: int = 3, duration_s: float | None = None, cli:
                  f"{result['model_s']:.2f} s, ratio {result['simulate_over_model']:.1f}; "
                  f"recompute {result['recompute_s']:.2f} s, "
                  f"{result['recompute_over_simulate_paired']:.2f} x simulate")
+    return result
+
+
+REPORT_PLOT_TARGET_S = 5.0  # issue 27: the report's plotting for the 18-muscle walk under 5 s
+
+
+def bench_report_walk(repeats: int = 3, progress=None) -> dict:
+    """`vm-ros report` of opensim-models' Gait10dof18musc walk (18 muscles): the model imported
+    at its own F0, `vm-ros simulate --motion IK --excitations CMC controls` (0.03-2.5 s, covering
+    the motion's 0.32-2.5 s), then the report with and without plots, alternately in this
+    process (the load average before the first). The plotting
+    time is the difference of the medians (target < REPORT_PLOT_TARGET_S). ``skipped`` with the
+    reason when the walk is not fetched (scripts/fetch-gait-data)."""
+    from vm_ros.validation.walk import STRENGTHS, import_walk
+    from vm_ros.validation.walk_data import WalkDataError, walk_files
+
+    try:
+        files = walk_files()
+    except WalkDataError as error:
+        return {"skipped": str(error)}
+    with_plots, without = [], []
+    with tempfile.TemporaryDirectory(prefix="vm_ros-bench-report-") as tmp:
+        folder = Path(tmp)
+        _, library = import_walk(files, STRENGTHS["model F0"], folder / "model")
+        log = folder / "walk.mcap"
+        _in_process("simulate", ["--motion", str(files["motion"]), "--geometry",
+                                 str(folder / "model" / "geometry.yaml"), "--library",
+                                 str(library), "--excitations", str(files["cmc_controls"]),
+                                 "--out", str(log)])
+        load = os.getloadavg()[0]
+        for k in range(repeats):
+            without.append(_in_process("report", [str(log), "--out", str(folder / f"n{k}"),
+                                                  "--no-plots"])[0])
+            with_plots.append(_in_process("report", [str(log), "--out", str(folder / f"p{k}")])[0])
+    result = {"muscles": 18, "repeats": repeats, "load_average_start": load,
+              "report_s": statistics.median(with_plots), "report_s_all": with_plots,
+              "no_plots_s": statistics.median(without), "no_plots_s_all": without,
+              "target_s": REPORT_PLOT_TARGET_S}
+    result["plotting_s"] = result["report_s"] - result["no_plots_s"]
+    if progress:
+        progress(f"report of the walk: {result['report_s']:.1f} s, --no-plots "
+                 f"{result['no_plots_s']:.1f} s: plotting {result['plotting_s']:.1f} s")
     return result
