@@ -132,11 +132,11 @@ REPORT_PLOT_TARGET_S = 5.0  # issue 27: the report's plotting for the 18-muscle 
 
 def bench_report_walk(repeats: int = 3, progress=None) -> dict:
     """`vm-ros report` of opensim-models' Gait10dof18musc walk (18 muscles): the model imported
-    at its own F0, `vm-ros simulate --motion IK --excitations CMC controls` (0.03-2.5 s, covering
-    the motion's 0.32-2.5 s), then the report with and without plots, alternately in this
-    process (the load average before the first). The plotting
-    time is the difference of the medians (target < REPORT_PLOT_TARGET_S). ``skipped`` with the
-    reason when the walk is not fetched (scripts/fetch-gait-data)."""
+    at its own F0, `vm-ros simulate --motion IK --excitations CMC controls` (0.03-2.494 s of the
+    run's 0-2.5 s: simulate warns that the first and last rows are held), then the report with
+    and without plots, alternately in this process (the load average before the first). The
+    plotting time is the difference of the medians (target < REPORT_PLOT_TARGET_S). ``skipped``
+    with the reason when the walk is not fetched (scripts/fetch-gait-data)."""
     from vm_ros.validation.walk import STRENGTHS, import_walk
     from vm_ros.validation.walk_data import WalkDataError, walk_files
 
