@@ -47,7 +47,8 @@ some):
   report-walk
             runs only when named (--only report-walk; about a minute): vm-ros report of
             opensim-models' Gait10dof18musc walk simulated with its CMC controls (18 muscles),
-            with and without plots; the plotting time is the difference (target < 5 s).
+            with and without plots; the plotting time is the difference (target < 5 s of
+            CPU time; the wall time beside it).
             Skipped with the reason when the walk is not fetched (scripts/fetch-gait-data).
   node-memory
             runs only when named (--only node-memory; 7 minutes): muscle_node's resident
@@ -451,8 +452,9 @@ def _csv_rows(results: dict) -> list[dict]:
         case = "Gait10dof18musc walk, 18 muscles, CMC controls"
         add("report-walk", case, "report", r["report_s"], "s")
         add("report-walk", case, "report --no-plots", r["no_plots_s"], "s")
-        add("report-walk", case, "plotting (the difference)", r["plotting_s"], "s",
-            f"< {r['target_s']:g} s", r["plotting_s"] < r["target_s"])
+        add("report-walk", case, "plotting (the difference)", r["plotting_s"], "s")
+        add("report-walk", case, "plotting, CPU time", r["plotting_cpu_s"], "s",
+            f"< {r['target_s']:g} s", r["plotting_cpu_s"] < r["target_s"])
         add("report-walk", case, "load_average_start", r["load_average_start"], "")
     if "study" in results and "error" not in results["study"]:
         from vm_ros_bench import study_bench
