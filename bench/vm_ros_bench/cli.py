@@ -44,6 +44,8 @@ some):
             F0, default options and --refine 6; reserve RMS per coordinate (% of peak; target
             < 3 %), forward runs, seconds (target < 10 s), load average. Skipped with the reason
             when the walk is not fetched (scripts/fetch-gait-data).
+  help      `vm-ros --help` and `muscle_node --help` as child processes, 5 times each:
+            median wall and CPU time (target < 0.5 s of CPU)
   report-walk
             runs only when named (--only report-walk; about a minute): vm-ros report of
             opensim-models' Gait10dof18musc walk simulated with its CMC controls (18 muscles),
@@ -70,15 +72,15 @@ peer (one not installed is a row with the reason); or a comma-separated list (op
 vm_ros_bench.peer_compare has the definitions.
 
 Timings are medians of repeated runs on a shared machine: compare ratios within one run rather
-than absolute numbers across runs. Targets: 1 muscle <= 30 us per step; 1000 muscles <= 1 ms
-per step; kernel <= 0.25 us per muscle-step at 1000 and 10,000 muscles, run at least as fast
-as repeated step, 10,000 muscles in real time at 1 kHz with the parallel switch, cold start
-< 10 s; knee extension offline < 5 s, logged < 3 s; node at 1 kHz, publish 100 Hz, MCAP: 1
-muscle <= 10 % of a core, 100 muscles <= 20 %, 1000 muscles with no model time skipped, within
-one core, model time within 1 % of wall time; node-memory: resident memory after the warm-up
-growing at most 2 MiB/h (the window's slope, extrapolated to an hour); study: speed-up on 2
-workers at least 1.8, overhead per run under 5 % of a 30 s run, the client's memory growing at
-most 10 MiB from the 100th to the 1000th short run.
+than absolute numbers across runs. Targets: 1 muscle <= 30 us per step; 1000 muscles <= 1 ms per
+step; kernel <= 0.25 us per muscle-step at 1000 and 10,000 muscles, run at least as fast as
+repeated step, 10,000 muscles in real time at 1 kHz with the parallel switch, cold start < 10 s;
+knee extension offline < 5 s, logged < 3 s; --help < 0.5 s of CPU; node at 1 kHz, publish
+100 Hz, MCAP: 1 muscle <= 10 % of a core, 100 muscles <= 20 %, 1000 muscles with no model time
+skipped, within one core, model time within 1 % of wall time; node-memory: resident memory after
+the warm-up growing at most 2 MiB/h (the window's slope, extrapolated to an hour); study:
+speed-up on 2 workers at least 1.8, overhead per run under 5 % of a 30 s run, the client's
+memory growing at most 10 MiB from the 100th to the 1000th short run.
 """
 
 from __future__ import annotations
@@ -98,9 +100,9 @@ from vm_ros.child_process import loopback_only, module_command
 from vm_ros.errors import VmRosError
 from vm_ros_bench import FOLDER, child_environment
 
-SECTIONS = ("model", "natural", "offline", "decode", "node", "joint", "coordination",
+SECTIONS = ("model", "natural", "offline", "help", "decode", "node", "joint", "coordination",
             "coordination-walk", "report-walk", "study", "node-memory")
-DEFAULT_SECTIONS = ("model", "natural", "offline", "decode", "node", "joint",
+DEFAULT_SECTIONS = ("model", "natural", "offline", "help", "decode", "node", "joint",
                     "coordination")  # node-memory and study: when named
 MEMORY_DURATION_S, MEMORY_QUICK_DURATION_S = 300.0, 60.0  # node-memory window
 MEMORY_WARMUP_S, MEMORY_QUICK_WARMUP_S = 120.0, 5.0
@@ -445,6 +447,13 @@ def _csv_rows(results: dict) -> list[dict]:
         add("coordination-walk", case, "load_average_start", r["load_average_start"], "")
         add("coordination-walk", case, "seconds", r["seconds"], "s", f"< {WALK_TARGET_S:g} s",
             r["seconds"] < WALK_TARGET_S)
+    for r in results.get("help", []):
+        if "skipped" in r:
+            add("help", f"{r['command']} --help", "skipped", r["skipped"], "")
+            continue
+        add("help", f"{r['command']} --help", "wall", r["wall_s"], "s")
+        add("help", f"{r['command']} --help", "cpu", r["cpu_s"], "s", f"< {r['target_s']:g} s",
+            r["cpu_s"] < r["target_s"])
     r = results.get("report-walk")
     if r and "skipped" in r:
         add("report-walk", "Gait10dof18musc walk", "skipped", r["skipped"], "")
@@ -710,6 +719,7 @@ def run(args) -> int:
         ("kernel", lambda: _kernel_rows(args.quick)),
         ("natural", natural),
         ("offline", offline),
+        ("help", lambda: offline_bench.bench_help(progress=_say)),
         ("decode", lambda: decode_bench.bench_joint_state_decode(
             repeats=repeats, min_seconds=min_seconds, progress=_say)),
         ("node", lambda: _node_rows(node_duration, out)),

@@ -181,3 +181,38 @@ def bench_report_walk(repeats: int = 3, progress=None) -> dict:
                  f"{result['no_plots_s']:.1f} s: plotting {result['plotting_s']:.1f} s "
                  f"({result['plotting_cpu_s']:.1f} s of CPU)")
     return result
+
+
+HELP_COMMANDS = ("vm-ros", "muscle_node")  # console scripts beside this Python
+HELP_TARGET_S = 0.5  # issue 27: `vm-ros --help` and `muscle_node --help` under 0.5 s
+
+
+def bench_help(repeats: int = 5, progress=None) -> list[dict]:
+    """`COMMAND --help` of each console script of HELP_COMMANDS as a child process, ``repeats``
+    times: median wall time and CPU time (user + system, from the children's resource usage);
+    the target (< HELP_TARGET_S) is held on the CPU time. ``skipped`` for a script not installed
+    beside this Python."""
+    import resource
+    import sys
+
+    rows = []
+    for name in HELP_COMMANDS:
+        script = Path(sys.executable).parent / name
+        if not script.is_file():
+            rows.append({"command": name, "skipped": f"{script} is not installed"})
+            continue
+        walls, cpus = [], []
+        for _ in range(repeats):
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            start = time.perf_counter()
+            subprocess.run([str(script), "--help"], check=True, capture_output=True, timeout=120)
+            walls.append(time.perf_counter() - start)
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpus.append(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime)
+        rows.append({"command": name, "wall_s": statistics.median(walls), "wall_s_all": walls,
+                     "cpu_s": statistics.median(cpus), "cpu_s_all": cpus,
+                     "load_average": os.getloadavg()[0], "target_s": HELP_TARGET_S})
+        if progress:
+            progress(f"{name} --help: {rows[-1]['wall_s']:.2f} s wall, "
+                     f"{rows[-1]['cpu_s']:.2f} s CPU")
+    return rows
