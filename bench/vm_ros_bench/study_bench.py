@@ -16,10 +16,11 @@
   verb's own thread; the rest of a worker's CPU is the run's log writer thread and Dask's
   worker); the cores the 1-worker study kept busy (CPU / wall); and the speed-up bound these
   CPU times allow on 2 cores, wall(1) / (CPU of the 2-worker study / 2): a 2-worker study cannot
-  finish before both cores have done its CPU work. CPU times hold under load, wall times do
-  not: Linux with autogroups (kernel.sched_autogroup_enabled) shares the CPU between sessions,
-  so a machine loaded by other sessions gives a study about the same share whatever its number
-  of workers.
+  finish before both cores have done its CPU work. The CPU times hold under load; the wall
+  times, the speed-up and these two derived numbers only on an otherwise idle machine: Linux
+  with autogroups (kernel.sched_autogroup_enabled) shares the CPU between sessions, so a
+  machine loaded by other sessions gives a study about the same share whatever its number of
+  workers.
 --quick: 8 runs of 5 s and 200 short runs (a smoke run, not the targets).
 """
 
