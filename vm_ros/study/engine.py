@@ -11,7 +11,8 @@ Where things happen:
   before anything else happens, and one file per run id means a run that ran twice is recorded
   once;
 - logs are written by the workers under ``DIR/runs/`` (a folder every worker must see: the
-  same machine, or a shared file system on a cluster);
+  same machine, or a shared file system on a cluster); the half-written log of a run whose
+  worker died is removed by the client once every run has finished;
 - Ctrl-C (KeyboardInterrupt in the client) cancels the runs not yet finished, writes the table
   of those that did and closes the cluster.
 
@@ -42,14 +43,15 @@ from vm_ros.study.table import (
     write_atomically,
     write_table,
 )
-from vm_ros.study.task import STATUS_OK, RunTask, Verb, execute, one_line
+from vm_ros.study.task import STATUS_OK, RunTask, Verb, execute, one_line, partial_logs
 
 LOOPBACK = "127.0.0.1"
 # Dask settings of the embedded cluster (a running cluster keeps its own): no statistical
 # profiler in the workers (it samples the running task's stack every 10 ms for the dashboard,
 # which the embedded cluster does not serve) and the event loops' blocked-loop check every second
 # instead of every 20 ms. An idle 2-worker cluster took 0.08 cores with Dask's defaults and 0.03
-# with these (client, scheduler and nannies 0.032 -> 0.015, each worker 0.023 -> 0.007).
+# with these (client, scheduler and nannies 0.032 -> 0.015-0.019, each worker 0.023 -> 0.007;
+# process CPU times over 15 s, measured on 2026-12-02 at load average 12-13).
 EMBEDDED_CONFIG = {"distributed.worker.profile.enabled": False,
                    "distributed.admin.tick.interval": "1s"}
 
@@ -182,5 +184,8 @@ def run_study(study: Study, out_dir: Path, client, verbs: Mapping[str, Verb],
         summary.rows = write_table(study, out_dir)
         print(f"vm-ros study: interrupted; {summary.line()}", file=sys.stderr)
         raise
+    for task in todo:  # every run of the session has finished: no worker writes these any more
+        for partial in partial_logs(task):
+            partial.unlink(missing_ok=True)
     summary.rows = write_table(study, out_dir)
     return summary
