@@ -71,8 +71,9 @@ def _compare(bank, name):
 @pytest.mark.parametrize("name", ["drive_step", "drive_ramp_down_and_up",
                                   "path_ramp_stretch_hold_release", "sinusoids"])
 def test_lumped_step_matches_reference(name):
-    # the path ramp's velocity jumps make the reference slow: two muscles for that one
-    bank = MuscleBank.from_config(MUSCLES[:2] if name.startswith("path") else MUSCLES)
+    # the path ramp's velocity jumps make the Radau reference slow (vasti's alone took 5x
+    # soleus's CPU at rtol 1e-6, about 200 s of the suite): soleus only for that one
+    bank = MuscleBank.from_config(MUSCLES[:1] if name.startswith("path") else MUSCLES)
     rms, worst, ref = _compare(bank, name)
     print(f"{name}: RMS error % F0 {np.round(100 * rms, 4)}, max {np.round(100 * worst, 4)}")
     assert np.all(rms < RMS_LIMIT_F0) and np.all(worst < MAX_LIMIT_F0)
