@@ -58,7 +58,7 @@ setup(
         "numpy>=1.24",
         "scipy>=1.10",  # test_roots.py: every name used exists in SciPy 1.10 (Debian 12)
         "pyyaml>=6.0",
-        # coordination: the bounded least-squares / QP steps (live receding horizon, polish)
+        # coordination: the QP steps (live receding horizon, offline Gauss-Newton)
         "osqp>=1.0",
         "mcap>=1.1",
         "mcap-ros2-support>=0.5",

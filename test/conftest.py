@@ -81,14 +81,36 @@ def require_ros():
     return rclpy
 
 
+def _handles_sigterm(pid: int) -> bool:
+    """Whether process ``pid`` has a handler for SIGTERM (its SigCgt mask in /proc)."""
+    import signal
+
+    try:
+        with open(f"/proc/{pid}/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("SigCgt:"):
+                    return bool(int(line.split()[1], 16) >> (signal.SIGTERM - 1) & 1)
+    except OSError:
+        pass
+    return False
+
+
 def early_signal_stop(command, sig, delay_s: float, cwd) -> tuple[int, str]:
-    """Start ``command``, send ``sig`` after ``delay_s`` (its start-up), and return its exit
-    status and stderr (the process is killed if it has not exited 30 s after the signal)."""
+    """Start ``command``, send ``sig`` ``delay_s`` after its stop handlers are in (the program's
+    first line, vm_ros.node.signals; before that the interpreter itself is starting, 30-80 ms
+    idle and several times that on a loaded machine, and a SIGINT there is Python's own
+    KeyboardInterrupt), and return its exit status and stderr (the process is killed if it has
+    not exited 30 s after the signal). Python installs no SIGTERM handler of its own, so the
+    handlers are in when SIGTERM appears in the process's caught-signal mask."""
     import subprocess
 
     process = subprocess.Popen(command, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                text=True)
     try:
+        deadline = time.monotonic() + 60.0
+        while not _handles_sigterm(process.pid) and process.poll() is None:
+            assert time.monotonic() < deadline, "the program installed no SIGTERM handler in 60 s"
+            time.sleep(0.001)
         time.sleep(delay_s)
         process.send_signal(sig)
         _, stderr = process.communicate(timeout=30)

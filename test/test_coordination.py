@@ -14,12 +14,14 @@ import yaml
 from scipy import optimize
 
 from vm_ros.coordination.problem import build_problem
-from vm_ros.coordination.solver import SolverOptions, solve
+from vm_ros.coordination.solver import SolverOptions, solve, solver_settings
 from vm_ros.coordination.targets import JointMomentTargets
+from vm_ros.errors import ConfigError
 from vm_ros.geometry import Coordinate, MusclePath, PolynomialGeometry
 from vm_ros.model import MuscleBank
 from vm_ros.model.params import load_muscle_library
 from vm_ros.node.motion_inputs import JointMotion
+from vm_ros.resources import config_dir
 
 LENGTH_AT_ZERO_M = 0.318   # inside the soleus' path lengths (0.305-0.332 m)
 
@@ -123,7 +125,7 @@ def test_drive_squared_static_case_is_the_static_optimisation_solution(tmp_path)
 @pytest.mark.parametrize("refine", [0, 2])
 def test_forward_run_moments_follow_a_slow_target_within_one_percent_of_peak(tmp_path, refine):
     """An agonist pair and an antagonist over a slow swing; default cost (VM's energy), the two
-    stages alone and with two polish steps. The first 0.1 s are held to the RMS only: the run
+    stages alone and with two Gauss-Newton steps. The first 0.1 s are held to the RMS only: the run
     starts at the steady state of the first drive node, which also drives the first 40 ms
     (measured: 2.0 % of peak at t = 0)."""
     peak = 15.0
@@ -183,3 +185,21 @@ def test_energy_loads_the_slow_muscle_at_low_moment_and_recruits_the_fast_one_as
                 assert np.sum(middle ** 2) == pytest.approx(np.sum(best ** 2), rel=0.01)
     assert shares[0.1, "tsianos2012"] > shares[0.1, "drive2"]
     assert shares[0.5, "tsianos2012"] < shares[0.1, "tsianos2012"]
+
+
+@pytest.mark.parametrize(("old", "new", "field"), [
+    ("node_step: {value: 0.04, unit: s,", "node_step: {value: 0.04, unit: kg,",
+     "drives.node_step.unit"),
+    ("damping: {value: 10000.0, unit: \"1\", tag: R,", "damping: {value: 10000.0, unit: \"1\",",
+     "gauss_newton.damping.tag"),
+])
+def test_a_bad_solver_setting_is_named(tmp_path, old, new, field):
+    """config/coordination.yaml with one entry broken (a unit of another quantity, no tag):
+    a ConfigError naming that field."""
+    text = (config_dir() / "coordination.yaml").read_text()
+    assert old in text
+    path = tmp_path / "coordination.yaml"
+    path.write_text(text.replace(old, new))
+    with pytest.raises(ConfigError) as caught:
+        solver_settings(path)
+    assert caught.value.field == field

@@ -8,6 +8,7 @@ depend on the machine's load."""
 from __future__ import annotations
 
 import math
+from collections import Counter
 
 import numpy as np
 import pytest
@@ -186,6 +187,7 @@ def test_stream_targets_report_lag_and_error_and_bad_targets_are_counted(ros, ge
     assert ros.spin_until(diagnostics_have_tracking, timeout_s=30)
     values = probe.base.last_diagnostics()
     assert 0.0 <= float(values["tracking lag (s)"]) <= 0.15
+    assert values["coordination QP not solved (periods)"] == "0"
     assert float(values["tracking error RMS (N m)"]) >= 0.0
 
     bad = [  # (kind, send)
@@ -224,8 +226,81 @@ def _effort_state(probe, names, effort):
     return msg
 
 
-def test_coordination_needs_a_geometry_and_no_recording(ros):
+def test_coordination_needs_a_geometry(ros):
     from vm_ros.errors import ConfigError
 
     with pytest.raises(ConfigError, match="coordination.enabled"):
         ros.muscle_node(muscles=MUSCLES, coordination__enabled=True)
+
+
+def test_recompute_reproduces_a_live_coordination_log_exactly(ros, geometry_file, tmp_path,
+                                                              capsys):
+    """Simulated time, 100 Hz periods: a planned profile, then a stream target that replaces it
+    mid-run, logged to MCAP. The log holds the targets as received, the drives the coordinator
+    applied (coordination_drive, one per period at its start, equal to what muscle_drive
+    reports the steps used), joint_reserves = target - joint effort; `vm-ros recompute` of it
+    gives the same tendon forces, joint efforts and energy at every stamp and says exact."""
+    from std_msgs.msg import Float64MultiArray
+
+    from vm_ros.cli import main
+    from vm_ros.recording import read_run
+    from vm_ros.recording.replay import recorded_messages
+
+    path = tmp_path / "coordination.mcap"
+    node, probe = coordinating_node(ros, geometry_file, use_sim_time=True,
+                                    stale_input_policy="hold", input_timeout_s=1000.0,
+                                    mcap__enabled=True, mcap__path=str(path))
+    set_clock(ros, probe, node, T0)
+    times = np.arange(0.0, 2.0, 0.02)
+    probe.send_trajectory(["knee_angle"], times, knee_target(times)[:, None], stamp_ns=T0)
+    assert ros.spin_until(lambda: node.coordination.targets.kind == "planned profile")
+    periods = 60
+    for k in range(periods + 1):
+        if k == 40:  # a stream replaces the profile
+            probe.targets_array.publish(Float64MultiArray(data=[-15.0]))
+            assert ros.spin_until(lambda: node.coordination.targets.kind == "stream")
+        before = node.joint_inputs.sample
+        probe.send_joints(k * PERIOD_NS * 1e-9)
+        assert ros.spin_until(lambda b=before: node.joint_inputs.sample is not b, timeout_s=10)
+        set_clock(ros, probe, node, T0 + (k + 1) * PERIOD_NS)
+    assert ros.spin_until(lambda: len(probe.efforts) >= periods, timeout_s=30)
+    node.close_run_log()
+
+    original = read_run(path)
+    applied = original.get(tm.TOPIC_COORDINATION_DRIVE)
+    assert applied is not None and len(applied) >= periods
+    assert list(applied.names) == MUSCLES
+    drives = original.get(tm.TOPIC_MUSCLE_DRIVE)
+    # the drive a published step used is the one applied at its period's start
+    period_start = drives.fields["stamp_ns"] - PERIOD_NS
+    common, i, j = np.intersect1d(period_start, applied.fields["stamp_ns"],
+                                  return_indices=True)
+    assert len(common) >= periods - 2
+    np.testing.assert_array_equal(drives.fields["position"][i], applied.fields["position"][j])
+    assert applied.fields["position"].max() > 0.05
+    logged = Counter(m.topic for m in recorded_messages(path, include_offline=True))
+    assert logged["/" + tm.TOPIC_JOINT_EFFORT_TRAJECTORY] == 1
+    assert logged["/" + tm.TOPIC_JOINT_EFFORT_TARGETS_ARRAY] == 1
+    reserves, efforts = original.get(tm.TOPIC_JOINT_RESERVES), original.get(tm.TOPIC_JOINT_EFFORTS)
+    late = reserves.fields["stamp_ns"] > efforts.fields["stamp_ns"][-1] - 10 * PERIOD_NS
+    common, i, j = np.intersect1d(reserves.fields["stamp_ns"][late], efforts.fields["stamp_ns"],
+                                  return_indices=True)
+    np.testing.assert_allclose(reserves.fields["effort"][late][i, 0],
+                               -15.0 - efforts.fields["effort"][j, 0], atol=1e-9)
+
+    out = tmp_path / "again.mcap"
+    assert main(["recompute", str(path), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "exact: the recomputed outputs equal the recorded ones" in printed, printed
+    again = read_run(out)
+    for topic, field in ((tm.TOPIC_FORCE, "effort"), (tm.TOPIC_JOINT_EFFORTS, "effort"),
+                         (tm.TOPIC_ENERGY_TOTAL, "data")):  # energy_total: no header, log time
+        first, second = original.get(topic), again.get(topic)
+        common, i, j = np.intersect1d(first.fields.get("stamp_ns", first.time_ns),
+                                      second.fields.get("stamp_ns", second.time_ns),
+                                      return_indices=True)
+        assert len(common) >= periods, topic
+        np.testing.assert_array_equal(second.fields[field][j], first.fields[field][i],
+                                      err_msg=topic)
+    copied = again.get(tm.TOPIC_COORDINATION_DRIVE)
+    np.testing.assert_array_equal(copied.fields["position"], applied.fields["position"])

@@ -31,6 +31,9 @@ TOPIC_JOINT_EFFORT_TARGETS = "joint_effort_targets"
 TOPIC_JOINT_EFFORT_TARGETS_ARRAY = "joint_effort_targets_array"
 TOPIC_MUSCLE_DRIVE = "muscle_drive"
 TOPIC_JOINT_RESERVES = "joint_reserves"
+# the joint-driven muscles' drives of a publish period, stamped and logged at its start: what
+# the coordinator applied, so that a run log of live coordination can be recomputed
+TOPIC_COORDINATION_DRIVE = "coordination_drive"
 
 TYPE_JOINT_STATE = "sensor_msgs/msg/JointState"
 TYPE_FLOAT64_MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
@@ -129,6 +132,7 @@ TOPIC_TYPES = {
     TOPIC_JOINT_EFFORT_TARGETS_ARRAY: TYPE_FLOAT64_MULTI_ARRAY,
     TOPIC_MUSCLE_DRIVE: TYPE_JOINT_STATE,
     TOPIC_JOINT_RESERVES: TYPE_JOINT_STATE,
+    TOPIC_COORDINATION_DRIVE: TYPE_JOINT_STATE,
 }
 
 __all__ = [
@@ -147,6 +151,7 @@ __all__ = [
     "TOPIC_ENERGY_RATE_MODELS",
     "TOPIC_ENERGY_RATE_TOTAL",
     "TOPIC_ENERGY_TOTAL",
+    "TOPIC_COORDINATION_DRIVE",
     "TOPIC_EXCITATION",
     "TOPIC_EXCITATION_ARRAY",
     "TOPIC_FORCE",

@@ -60,8 +60,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"cost to minimise (default {DEFAULT_COST})")
     parser.add_argument("--muscle-weight", action="append", default=[], metavar="MUSCLE=W",
                         help="weight of a muscle's cost (default 1; repeatable)")
-    parser.add_argument("--smoothness", type=float, default=defaults.smoothness, metavar="S2",
-                        help=f"weight of mean (dU/dt)^2, s^2 (default {defaults.smoothness:g})")
+    parser.add_argument("--smoothness", type=float, default=defaults.smoothness, metavar="W",
+                        help=f"weight of the drives' mean squared curvature, (tau^2 d2U/dt2)^2 "
+                             f"with tau = 1 / (2 pi {defaults.smoothness_cutoff_hz:g} Hz) "
+                             f"(default {defaults.smoothness:g})")
     parser.add_argument("--reserve-weight", type=float, default=defaults.reserve_weight,
                         help=f"weight of mean (reserve / peak)^2 (default "
                              f"{defaults.reserve_weight:g})")
@@ -71,7 +73,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"forward runs of the tracking stage at most (default "
                              f"{defaults.iterations})")
     parser.add_argument("--refine", type=int, default=defaults.refine,
-                        help=f"Levenberg-Marquardt polish steps after it (default "
+                        help=f"Gauss-Newton steps after it, each a QP solved by OSQP (default "
                              f"{defaults.refine})")
     parser.add_argument("--dt", type=float, default=0.001, metavar="S",
                         help="model step (default 0.001 s)")

@@ -14,7 +14,9 @@ with:
   does. With a geometry, joint_states go through vm_ros.node.joint_inputs.JointInputs with the
   logged joint_map and joints and the attached geometry.yaml, and joint_efforts and
   joint_effort_commands are recomputed (each step's forces through the moment arms of the joint
-  sample it used).
+  sample it used). With live coordination (``coordination.enabled``) the joint-driven muscles
+  take the drives the node logged on coordination_drive at each publish period's start; the
+  target topics are copied as data, the coordination is not solved again.
 
 A recorded input that does not decode (muscle_node records inputs as received) is copied to the
 new log but not applied, as the node dropped it; a line on stderr counts them per topic.
@@ -80,10 +82,12 @@ from vm_ros.progress import Progress
 from vm_ros.recording.bag import shown_log_path
 from vm_ros.recording.run_log import (
     ATTACHMENT_GEOMETRY,
+    COORDINATION_INPUT_TOPICS,
     INPUT_TOPICS,
     RunInfo,
     RunLog,
     RunTiming,
+    default_log_topics,
     open_run_log,
     read_run,
 )
@@ -249,8 +253,9 @@ def run(args, on_outcome: Callable[[RunOutcome], None] | None = None) -> int:
     models = energetics_models_option(args.energetics_models)
     log_path = args.log
     with Progress(f"read {log_path.name}", 1.0, enabled=True if args.progress else None) as p:
-        recorded = read_run(log_path, topics=(*INPUT_TOPICS, tm.TOPIC_FORCE,
-                                              tm.TOPIC_JOINT_EFFORTS), raw=INPUT_TOPICS,
+        recorded = read_run(log_path, topics=(*INPUT_TOPICS, *COORDINATION_INPUT_TOPICS,
+                                              tm.TOPIC_FORCE, tm.TOPIC_JOINT_EFFORTS),
+                            raw=(*INPUT_TOPICS, *COORDINATION_INPUT_TOPICS),
                             progress=lambda done, size: p.update(done / max(size, 1)))
     if recorded.info is None:
         raise VmRosError(f"{log_path}: not a vm_ros run log (no 'vm_ros.run' metadata record)")
@@ -291,7 +296,10 @@ def run(args, on_outcome: Callable[[RunOutcome], None] | None = None) -> int:
         new_info = RunInfo(config, timing, "recompute", info.namespace, info.time_base, extra,
                            info.topics)
         # open while the attached files exist: the new log attaches them again
+        coordinated = node is not None and node.coordination_enabled
         recorder = open_run_log(out_path, new_info, bank, attachment_time_ns=start_ns,
+                                topics=default_log_topics(new_info)
+                                + list(COORDINATION_INPUT_TOPICS if coordinated else ()),
                                 **recorder_options(args))
     with StopOnSignal() as stop, recorder, Progress(
             f"recompute {log_path.name}", n_steps, enabled=True if args.progress else None) \

@@ -12,9 +12,8 @@ nodes comes from ``groups`` perturbed runs: run g raises (or, near 1, lowers) by
 node j with j mod groups = g, of every muscle; the change at times in [t_{j-1}, t_{j-1} +
 groups h) is put down to node j. This is exact for a model whose response to a drive change
 has faded within groups h - 2 h (the hat function's width); the activation's 90 % rise time is
-0.2-0.3 s and a drive change leaves a tail for longer, so groups h >= 0.8 s is the default
-(``memory_s``; with 0.4 s two identical muscles drifted apart in the tests). Results beyond the
-window are
+0.2-0.3 s and a drive change leaves a tail for longer: ``memory_s`` (config/coordination.yaml,
+0.6 s, measured on the walk) sets groups = memory_s / h + 2. Results beyond the window are
 dropped (a truncated Jacobian: it slows the iteration, it does not change what it converges to,
 the forward run being exact).
 """
@@ -162,22 +161,3 @@ class ForwardModel:
                                                             np.concatenate(cols[i]))),
                                  shape=shape) for i in range(n)]
         return jac, grads
-
-    def gains(self, nodes: np.ndarray, base: ForwardOutput, delta: float = 0.02):
-        """From one run with every node of every muscle perturbed: the local gain of force to
-        drive at the frames (T, n), dF_i(t_f) / dU_i(t_f), and d(integral of each rate)/d(node
-        drive) (N, n) per rate name with the rate's change put down to the step's own drive
-        (no lag). Used to rescale a banded sensitivity between its full computations."""
-        step = np.where(nodes + delta <= 1.0, delta, -delta)
-        out = self.run(nodes + step)
-        p = self.problem
-        hat = hat_matrix(p.frame_times_s, self.node_step_s, self.n_nodes)
-        at_frames, per_step = hat @ step, self.steps @ step
-        # where raised and lowered nodes meet the step is small: no gain there (NaN; 0 rate)
-        gain = np.divide(out.force_frames - base.force_frames, at_frames,
-                         out=np.full_like(at_frames, np.nan), where=np.abs(at_frames) > delta / 2)
-        grads = {name: self.steps.T @ np.divide(rate - base.rates[name], per_step,
-                                                out=np.zeros_like(per_step),
-                                                where=np.abs(per_step) > delta / 2) * p.dt_s
-                 for name, rate in out.rates.items()}
-        return gain, grads

@@ -1,6 +1,6 @@
 """Receding-horizon coordination: the drives of the next period that make the muscles' joint
 moments follow target joint moments over a horizon ahead (muscle_node's live coordination;
-pure NumPy/SciPy, no rclpy).
+NumPy, SciPy and OSQP, no rclpy).
 
 Each period of p model steps of dt, from the bank's state x0, with the coming path lengths
 L(t) and moment arms r(t) of the m coordinated muscles and the targets tau(t) over the horizon
@@ -17,9 +17,10 @@ rest of the horizon is split evenly), U of shape (B, m), each in [0, 1], and
 Solved by one Gauss-Newton step per period about the previous plan shifted by one block. The
 path is prescribed, so muscle i's force depends on its own drive only: the derivatives of every
 force with respect to block b of every drive come from one run with all of block b raised by
-``probe_drive``. The B + 1 runs (nominal, one per block) are one MuscleBank.run of a bank holding
-B + 1 copies of the muscles. The linearised problem is a bounded linear least squares
-(box_qp, a primal active-set method); block 0 is applied, the rest seeds the next period.
+``probe_drive``. The B + 1 runs (nominal, one per block) run as banks of copies of the muscles,
+block by block (RecedingHorizon). The linearised problem is a bounded QP, solved by OSQP (BoxQP: set
+up once, updated and warm started each period); block 0 is applied, the rest seeds the next
+period.
 
 What is approximated: a secant linearisation per period (force is not linear in drive); the
 horizon's motion is what the caller predicts (muscle_node: the latest joint sample moved on by its
@@ -29,13 +30,17 @@ arrives late; the activation of VM rises 50 % in 77-132 ms, issue 30).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+import osqp
+from scipy import sparse
 
 from vm_ros.coordination import costs
 from vm_ros.model import MuscleBank
+from vm_ros.model.layout import STATE_NAMES, BankState
 
 DRIVE_FLOOR_WEIGHT = 1e-3  # (N m)^2 per drive^2: keeps the energy cost's quadratic part > 0
 
@@ -136,111 +141,204 @@ def block_edges(k: int, p: int, blocks: int) -> np.ndarray:
     return np.concatenate(([0], p + np.round(np.linspace(0, k - p, rest + 1)).astype(int)))
 
 
+def coupled_pairs(moment_arm, tracked) -> tuple[np.ndarray, np.ndarray]:
+    """(i, j), every ordered pair of muscles that cross a common tracked joint (a nonzero moment
+    arm at some sample), and every (i, i): where the tracking term couples muscle i's drives to
+    muscle j's. 80 muscles over 27 joints: 320 pairs of the 6400."""
+    crosses = np.any(moment_arm[:, :, tracked] != 0.0, axis=0).astype(float)   # (m, c)
+    share = crosses @ crosses.T > 0.0
+    np.fill_diagonal(share, True)
+    return np.nonzero(share)
+
+
+def tracking_hessian(moment_arm, sens, tracked) -> np.ndarray:
+    """(B m, B m) sum_s J_s^T J_s of the tracking term, J_s[c, (b, i)] = r_sic dF_si/dU_bi,
+    dense (window_hessian's entries, for tests and small problems)."""
+    n_blocks, _, m = sens.shape
+    rows, cols, values = window_entries(moment_arm, sens, tracked)
+    hessian = np.zeros((n_blocks * m, n_blocks * m))
+    hessian[rows, cols] = values
+    return hessian
+
+
+def window_entries(moment_arm, sens, tracked) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The nonzero entries (rows, cols, values) of the tracking Hessian sum_s J_s^T J_s, both
+    triangles, unknown (b, i) at b m + i:
+
+        H[(b, i), (d, j)] = sum_s (sum_c r_sic r_sjc) dF_bsi dF_dsj
+
+    over the coupled_pairs (i, j) only: without the (S c, B m) Jacobian or a dense (B m)^2
+    matrix, whose products cost 80 muscles most of a period."""
+    n_blocks, _, m = sens.shape
+    arms = moment_arm[:, :, tracked]
+    if np.array_equal(arms, np.broadcast_to(arms[:1], arms.shape)):
+        arms = arms[:1]  # held over the horizon (muscle_node): one sample stands for all
+    i, j = coupled_pairs(arms, np.ones(arms.shape[2], dtype=bool))
+    coupling = np.einsum("spc,spc->sp", arms[:, i], arms[:, j])                 # (S or 1, P)
+    values = np.einsum("bsp,dsp->bdp", sens[:, :, i] * coupling, sens[:, :, j])  # (B, B, P)
+    blocks = np.arange(n_blocks) * m
+    rows = np.broadcast_to((blocks[:, None, None] + i), values.shape).ravel()
+    cols = np.broadcast_to((blocks[None, :, None] + j), values.shape).ravel()
+    return rows, cols, values.ravel()
+
+
 def solve_window(forces, moment_arm, target, tracked, probe: Probe, settings: HorizonSettings,
-                 previous_drive) -> WindowPlan:
+                 previous_drive, qp: BoxQP | None = None) -> WindowPlan:
     """The linearised problem of one period, solved (the one function that poses and solves it:
     another solver replaces this one).
 
     forces: (B + 1, S, m) N at the tracked samples, run 0 nominal, run b + 1 with block b
     raised by probe.delta[b]; moment_arm (S, m, c) m; target (S, c) N m; tracked (c,) bool;
-    previous_drive (m,) the drive applied last period.
+    previous_drive (m,) the drive applied last period; qp: the BoxQP to solve it with (kept
+    from period to period for its set-up and warm start; None: a new one).
     """
     n_blocks, m = probe.nominal.shape
+    n = n_blocks * m
     sens = (forces[1:] - forces[0]) / probe.delta[:, None, :]          # (B, S, m) N per drive
     moment0 = np.einsum("smc,sm->sc", moment_arm, forces[0])            # (S, c)
-    jac = np.einsum("smc,bsm->scbm", moment_arm, sens)                  # (S, c, B, m)
-    jac = jac[:, tracked].reshape(-1, n_blocks * m)
     x0 = probe.nominal.ravel()
-    rhs = (target - moment0)[:, tracked].ravel() + jac @ x0
     scale = 1.0 / max(len(moment0), 1)
-    hessian = scale * (jac.T @ jac)                      # 1/2 x H x - f x, tracking
-    linear = scale * (jac.T @ rhs)
+    arms = moment_arm[:, :, tracked]
+    residual = (target - moment0)[:, tracked]                           # (S, c)
+    # 1/2 x H x - f x: f = J^T (residual + J x0) without J, J^T v = sum_s dF_bs o (r_s v_s)
+    linear = scale * np.einsum("bsi,si->bi", sens,
+                               np.einsum("sic,sc->si", arms, residual)).ravel()
+    rows, cols, values = window_entries(moment_arm, sens, tracked)
+    values = scale * values
+    linear += np.bincount(rows, values * x0[cols], minlength=n)        # + H x0
     term, default = window_term(settings.cost)
     diag, lin = term(probe, default if settings.effort_weight is None else settings.effort_weight)
-    hessian[np.diag_indices_from(hessian)] += diag.ravel()
     linear -= lin.ravel()
+    # the cost's diagonal and the smoothness D^T D (same muscle, blocks b and d) on the entries
+    # (b, i), (d, i), which the pairs (i, i) hold
+    same = rows % m == cols % m
+    b, d = rows[same] // m, cols[same] // m
+    values[same] += np.where(b == d, diag.ravel()[rows[same]], 0.0)
     if settings.smoothness > 0:
-        change = np.eye(n_blocks * m) - np.eye(n_blocks * m, k=-m)  # U_b - U_{b-1}
-        hessian += settings.smoothness * (change.T @ change)
+        values[same] += settings.smoothness * smoothness_matrix(n_blocks)[b, d]
         linear[:m] += settings.smoothness * np.asarray(previous_drive, dtype=float)
-    solution = np.empty_like(x0)
-    for group in coupled_groups(hessian):  # independent problems: muscles sharing no joint
-        solution[group] = box_qp(hessian[np.ix_(group, group)], linear[group], x0[group])
+    upper = rows <= cols
+    solution = (qp or BoxQP()).solve_entries(rows[upper], cols[upper], values[upper], linear, x0)
     plan = solution.reshape(n_blocks, m)
-    predicted = moment0 + np.einsum("smc,bsm,bm->sc", moment_arm, sens, plan - probe.nominal)
+    change = np.einsum("bsm,bm->sm", sens, plan - probe.nominal)        # (S, m) N
+    predicted = moment0 + np.einsum("smc,sm->sc", moment_arm, change)
     return WindowPlan(plan[0].copy(), plan, predicted)
 
 
-def coupled_groups(hessian) -> list[np.ndarray]:
-    """Indices of the connected components of the nonzero pattern of ``hessian``: unknowns in
-    different groups do not interact (muscles that share no tracked joint), so each group is
-    its own problem (80 muscles over 27 joints: a solve of 3-variable problems instead of one
-    of 240 variables)."""
-    from scipy.sparse.csgraph import connected_components
+@functools.lru_cache(maxsize=4)
+def smoothness_matrix(n_blocks: int) -> np.ndarray:
+    """D^T D of one muscle's block-to-block changes U_b - U_{b-1} (U_{-1} fixed: the applied
+    drive), (B, B); made once per size (read-only)."""
+    change = np.eye(n_blocks) - np.eye(n_blocks, k=-1)
+    product = change.T @ change
+    product.flags.writeable = False
+    return product
 
-    count, labels = connected_components(hessian != 0.0, directed=False)
-    return [np.flatnonzero(labels == k) for k in range(count)]
+
+class BoxQP:
+    """argmin 1/2 x H x - f x over 0 <= x <= 1, H symmetric positive definite, by OSQP (an
+    operator-splitting QP solver), set up once for the entries of H's upper triangle and, while
+    a later H has the same entries (rows and columns), updated in place (values of H, f) and
+    warm started from ``start`` (the caller's previous plan) instead of set up again. Muscles
+    that share no tracked joint are separate blocks of H; OSQP's sparse factorisation keeps them
+    apart without splitting the problem here.
+
+    Tolerances: OSQP_EPS absolute and relative, without OSQP's solution polishing (OSQP 1.1.3's
+    C code prints a line on stdout whenever polishing finds no active bound, whatever
+    ``verbose``: every period of a node); on random problems of 8 unknowns the answer equals a
+    tight L-BFGS-B reference within 1e-6 (test_coordination_live.py). A solve that OSQP does not
+    report solved (SOLVED) is counted in ``unsolved`` and its iterate, clipped into the box, is
+    used (the start when the iterate is not finite).
+    """
+
+    def __init__(self):
+        self._solver = None
+        self._entries: tuple | None = None   # (n, rows, cols) of the set-up
+        self._order = None                   # the entries in P's CSC order
+        self.unsolved = 0
+
+    def _setup(self, rows, cols, values, linear) -> None:
+        n = len(linear)
+        self._entries = (n, rows.copy(), cols.copy())
+        self._order = np.lexsort((rows, cols))  # by column, then row: CSC
+        indptr = np.concatenate(([0], np.cumsum(np.bincount(cols, minlength=n))))
+        upper = sparse.csc_matrix((values[self._order], rows[self._order], indptr),
+                                  shape=(n, n))
+        self._solver = osqp.OSQP()
+        self._solver.setup(P=upper, q=-linear, A=sparse.identity(n, format="csc"),
+                           l=np.zeros(n), u=np.ones(n), verbose=False, warm_starting=True,
+                           polishing=False, eps_abs=OSQP_EPS, eps_rel=OSQP_EPS,
+                           max_iter=OSQP_MAX_ITER)
+
+    def solve_entries(self, rows, cols, values, linear, start) -> np.ndarray:
+        """H given by its upper triangle's entries (rows <= cols, each once, every diagonal
+        entry among them)."""
+        known = self._entries
+        if known is None or known[0] != len(linear) or not (
+                np.array_equal(known[1], rows) and np.array_equal(known[2], cols)):
+            self._setup(rows, cols, values, linear)
+        else:
+            self._solver.update(q=-linear, Px=values[self._order])
+        self._solver.warm_start(x=np.clip(np.asarray(start, dtype=float), 0.0, 1.0))
+        result = self._solver.solve(raise_error=False)
+        if result.info.status_val not in SOLVED:
+            self.unsolved += 1
+        x = result.x
+        if x is None or not np.all(np.isfinite(x)):
+            return np.clip(np.asarray(start, dtype=float), 0.0, 1.0)
+        return np.clip(x, 0.0, 1.0)
+
+    def solve(self, hessian, linear, start) -> np.ndarray:
+        """H dense (n, n): its upper triangle's nonzeros and the diagonal are the entries."""
+        upper = np.triu(hessian) != 0.0
+        upper[np.diag_indices_from(upper)] = True
+        rows, cols = np.nonzero(upper)
+        return self.solve_entries(rows, cols, hessian[rows, cols], linear, start)
 
 
-def box_qp(hessian, linear, start, tol: float = 1e-12) -> np.ndarray:
-    """argmin 1/2 x H x - f x over 0 <= x <= 1, H symmetric positive definite: a primal
-    active-set method from ``start`` (clipped into the box). Each iteration solves the free
-    variables' equations with the others at their bounds, steps as far as the box allows toward
-    that point, and frees the bound variable whose multiplier has the wrong sign the most; at
-    most 3 n + 10 iterations (the last iterate is feasible either way). NumPy's solve on the
-    free block: LAPACK's least-squares drivers (scipy's lsq_linear, np.linalg.lstsq) took
-    100-600 ms per call for 54 unknowns on a loaded 2-core machine with OpenBLAS threads, the
-    solve 0.04 ms."""
-    x = np.clip(np.asarray(start, dtype=float), 0.0, 1.0)
-    at_lo, at_hi = x <= 0.0, x >= 1.0
-    bound_value = np.where(at_hi, 1.0, 0.0)
-    threshold = tol * max(float(np.abs(linear).max()), 1.0)
-    for _ in range(3 * len(x) + 10):
-        free = ~(at_lo | at_hi)
-        bound_value = np.where(at_hi, 1.0, 0.0)
-        goal = np.where(free, x, bound_value)
-        if free.any():
-            rest = hessian[np.ix_(free, ~free)] @ bound_value[~free]
-            goal[free] = np.linalg.solve(hessian[np.ix_(free, free)], linear[free] - rest)
-        step = goal - x
-        with np.errstate(divide="ignore", invalid="ignore"):
-            room = np.where(step > 0, (1.0 - x) / step, np.where(step < 0, -x / step, np.inf))
-        room = np.where(free, room, np.inf)
-        blocking = int(np.argmin(room))
-        if room[blocking] < 1.0:
-            x = np.clip(x + room[blocking] * step, 0.0, 1.0)
-            x[blocking] = 1.0 if step[blocking] > 0 else 0.0
-            at_hi[blocking], at_lo[blocking] = x[blocking] == 1.0, x[blocking] == 0.0
-            continue
-        x = np.clip(goal, 0.0, 1.0)
-        gradient = hessian @ x - linear
-        wrong = np.where(at_lo, -gradient, np.where(at_hi, gradient, 0.0))
-        worst = int(np.argmax(wrong))
-        if wrong[worst] <= threshold:
-            break
-        at_lo[worst] = at_hi[worst] = False
-    return x
+OSQP_EPS, OSQP_MAX_ITER = 1e-7, 4000
+SOLVED = (1, 2)  # OSQP_SOLVED, OSQP_SOLVED_INACCURATE
+
+
+def box_qp(hessian, linear, start) -> np.ndarray:
+    """argmin 1/2 x H x - f x over 0 <= x <= 1 (a one-off BoxQP)."""
+    return BoxQP().solve(hessian, linear, start)
 
 
 def _replicated(state, index, copies: int):
     """The bank state of muscles ``index``, ``copies`` times along the muscle axis."""
-    from vm_ros.model.layout import STATE_NAMES, BankState
-
     return BankState(time_s=float(state.time_s), **{
         name: np.concatenate([getattr(state, name)[index]] * copies) for name in STATE_NAMES})
 
 
+def _with_first_again(state, m: int):
+    """``state`` with its first ``m`` muscles appended once more."""
+    return BankState(time_s=float(state.time_s), **{
+        name: np.concatenate([getattr(state, name), getattr(state, name)[:m]])
+        for name in STATE_NAMES})
+
+
 class RecedingHorizon:
     """The live coordinator of the muscles ``index`` of ``bank`` (module docstring). It owns
-    its probe bank (B + 1 copies of those muscles, no published energetics models) and the plan
-    carried from one period to the next; the caller's bank is never stepped here.
+    its probe banks (2, ..., B + 1 copies of those muscles, no published energetics models) and
+    the plan carried from one period to the next; the caller's bank is never stepped here.
+
+    The probe runs block by block: over block s the nominal plan and the copies that raise
+    blocks 0..s; the copy that raises block s starts at the block's start from the nominal's
+    state there (before it, its drives are the nominal's, and every muscle's arithmetic is its
+    own, so that is the state it would have reached). 3 blocks over 30 steps: 102 copy-steps
+    instead of 120.
 
     The forward runs step ``probe_dt_s``: ``settings.eval_step_s`` rounded so that a whole
     number of them make the period (``period_s``); the tracked samples are the ends of those
-    steps. The fixed step's force at 5 ms steps is within 1.5 % of its force at 1 ms (a 150 ms
-    run at drive 0.5 on a moving path, five library muscles; test_coordination_live.py): the
-    probe needs the derivatives, and each period starts again from the caller's state.
-    """
+    steps. The fixed step's force at 5 ms steps (the default) is within 1.5 % of its force at
+    1 ms, at 10 ms steps within 4 % (a 150 ms run at drive 0.5 on a moving path, five library
+    muscles; test_coordination_live.py): the probe needs the derivatives, and each period starts
+    again from the caller's state. 10 ms would halve the probe run, most of an 80-muscle
+    period's work, but with it the drives of two identical muscles on one joint (8 N m held)
+    oscillated over the first periods and split apart by up to 0.25 (at 5 ms: 4e-13; the same
+    with the active-set QP solver this replaced: a property of the coarser probe, not of OSQP;
+    measured once)."""
 
     def __init__(self, bank: MuscleBank, index, period_s: float,
                  settings: HorizonSettings = HorizonSettings()):
@@ -254,12 +352,14 @@ class RecedingHorizon:
         self.n_blocks = len(self.edges) - 1
         self.m = len(self.index)
         specs = [bank.specs[i] for i in self.index]
-        self.probe_bank = MuscleBank(specs * (self.n_blocks + 1), bank.params,
-                                     recruitment=bank.recruitment.name,
-                                     recovery_mode=bank.recovery_mode, backend=bank.backend,
-                                     energetics_models=self.cost.bank_models)
+        self.probe_banks = [MuscleBank(specs * (s + 2), bank.params,
+                                       recruitment=bank.recruitment.name,
+                                       recovery_mode=bank.recovery_mode, backend=bank.backend,
+                                       energetics_models=self.cost.bank_models)
+                            for s in range(self.n_blocks)]
         self.plan = np.zeros((self.n_blocks, self.m))
         self.drive = np.zeros(self.m)  # applied last period
+        self.qp = BoxQP()  # set up at the first period, updated after
 
     @property
     def start_offsets_s(self) -> np.ndarray:
@@ -271,10 +371,30 @@ class RecedingHorizon:
         """(k,) s after the window start at which each probe step ends (targets, moment arms)."""
         return self.probe_dt_s * np.arange(1, self.steps + 1)
 
-    def _drive_series(self, plans) -> np.ndarray:
-        """(k, R m) drives of R plans (R, B, m), each block held over its steps."""
-        per_step = np.repeat(plans, np.diff(self.edges), axis=1)          # (R, k, m)
-        return np.ascontiguousarray(per_step.transpose(1, 0, 2).reshape(self.steps, -1))
+    def _probe(self, state, plans, path_length, path_velocity) -> tuple:
+        """(forces N, cost rates) (B + 1, k, m) of the nominal plan (copy 0) and of the plans
+        raising block b (copy b + 1), block by block (class docstring)."""
+        m, edges = self.m, self.edges
+        per_step = np.repeat(plans, np.diff(edges), axis=1)               # (B + 1, k, m)
+        forces, rates = np.empty_like(per_step), np.empty_like(per_step)
+        current = _replicated(state, self.index, 2)
+        for s, bank in enumerate(self.probe_banks):
+            a, b, copies = edges[s], edges[s + 1], s + 2
+            if s > 0:  # block s's copy starts from the nominal's state
+                current = _with_first_again(current, m)
+            drives = np.ascontiguousarray(
+                per_step[:copies, a:b].transpose(1, 0, 2).reshape(b - a, copies * m))
+            bank.set_state(current)
+            run = bank.run(self.probe_dt_s, drives, np.tile(path_length[a:b], (1, copies)),
+                           np.tile(path_velocity[a:b], (1, copies)))
+            current = bank.restore_point()
+            forces[:copies, a:b] = run.force.reshape(b - a, copies, m).transpose(1, 0, 2)
+            rates[:copies, a:b] = self.cost.rate(run, drives, self.cost.bank_models).reshape(
+                b - a, copies, m).transpose(1, 0, 2)
+        for block in range(1, self.n_blocks):  # before its block, a copy is the nominal
+            forces[block + 1, :edges[block]] = forces[0, :edges[block]]
+            rates[block + 1, :edges[block]] = rates[0, :edges[block]]
+        return forces, rates
 
     def solve(self, state, path_length, path_velocity, moment_arm, target,
               tracked=None) -> WindowPlan:
@@ -294,18 +414,12 @@ class RecedingHorizon:
         plans = np.repeat(nominal[None], copies, axis=0)
         for b in range(self.n_blocks):
             plans[b + 1, b] += delta[b]
-        self.probe_bank.set_state(_replicated(state, self.index, copies))
-        reps = (1, copies)
-        drives = self._drive_series(plans)
-        run = self.probe_bank.run(self.probe_dt_s, drives, np.tile(path_length, reps),
-                                  np.tile(path_velocity, reps))
-        forces = run.force.reshape(self.steps, copies, self.m).transpose(1, 0, 2)
-        rates = self.cost.rate(run, drives, self.cost.bank_models).mean(axis=0).reshape(
-            copies, self.m)
+        forces, rates = self._probe(state, plans, path_length, path_velocity)
+        rates = rates.mean(axis=1)
         probe = Probe(nominal, delta, np.diff(self.edges) / self.steps, rates[0],
                       (rates[1:] - rates[0]) / delta)
         plan = solve_window(forces, moment_arm, target, tracked, probe, self.settings,
-                            self.drive)
+                            self.drive, self.qp)
         self.plan, self.drive = plan.plan, plan.drive
         return plan
 
@@ -332,5 +446,6 @@ def tracking_lag(times_s, target, achieved, max_lag_s: float) -> tuple[float, fl
 
 
 __all__ = ["DRIVE2_WEIGHT", "RATE_WEIGHT", "HorizonSettings", "Probe", "RecedingHorizon",
-           "WindowPlan", "block_edges", "box_qp", "coupled_groups", "solve_window",
-           "tracking_lag", "window_term"]
+           "BoxQP", "WindowPlan", "block_edges", "box_qp", "coupled_pairs", "solve_window",
+           "tracking_hessian", "tracking_lag", "window_entries",
+           "window_term"]

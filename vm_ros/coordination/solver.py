@@ -1,44 +1,45 @@
 """Whole-trajectory coordination against the forward run of the full model (docs/coordination.md).
 
-solve() works in two stages and an optional polish: stage 1 (distribution.py) tabulates each
-muscle's quasi-static force and cost per frame and drive and distributes the target moments
-over the muscles by one linear programme (HiGHS), giving each muscle a target force; stage 2
-(tracking.py) finds the drives whose forward run meets those forces by iterative learning
-control, one forward run per iteration; then ``refine`` Levenberg-Marquardt steps on J below.
+solve() works in three stages: stage 1 (distribution.py) tabulates each muscle's quasi-static
+force and cost per frame and drive and distributes the target moments over the muscles by one
+linear programme (HiGHS), giving each muscle a target force; stage 2 (tracking.py) finds the
+drives whose forward run meets those forces by iterative learning control, one forward run per
+iteration; stage 3 takes ``refine`` Gauss-Newton steps on J below over the whole trajectory.
 
-Unknowns: drive nodes u (N nodes x n muscles, every ``node_step_s``). Objective:
+Unknowns: drive nodes u (N nodes x n muscles, every ``node_step_s`` = h). Objective:
 
-    J(u) = sum_i w_i C_i(u) / C_ref                       cost (costs.py), C_ref: the cost with
-                                                          every drive held at REFERENCE_DRIVE
-         + w_res mean_{f,c} (rho_fc / peak_c)^2           reserves rho = target - r^T F(u)
-         + w_smooth mean_{i,j} ((u_i,j+1 - u_i,j) / h)^2  smoothness (weight in s^2)
+    J(u) = sum_i w_i C_i(u) / C_ref                  cost (costs.py), C_ref: the cost with
+                                                     every drive held at REFERENCE_DRIVE
+         + w_res mean_{f,c} (rho_fc / peak_c)^2      reserves rho = target - r^T F(u)
+         + w_smooth mean_{i,j} (tau^2 (u_i,j+1 - 2 u_i,j + u_i,j-1) / h^2)^2
+                                                     smoothness, tau = 1 / (2 pi f_c)
 
-with F(u) the tendon forces of a forward run (forward.py) at the target frames. Each iteration:
-one forward run gives J and the reserves; ``groups`` perturbed runs give the banded sensitivity
-of every muscle's force at the frames, and of every muscle's cost, to its drive nodes (every
-``refresh`` kept steps, and after two rejected ones; in between one run with every node
-perturbed rescales its rows by the change of each muscle's local gain and gives the cost's
-gradient without the lag: forward.ForwardModel.gains); the model of J around u (reserves linear
-in the change, drive2 exact, energy costs linear plus a diagonal curvature from the change of
-their gradient between iterates, a secant estimate kept >= 0) plus a damping lambda J(u)
-mean(du^2) (lambda >= MIN_DAMPING) is minimised over 0 <= u + du <= 1 as one sparse bounded
-linear least-squares problem (bounded_least_squares: a primal active set over SciPy's sparse
-LU); the step is kept when the forward run's J falls (lambda / 3), else lambda x 4 and the step
-is solved again (Levenberg-Marquardt), after one correction step from the rejected trial with
-the same sensitivity (the reserves' second-order error along the cost's descent would otherwise
-stall it at heavy reserve weights). Stops after ``refine`` kept steps, or when a kept
-step lowers J by less than ``tolerance`` of it.
+with F(u) the tendon forces of a forward run (forward.py) at the target frames. A drive's
+content at frequency f weighs (f / f_c)^4 of its size in the smoothness term (f_c =
+``smoothness_cutoff_hz``). Each Gauss-Newton step: ``groups`` perturbed runs give the banded
+sensitivity of every muscle's force at the frames, and of every muscle's cost, to its own drive
+nodes (forward.ForwardModel.sensitivity: with the motion prescribed a muscle's force depends
+only on its own drive); the model of J around u (reserves linear in the step, drive2 exactly
+quadratic, the energy costs linear) plus a damping ``damping`` mean(du^2) is minimised over
+0 <= u + du <= 1 as one sparse convex QP, solved by OSQP (StepQP: set up once, its matrices'
+values, bounds and linear term updated each step, warm started). The step is kept when the
+forward run's J falls, else the damping is multiplied by DAMPING_UP and the QP solved again with
+the same sensitivity (Levenberg-Marquardt). Stops after ``refine`` kept steps, after
+MAX_REJECTED rejected ones in a row, or when a kept step lowers J by less than ``tolerance``
+of it.
 """
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
+import osqp
 from scipy import sparse
-from scipy.sparse import linalg
 
 from vm_ros.coordination.costs import DEFAULT_COST, cost_named
 from vm_ros.coordination.distribution import FINE_LEVELS, TABLE_LENGTHS, refined, static_table
@@ -52,49 +53,103 @@ from vm_ros.coordination.reserves import (
 )
 from vm_ros.coordination.tracking import track
 from vm_ros.errors import VmRosError
+from vm_ros.model.config_reader import holds, load_yaml, read_section, yaml_section
+from vm_ros.resources import config_dir
 
 REFERENCE_DRIVE = 0.5   # C_ref: the cost of every drive held at this value over the motion
-DAMPING_UP, DAMPING_DOWN = 4.0, 3.0
-# lambda never falls below this: in directions the reserves do not see at first order (two
-# muscles trading force) only the damping and the cost's curvature bound the step
-MIN_DAMPING = 0.01
-MAX_REJECTED = 10
-RESCALE_LIMITS = (0.2, 5.0)        # consecutive rejected steps before the iteration stops
+DAMPING_UP = 4.0
+MAX_REJECTED = 4        # rejected steps in a row before the iteration stops
+SETTINGS_FILE = "coordination.yaml"
+
+
+@dataclass(frozen=True)
+class DriveSettings:
+    node_step: float = holds("s")
+
+
+@dataclass(frozen=True)
+class DistributionSettings:
+    reserve_weight: float = holds("1")
+    smoothness: float = holds("s")
+
+
+@dataclass(frozen=True)
+class TrackingSettings:
+    iterations: float = holds("1")
+    patience: float = holds("1")
+    lead: float = holds("s")
+    gain: float = holds("1")
+    tolerance: float = holds("1")
+
+
+@dataclass(frozen=True)
+class GaussNewtonSettings:
+    steps: float = holds("1")
+    reserve_weight: float = holds("1")
+    smoothness: float = holds("1")
+    smoothness_cutoff: float = holds("1/s")
+    damping: float = holds("1")
+    delta: float = holds("1")
+    memory: float = holds("s")
+    tolerance: float = holds("1")
+    eps: float = holds("1")
+
+
+_SECTIONS = {"drives": DriveSettings, "distribution": DistributionSettings,
+             "tracking": TrackingSettings, "gauss_newton": GaussNewtonSettings}
+
+
+@functools.cache
+def solver_settings(path: Path | None = None) -> dict:
+    """{section: settings dataclass} of config/coordination.yaml (or ``path``, same layout);
+    ConfigError naming file and field for a bad entry."""
+    path = Path(path) if path is not None else config_dir() / SETTINGS_FILE
+    data = load_yaml(path)
+    return {name: cls(**read_section(cls, path, yaml_section(path, data, name), name, {}))
+            for name, cls in _SECTIONS.items()}
+
+
+def _setting(section: str, name: str, kind=float):
+    """A SolverOptions field whose default is config/coordination.yaml's entry."""
+    return field(default_factory=lambda: kind(getattr(solver_settings()[section], name)))
 
 
 @dataclass(frozen=True)
 class SolverOptions:
     """How to solve: ``cost`` (costs.COSTS name), ``muscle_weights`` (name -> w_i, default 1),
-    ``node_step_s`` (s between drive nodes).
+    ``node_step_s`` (s between drive nodes). Defaults: config/coordination.yaml.
 
     Stage 1 (distribution.py): ``distribution_reserve_weight`` (w_res of the LP, on mean
     |reserve| / peak), ``distribution_smoothness`` (w_smooth of the LP, s, on mean
     |dF/dt| / F_max). Stage 2 (tracking.py): ``iterations`` (forward runs at most),
-    ``lead_s``, ``gain``, ``tracking_tolerance`` (max RMS reserve / peak that stops).
+    ``patience``, ``lead_s``, ``gain``, ``tracking_tolerance`` (max RMS reserve / peak that
+    stops).
 
-    Polish (Levenberg-Marquardt, this module's docstring): ``refine`` kept steps (0: none),
-    ``reserve_weight`` (w_res), ``smoothness`` (w_smooth, s^2), ``tolerance`` (relative fall
-    of J that stops), ``memory_s`` (forward.py), ``damping`` (initial lambda), ``delta``
-    (perturbation of the drive nodes), ``refresh`` (kept steps between full sensitivities; in
-    between one run rescales it)."""
+    Stage 3 (Gauss-Newton, this module's docstring): ``refine`` kept steps (0: none),
+    ``reserve_weight`` (w_res), ``smoothness`` (w_smooth), ``smoothness_cutoff_hz`` (f_c),
+    ``damping`` (weight of mean du^2), ``delta`` (perturbation of the drive nodes),
+    ``memory_s`` (forward.py), ``tolerance`` (relative fall of J that stops), ``qp_eps``
+    (OSQP's tolerances)."""
 
     cost: str = DEFAULT_COST
     muscle_weights: Mapping = field(default_factory=dict)
-    node_step_s: float = 0.04
-    distribution_reserve_weight: float = 1e3
-    distribution_smoothness: float = 0.1
-    iterations: int = 30
-    lead_s: float = 0.06
-    gain: float = 0.8
-    tracking_tolerance: float = 0.002
-    refine: int = 0
-    reserve_weight: float = 1e5
-    smoothness: float = 1e-4
-    tolerance: float = 1e-4
-    memory_s: float = 0.8
-    damping: float = 1.0
-    delta: float = 0.02
-    refresh: int = 4
+    node_step_s: float = _setting("drives", "node_step")
+    distribution_reserve_weight: float = _setting("distribution", "reserve_weight")
+    distribution_smoothness: float = _setting("distribution", "smoothness")
+    iterations: int = _setting("tracking", "iterations", int)
+    patience: int = _setting("tracking", "patience", int)
+    lead_s: float = _setting("tracking", "lead")
+    gain: float = _setting("tracking", "gain")
+    tracking_tolerance: float = _setting("tracking", "tolerance")
+    refine: int = _setting("gauss_newton", "steps", int)
+    reserve_weight: float = _setting("gauss_newton", "reserve_weight")
+    smoothness: float = _setting("gauss_newton", "smoothness")
+    smoothness_cutoff_hz: float = _setting("gauss_newton", "smoothness_cutoff")
+    damping: float = _setting("gauss_newton", "damping")
+    delta: float = _setting("gauss_newton", "delta")
+    memory_s: float = _setting("gauss_newton", "memory")
+    tolerance: float = _setting("gauss_newton", "tolerance")
+    qp_eps: float = _setting("gauss_newton", "eps")
 
     def check(self, muscles) -> None:
         cost_named(self.cost)
@@ -102,11 +157,12 @@ class SolverOptions:
         if unknown:
             raise VmRosError(f"muscle weight for {unknown[0]!r}: not a muscle of the problem")
         for name in ("node_step_s", "reserve_weight", "delta", "distribution_reserve_weight",
-                     "gain", "iterations"):
+                     "gain", "iterations", "patience", "smoothness_cutoff_hz", "damping",
+                     "qp_eps", "memory_s"):
             if not getattr(self, name) > 0:
                 raise VmRosError(f"{name} must be > 0 (got {getattr(self, name)})")
         for name in ("smoothness", "distribution_smoothness", "lead_s", "refine",
-                     "tracking_tolerance"):
+                     "tracking_tolerance", "tolerance"):
             if not getattr(self, name) >= 0:
                 raise VmRosError(f"{name} must be >= 0 (got {getattr(self, name)})")
         if not all(w >= 0 for w in self.muscle_weights.values()):
@@ -115,7 +171,8 @@ class SolverOptions:
 
 @dataclass
 class Iteration:
-    """One kept step: objective parts, RMS reserve per coordinate (% of peak), damping, runs."""
+    """One kept iterate: objective parts, RMS reserve per coordinate (% of peak), damping,
+    forward runs so far, seconds since the start."""
 
     objective: float
     cost: float
@@ -142,7 +199,7 @@ class CoordinationResult:
     | infeasible | list of InfeasibleFrame | frames beyond the muscles' capacity |
     | cost_value | () | the cost C (costs.Cost.unit), weighted |
     | muscle_cost | (n,) | each muscle's unweighted C_i |
-    | history | list of Iteration | one per kept step (the first: the start) |
+    | history | list of Iteration | one per kept iterate (stage 2's runs, then the steps) |
     | forward_runs, seconds | | forward runs made, wall time of the solve |
     """
 
@@ -162,12 +219,29 @@ class CoordinationResult:
     seconds: float
 
 
+def second_differences(n_nodes: int, n: int) -> sparse.csr_matrix:
+    """((N - 2) n, N n): u_j+1 - 2 u_j + u_j-1 of every muscle, nodes flattened (j, i)."""
+    if n_nodes < 3:
+        return sparse.csr_matrix((0, n_nodes * n))
+    d2 = sparse.diags([np.ones(n_nodes - 2), -2.0 * np.ones(n_nodes - 2),
+                       np.ones(n_nodes - 2)], [0, 1, 2], shape=(n_nodes - 2, n_nodes))
+    return sparse.kron(d2, sparse.identity(n)).tocsr()
+
+
 class _Objective:
     """J and its parts for a forward run (module docstring)."""
 
     def __init__(self, problem: CoordinationProblem, options: SolverOptions, weights, c_ref,
-                 node_step_s):
-        self.p, self.o, self.w, self.c_ref, self.h = problem, options, weights, c_ref, node_step_s
+                 forward: ForwardModel):
+        self.p, self.o, self.w, self.c_ref, self.forward = (problem, options, weights, c_ref,
+                                                            forward)
+        n_nodes, n = forward.n_nodes, len(problem.muscles)
+        tau = 1.0 / (2.0 * np.pi * options.smoothness_cutoff_hz)
+        rows = max((n_nodes - 2) * n, 1)
+        # smoothness = |S u|^2
+        self.smooth_matrix = (second_differences(n_nodes, n)
+                              * (np.sqrt(options.smoothness / rows) * tau ** 2
+                                 / forward.node_step_s ** 2))
 
     def scaled_reserves(self, out: ForwardOutput) -> np.ndarray:
         """(T, C) reserves / peak."""
@@ -180,79 +254,87 @@ class _Objective:
         cost = float(self.w @ self.muscle_cost(out)) / self.c_ref
         rho = self.scaled_reserves(out)
         tracking = self.o.reserve_weight * float(np.mean(rho ** 2))
-        smooth = (self.o.smoothness * float(np.mean((np.diff(nodes, axis=0) / self.h) ** 2))
-                  if len(nodes) > 1 else 0.0)
+        smooth = float(np.sum((self.smooth_matrix @ nodes.ravel()) ** 2))
         return cost, tracking, smooth
 
 
-def _subproblem(problem, options, objective, nodes, base, jac, grad, damping):
-    """The step du (N, n) minimising the model of J (module docstring)."""
-    p, o = problem, options
-    n_nodes, n = nodes.shape
-    size = n_nodes * n
-    frames, coords = p.target.shape
-    blocks, rhs = [], []
-    # reserves: a_c (sum_i r_fic J_i du_i) = a_c (target - tau)
-    a = np.sqrt(o.reserve_weight / (frames * coords)) / p.peak
-    rows, cols, vals = [], [], []
-    for i in range(n):
-        coo = jac[i].tocoo()
-        for c in range(coords):
-            rows.append(coo.row * coords + c)
-            cols.append(coo.col * n + i)
-            vals.append(coo.data * p.moment_arm[coo.row, i, c] * a[c])
-    blocks.append(sparse.csr_matrix((np.concatenate(vals), (np.concatenate(rows),
-                                                            np.concatenate(cols))),
-                                    shape=(frames * coords, size)))
-    rhs.append(((p.target - p.moments(base.force_frames)) * a).ravel())
-    # smoothness: s D (u + du) with D the node differences of each muscle
-    if o.smoothness > 0 and n_nodes > 1:
-        s = np.sqrt(o.smoothness / (n * (n_nodes - 1))) / objective.h
-        diff = sparse.diags([-np.ones(n_nodes - 1), np.ones(n_nodes - 1)], [0, 1],
-                            shape=(n_nodes - 1, n_nodes))
-        d = sparse.kron(diff, sparse.identity(n)) * s
-        blocks.append(d)
-        rhs.append(-(d @ nodes.ravel()))
-    g = np.zeros(size)
-    if cost_named(o.cost).quadratic:
-        # int U_i^2 dt = dt |W u_i|^2, W the step interpolation
-        scale = np.sqrt(p.dt_s * objective.w / objective.c_ref)
-        q = sparse.kron(objective.forward.steps, sparse.diags(scale))
-        blocks.append(q)
-        rhs.append(-(q @ nodes.ravel()))
-    else:
-        g = (grad[o.cost] * objective.w / objective.c_ref).ravel()
-    # g du + 1/2 H du^2 + lambda mean(du^2) = |k du + g / (2 k)|^2 + const, k^2 = H / 2 + l
-    k = np.sqrt(objective.curvature.ravel() / 2 + damping * objective.scale / size)
-    blocks.append(sparse.diags(k))
-    rhs.append(-g / (2 * k))
-    matrix = sparse.vstack(blocks).tocsr()
-    flat = nodes.ravel()
-    return bounded_least_squares(matrix, np.concatenate(rhs), -flat, 1.0 - flat).reshape(
-        n_nodes, n)
+class StepQP:
+    """The Gauss-Newton step's QP (module docstring) in OSQP's form, over x = (du, r) with r
+    the scaled reserves after the step:
 
+        min  1/2 x^T P x + q^T x
+        s.t. A_F du + r = rho / peak,    -u <= du <= 1 - u
 
-def bounded_least_squares(matrix, rhs, lower, upper, passes: int = 30) -> np.ndarray:
-    """min |A x - b|^2 over lower <= x <= upper by a primal active set: the free variables
-    from the sparse normal equations (SuperLU), variables beyond a bound fixed at it, fixed
-    ones whose gradient points inside released; at most ``passes`` passes, then clipped."""
-    normal = (matrix.T @ matrix).tocsc()
-    target = matrix.T @ rhs
-    x = np.clip(np.zeros(len(lower)), lower, upper)
-    fixed = np.zeros(len(lower), bool)
-    for _ in range(passes):
-        free = np.flatnonzero(~fixed)
-        if len(free):
-            reduced = normal[free][:, free]
-            x[free] = linalg.spsolve(reduced, target[free] - normal[free] @ np.where(fixed, x, 0))
-        beyond = ~fixed & ((x < lower) | (x > upper))
-        gradient = normal @ x - target
-        release = fixed & (((x <= lower) & (gradient < 0)) | ((x >= upper) & (gradient > 0)))
-        if not beyond.any() and not release.any():
-            break
-        x = np.clip(x, lower, upper)
-        fixed = (fixed | beyond) & ~release
-    return np.clip(x, lower, upper)
+    P = 2 (S^T S + damping / (N n) I [+ Q^T Q for drive2]) on du and 2 w_res / (T C) I on r;
+    A_F holds r_fic dF_i(t_f)/du_ij / peak_c. Its sparsity is fixed by the problem (the
+    sensitivity's windows, the crossed coordinates), so OSQP is set up once and later steps
+    update values only."""
+
+    def __init__(self, problem: CoordinationProblem, options: SolverOptions,
+                 objective: _Objective, forward: ForwardModel):
+        self.p, self.o, self.objective = problem, options, objective
+        self.n_nodes, self.n = forward.n_nodes, len(problem.muscles)
+        frames, coords = problem.target.shape
+        self.size, self.residuals = self.n_nodes * self.n, frames * coords
+        self.curvature = objective.smooth_matrix.T @ objective.smooth_matrix
+        if cost_named(options.cost).quadratic:
+            # int U_i^2 dt = dt |W u_i|^2, W the step interpolation
+            scale = np.sqrt(problem.dt_s * objective.w / objective.c_ref)
+            q = sparse.kron(forward.steps, sparse.diags(scale))
+            self.curvature = self.curvature + q.T @ q
+        self.curvature = sparse.csc_matrix(self.curvature)
+        # each muscle's (frame, coordinate) pairs it crosses
+        self.crossed = [np.flatnonzero(np.any(problem.moment_arm[:, i, :] != 0, axis=0))
+                        for i in range(self.n)]
+        self.solver = self.pattern = None
+
+    def _hessian(self, damping: float) -> sparse.csc_matrix:
+        du = self.curvature + sparse.identity(self.size) * (damping / self.size)
+        r = sparse.identity(self.residuals) * (self.o.reserve_weight / self.residuals)
+        return sparse.triu(sparse.block_diag([du, r]) * 2.0, format="csc")
+
+    def _constraints(self, jac) -> sparse.csc_matrix:
+        p, coords = self.p, self.p.target.shape[1]
+        rows, cols, vals = [], [], []
+        for i in range(self.n):
+            coo = jac[i].tocoo()
+            for c in self.crossed[i]:
+                rows.append(coo.row * coords + c)
+                cols.append(coo.col * self.n + i)
+                vals.append(coo.data * p.moment_arm[coo.row, i, c] / p.peak[c])
+        sensitivity = sparse.csc_matrix(
+            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+            shape=(self.residuals, self.size))
+        return sparse.vstack([
+            sparse.hstack([sensitivity, sparse.identity(self.residuals)]),
+            sparse.hstack([sparse.identity(self.size),
+                           sparse.csc_matrix((self.size, self.residuals))])], format="csc")
+
+    def step(self, nodes, base: ForwardOutput, jac, grad, damping: float) -> np.ndarray:
+        """The step du (N, n) from ``nodes`` with forward run ``base``, sensitivity ``jac`` (a
+        (T, N) matrix per muscle) and the cost's gradient ``grad`` (N, n)."""
+        u = nodes.ravel()
+        linear = 2.0 * (self.curvature @ u)
+        if not cost_named(self.o.cost).quadratic:
+            linear = linear + (grad * self.objective.w / self.objective.c_ref).ravel()
+        q = np.concatenate([linear, np.zeros(self.residuals)])
+        rho = self.objective.scaled_reserves(base).ravel()
+        low = np.concatenate([rho, -u])
+        high = np.concatenate([rho, 1.0 - u])
+        hessian, constraints = self._hessian(damping), self._constraints(jac)
+        pattern = (hessian.nnz, constraints.nnz)
+        if self.solver is None or pattern != self.pattern:   # set up once (same sparsity)
+            self.solver, self.pattern = osqp.OSQP(), pattern
+            self.solver.setup(P=hessian, q=q, A=constraints, l=low, u=high, verbose=False,
+                              eps_abs=self.o.qp_eps, eps_rel=self.o.qp_eps, polishing=False,
+                              warm_starting=True)
+        else:
+            self.solver.update(Px=hessian.data, Ax=constraints.data, q=q, l=low, u=high)
+        out = self.solver.solve(raise_error=False)
+        if out.x is None or not np.all(np.isfinite(out.x)):
+            raise VmRosError(f"coordination: the Gauss-Newton step's QP failed "
+                             f"({out.info.status})")
+        return np.clip(out.x[:self.size], -u, 1.0 - u).reshape(self.n_nodes, self.n)
 
 
 def solve(bank, problem: CoordinationProblem, options: SolverOptions | None = None,
@@ -269,97 +351,59 @@ def solve(bank, problem: CoordinationProblem, options: SolverOptions | None = No
     if missing:
         raise VmRosError(f"cost {cost.name}: the bank must run energetics model {missing[0]}")
     started = time.perf_counter()
-    forward = ForwardModel(bank, problem, options.node_step_s,
-                           {options.cost: cost.rate_function(bank.energetics_models)},
+    rate = cost.rate_function(bank.energetics_models)
+    forward = ForwardModel(bank, problem, options.node_step_s, {options.cost: rate},
                            options.memory_s)
     weights = np.array([float(options.muscle_weights.get(m, 1.0)) for m in problem.muscles])
     n = len(problem.muscles)
     reference = forward.run(np.full((forward.n_nodes, n), REFERENCE_DRIVE))
     c_ref = max(float(weights @ reference.rates[options.cost].sum(axis=0)) * problem.dt_s,
                 1e-12)
-    objective = _Objective(problem, options, weights, c_ref, options.node_step_s)
-    objective.forward = forward
+    objective = _Objective(problem, options, weights, c_ref, forward)
     # stage 1: the distribution; stage 2: drives whose forward run meets it
-    rate = cost.rate_function(bank.energetics_models)
     fine = static_table(bank, problem, rate, FINE_LEVELS, TABLE_LENGTHS)
     table, shares = refined(problem, fine, weights, options.distribution_reserve_weight,
                             options.distribution_smoothness)
     history = []
 
-    def tracked(nodes, out):
-        history.append(_iteration(objective, nodes, out, options.damping, forward, started))
+    def kept(nodes, out, damping):
+        history.append(_iteration(objective, nodes, out, damping, forward, started))
         if progress is not None:
             progress(history[-1])
 
     best = track(forward, table, shares.force, options.lead_s, options.gain,
-                 options.iterations, options.tracking_tolerance, progress=tracked)
-    nodes, base = best.nodes, best.forward
-    value = objective.scale = sum(objective.parts(nodes, base))
+                 options.iterations, options.tracking_tolerance, options.patience,
+                 progress=lambda nodes, out: kept(nodes, out, options.damping))
+    nodes, base = _gauss_newton(problem, options, objective, forward, best.nodes, best.forward,
+                                lambda nodes, out, damping: kept(nodes, out, damping))
+    return _result(problem, options, forward, objective, nodes, base, history, started)
+
+
+def _gauss_newton(problem, options, objective, forward, nodes, base, kept):
+    """Stage 3 (module docstring) from ``nodes`` with forward run ``base``: (nodes, run)."""
+    qp = StepQP(problem, options, objective, forward)
+    value = sum(objective.parts(nodes, base))
     damping = options.damping
-    kept = rejected = 0
-    jac = grad = full = None
-    objective.curvature = np.zeros_like(nodes)
-    secant = None  # (nodes, gradient) of the last sensitivity, for the cost's curvature
-    while kept < options.refine and rejected < MAX_REJECTED:
-        fresh = full is None or kept % options.refresh == 0 or rejected >= 2
-        if jac is None and fresh:
-            full, grad = forward.sensitivity(nodes, base, options.delta)
-            reference, _ = forward.gains(nodes, base, options.delta)
-            jac, rejected = full, min(rejected, 1)
-        elif jac is None:
-            gain, grad = forward.gains(nodes, base, options.delta)
-            jac = _rescaled(full, gain, reference)
-        if not cost.quadratic and secant is not None and secant[0] is not nodes:
-            objective.curvature = _secant_curvature(objective, secant, nodes, grad,
-                                                    options.cost)
-        secant = (nodes, grad)
-        step = _subproblem(problem, options, objective, nodes, base, jac, grad, damping)
-        trial = np.clip(nodes + step, 0.0, 1.0)
+    steps = rejected = 0
+    jac = None
+    while steps < options.refine and rejected < MAX_REJECTED:
+        if jac is None:
+            jac, grad = forward.sensitivity(nodes, base, options.delta)
+        trial = np.clip(nodes + qp.step(nodes, base, jac, grad[options.cost], damping),
+                        0.0, 1.0)
         out = forward.run(trial)
         trial_value = sum(objective.parts(trial, out))
-        if trial_value >= value:  # one correction from the trial with the same sensitivity
-            step = _subproblem(problem, options, objective, trial, out, jac, grad, damping)
-            trial = np.clip(trial + step, 0.0, 1.0)
-            out = forward.run(trial)
-            trial_value = sum(objective.parts(trial, out))
-        if trial_value < value:
-            fall = (value - trial_value) / objective.scale
-            nodes, base = trial, out
-            value = objective.scale = trial_value
-            damping = max(damping / DAMPING_DOWN, MIN_DAMPING)
-            kept += 1
-            rejected = 0
-            jac = None
-            history.append(_iteration(objective, nodes, base, damping, forward, started))
-            if progress is not None:
-                progress(history[-1])
-            if fall < options.tolerance:
-                break
-        else:
+        if trial_value >= value:
             damping *= DAMPING_UP
             rejected += 1
-            if rejected >= 2 and jac is not full:
-                jac = None
-    return _result(bank, problem, options, forward, objective, nodes, base, history, started)
-
-
-def _secant_curvature(objective, secant, nodes, grad, name) -> np.ndarray:
-    """Diagonal curvature (N, n) of the normalised cost from the change of its gradient per
-    node since the last iterate (>= 0; kept where the drive moved less than 1e-3)."""
-    old_nodes, old_grad = secant
-    moved = nodes - old_nodes
-    change = (grad[name] - old_grad[name]) * objective.w / objective.c_ref
-    ratio = np.divide(change, moved, out=np.zeros_like(moved), where=np.abs(moved) > 1e-3)
-    return np.where(np.abs(moved) > 1e-3, np.clip(ratio, 0.0, None), objective.curvature)
-
-
-def _rescaled(full, gain, reference) -> list:
-    """Each muscle's banded sensitivity with its rows scaled by the change of the local gain
-    since it was computed (the ratio kept within RESCALE_LIMITS)."""
-    ratio = np.clip(np.divide(gain, reference, out=np.ones_like(gain),
-                              where=np.abs(reference) > 1e-9), *RESCALE_LIMITS)
-    ratio = np.where(np.isfinite(ratio), ratio, 1.0)
-    return [sparse.diags(ratio[:, i]) @ full[i] for i in range(len(full))]
+            continue
+        fall = (value - trial_value) / value
+        nodes, base, value, jac = trial, out, trial_value, None
+        steps, rejected = steps + 1, 0
+        kept(nodes, base, damping)
+        if fall < options.tolerance:
+            break
+    return nodes, base
 
 
 def _iteration(objective, nodes, out, damping, forward, started) -> Iteration:
@@ -371,7 +415,7 @@ def _iteration(objective, nodes, out, damping, forward, started) -> Iteration:
                      forward.runs, time.perf_counter() - started)
 
 
-def _result(bank, problem, options, forward, objective, nodes, base, history, started):
+def _result(problem, options, forward, objective, nodes, base, history, started):
     moments = problem.moments(base.force_frames)
     reserves = problem.target - moments
     full = forward.run(np.ones_like(nodes))

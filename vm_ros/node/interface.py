@@ -32,8 +32,8 @@ JOINT_OUTPUT_TOPICS = (
      "joint efforts in joints order (with geometry)"),
 )
 
-# with coordination.enabled (vm_ros.node.effort_targets); not in vm_ros.topics.INPUT_TOPICS: the
-# node-log replay and the offline runner have no conditioning for them
+# with coordination.enabled (vm_ros.node.effort_targets); not in vm_ros.topics.INPUT_TOPICS: a
+# run log keeps them as data, and its recompute applies the drives logged on coordination_drive
 COORDINATION_INPUT_TOPICS = (
     (tp.TOPIC_JOINT_EFFORT_TRAJECTORY, tp.TYPE_JOINT_TRAJECTORY,
      "planned joint efforts (N m or N): joint_names, points' time_from_start and effort[] "
@@ -50,6 +50,9 @@ COORDINATION_OUTPUT_TOPICS = (
     (tp.TOPIC_JOINT_RESERVES, tp.TYPE_JOINT_STATE,
      "target minus joint effort (effort[], N m or N) by joint; 0 where untracked (with "
      "coordination.enabled)"),
+    (tp.TOPIC_COORDINATION_DRIVE, tp.TYPE_JOINT_STATE,
+     "the joint-driven muscles' drives (position[]) over the publish period that starts at the "
+     "stamp (with coordination.enabled)"),
 )
 
 ROS_ARGS, ROS_ARGS_END = "--ros-args", "--"

@@ -46,6 +46,7 @@ class LiveCoordination:
         self.space, self.inputs = space, inputs
         limit_blas_threads(1)  # the node is one thread (vm_ros.blas_threads)
         self.index = space.driven_index
+        self.names = [bank.names[i] for i in self.index]
         self.targets = EffortTargets(space)
         self.coordinator = receding.RecedingHorizon(bank, self.index, period_s,
                                                     horizon_settings(config))
@@ -103,7 +104,8 @@ class LiveCoordination:
         values = [("coordination targets", self.targets.kind or "none yet"),
                   ("coordination target age (s)", age),
                   ("coordination solve time p99 (ms)", solve_p99),
-                  ("coordination solve time max (ms)", solve_max)]
+                  ("coordination solve time max (ms)", solve_max),
+                  ("coordination QP not solved (periods)", self.coordinator.qp.unsolved)]
         rows = [h for h in self.history if np.array_equal(h[3], self.targets.tracked)]
         if len(rows) >= 2:
             times = np.array([h[0] for h in rows]) * 1e-9

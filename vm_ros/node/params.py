@@ -313,11 +313,6 @@ class NodeConfig:
             except VmRosError as exc:
                 raise ConfigError(PARAMS_SOURCE, "coordination.cost", self.coordination_cost,
                                   str(exc)) from None
-        if self.coordination_enabled and self.mcap_enabled:
-            raise ConfigError(PARAMS_SOURCE, "coordination.enabled", True,
-                              "not recorded yet: a run log of live coordination could not be "
-                              "recomputed (its drives come from no input topic); set "
-                              "mcap.enabled false")
 
     def overrides_mapping(self) -> dict:
         """The ``overrides`` parameter parsed: ``{muscle: {field: value}}``."""

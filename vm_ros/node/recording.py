@@ -80,6 +80,7 @@ class NodeRunLog:
 
     run_info(start_time_ns or None) -> RunInfo; qos: ``{base topic: offered_qos_profiles YAML}``;
     on_error(text): called once when recording fails (also settable as an attribute);
+    extra_topics: base names logged beside LOG_TOPICS (live coordination's COORDINATION_TOPICS);
     recorder_options: passed to McapRecorder (chunk_size, opener, flush_interval_s...). Those
     not given come from the node's ``mcap.*`` parameters as recorded in the run info's
     ``node_parameters`` (RECORDER_PARAMETERS), else McapRecorder's defaults.
@@ -88,8 +89,10 @@ class NodeRunLog:
 
     def __init__(self, path, run_info: Callable[[int | None], RunInfo], namespace: str = "/",
                  qos: dict | None = None, buffer_size: int = 10000,
-                 on_error: Callable[[str], object] | None = None, **recorder_options):
+                 on_error: Callable[[str], object] | None = None, extra_topics=(),
+                 **recorder_options):
         self.path = Path(path)
+        self._extra_topics = tuple(extra_topics)
         self._run_info = run_info
         self._namespace = namespace
         self._qos = dict(qos or {})
@@ -151,6 +154,7 @@ class NodeRunLog:
                       if t not in JOINT_TOPICS or info.config.geometry is not None]
             if info.config.energetics_models:
                 topics += MODEL_TOPICS
+            topics += self._extra_topics
             options = {**recorded_recorder_options(info), **self._recorder_options}
             self.recorder = open_run_log(self.path, info, topics=topics, qos=self._qos,
                                          **options)

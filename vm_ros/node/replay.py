@@ -17,6 +17,11 @@ tests use this one implementation (:class:`NodeConditioning`).
     u, lp, vp = inputs.advance_to(t_ns)          # same interface as offline.RecordedInputs
     inputs.joint_efforts(force)                  # JointEfforts of that step's forces, or None
 
+With ``coordination.enabled`` (live coordination) the joint-driven muscles' drives are those
+the node logged on ``coordination_drive`` at the start of each publish period (the drives its
+coordinator applied, held over the period), not their excitation; the target topics are copied
+as data (the recompute does not solve again).
+
 Exact only while the node's model time ran on one grid: time it skipped (max_catch_up_steps),
 paused (stale_input_policy "pause"), a backward clock jump or a model reset after a non-finite
 output are not in the inputs; :func:`model_time_irregularities` finds them in the output stamps.
@@ -42,6 +47,7 @@ from vm_ros.node.params import NodeConfig
 from vm_ros.recording.cdr import input_decoder
 from vm_ros.recording.run_log import (
     ATTACHMENT_GEOMETRY,
+    COORDINATION_INPUT_TOPICS,
     METADATA_NAME,
     NODE_PARAMETERS_KEY,
     RunLog,
@@ -117,6 +123,12 @@ class NodeConditioning:
         self._texts: dict[str, str] = {}
         self.clamped = np.zeros(space.n_coordinates if space is not None else 0, dtype=int)
         self._receivers = node_receivers(self.inputs, self._joint_states)
+        # live coordination: the joint-driven muscles' drives come from coordination_drive
+        self.coordinated = (space.driven_index if space is not None and config.coordination_enabled
+                            else np.zeros(0, dtype=int))
+        self.inputs.exempt_drive(self.coordinated)
+        self._coordinated_at = {bank.names[i]: k for k, i in enumerate(self.coordinated)}
+        self.coordination_drive = np.zeros(len(self.coordinated))
 
     def _count(self, issues) -> None:
         for issue in issues:
@@ -131,6 +143,14 @@ class NodeConditioning:
         """A decoded message on one of the input topics (vm_ros.topics.INPUT_TOPICS), received
         at ``time_ns``; joint topics without a geometry are not subscribed: nothing happens."""
         self._count(tp.apply_input(tp.input_topic(topic), msg, self._receivers, time_ns))
+
+    def on_coordination_drive(self, names, drive) -> None:
+        """A coordination_drive record: the drives of the named joint-driven muscles from now
+        on (names that are not joint-driven muscles are ignored)."""
+        for name, value in zip(names, drive, strict=True):
+            k = self._coordinated_at.get(name)
+            if k is not None:
+                self.coordination_drive[k] = value
 
     def on_excitation(self, names, drive, time_ns: int) -> None:
         self._count(self.inputs.on_excitation(names, drive, time_ns))
@@ -161,8 +181,13 @@ class NodeConditioning:
         return self.inputs.ready
 
     def sample(self, time_ns: int):
-        """(U, path length, path velocity) for the step starting at ``time_ns``."""
-        return self.inputs.sample(time_ns)
+        """(U, path length, path velocity) for the step starting at ``time_ns``; the coordinated
+        muscles' U the latest coordination_drive."""
+        u, length, velocity = self.inputs.sample(time_ns)
+        if len(self.coordinated):
+            u = np.array(u, dtype=float)
+            u[self.coordinated] = self.coordination_drive
+        return u, length, velocity
 
     def joint_efforts(self, force) -> JointEfforts | None:
         """The joint efforts of a step's tendon forces through the latest joint sample (the one
@@ -193,9 +218,13 @@ class NodeReplayInputs:
         self._path = run.path
         self.conditioning = NodeConditioning(bank, config, space)
         self.inputs = self.conditioning.inputs
-        self._events = run.events(tp.input_topic_names())
-        # the node's decoders (one per topic: a JointState decoder remembers its names)
+        self._events = run.events(tp.input_topic_names() + (COORDINATION_INPUT_TOPICS
+                                                            if config.coordination_enabled
+                                                            else ()))
+        # the node's decoders (one per topic: a JointState decoder remembers its names); the
+        # target topics are copied, not decoded
         self._decoders = {row.name: input_decoder(row.type_name) for row in tp.INPUT_TOPICS}
+        self._decoders[tm.TOPIC_COORDINATION_DRIVE] = input_decoder(tm.TYPE_JOINT_STATE)
         if any(event.data is None for event in self._events):
             raise ValueError(f"{run.path}: inputs read without their raw bytes")
         self._next = 0
@@ -205,11 +234,17 @@ class NodeReplayInputs:
         return self._events[-1].time_ns if self._events else 0
 
     def _apply(self, topic: str, data: bytes, time_ns: int) -> None:
+        decode = self._decoders.get(topic)
+        if decode is None:  # a coordination target: data only
+            return
         try:
-            msg = self._decoders[topic](data)
+            msg = decode(data)
         except Exception:  # the node drops undecodable bytes too
             return
-        self.conditioning.on_message(topic, msg, time_ns)
+        if topic == tm.TOPIC_COORDINATION_DRIVE:
+            self.conditioning.on_coordination_drive(msg.name, msg.position)
+        else:
+            self.conditioning.on_message(topic, msg, time_ns)
 
     def advance_to(self, time_ns: int):
         """Apply the messages logged at or before ``time_ns``; (U, path length, path velocity)

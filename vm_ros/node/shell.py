@@ -102,7 +102,7 @@ from vm_ros.node.timing import StepScheduler
 from vm_ros.recording import bulk
 from vm_ros.recording.cdr import input_decoder
 from vm_ros.recording.qos import offered_qos_profiles_yaml
-from vm_ros.recording.run_log import RunInfo, RunTiming
+from vm_ros.recording.run_log import COORDINATION_TOPICS, RunInfo, RunTiming
 
 NODE_NAME = "muscle_node"
 RCLError = _rclpy.RCLError
@@ -383,7 +383,9 @@ class MuscleNode(Node):
         offered = {topic: offered_qos_profiles_yaml(publisher.qos_profile)
                    for topic, publisher in self._publishers_by_topic.items()}
         run_log = NodeRunLog(path, self._run_info, namespace=self.get_namespace(), qos=offered,
-                            on_error=self.get_logger().error)
+                            on_error=self.get_logger().error,
+                            extra_topics=COORDINATION_TOPICS if self.config.coordination_enabled
+                            else ())
         self.get_logger().info(f"recording to {run_log.path.resolve()}")
         return run_log
 
@@ -443,7 +445,8 @@ class MuscleNode(Node):
     def _target_receiver(self, topic: str, msg_type):
         """The receiver of a live-coordination target topic (vm_ros.node.effort_targets):
         deserialised by rclpy, an undecodable message counted; losses counted as for the other
-        inputs. Not logged (coordination.enabled excludes mcap.enabled)."""
+        inputs; logged as received at the model time of the first step that uses it, as the
+        other inputs (a recompute copies them, and applies the coordination_drive records)."""
         targets = self.coordination.targets
         handle = {
             tm.TOPIC_JOINT_EFFORT_TRAJECTORY: lambda msg, now_ns: targets.on_trajectory(
@@ -464,12 +467,16 @@ class MuscleNode(Node):
             if lost:
                 self._report([Issue("input_lost", f"{topic}: {lost} message(s) lost before "
                                     "the node took them", count=lost)])
+            now_ns = self.get_clock().now().nanoseconds
+            if self.run_log is not None:
+                self.run_log.write(topic, data, self.scheduler.model_time_ns
+                                   if self.scheduler.started else now_ns, now_ns)
             try:
                 msg = deserialize_message(data, msg_type)
             except Exception as exc:  # corrupt bytes: never let them stop the node
                 self._report([Issue("undecodable", f"{topic}: {type(exc).__name__}: {exc}")])
                 return
-            self._report(handle(msg, self.get_clock().now().nanoseconds))
+            self._report(handle(msg, now_ns))
 
         receive.__signature__ = _WITH_MESSAGE_INFO
         return receive
@@ -588,6 +595,7 @@ class MuscleNode(Node):
                 if self.scheduler.total_steps % every == 0:
                     self.coordination.solve(self.bank.restore_point(),
                                             self.scheduler.model_time_ns, joints)
+                    self._publish_coordination_drive(now_ns)
                 u[done:done + count, self.coordination.index] = self.coordination.drive
             self._run_batch(u[done:done + count], lp[done:done + count],
                             vp[done:done + count], joints)
@@ -677,6 +685,15 @@ class MuscleNode(Node):
                 self._send_bytes(topic, serialize_message(msg), stamp_ns, now_ns)
             if self.coordination is not None:
                 self._publish_coordination(out, efforts, stamp_ns, now_ns)
+
+    def _publish_coordination_drive(self, now_ns: int) -> None:
+        """coordination_drive: the joint-driven muscles' drives of the period starting now in
+        model time, stamped and logged at that time (the drives a recompute applies)."""
+        start_ns = self.scheduler.model_time_ns
+        fields = tm.muscle_drive_fields(self.coordination.names, self.coordination.drive,
+                                        start_ns)
+        self._send_bytes(tm.TOPIC_COORDINATION_DRIVE,
+                         serialize_message(fill_message(JointState(), fields)), start_ns, now_ns)
 
     def _publish_coordination(self, out, efforts, stamp_ns: int, now_ns: int) -> None:
         """muscle_drive (the drive every muscle used) and joint_reserves (target - effort)."""

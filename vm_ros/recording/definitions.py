@@ -3,12 +3,27 @@
 
 Regenerate with ``scripts/gen-msg-definitions``. Standard texts are verbatim copies of
 ``share/<pkg>/msg/<Type>.msg`` of the ROS 2 Jazzy packages (std_msgs 5.3.6, sensor_msgs
-5.3.6, diagnostic_msgs 5.3.6, builtin_interfaces 2.0.3), hashes from the packages'
-``.json`` files; vm_ros types come from msg_defs/, hashed with rosidl's own generator.
+5.3.6, diagnostic_msgs 5.3.6, trajectory_msgs 5.3.6, builtin_interfaces 2.0.3), hashes
+from the packages' ``.json`` files; vm_ros types come from msg_defs/, hashed with rosidl's
+own generator.
 test/test_recording_definitions.py checks that nothing has drifted.
 """
 
 MSG_TEXTS = {
+    'builtin_interfaces/msg/Duration': (
+        '# Duration defines a period between two time points.\n'
+        '# Messages of this datatype are of ROS Time following this design:\n'
+        '# https://design.ros2.org/articles/clock_and_time.html\n'
+        '\n'
+        '# The seconds component, valid over all int32 values.\n'
+        'int32 sec\n'
+        '\n'
+        '# The nanoseconds component, valid in the range [0, 1e9), to be added to the seconds component. \n'
+        '# e.g.\n'
+        '# The duration -1.7 seconds is represented as {sec: -2, nanosec: 3e8}\n'
+        '# The duration 1.7 seconds is represented as {sec: 1, nanosec: 7e8}\n'
+        'uint32 nanosec\n'
+    ),
     'builtin_interfaces/msg/Time': (
         '# This message communicates ROS Time defined here:\n'
         '# https://design.ros2.org/articles/clock_and_time.html\n'
@@ -155,6 +170,47 @@ MSG_TEXTS = {
         'MultiArrayDimension[] dim # Array of dimension properties\n'
         'uint32 data_offset        # padding bytes at front of data\n'
     ),
+    'trajectory_msgs/msg/JointTrajectory': (
+        '# The header is used to specify the coordinate frame and the reference time for\n'
+        '# the trajectory durations\n'
+        'std_msgs/Header header\n'
+        '\n'
+        '# The names of the active joints in each trajectory point. These names are\n'
+        '# ordered and must correspond to the values in each trajectory point.\n'
+        'string[] joint_names\n'
+        '\n'
+        '# Array of trajectory points, which describe the positions, velocities,\n'
+        '# accelerations and/or efforts of the joints at each time point.\n'
+        'JointTrajectoryPoint[] points\n'
+    ),
+    'trajectory_msgs/msg/JointTrajectoryPoint': (
+        '# Each trajectory point specifies either positions[, velocities[, accelerations]]\n'
+        '# or positions[, effort] for the trajectory to be executed.\n'
+        '# All specified values are in the same order as the joint names in JointTrajectory.msg.\n'
+        '\n'
+        '# Single DOF joint positions for each joint relative to their "0" position.\n'
+        '# The units depend on the specific joint type: radians for revolute or\n'
+        '# continuous joints, and meters for prismatic joints.\n'
+        'float64[] positions\n'
+        '\n'
+        '# The rate of change in position of each joint. Units are joint type dependent.\n'
+        '# Radians/second for revolute or continuous joints, and meters/second for\n'
+        '# prismatic joints.\n'
+        'float64[] velocities\n'
+        '\n'
+        '# Rate of change in velocity of each joint. Units are joint type dependent.\n'
+        '# Radians/second^2 for revolute or continuous joints, and meters/second^2 for\n'
+        '# prismatic joints.\n'
+        'float64[] accelerations\n'
+        '\n'
+        '# The torque or the force to be applied at each joint. For revolute/continuous\n'
+        '# joints effort denotes a torque in newton-meters. For prismatic joints, effort\n'
+        '# denotes a force in newtons.\n'
+        'float64[] effort\n'
+        '\n'
+        '# Desired time from the trajectory start to arrive at this trajectory point.\n'
+        'builtin_interfaces/Duration time_from_start\n'
+    ),
     'vm_ros/msg/MuscleTelemetry': (
         '# One model step of a vm_ros muscle bank, for offline analysis.\n'
         '#\n'
@@ -203,6 +259,8 @@ MSG_TEXTS = {
 }
 
 TYPE_HASHES = {
+    'builtin_interfaces/msg/Duration':
+        'RIHS01_e8d009f659816f758b75334ee1a9ca5b5c0b859843261f14c7f937349599d93b',
     'builtin_interfaces/msg/Time':
         'RIHS01_b106235e25a4c5ed35098aa0a61a3ee9c9b18d197f398b0e4206cea9acf9c197',
     'diagnostic_msgs/msg/DiagnosticArray':
@@ -223,6 +281,10 @@ TYPE_HASHES = {
         'RIHS01_5e773a60a4c7fc8a54985f307c7837aa2994252a126c301957a24e31282c9cbe',
     'std_msgs/msg/MultiArrayLayout':
         'RIHS01_4c66e6f78e740ac103a94cf63259f968e48c617e7699e829b63c21a5cb50dac6',
+    'trajectory_msgs/msg/JointTrajectory':
+        'RIHS01_179b33eba59d676f6d967ac71fe35e7ca2f64b2f3928f4a018cec115e213796e',
+    'trajectory_msgs/msg/JointTrajectoryPoint':
+        'RIHS01_de8907036d8bd45aac6f30cc9044a3d4a329c42cbf719aff7d95a584cfa532d7',
     'vm_ros/msg/MuscleTelemetry':
         'RIHS01_924ec5d44c492ab80a18938b8df24f2c3444c97323fa422e3f0981a778bf2b28',
 }

@@ -79,9 +79,18 @@ JOINT_TOPICS = (*(row.name for row in tm.INPUT_TOPICS if row.role == tm.JOINTS),
                 tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_JOINT_EFFORT_COMMANDS, tm.TOPIC_JOINT_WORK)
 # channels of a run with published energetics models only (RunConfig.energetics_models)
 MODEL_TOPICS = (tm.TOPIC_ENERGY_RATE_MODELS,)
+# channels of a muscle_node log with live coordination: the target topics as received and the
+# drives the coordinator applied (coordination_drive, at the start of each publish period), which
+# a recompute copies and applies, and the node's coordination outputs
+COORDINATION_INPUT_TOPICS = (tm.TOPIC_JOINT_EFFORT_TRAJECTORY, tm.TOPIC_JOINT_EFFORT_TARGETS,
+                             tm.TOPIC_JOINT_EFFORT_TARGETS_ARRAY, tm.TOPIC_COORDINATION_DRIVE)
+COORDINATION_TOPICS = (*COORDINATION_INPUT_TOPICS, tm.TOPIC_MUSCLE_DRIVE, tm.TOPIC_JOINT_RESERVES)
+# JointState channels whose columns are joints, not muscles (read_run)
+JOINT_COLUMN_TOPICS = (*JOINT_TOPICS, tm.TOPIC_JOINT_RESERVES, tm.TOPIC_JOINT_EFFORT_TARGETS)
 LOG_TOPIC_TYPES = {
     **{topic: tm.TOPIC_TYPES[topic]
-       for topic in INPUT_TOPICS + OUTPUT_TOPICS + JOINT_TOPICS + MODEL_TOPICS},
+       for topic in INPUT_TOPICS + OUTPUT_TOPICS + JOINT_TOPICS + MODEL_TOPICS
+       + COORDINATION_TOPICS},
     TOPIC_TELEMETRY: TYPE_MUSCLE_TELEMETRY,
     tm.TOPIC_DIAGNOSTICS: tm.TYPE_DIAGNOSTIC_ARRAY,
 }
@@ -323,6 +332,15 @@ def run_attachments(config: RunConfig) -> dict[str, bytes]:
     return attachments
 
 
+def default_log_topics(info: RunInfo) -> list[str]:
+    """The base names open_run_log declares by default (its docstring)."""
+    return [t for t in LOG_TOPIC_TYPES if t != tm.TOPIC_DIAGNOSTICS
+            and (t != TOPIC_TELEMETRY or info.timing.telemetry_rate_hz > 0)
+            and (t not in JOINT_TOPICS or info.config.geometry is not None)
+            and (t not in MODEL_TOPICS or bool(info.config.energetics_models))
+            and t not in COORDINATION_TOPICS]
+
+
 def open_run_log(path, info: RunInfo, bank: MuscleBank | None = None,
                  topics: Iterable[str] | None = None, qos: Mapping[str, str] | None = None,
                  **recorder_options) -> McapRecorder:
@@ -333,8 +351,8 @@ def open_run_log(path, info: RunInfo, bank: MuscleBank | None = None,
     info: the run (RunInfo; ``info.config.recovery_mode`` and ``drive_law`` None are filled
     from ``bank``);
     topics: base names to declare (default: all of LOG_TOPIC_TYPES but /diagnostics, telemetry
-    when telemetry_rate_hz is 0, the JOINT_TOPICS without a geometry and the MODEL_TOPICS
-    without energetics models); qos: ``{base name:
+    when telemetry_rate_hz is 0, the JOINT_TOPICS without a geometry, the MODEL_TOPICS
+    without energetics models and the COORDINATION_TOPICS); qos: ``{base name:
     offered_qos_profiles YAML}``.
     Raises RecorderError naming the path when the file cannot be created.
     """
@@ -345,10 +363,7 @@ def open_run_log(path, info: RunInfo, bank: MuscleBank | None = None,
         info = dataclasses.replace(info, config=info.config.replace(
             drive_law=bank.params.lumped.drive_law))
     if topics is None:
-        topics = [t for t in LOG_TOPIC_TYPES if t != tm.TOPIC_DIAGNOSTICS
-                  and (t != TOPIC_TELEMETRY or info.timing.telemetry_rate_hz > 0)
-                  and (t not in JOINT_TOPICS or info.config.geometry is not None)
-                  and (t not in MODEL_TOPICS or bool(info.config.energetics_models))]
+        topics = default_log_topics(info)
     recorder = McapRecorder(path, metadata={METADATA_NAME: info.to_metadata()},
                             attachments=run_attachments(info.config), **recorder_options)
     for topic in topics:
@@ -530,7 +545,7 @@ def read_run(path, topics: Iterable[str] | None = None, raw: Iterable[str] = (),
             log_topic = info.log_topic if info is not None else resolve_topic
             wanted = None if topics is None else {log_topic(t) for t in topics}
             keep_raw = {log_topic(t) for t in raw}
-            joint_topics = {log_topic(t) for t in JOINT_TOPICS}
+            joint_topics = {log_topic(t) for t in JOINT_COLUMN_TOPICS}
         if wanted is not None and batch.topic not in wanted:
             continue
         builder = builders.get(batch.topic)
