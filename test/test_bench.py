@@ -93,12 +93,12 @@ def test_kernel_and_node_rows_carry_the_speed_targets():
                 "cpu_percent_one_core": cpu, "model_wall_drift_percent": 0.0,
                 "model_time_skipped_s": skipped}
 
-    rows = bench._csv_rows({"node": [node(1, 9.0, 0.0), node(100, 21.0, 0.0),
+    rows = bench._csv_rows({"node": [node(1, 6.5, 0.0), node(100, 14.5, 0.0),
                                      node(1000, 95.0, 0.5)]})
     targets = {(r["case"].split(" ")[0], r["metric"]): (r["target"], r["met"])
                for r in rows if r["target"]}
-    assert targets[("1", "cpu_percent_one_core")] == ("<= 10 %", True)
-    assert targets[("100", "cpu_percent_one_core")] == ("<= 20 %", False)
+    assert targets[("1", "cpu_percent_one_core")] == ("<= 7 %", True)
+    assert targets[("100", "cpu_percent_one_core")] == ("<= 14 %", False)
     assert targets[("1000", "cpu_percent_one_core")] == ("<= 100 %", True)
     assert targets[("1000", "model_time_skipped_s")] == ("0 s", False)
 
