@@ -73,16 +73,16 @@ vm_ros_bench.peer_compare has the definitions.
 
 Timings are medians of repeated runs on a shared machine: compare ratios within one run rather
 than absolute numbers across runs. Targets: 1 muscle <= 30 us per step; 1000 muscles <= 1 ms per
-step; kernel <= 0.25 us per muscle-step at 1000 and 10,000 muscles, run at least as fast as repeated
-step, 10,000 muscles in real time at 1 kHz with the parallel switch, cold start < 10 s; knee
-extension offline < 5 s, logged < 3 s; --help < 0.5 s of CPU; node at 1 kHz, publish 100 Hz, MCAP: 1
-muscle <= 7 % of a core, 100 muscles <= 14 % (the node pinned to one CPU, the driver to the other),
-1000 muscles with no model time skipped, within one core, model time within 1 % of wall time; joint:
-myolegs geometry evaluate <= 30 us of thread CPU (compiled), the node from joint_states at 1 kHz <=
-35 % of a core with latency p99 under a publish period; node-memory: resident memory after the warm-
-up growing at most 2 MiB/h (the window's slope, extrapolated to an hour); study: speed-up on 2
-workers at least 1.8, overhead per run under 5 % of a 30 s run, the client's memory growing at most
-10 MiB from the 100th to the 1000th short run.
+step; kernel <= 0.25 us per muscle-step at 1000 and 10,000 muscles, run at least as fast as
+repeated step, 10,000 muscles in real time at 1 kHz with the parallel switch, cold start < 10 s;
+knee extension offline < 5 s, logged < 3 s; --help < 0.5 s of CPU; node at 1 kHz, publish 100 Hz,
+MCAP: 1 muscle <= 7 % of a core, 100 muscles <= 14 % (the node pinned to one CPU, the driver to the
+other), 1000 muscles with no model time skipped, within one core, model time within 1 % of wall
+time; joint: myolegs geometry evaluate <= 30 us of thread CPU (compiled), the node from
+joint_states at 1 kHz <= 35 % of a core with latency p99 under a publish period; node-memory:
+resident memory after the warm-up growing at most 2 MiB/h (the window's slope, extrapolated to an
+hour); study: speed-up on 2 workers at least 1.8, overhead per run under 5 % of a 30 s run, the
+client's memory growing at most 10 MiB from the 100th to the 1000th short run.
 """
 
 from __future__ import annotations
