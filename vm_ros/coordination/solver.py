@@ -65,6 +65,7 @@ SETTINGS_FILE = "coordination.yaml"
 @dataclass(frozen=True)
 class DriveSettings:
     node_step: float = holds("s")
+    lead_in: float = holds("s")
 
 
 @dataclass(frozen=True)
@@ -134,6 +135,7 @@ class SolverOptions:
     cost: str = DEFAULT_COST
     muscle_weights: Mapping = field(default_factory=dict)
     node_step_s: float = _setting("drives", "node_step")
+    lead_in_s: float = _setting("drives", "lead_in")
     distribution_reserve_weight: float = _setting("distribution", "reserve_weight")
     distribution_smoothness: float = _setting("distribution", "smoothness")
     iterations: int = _setting("tracking", "iterations", int)
@@ -161,7 +163,7 @@ class SolverOptions:
                      "qp_eps", "memory_s"):
             if not getattr(self, name) > 0:
                 raise VmRosError(f"{name} must be > 0 (got {getattr(self, name)})")
-        for name in ("smoothness", "distribution_smoothness", "lead_s", "refine",
+        for name in ("smoothness", "distribution_smoothness", "lead_s", "refine", "lead_in_s",
                      "tracking_tolerance", "tolerance"):
             if not getattr(self, name) >= 0:
                 raise VmRosError(f"{name} must be >= 0 (got {getattr(self, name)})")
@@ -353,7 +355,7 @@ def solve(bank, problem: CoordinationProblem, options: SolverOptions | None = No
     started = time.perf_counter()
     rate = cost.rate_function(bank.energetics_models)
     forward = ForwardModel(bank, problem, options.node_step_s, {options.cost: rate},
-                           options.memory_s)
+                           options.memory_s, options.lead_in_s)
     weights = np.array([float(options.muscle_weights.get(m, 1.0)) for m in problem.muscles])
     n = len(problem.muscles)
     reference = forward.run(np.full((forward.n_nodes, n), REFERENCE_DRIVE))
