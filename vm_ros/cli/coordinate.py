@@ -7,8 +7,10 @@ moments at least cost (docs/coordination.md), and write:
   forces.sto      tendon force per muscle (N) at the target frames
   reserves.sto    reserve moment per coordinate (N m or N) at the target frames
   coordination.mcap  the run log of the drives (as `vm-ros simulate --motion` writes it, the
-                  activation starting at the steady state of the first drive; `vm-ros recompute`
-                  reproduces its forces and energy)
+                  activation starting at the steady state of the first drive, the solver's
+                  lead-in first; `vm-ros recompute` reproduces its forces and energy)
+  motion.sto      with a lead-in (config/coordination.yaml drives.lead_in): the run log's
+                  motion, the first pose held from the lead-in's start
   coordination.png   drives over time (heat map), forces, target and muscle moments with the
                   reserves, mean metabolic rate per muscle
 
@@ -303,7 +305,7 @@ def run(args) -> int:
              "targets": targets.source,
              SOLVE_KEY: f"{len(result.history)} iterations, max reserve RMS "
                         f"{np.max(result.summary.rms_percent):.3f} % of peak"}
-    print(f"run log of the drives (vm-ros simulate --motion, steady start; "
+    print(f"run log of the drives (vm-ros simulate --motion, steady start, lead-in {lead_s:g} s; "
           f"{time.perf_counter() - started:.1f} s so far):")
     code = simulate.run(parser.parse_args(argv), verb="coordinate", extra=extra)
     print(f"wrote {drives}, {out / 'forces.sto'}, {out / 'reserves.sto'}"

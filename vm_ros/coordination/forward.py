@@ -1,10 +1,14 @@
 """Forward runs of the full bank over a prescribed motion, and their sensitivity to the drives.
 
-Drives are given at nodes t_j = j h (j = 0 .. N - 1, the last at or after the motion's end) and
-interpolated linearly to each model step's start (as an excitation table is, vm_ros.recording.
-excitations); the bank starts at static equilibrium with its activation at the steady state of
-the first step's drive (a run from rest would spend its first 0.2-0.3 s activating), then
-MuscleBank.run steps the whole motion: drive filter, activation, fascicle mass, tendon.
+Drives are given at nodes t_j = j h - T_lead (j = 0 .. N - 1, the last at or after the motion's
+end) and interpolated linearly to each model step's start (as an excitation table is,
+vm_ros.offline.excitations). A run starts T_lead (the lead-in, ``lead_in_s`` rounded up to whole
+node steps; config/coordination.yaml drives.lead_in) before the motion's first frame: the bank
+at static equilibrium at the first pose with its activation at the steady state of the first
+step's drive (a run from rest would spend its first 0.2-0.3 s activating), the first pose held
+(path velocity 0) over the lead-in, whose drives are free, then the motion; MuscleBank.run
+steps it all: drive filter, activation, fascicle mass, tendon. Model time 0 is the motion's
+first frame; forces, rates and the sensitivity's windows are of the motion's steps only.
 
 Because the motion is prescribed, muscle i's force and energy depend only on muscle i's drive.
 So one run probes every muscle at once, and the sensitivity of forces and costs to the drive
