@@ -130,7 +130,7 @@ def test_fig7_table_180s_kernels_as_predicted_and_lumped_against_natural():
                                                                                  rel=0.01)
 
 
-# Measured with the shipped relative_drive constants: 0.963 over 180 s (18.73 / 19.45 kJ); with
+# Measured with the shipped relative_drive constants: 0.968 over 180 s (18.83 / 19.45 kJ); with
 # the paper's law (tsianos2012) 0.60 (11.64 kJ).
 def test_lumped_total_energy_within_10_percent_of_natural_units_30s():
     """The check's lumped/natural criterion (0.9-1.1), over 30 s rather than 180 s: the initial

@@ -14,6 +14,13 @@ The logs attach the shipped muscle library, so its bytes are in the digests: the
 with today's config/muscles.yaml in that commit's source (its entries are those of bb0d40a; the
 file since gained comment lines), and change when the file does.
 
+The model's constants are in the digests too: when the drive filter's constants became the fit's
+output (config/model.yaml recruitment.lumped.relative_*, a new one among them, which the code of
+bb0d40a and 8817190 cannot read), DIGESTS and SLOW_LEG_DIGESTS were recomputed by the same
+procedure against the source of that change (commit cf33c05, a clean worktree, this file run
+against it as above; SLOW_LEG_DIGESTS by ``slow_leg_digests``), and again when the drive filter's
+fall came to follow the lumped unit's firing, against commit 1476522.
+
 A digest covers every message (channel topic and type, log time, publish time, raw CDR bytes),
 every attachment and the metadata except the library versions and the paths of the files read
 (``*_file``: the attachments hold their bytes). It depends on the numerical
@@ -40,12 +47,12 @@ from vm_ros.model import MuscleBank
 START_NS = 1_700_000_000_123_456_789
 COMPUTED_WITH = {"numpy": "2.4.6", "scipy": "1.17.1", "mcap": "1.6.0"}
 DIGESTS = {
-    "bank_numpy": "66233637afe147b291f732637155f9100f30887739b8ec7a56d9a1e7a265f906",
-    "bank_auto": "eef3c545b6724a49b9becc3b1b55cc74c47067dd959d4630bcb3b471b9c1d0ba",
-    "knee": "0ef73c5f845d1f3e900e43622e98dfcb942090f8c90d18a0cf2e658e157cc8be",
-    "leg": "7a0da8be36158e5982b280dea45e50ea2960a7840d32514a4b462456ecd9d519",
-    "knee_recomputed": "e24813821b2e421a959fcb8751e1a5f9280a5036381005ffb87d6678dd6f18c6",
-    "leg_recomputed": "9617fbabc546350362c98c5a88f882b22113613c30fc0c8ebcdd30a20418a456",
+    "bank_numpy": "8ba958b2e9d45d4517f2d9a2395b2e8a7815d465473d0c2bf40d049747536d54",
+    "bank_auto": "6993f04ec446d3a9e8b420897981c5443d3a3733d2ce5459132ab035667daf80",
+    "knee": "5655d5bb56dbc579abfe6fc85eb33fe1fd4a78c6a533519e2315c4cd9ff47f08",
+    "leg": "3f41009b0f221ff1bedd43d15858932bb65a08b45144bc9cc58bd72435ab41e3",
+    "knee_recomputed": "de1b88fb2073519dfae53c1ba6acc73f996d4d4c198469158bc51655cc987a52",
+    "leg_recomputed": "2ccc2e0284d87ab3cfe36fedd6bf168aa5ed634ae75ab528061e7e1c083bd432",
 }
 
 
@@ -125,8 +132,8 @@ def log_digests(directory: Path) -> dict:
 # recompute read logs as arrays (commit 8817190), as above against that commit's source with
 # today's config/muscles.yaml
 SLOW_LEG_DIGESTS = {
-    "leg_slow": "d291bb2bbaa746b1a0022be48cb7f231e6008691e57e9efc5263a1a2106b6919",
-    "leg_slow_recomputed": "b09ccc231d689c2e90ff81ebcaf9e808a876758528dc0184cb40bf97a554f5e9",
+    "leg_slow": "467ed28524c1e3b8733d13efe995a0ac2c5087122a1fceafe88e280bab8d4bbc",
+    "leg_slow_recomputed": "4f130a928d6d249bd019b1ae3d14832adf63a2600fcc6a4a7c2652983cc79804",
 }
 
 

@@ -50,7 +50,8 @@ def test_relative_drive_law_at_its_limits():
     # docs/model.md section 5c, with hand-chosen constants
     lumped = dataclasses.replace(LP, drive_law="relative_drive", relative_rise_poly=(0.1,),
                                  relative_rise_power=2.0, relative_fall_poly=(0.6,),
-                                 relative_fall_power=4.0, drive_tau_min=1e-4)
+                                 relative_fall_power=4.0, relative_fall_floor=0.05,
+                                 drive_tau_min=1e-4)
     r = _lumped(0.4, params=lumped)
 
     def tau(u, ueff, active=1.0):
@@ -62,18 +63,20 @@ def test_relative_drive_law_at_its_limits():
     assert tau(0.6, 0.3) == pytest.approx(0.1 * 0.5**2)
     assert tau(0.6, 0.3, active=0.5) == pytest.approx(0.1 * 0.5**2 * 0.5)
     assert tau(0.5, 0.5) == pytest.approx(0.1)  # caught up and firing: T_r
-    assert tau(0.0, 0.8) == pytest.approx(0.05 + 0.6)  # release: T_f0 + T_f
-    assert tau(0.3, 0.6) == pytest.approx(0.05 + 0.6 * 0.5**4)
-    assert tau(0.59, 0.6) == pytest.approx(0.05, abs=1e-6)  # small fall: T_f0
+    # falls: by the firing match m, not by the size of the fall
+    assert tau(0.0, 0.8, active=0.0) == pytest.approx(0.05 + 0.6)  # release, not firing: T_f0 + T_f
+    assert tau(0.3, 0.6, active=0.5) == pytest.approx(0.05 + 0.6 * 0.5**4)
+    assert tau(0.3, 0.6) == pytest.approx(0.05)  # firing rate down at its target: T_f0
+    assert tau(0.59, 0.6, active=0.9) == pytest.approx(0.05 + 0.6 * 0.1**4)
 
 
-def test_firing_fraction():
-    f = rc.firing_fraction(np.array([0.0, 0.5, 2.0, 1.0, 0.3]), np.array([1.0, 1.0, 1.0, 0.0, -1]))
-    assert f.tolist() == [0.0, 0.5, 1.0, 0.0, 0.0]
+def test_firing_match():
+    f = rc.firing_match(np.array([0.0, 0.5, 2.0, 1.0, 0.0]), np.array([1.0, 1.0, 1.0, 0.0, 0.0]))
+    assert f.tolist() == [0.0, 0.5, 0.5, 0.0, 0.0]
 
 
 def _lumped(fs, ur=0.8, params=LP):
-    return rc.LumpedRecruitment(np.array([[fs, 1 - fs]]), np.array([ur]), params, 0.05)
+    return rc.LumpedRecruitment(np.array([[fs, 1 - fs]]), np.array([ur]), params)
 
 
 def test_lumped_recruitment_capped_at_full_recruitment_of_each_type():

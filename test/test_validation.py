@@ -141,7 +141,7 @@ def test_fig7_knee_extension_180s():
     rising 0.40 +- 0.10, net fascicle work / total energy in 0.25-0.60 (measured 0.32-0.56,
     Krustrup 2003).
 
-    Known gap, asserted as such: the model's total energy is about 18.7 kJ, 0.535 of the paper's
+    Known gap, asserted as such: the model's total energy is about 18.8 kJ, 0.538 of the paper's
     ~35 000 J, below the experiment's 30 000-40 000 J; the criterion keeps the experiment's band
     and is a declared known gap (GAP, not a pass). Why: test/validation/REPORT.md, item 9."""
     from vm_ros.validation import FIG7_EXPERIMENT_BAND_J

@@ -5,10 +5,13 @@ units.
 
 Writes, in --out: fit_w.csv (max error per fibre mix, published vs refit), fit_w.png (lumped vs
 natural isometric force-drive curves), and model_fit_w.yaml: a copy of the model parameter file
-with the refit recruitment.lumped coefficients, usable as `--params` / `params=` elsewhere. With
---drive-filter also drive_filter_steps.csv: the refit law on drive steps the fit did not see
-(lumped / natural initial energy and force impulse over 0.25 s, full model, at L0), and the
-paper's Fig. 10 sinusoids; it also prints the held-out drives' summary (validation item 12).
+with the refit W, usable as `--params` / `params=` elsewhere. With --drive-filter also
+model_drive_filter.yaml: the parameter file with the drive filter's constants refit (with the
+file's own W, over lumped_fit.DRIVE_FILTER_GRID, from lumped_fit.DRIVE_FILTER_START, rounded to
+the printed digits: the shipped config/model.yaml holds this fit's output), and
+drive_filter_steps.csv: the refit law on drive steps the fit did not see (lumped / natural
+initial energy and force impulse over 0.25 s, full model, at L0), and the paper's Fig. 10
+sinusoids; it also prints the held-out drives' summary (validation item 12).
 """
 
 from __future__ import annotations
@@ -22,12 +25,17 @@ import yaml
 from vm_ros.model import load_model_params
 from vm_ros.model.lumped_fit import (
     DEFAULT_FPCSA_GRID,
+    DRIVE_FILTER_FPCSA,
+    DRIVE_FILTER_GRID,
+    DRIVE_FILTER_START,
+    DRIVE_FILTER_UR,
     W_FIELDS,
     compare_sinusoidal,
     compare_steps,
     fit_drive_filter,
     fit_weighting,
     with_drive_law,
+    with_lumped,
 )
 from vm_ros.model.params import DRIVE_LAWS, resolve_muscles
 from vm_ros.resources import config_dir
@@ -43,12 +51,15 @@ def add_arguments(parser) -> None:
     parser.add_argument("--ur", type=float, default=0.8,
                         help="drive at which all units are recruited (default 0.8)")
     parser.add_argument("--fpcsa-slow", type=float, nargs="+", default=list(DEFAULT_FPCSA_GRID),
-                        metavar="F", help="slow PCSA fractions to fit over (default 0.2 ... 0.8)")
+                        metavar="F", help="slow PCSA fractions to fit W over (default 0.2 ... "
+                        "0.8; the drive filter has its own grid, lumped_fit.DRIVE_FILTER_GRID)")
     parser.add_argument("--units", type=int, default=50,
                         help="natural units per fibre type in the reference ensemble (default 50)")
     parser.add_argument("--drive-filter", action="store_true",
                         help="also refit the drive filter's law against natural units through "
-                             "steps and sinusoids, and check it on the validation drives (~3 min)")
+                             "steps, sinusoids, pulse trains and ramps (with the parameter file's "
+                             "W, Fpcsa_S x Ur of lumped_fit.DRIVE_FILTER_GRID), and check it on "
+                             "the validation drives (~10-20 min)")
     parser.add_argument("--drive-law", choices=DRIVE_LAWS, default=None,
                         help="the drive filter's law to fit and write (default: the parameter "
                              "file's recruitment.lumped.drive_law)")
@@ -59,18 +70,30 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-plot", action="store_true", help="skip the PNG")
 
 
-def _write_params_yaml(source: Path, lumped, ur: float, units: int, fields, path: Path) -> None:
+# significant digits of the drive filter's constants as printed and written (and shipped)
+FILTER_DIGITS = 4
+
+
+def _rounded(value, rounding):
+    if isinstance(value, tuple):
+        return tuple(rounding(float(v)) for v in value)
+    return rounding(float(value))
+
+
+def _significant(value):
+    return _rounded(value, lambda v: float(f"{v:.{FILTER_DIGITS}g}"))
+
+
+def _write_params_yaml(source: Path, lumped, fields, rounding, how: str, path: Path) -> None:
     data = yaml.safe_load(source.read_text(encoding="utf-8"))
     section = data["recruitment"]["lumped"]
     section["drive_law"]["value"] = lumped.drive_law
     for name in fields:
-        value = getattr(lumped, name)
+        value = rounding(getattr(lumped, name))
         section[name] = {
-            "value": [round(float(v), 6) for v in value] if isinstance(value, tuple)
-            else round(float(value), 6),
+            "value": list(value) if isinstance(value, tuple) else value,
             "unit": section[name]["unit"], "tag": "R",
-            "source": f"vm-ros fit-w: least squares against {units} natural units per type, "
-                      f"Ur = {ur}; value before the fit {section[name]['value']}",
+            "source": f"{how}; value before the fit {section[name]['value']}",
         }
     path.write_text(yaml.safe_dump(data, sort_keys=False, width=100), encoding="utf-8")
 
@@ -105,6 +128,33 @@ def _held_out(params, start_params, ur: float, path: Path) -> None:
           f"{HELD_OUT_SEEDS[-1]}), % of F(U=1)")
     for (label, *_), run in zip(summary, held_out, strict=True):
         print(f"  {label:6}  {held_out_summary(cases, run)}")
+
+
+def _fit_drive_filter(params, source, args) -> list[Path]:
+    """The drive filter's fit (the parameter file's W), its constants printed and written to
+    model_drive_filter.yaml to FILTER_DIGITS significant digits, and its checks."""
+    law = params.lumped.drive_law
+    print(f"\nfitting the drive filter ({law}) against 20 natural units per type through steps, "
+          f"sinusoids, pulse trains and ramps, Fpcsa_S {DRIVE_FILTER_FPCSA} x Ur "
+          f"{DRIVE_FILTER_UR} ...")
+    dyn = fit_drive_filter(params, start=DRIVE_FILTER_START[law])
+    fitted = with_lumped(params, **{name: _significant(getattr(dyn.params.lumped, name))
+                                    for name in dyn.fields})
+    print(f"  least_squares status {dyn.status} after {dyn.evaluations} evaluations; training "
+          f"RMS % of natural F(U=1) per muscle: start {dyn.rms_start_percent.max():.3f} worst, "
+          f"fitted {np.median(dyn.rms_fitted_percent):.3f} median, "
+          f"{dyn.rms_fitted_percent.max():.3f} worst")
+    for name in dyn.fields:
+        print(f"  {name}: {getattr(fitted.lumped, name)} (the parameter file's: "
+              f"{getattr(params.lumped, name)})")
+    path = args.out / "model_drive_filter.yaml"
+    how = ("vm-ros fit-w --drive-filter: least squares against 20 natural units per type, "
+           f"Fpcsa_S {min(DRIVE_FILTER_FPCSA)}-{max(DRIVE_FILTER_FPCSA)} x Ur "
+           f"{min(DRIVE_FILTER_UR)}-{max(DRIVE_FILTER_UR)} ({len(DRIVE_FILTER_GRID)} muscles), "
+           "lumped_fit.training_drive_series; docs/model.md section 5d")
+    _write_params_yaml(Path(source), fitted.lumped, dyn.fields, _significant, how, path)
+    _held_out(fitted, params, 0.8, args.out / "drive_filter_steps.csv")
+    return [path, args.out / "drive_filter_steps.csv"]
 
 
 def _plot(fit, path: Path) -> None:
@@ -142,28 +192,10 @@ def run(args) -> int:
     print(f"fitting W for Ur = {args.ur} against {args.units} natural units per fibre type ...")
     fit = fit_weighting(params, ur=args.ur, fpcsa_slow_grid=args.fpcsa_slow,
                         units_per_type=args.units)
-    fitted_params, fields = fit.params, list(W_FIELDS)
-    if args.drive_law is not None:
-        fitted_params = with_drive_law(fitted_params, args.drive_law)
-    filter_rows = None
-    if args.drive_filter:
-        law = fitted_params.lumped.drive_law
-        print(f"fitting the drive filter ({law}) against natural units through steps and "
-              "sinusoids ...")
-        dyn = fit_drive_filter(fitted_params, ur=args.ur, fpcsa_slow_grid=args.fpcsa_slow)
-        for name in dyn.fields:
-            print(f"  {name}: {getattr(fitted_params.lumped, name)} -> "
-                  f"{getattr(dyn.params.lumped, name)}")
-        start_params, fitted_params, filter_rows = fitted_params, dyn.params, dyn
-        fields += list(dyn.fields)
     header = ["fpcsa_slow", "published_max_error_percent", "refit_max_error_percent"]
     published, refit = fit.published.max_error_percent, fit.fitted.max_error_percent
     rows = [[fs, p, f] for fs, p, f in zip(fit.published.fpcsa_slow, published, refit,
                                            strict=True)]
-    if filter_rows is not None:
-        header += ["start_training_rms_percent", "refit_training_rms_percent"]
-        rows = [r + [p, f] for r, p, f in zip(rows, filter_rows.rms_start_percent,
-                                              filter_rows.rms_fitted_percent, strict=True)]
     with open(args.out / "fit_w.csv", "w", newline="", encoding="utf-8") as handle:
         writer = csv.writer(handle)
         writer.writerow(header)
@@ -173,12 +205,14 @@ def run(args) -> int:
     print("  " + "  ".join(f"{h:>28}" for h in header))
     for row in rows:
         print("  " + "  ".join(f"{v:28.3f}" for v in row))
-    _write_params_yaml(Path(source), fitted_params.lumped, args.ur, args.units, fields,
-                       args.out / "model_fit_w.yaml")
+    _write_params_yaml(Path(source), fit.params.lumped, W_FIELDS,
+                       lambda v: _rounded(v, lambda c: round(c, 6)),
+                       f"vm-ros fit-w: least squares against {args.units} natural units per "
+                       f"type, Ur = {args.ur}", args.out / "model_fit_w.yaml")
     written = [args.out / "fit_w.csv", args.out / "model_fit_w.yaml"]
-    if filter_rows is not None:
-        _held_out(fitted_params, start_params, args.ur, args.out / "drive_filter_steps.csv")
-        written.append(args.out / "drive_filter_steps.csv")
+    if args.drive_filter:
+        written += _fit_drive_filter(params if args.drive_law is None
+                                     else with_drive_law(params, args.drive_law), source, args)
     if not args.no_plot:
         try:
             _plot(fit, args.out / "fit_w.png")

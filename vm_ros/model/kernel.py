@@ -286,7 +286,7 @@ def _store_outputs(block, i0, count, out_excitation, out_f_se, out_f_ce, out_act
 
 @jitable
 def _drive_loop(dt, count, lumped, natural, relative_drive, u_in, out_u, drive, f_eff_slow,
-                weight_s, weight_f, constant, fall_tau_mid, s, w_slow_poly):
+                weight_s, weight_f, constant, s, w_slow_poly):
     """Phase 1 over a block's muscles."""
     c = constant
     for i in range(count):
@@ -297,13 +297,14 @@ def _drive_loop(dt, count, lumped, natural, relative_drive, u_in, out_u, drive, 
         # would stop its vectorisation (the other schemes' constants are NaN, never selected).
         ueff_old = drive[i]
         # lumped, relative-drive law: the slow pool (pool 0) says how active the units already are
-        active = rc.firing_fraction(
+        active = rc.firing_match(
             f_eff_slow[i],
             act.firing_envelope(u, c[ROW_C_THRESHOLD, i], s[S.fmin], s[S.fmax]),
         )
         tau_relative = rc.relative_drive_tau(
             u, ueff_old, active, c[M.relative_rise, i], s[S.relative_rise_power],
-            c[M.relative_fall, i], fall_tau_mid, s[S.relative_fall_power], s[S.drive_tau_min],
+            c[M.relative_fall, i], s[S.relative_fall_floor], s[S.relative_fall_power],
+            s[S.drive_tau_min],
         )
         tau_rate = rc.lumped_drive_tau_from_rate(
             u, ueff_old, c[M.t_rise, i], c[M.t_fall, i], c[M.t_rise_rate, i]
@@ -529,7 +530,6 @@ def _advance_series(
     pool_decay = _pool_decays(dt, pool)
     recovery_decay = act.lag_decay(shared[0, S.recovery_tau_decay], dt)
     recovery_rise = act.lag_decay(shared[0, S.recovery_tau_rise], dt)
-    fall_tau_mid = rc.mid_activation_fall_time_constant(pool[0, P.tf3], pool[0, P.tf4])
     variable = np.empty((blocks, _variable_rows(n_pools), size))
     constant = np.empty((blocks, ROW_C_THRESHOLD + 2 * n_pools, size))
     status = np.zeros(blocks, dtype=np.int64)  # per block: 0, or 1 + its first bad input's index
@@ -573,7 +573,7 @@ def _advance_series(
             # one step of the block; its inputs are in the rows ROW_U_IN, ROW_LP, ROW_VP
             _drive_loop(dt, count, lumped, natural, relative_drive, v[ROW_U_IN], v[ROW_OUT_U],
                         v[ROW_DRIVE], v[_pool_row(POOL_F_EFF, 0, n_pools)], v[ROW_WEIGHT],
-                        v[ROW_WEIGHT + 1], c, fall_tau_mid, s, w_slow)
+                        v[ROW_WEIGHT + 1], c, s, w_slow)
             for t in range(2):
                 for i in range(count):
                     v[ROW_ACTIVITY + t, i] = 0.0

@@ -22,6 +22,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from vm_ros.model.bank import MuscleBank
+from vm_ros.model.curves import tendon_length_at_force
 from vm_ros.model.params import LumpedParams, ModelParams, MuscleSpec
 from vm_ros.model.recruitment import LumpedRecruitment
 
@@ -31,19 +32,33 @@ W_FIELDS = ("w_slow_poly", "w_slow_a_poly", "w_slow_tau", "w_fast_b_poly", "w_fa
 FILTER_FIELDS = {
     "tsianos2012": ("t_rise_poly", "t_fall_poly"),
     "relative_drive": ("relative_rise_poly", "relative_rise_power", "relative_fall_poly",
-                       "relative_fall_power"),
+                       "relative_fall_power", "relative_fall_floor"),
 }
 # Bounds of the fitted values (each coefficient of a polynomial), where the fit needs them: without
 # them the relative_drive fit can trade a smaller error for a law that holds Ueff for minutes after
 # a release (T_f ~ 1000 s with p ~ 150), where Ueff no longer means an effective drive. A time
 # constant coefficient stays within 2 s, p and q in 1-4 (p 1: linear in the fall's size; 4: only
-# large falls hold W).
+# large falls hold W), T_f0 within 0-0.5 s.
 FILTER_BOUNDS = {
     "relative_rise_poly": (-2.0, 2.0), "relative_rise_power": (1.0, 4.0),
     "relative_fall_poly": (-2.0, 2.0),
-    "relative_fall_power": (1.0, 4.0),
+    "relative_fall_power": (1.0, 4.0), "relative_fall_floor": (0.0, 0.5),
+}
+# Where `vm-ros fit-w --drive-filter` starts each law's fit (None: the parameter file's values,
+# the paper's for tsianos2012): fixed round values, so that the fitted constants do not depend on
+# the ones shipped.
+DRIVE_FILTER_START = {
+    "tsianos2012": None,
+    "relative_drive": {"relative_rise_poly": (0.0, 0.1), "relative_rise_power": 2.0,
+                       "relative_fall_poly": (0.0, 0.5), "relative_fall_power": 2.0,
+                       "relative_fall_floor": 0.05},
 }
 DEFAULT_FPCSA_GRID = (0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8)
+# The drive-filter fit's muscles: every (Fpcsa_S, Ur) of these
+DRIVE_FILTER_FPCSA = (0.05, 0.2, 0.35, 0.5, 0.65, 0.8, 0.95)
+DRIVE_FILTER_UR = (0.5, 0.65, 0.8)
+DRIVE_FILTER_GRID = tuple((fs, ur) for ur in DRIVE_FILTER_UR for fs in DRIVE_FILTER_FPCSA)
+DRIVE_FILTER_MAX_EVALUATIONS = 200
 
 
 def synthetic_muscles(fpcsa_slow_grid, ur: float) -> list[MuscleSpec]:
@@ -138,8 +153,7 @@ def fit_weighting(params: ModelParams, ur: float = 0.8, fpcsa_slow_grid=DEFAULT_
     scale = base.natural.sum(-1)[-1]  # natural force at U = 1, per mix
 
     def residual(vector):
-        trial = LumpedRecruitment(fpcsa, urs, _unpack(vector, params.lumped, W_FIELDS),
-                                  lumped_bank.recruitment.slow_fall_s)
+        trial = LumpedRecruitment(fpcsa, urs, _unpack(vector, params.lumped, W_FIELDS))
         weights = np.array([trial.pool_weights(np.full(len(specs), u)) for u in base.drive])
         return ((weights * af - base.natural) / scale[None, :, None]).ravel()
 
@@ -157,23 +171,59 @@ def step_drive_series(dt: float, hold_s: float = 0.5,
     return np.repeat(np.asarray(levels, dtype=float), int(round(hold_s / dt)))
 
 
-# Training drive of the drive-filter fit: the staircase, then sinusoids (mean, amplitude, Hz),
-# each 2 s, isometric activation at L0. The validation drives are checked separately from the fit:
-# compare_steps with the full model (7 of its 9 steps are not in the training drive; 0->0.2 and
-# 0.5->0 are also steps of the staircase) and compare_sinusoidal (the paper's Fig. 10 cases, none
-# in training).
+def pulse_train(rng, steps: int, dt: float, hold_s, rest_probability: float) -> np.ndarray:
+    """Random levels (uniform 0-1; at rest with ``rest_probability``), each held a uniform
+    ``hold_s`` (low, high), (steps,), from the numpy Generator ``rng``."""
+    drive, k = np.empty(steps), 0
+    while k < steps:
+        hold = int(round(rng.uniform(*hold_s) / dt))
+        level = 0.0 if rng.random() < rest_probability else rng.uniform(0.0, 1.0)
+        drive[k:k + hold] = level
+        k += hold
+    return drive
+
+
+def ramp_series(levels, ramp_s: float, hold_s: float, dt: float) -> np.ndarray:
+    """From each of ``levels`` to the next linearly over ``ramp_s``, each level then held
+    ``hold_s`` (k,)."""
+    n, hold = int(round(ramp_s / dt)), int(round(hold_s / dt))
+    pieces = [np.full(hold, levels[0])]
+    for a, b in zip(levels[:-1], levels[1:], strict=True):
+        pieces += [np.linspace(a, b, n + 1)[1:], np.full(hold, b)]
+    return np.concatenate(pieces)
+
+
+# Training drive of the drive-filter fit (isometric activation at L0): the staircase,
+# TRAINING_RELEASES, sinusoids (mean, amplitude, Hz) of TRAINING_SINUSOID_S each, pulse trains
+# (random levels each held TRAINING_PULSE_HOLD_S, one in five at rest) of TRAINING_PULSE_S from
+# the seeds TRAINING_SEEDS, and ramps through TRAINING_RAMP_LEVELS at each of TRAINING_RAMP_S.
+# Checked separately from the fit: compare_steps with the full model (7 of its 9 steps are not in
+# the training drive; 0->0.2 and 0.5->0 are also steps of the staircase), compare_sinusoidal (the
+# paper's Fig. 10 cases, none in training) and validation item 12 (other seeds, lengths, paths).
 TRAINING_SINUSOIDS = ((0.4, 0.15, 3.0), (0.6, 0.25, 1.5), (0.25, 0.1, 6.0), (0.35, 0.2, 4.5))
+TRAINING_SINUSOID_S = 2.0
 # releases to rest and rises from it, from levels the validation steps do not use
 TRAINING_RELEASES = (0.0, 0.6, 0.0, 0.3, 0.9, 0.0, 0.15, 0.4, 0.0)
+TRAINING_SEEDS = (2901, 2902)
+TRAINING_PULSE_S = 4.0
+TRAINING_PULSE_HOLD_S = (0.05, 0.4)
+TRAINING_PULSE_REST_PROBABILITY = 0.2
+TRAINING_RAMP_LEVELS = (0.0, 0.85, 0.3, 0.0)
+TRAINING_RAMP_S = (0.2, 0.6, 1.5)
+TRAINING_RAMP_HOLD_S = 0.3
 
 
-def training_drive_series(dt: float, sinusoid_s: float = 2.0) -> np.ndarray:
-    """The drive-filter fit's training drive (k,): :func:`step_drive_series`, TRAINING_RELEASES
-    (0.5 s each), then TRAINING_SINUSOIDS, ``sinusoid_s`` each."""
-    t = np.arange(int(round(sinusoid_s / dt))) * dt
+def training_drive_series(dt: float) -> np.ndarray:
+    """The drive-filter fit's training drive (k,) (the constants above, in their order)."""
+    t = np.arange(int(round(TRAINING_SINUSOID_S / dt))) * dt
     sines = [m + a * np.sin(2 * np.pi * f * t) for m, a, f in TRAINING_SINUSOIDS]
+    pulses = [pulse_train(np.random.default_rng(seed), int(round(TRAINING_PULSE_S / dt)), dt,
+                          TRAINING_PULSE_HOLD_S, TRAINING_PULSE_REST_PROBABILITY)
+              for seed in TRAINING_SEEDS]
+    ramps = [ramp_series(TRAINING_RAMP_LEVELS, r, TRAINING_RAMP_HOLD_S, dt)
+             for r in TRAINING_RAMP_S]
     return np.concatenate([step_drive_series(dt), step_drive_series(dt, levels=TRAINING_RELEASES),
-                           *sines])
+                           *sines, *pulses, *ramps])
 
 
 def _dynamic_banks(params, specs, units_per_type):
@@ -183,10 +233,14 @@ def _dynamic_banks(params, specs, units_per_type):
 
 
 def _trace(bank: MuscleBank, drive_series, dt):
-    """Isometric effective activation at L0 per fibre type, (k, n, 2), from rest."""
-    bank.reset(np.full(bank.n, 1.0) * (bank.l0_m + bank.l0t_m), excitation=np.zeros(bank.n))
-    series = np.repeat(drive_series[:, None], bank.n, axis=1)
-    return bank.activation_trace(dt, series)
+    """Effective activation per fibre type, (k, n, 2), from rest, through the full model (the
+    compiled run) at the fixed path length at which the fascicle is at L0 under half F0."""
+    g = bank.params.generic
+    path = bank.l0_m + bank.l0t_m * tendon_length_at_force(0.5, g.ct, g.kt, g.lrt)
+    bank.reset(path, excitation=np.zeros(bank.n))
+    k = len(drive_series)
+    run = bank.run(dt, np.repeat(drive_series[:, None], bank.n, axis=1), np.tile(path, (k, 1)))
+    return run.effective_activation
 
 
 def with_drive_law(params: ModelParams, law: str) -> ModelParams:
@@ -194,28 +248,38 @@ def with_drive_law(params: ModelParams, law: str) -> ModelParams:
     return dataclasses.replace(params, lumped=dataclasses.replace(params.lumped, drive_law=law))
 
 
+def with_lumped(params: ModelParams, **changes) -> ModelParams:
+    """``params`` with the given recruitment.lumped fields replaced."""
+    return dataclasses.replace(params, lumped=dataclasses.replace(params.lumped, **changes))
+
+
 @dataclass(frozen=True)
 class DriveFilterFit:
-    """Result of :func:`fit_drive_filter` for one law: the refit params, the fitted fields, and
-    the RMS error of the isometric activation over the training drive (% of natural at U = 1)
-    per fibre mix, before and after."""
+    """Result of :func:`fit_drive_filter` for one law: the refit params, the fitted fields, the
+    RMS error of the isometric activation over the training drive (% of the reference at U = 1)
+    per muscle of the grid, at the start and fitted, and least_squares' status and evaluations."""
 
     params: ModelParams
     fields: tuple
     rms_start_percent: np.ndarray
     rms_fitted_percent: np.ndarray
+    status: int
+    evaluations: int
 
 
 class _DriveFilterProblem:
-    """The drive-filter fit's target (natural units through the training drive) and residual."""
+    """The drive-filter fit's target (the ``reference`` scheme through the training drive) and
+    residual. The reference is natural units; "lumped" (the lumped units with ``params``' own
+    constants) gives a target whose constants are known, to check that the fit recovers them."""
 
-    def __init__(self, params, ur, fpcsa_slow_grid, units_per_type, dt):
+    def __init__(self, params, grid, units_per_type, dt, reference="natural"):
         self.params, self.dt = params, dt
-        self.specs = synthetic_muscles(fpcsa_slow_grid, ur)
-        natural_bank, _ = _dynamic_banks(params, self.specs, units_per_type)
+        self.specs = grid_muscles(grid)
+        natural_bank, lumped_bank = _dynamic_banks(params, self.specs, units_per_type)
+        reference_bank = {"natural": natural_bank, "lumped": lumped_bank}[reference]
         self.drive = training_drive_series(dt)
-        self.target = _trace(natural_bank, self.drive, dt)
-        full = natural_bank.steady_effective_activation(np.ones(len(self.specs)))
+        self.target = _trace(reference_bank, self.drive, dt)
+        full = reference_bank.steady_effective_activation(np.ones(len(self.specs)))
         # isometric tetanic initial energy per unit activation and dry mass (Barclay's fit at
         # V = 0, e3/e4; the activation share scales both types alike): fast ~6x slow
         e = params.energetics
@@ -224,51 +288,60 @@ class _DriveFilterProblem:
 
     def _measures(self, activation) -> np.ndarray:
         """Force-like (activation summed over types) and energy-like (weighted by energy per
-        unit activation) measures, (k, mixes, 2), each / its natural value at U = 1."""
+        unit activation) measures, (k, mixes, 2), each / its reference value at U = 1."""
         return np.stack([activation.sum(-1), activation @ self.energy_weight], axis=-1) / self.scale
 
     def error(self, params) -> np.ndarray:
-        """(lumped - natural), force and energy measures, (k, mixes, 2): what the lumped units
+        """(lumped - reference), force and energy measures, (k, mixes, 2): what the lumped units
         stand in for, so that a fast-fibre error (six times the energy of a slow one for the same
         force) counts as much as it costs."""
         lumped = _trace(MuscleBank(self.specs, params, "lumped"), self.drive, self.dt)
         return self._measures(lumped) - self._measures(self.target)
 
     def rms_percent(self, params) -> np.ndarray:
-        """RMS over time and both measures, per mix (% of natural at U = 1)."""
+        """RMS over time and both measures, per muscle (% of the reference at U = 1)."""
         return 100.0 * np.sqrt(np.mean(self.error(params) ** 2, axis=(0, 2)))
 
 
-def drive_filter_rms_percent(params: ModelParams, ur: float = 0.8,
-                             fpcsa_slow_grid=DEFAULT_FPCSA_GRID, units_per_type: int = 20,
-                             dt: float = 0.002) -> np.ndarray:
+def grid_muscles(grid) -> list[MuscleSpec]:
+    """One synthetic muscle per (Fpcsa_S, Ur) pair of ``grid``."""
+    return [dataclasses.replace(spec, name=f"{spec.name}_ur_{ur:.3f}")
+            for fs, ur in grid for spec in synthetic_muscles((fs,), ur)]
+
+
+def drive_filter_rms_percent(params: ModelParams, grid=DRIVE_FILTER_GRID,
+                             units_per_type: int = 20, dt: float = 0.002) -> np.ndarray:
     """RMS error (% of natural at U = 1) of the lumped isometric activation against natural units
-    over the training drive, per fibre mix: what :func:`fit_drive_filter` minimises."""
-    return _DriveFilterProblem(params, ur, fpcsa_slow_grid, units_per_type, dt).rms_percent(params)
+    over the training drive, per muscle of ``grid``: what :func:`fit_drive_filter` minimises."""
+    return _DriveFilterProblem(params, grid, units_per_type, dt).rms_percent(params)
 
 
-def fit_drive_filter(params: ModelParams, ur: float = 0.8, fpcsa_slow_grid=DEFAULT_FPCSA_GRID,
-                     units_per_type: int = 20, dt: float = 0.002,
-                     max_nfev: int = 200) -> DriveFilterFit:
+def fit_drive_filter(params: ModelParams, grid=DRIVE_FILTER_GRID, units_per_type: int = 20,
+                     dt: float = 0.002, max_nfev: int = DRIVE_FILTER_MAX_EVALUATIONS,
+                     start: dict | None = None, reference: str = "natural") -> DriveFilterFit:
     """Refit the constants of the drive filter's law (``params.lumped.drive_law``, fields in
-    FILTER_FIELDS) so that the lumped units' isometric activation at L0 follows the natural
-    units' through :func:`training_drive_series` (least squares over every fibre mix at once; the
-    polynomials in U2 make the constants depend on the mix, as W's do)."""
+    FILTER_FIELDS) so that the lumped units' isometric activation at L0 follows the reference's
+    (natural units) through :func:`training_drive_series`, least squares over every muscle of
+    ``grid`` (Fpcsa_S, Ur) at once (the polynomials in U2 make the constants depend on the mix, as
+    W's do). Started from ``start`` (field: value; None: ``params``' own values), bounded by
+    FILTER_BOUNDS; scipy's least_squares (trf, 2-point differences) is deterministic: the same
+    inputs give the same constants."""
     fields = FILTER_FIELDS[params.lumped.drive_law]
-    problem = _DriveFilterProblem(params, ur, fpcsa_slow_grid, units_per_type, dt)
+    problem = _DriveFilterProblem(params, grid, units_per_type, dt, reference)
+    begin = with_lumped(params, **(start or {}))
 
     def trial(vector):
         return dataclasses.replace(params, lumped=_unpack(vector, params.lumped, fields))
 
-    x0 = _pack(params.lumped, fields)
+    x0 = _pack(begin.lumped, fields)
     sizes = [np.size(getattr(params.lumped, f)) for f in fields]
     low, high = (np.repeat([FILTER_BOUNDS.get(f, (-np.inf, np.inf))[side] for f in fields], sizes)
                  for side in (0, 1))
     result = least_squares(lambda x: problem.error(trial(x)).ravel(), np.clip(x0, low, high),
                            bounds=(low, high), max_nfev=max_nfev, x_scale="jac")
     fitted = trial(result.x)
-    return DriveFilterFit(fitted, fields, problem.rms_percent(params),
-                          problem.rms_percent(fitted))
+    return DriveFilterFit(fitted, fields, problem.rms_percent(begin), problem.rms_percent(fitted),
+                          int(result.status), int(result.nfev))
 
 
 STEP_CASES = ((0.0, 0.2), (0.0, 0.5), (0.0, 0.8), (0.0, 1.0), (0.3, 0.6), (0.5, 0.8), (0.8, 0.0),
@@ -313,8 +386,6 @@ def compare_steps(params: ModelParams, length_l0: float = 1.0, fpcsa_slow_grid=S
                   steps=STEP_CASES, ur: float = 0.8, units_per_type: int = 20,
                   window_s: float = 0.25, dt: float = 1e-3) -> StepComparison:
     """Lumped against natural units after drive steps (see :class:`StepComparison`)."""
-    from vm_ros.model.curves import tendon_length_at_force
-
     cases = np.array([(fs, a, b) for fs in fpcsa_slow_grid for a, b in steps], dtype=float)
     specs = [dataclasses.replace(spec, name=f"case{i}")
              for i, spec in enumerate(synthetic_muscles(cases[:, 0], ur))]
@@ -369,8 +440,6 @@ def compare_sinusoidal(params: ModelParams, muscle: MuscleSpec, mean_drive=(0.3,
                        progress=None) -> SinusoidComparison:
     """Run every (mean, amplitude, frequency) case as one muscle of a bank, natural and lumped,
     at a fixed path length (fascicle near L0 at half force), through the full model."""
-    from vm_ros.model.curves import tendon_length_at_force
-
     cases = [(m, a, f) for m in mean_drive for a in amplitudes for f in frequencies_hz]
     specs = [dataclasses.replace(muscle, name=f"case{i}") for i in range(len(cases))]
     mean_u = np.array([c[0] for c in cases])

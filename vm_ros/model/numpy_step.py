@@ -122,7 +122,7 @@ class NumpyStep:
             # pool 0: the slow unit of a lumped muscle, whose firing says how active it already is
             drive_tau=self.recruitment.drive_tau(
                 u, state.effective_drive,
-                rc.firing_fraction(state.firing_rate_effective[:, 0], f_env[:, 0]),
+                rc.firing_match(state.firing_rate_effective[:, 0], f_env[:, 0]),
             ),
             f_env=f_env,
             tf=tf,

@@ -116,6 +116,7 @@ class LumpedParams:
     relative_rise_power: float = holds("1")
     relative_fall_poly: tuple = holds("s")
     relative_fall_power: float = holds("1")
+    relative_fall_floor: float = holds("s")
     drive_tau_min: float = holds("s")
     w_slow_poly: tuple = holds("1")
     w_slow_a_poly: tuple = holds("1")
@@ -341,6 +342,9 @@ def _validate_model_params(p: ModelParams) -> None:
     if lumped.relative_fall_power <= 0:
         raise ConfigError(path, "recruitment.lumped.relative_fall_power",
                           lumped.relative_fall_power, "must be > 0")
+    if lumped.relative_fall_floor < 0:
+        raise ConfigError(path, "recruitment.lumped.relative_fall_floor",
+                          lumped.relative_fall_floor, "must be >= 0")
     c = p.continuous
     if c.tau_rise <= 0 or c.tau_fall <= 0:
         raise ConfigError(path, "recruitment.continuous.tau_rise", c.tau_rise, "must be > 0")

@@ -10,7 +10,7 @@ from its firing threshold; the scheme supplies, per muscle and pool:
 | ``pool_pcsa`` | (n, P) | PCSA fraction of the pool (sums to 1 per muscle) |
 | ``drive_tau(u, ueff, active)`` | (n,) | time constant of the filtered drive Ueff (None: no |
 | | | filter); lumped: by ``params.drive_law`` (DRIVE_LAWS); ``active`` (n,): the slow |
-| | | pool's firing fraction (:func:`firing_fraction`) |
+| | | pool's firing match (:func:`firing_match`) |
 | ``pool_weights(ueff)`` | (n, P) | weight so that effective activation = weight * Af |
 | ``recruited_fraction(u, ueff)`` | (n, P) | recruited PCSA fraction of the pool |
 
@@ -122,17 +122,11 @@ def lumped_drive_tau_from_rate(u, ueff, t_rise, t_fall, rise_rate):
 
 
 @jitable
-def firing_fraction(f_eff, f_env):
-    """How far a pool's firing rate has reached its target: clip(f_eff / f_env, 0, 1) (0 at
-    rest or with no target)."""
-    return where(f_env > 0.0, clip(safe_ratio(f_eff, f_env), 0.0, 1.0), 0.0)
-
-
-@jitable
-def mid_activation_fall_time_constant(tf3, tf4):
-    """The firing-rate fall time constant (tf3 + tf4 Af) / L at Af = 1/2 and L = L0 (s): the
-    rate at which a unit that stops firing lets go, in the middle of its activation range."""
-    return tf3 + 0.5 * tf4
+def firing_match(f_eff, f_env):
+    """How near a pool's firing rate is to its target, from either side: min(f_eff, f_env) /
+    max(f_eff, f_env) (0 at rest or with no target)."""
+    low, high = np.minimum(f_eff, f_env), np.maximum(f_eff, f_env)
+    return where(high > 0.0, clip(safe_ratio(low, high), 0.0, 1.0), 0.0)
 
 
 @jitable
@@ -140,19 +134,20 @@ def relative_drive_tau(u, ueff, active, t_rise, rise_power, t_fall, fall_floor, 
                        tau_min):
     """Time constant (s) of the filtered drive Ueff, relative_drive law (docs/model.md section 5d).
 
-    U >= Ueff: T_U = T_r (Ueff / U)^q a, with a the slow lumped unit's firing fraction
-    (:func:`firing_fraction`; the slow unit is recruited first and fires whenever any unit does):
-    0 from rest, where the lumped unit's own firing-rate rise carries the lag as each natural
-    unit's does; up to T_r when units are recruited on top of active ones, which build up behind
-    them.
-    U < Ueff: T_U = T_f0 + T_f (1 - U / Ueff)^p: T_f0 + T_f on release (W held while the firing
-    rate, and with it Af, decays as in natural units), near T_f0 for a small fall: T_f0 is the
-    slow fibres' :func:`mid_activation_fall_time_constant`, at which derecruited units let go.
+    ``active`` is m, the slow lumped unit's firing match (:func:`firing_match`; the slow unit is
+    recruited first and fires whenever any unit does).
+    U >= Ueff: T_U = T_r (Ueff / U)^q m: 0 from rest, where the lumped unit's own firing-rate rise
+    carries the lag as each natural unit's does; up to T_r when units are recruited on top of
+    active ones, which build up behind them.
+    U < Ueff: T_U = T_f0 + T_f (1 - m)^p: T_f0 + T_f while the unit's firing rate is still far
+    above its new target (on release to rest, m = 0: W held while the firing rate, and with it
+    Af, decays as in natural units); T_f0, the pace at which derecruited units let go, once the
+    firing rate has come down to the target of a partial release (m -> 1).
     Held at or above ``tau_min``.
     """
     up = u >= ueff
     # one power per muscle: the branch's base and exponent chosen first
-    share = power(clip(where(up, safe_ratio(ueff, u), 1.0 - safe_ratio(u, ueff)), 0.0, 1.0),
+    share = power(clip(where(up, safe_ratio(ueff, u), 1.0 - active), 0.0, 1.0),
                   where(up, rise_power, fall_power))
     return np.maximum(where(up, t_rise * share * active, fall_floor + t_fall * share), tau_min)
 
@@ -212,7 +207,6 @@ class LumpedRecruitment(_OnePoolPerFibreType):
     """One lumped unit per fibre type (Tsianos 2012 Appendix A), the default scheme."""
 
     params: LumpedParams
-    slow_fall_s: float  # T_f0 of the relative_drive law (s): mid_activation_fall_time_constant
     name: str = "lumped"
 
     @cached_property
@@ -235,8 +229,8 @@ class LumpedRecruitment(_OnePoolPerFibreType):
         c, p = self.coefficients, self.params
         if p.drive_law == "relative_drive":
             return relative_drive_tau(u, ueff, active, c.relative_rise, p.relative_rise_power,
-                                      c.relative_fall,
-                                      self.slow_fall_s, p.relative_fall_power,
+                                      c.relative_fall, p.relative_fall_floor,
+                                      p.relative_fall_power,
                                       p.drive_tau_min)
         return lumped_drive_tau(u, ueff, c.t_rise, c.t_fall, p.t_rise_step_scale)
 
@@ -394,9 +388,7 @@ class ContinuousRecruitment(_OnePoolPerFibreType):
 def make_recruitment(scheme: str, fpcsa, ur, params):
     """Build the scheme named ``scheme`` from (n, 2) PCSA fractions, (n,) Ur and ModelParams."""
     if scheme == "lumped":
-        fibre = params.fibre
-        slow_fall = mid_activation_fall_time_constant(fibre.tf3[SLOW], fibre.tf4[SLOW])
-        return LumpedRecruitment(fpcsa, ur, params.lumped, float(slow_fall))
+        return LumpedRecruitment(fpcsa, ur, params.lumped)
     if scheme == "natural":
         return NaturalRecruitment(fpcsa, ur, params.natural)
     if scheme == "continuous":

@@ -2,8 +2,9 @@
 
 Items 4, 5 and 11 compare the two schemes on the paper's steady states and sinusoids and on nine
 steps; the drive filter was fitted (vm_ros.model.lumped_fit.fit_drive_filter) on a fixed training
-drive of steps and slow sinusoids at L0. This item draws drives the fit never sees, from the
-seeds in HELD_OUT_SEEDS (numpy's default_rng; the fit uses no random drive at all):
+drive of steps, slow sinusoids, ramps of other lengths and pulse trains from other seeds
+(lumped_fit.TRAINING_SEEDS), at L0. This item draws drives the fit never sees, from the seeds in
+HELD_OUT_SEEDS (numpy's default_rng):
 
 | family | drive | fascicle |
 | pulses_l0 | random levels 0-1 (one in five at rest), each held 50-400 ms | L0 |
@@ -43,7 +44,7 @@ import numpy as np
 
 from vm_ros.model import MuscleBank, load_model_params
 from vm_ros.model.curves import tendon_length_at_force
-from vm_ros.model.lumped_fit import with_drive_law
+from vm_ros.model.lumped_fit import pulse_train, with_drive_law
 from vm_ros.model.params import MuscleSpec, resolve_muscles
 from vm_ros.validation.results import CheckResult, Criterion
 
@@ -106,16 +107,9 @@ class HeldOutCase:
     frequency_hz: float = 0.0
 
 
-def pulse_train(rng, steps: int, dt: float = DT) -> np.ndarray:
-    """Random levels (uniform 0-1; at rest with REST_PROBABILITY), each held a uniform
-    PULSE_HOLD_S."""
-    drive, k = np.empty(steps), 0
-    while k < steps:
-        hold = int(round(rng.uniform(*PULSE_HOLD_S) / dt))
-        level = 0.0 if rng.random() < REST_PROBABILITY else rng.uniform(0.0, 1.0)
-        drive[k:k + hold] = level
-        k += hold
-    return drive
+def _pulses(rng, steps: int, dt: float) -> np.ndarray:
+    """A pulse train (lumped_fit.pulse_train) held PULSE_HOLD_S, at rest with REST_PROBABILITY."""
+    return pulse_train(rng, steps, dt, PULSE_HOLD_S, REST_PROBABILITY)
 
 
 def ramps(rng, steps: int, ramp_s: float, dt: float = DT) -> np.ndarray:
@@ -171,11 +165,11 @@ def held_out_cases(seeds=HELD_OUT_SEEDS, case_s: float = CASE_S, dt: float = DT,
                 dataclasses.replace(spec, name=f"{family}_{seed}_{len(cases)}"),
                 drive, *path, _jumps(drive) if jumps else np.zeros(0, dtype=int), frequency))
 
-        case("pulses_l0", _synthetic(rng), pulse_train(rng, steps, dt))
+        case("pulses_l0", _synthetic(rng), _pulses(rng, steps, dt))
         length = rng.uniform(*LENGTH_RANGE_L0)
-        case("pulses_length", _synthetic(rng), pulse_train(rng, steps, dt),
+        case("pulses_length", _synthetic(rng), _pulses(rng, steps, dt),
              (np.full(steps, length), np.zeros(steps)))
-        case("moving", _synthetic(rng), pulse_train(rng, steps, dt),
+        case("moving", _synthetic(rng), _pulses(rng, steps, dt),
              triangle_path(rng, steps, dt))
         for ramp_s in RAMP_S:
             case("ramps", _synthetic(rng), ramps(rng, steps, ramp_s, dt), jumps=False)
@@ -187,7 +181,7 @@ def held_out_cases(seeds=HELD_OUT_SEEDS, case_s: float = CASE_S, dt: float = DT,
             case("sines", _synthetic(rng), mean + amplitude * np.sin(2 * np.pi * frequency * t),
                  frequency=frequency, jumps=False)
         for spec in library_specs:
-            case("library", spec, pulse_train(rng, steps, dt))
+            case("library", spec, _pulses(rng, steps, dt))
     return cases
 
 
