@@ -9,7 +9,7 @@ moments at least cost (docs/coordination.md), and write:
   coordination.mcap  the run log of the drives (as `vm-ros simulate --motion` writes it, the
                   activation starting at the steady state of the first drive, the solver's
                   lead-in first; `vm-ros recompute` reproduces its forces and energy)
-  motion.sto      with a lead-in (config/coordination.yaml drives.lead_in): the run log's
+  motion.sto      with --lead-in (config/coordination.yaml drives.lead_in): the run log's
                   motion, the first pose held from the lead-in's start
   coordination.png   drives over time (heat map), forces, target and muscle moments with the
                   reserves, mean metabolic rate per muscle
@@ -72,6 +72,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f"{defaults.reserve_weight:g})")
     parser.add_argument("--node-step", type=float, default=defaults.node_step_s, metavar="S",
                         help=f"time between drive nodes (default {defaults.node_step_s:g} s)")
+    parser.add_argument("--lead-in", type=float, default=defaults.lead_in_s, metavar="S",
+                        help=f"start the forward runs S before the motion's first frame, first "
+                             f"pose held, drives free (default {defaults.lead_in_s:g} s)")
     parser.add_argument("--iterations", type=int, default=defaults.iterations,
                         help=f"forward runs of the tracking stage at most (default "
                              f"{defaults.iterations})")
@@ -255,6 +258,7 @@ def run(args) -> int:
     options = SolverOptions(cost=args.cost, muscle_weights=_weights(args.muscle_weight),
                             node_step_s=args.node_step, reserve_weight=args.reserve_weight,
                             smoothness=args.smoothness, iterations=args.iterations,
+                            lead_in_s=args.lead_in,
                             refine=args.refine)
     options.check(muscles)
     config = RunConfig(muscles, geometry=args.geometry, library=args.library,

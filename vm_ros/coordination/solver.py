@@ -118,7 +118,9 @@ def _setting(section: str, name: str, kind=float):
 @dataclass(frozen=True)
 class SolverOptions:
     """How to solve: ``cost`` (costs.COSTS name), ``muscle_weights`` (name -> w_i, default 1),
-    ``node_step_s`` (s between drive nodes). Defaults: config/coordination.yaml.
+    ``node_step_s`` (s between drive nodes), ``lead_in_s`` (s the forward runs start before the
+    motion's first frame, first pose held, drives free: forward.py). Defaults:
+    config/coordination.yaml.
 
     Stage 1 (distribution.py): ``distribution_reserve_weight`` (w_res of the LP, on mean
     |reserve| / peak), ``distribution_smoothness`` (w_smooth of the LP, s, on mean
