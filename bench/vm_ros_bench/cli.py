@@ -1,7 +1,8 @@
 """Measure the model, the offline runner and muscle_node against vm_ros's speed targets; write
 the results (JSON and CSV) and print a table.
 
-Sections (all but coordination-walk, study and node-memory by default; --only picks some):
+Sections (all but coordination-walk, report-walk, study and node-memory by default; --only picks
+some):
   model     MuscleBank.step for 1, 10, 100, 1000 muscles (lumped units, energetics on,
             dt 1 ms), compiled (Numba) and NumPy back ends; the published energetics models'
             cost at 1000 muscles; the kernel per muscle-step: run against repeated step at 1,
@@ -43,6 +44,14 @@ Sections (all but coordination-walk, study and node-memory by default; --only pi
             F0, default options and --refine 6; reserve RMS per coordinate (% of peak; target
             < 3 %), forward runs, seconds (target < 10 s), load average. Skipped with the reason
             when the walk is not fetched (scripts/fetch-gait-data).
+  help      `vm-ros --help` and `muscle_node --help` as child processes, 5 times each:
+            median wall and CPU time (target < 0.5 s of CPU)
+  report-walk
+            runs only when named (--only report-walk; about a minute): vm-ros report of
+            opensim-models' Gait10dof18musc walk simulated with its CMC controls (18 muscles),
+            with and without plots; the plotting time is the difference (target < 5 s of
+            CPU time; the wall time beside it).
+            Skipped with the reason when the walk is not fetched (scripts/fetch-gait-data).
   node-memory
             runs only when named (--only node-memory; 7 minutes): muscle_node's resident
             memory over a long run, 100 muscles at 1 kHz, publish 100 Hz, MCAP as a rosbag2
@@ -63,15 +72,15 @@ peer (one not installed is a row with the reason); or a comma-separated list (op
 vm_ros_bench.peer_compare has the definitions.
 
 Timings are medians of repeated runs on a shared machine: compare ratios within one run rather
-than absolute numbers across runs. Targets: 1 muscle <= 30 us per step; 1000 muscles <= 1 ms
-per step; kernel <= 0.25 us per muscle-step at 1000 and 10,000 muscles, run at least as fast
-as repeated step, 10,000 muscles in real time at 1 kHz with the parallel switch, cold start
-< 10 s; knee extension offline < 5 s, logged < 3 s; node at 1 kHz, publish 100 Hz, MCAP: 1
-muscle <= 10 % of a core, 100 muscles <= 20 %, 1000 muscles with no model time skipped, within
-one core, model time within 1 % of wall time; node-memory: resident memory after the warm-up
-growing at most 2 MiB/h (the window's slope, extrapolated to an hour); study: speed-up on 2
-workers at least 1.8, overhead per run under 5 % of a 30 s run, the client's memory growing at
-most 10 MiB from the 100th to the 1000th short run.
+than absolute numbers across runs. Targets: 1 muscle <= 30 us per step; 1000 muscles <= 1 ms per
+step; kernel <= 0.25 us per muscle-step at 1000 and 10,000 muscles, run at least as fast as
+repeated step, 10,000 muscles in real time at 1 kHz with the parallel switch, cold start < 10 s;
+knee extension offline < 5 s, logged < 3 s; --help < 0.5 s of CPU; node at 1 kHz, publish
+100 Hz, MCAP: 1 muscle <= 10 % of a core, 100 muscles <= 20 %, 1000 muscles with no model time
+skipped, within one core, model time within 1 % of wall time; node-memory: resident memory after
+the warm-up growing at most 2 MiB/h (the window's slope, extrapolated to an hour); study:
+speed-up on 2 workers at least 1.8, overhead per run under 5 % of a 30 s run, the client's
+memory growing at most 10 MiB from the 100th to the 1000th short run.
 """
 
 from __future__ import annotations
@@ -91,9 +100,9 @@ from vm_ros.child_process import loopback_only, module_command
 from vm_ros.errors import VmRosError
 from vm_ros_bench import FOLDER, child_environment
 
-SECTIONS = ("model", "natural", "offline", "decode", "node", "joint", "coordination",
-            "coordination-walk", "study", "node-memory")
-DEFAULT_SECTIONS = ("model", "natural", "offline", "decode", "node", "joint",
+SECTIONS = ("model", "natural", "offline", "help", "decode", "node", "joint", "coordination",
+            "coordination-walk", "report-walk", "study", "node-memory")
+DEFAULT_SECTIONS = ("model", "natural", "offline", "help", "decode", "node", "joint",
                     "coordination")  # node-memory and study: when named
 MEMORY_DURATION_S, MEMORY_QUICK_DURATION_S = 300.0, 60.0  # node-memory window
 MEMORY_WARMUP_S, MEMORY_QUICK_WARMUP_S = 120.0, 5.0
@@ -438,6 +447,24 @@ def _csv_rows(results: dict) -> list[dict]:
         add("coordination-walk", case, "load_average_start", r["load_average_start"], "")
         add("coordination-walk", case, "seconds", r["seconds"], "s", f"< {WALK_TARGET_S:g} s",
             r["seconds"] < WALK_TARGET_S)
+    for r in results.get("help", []):
+        if "skipped" in r:
+            add("help", f"{r['command']} --help", "skipped", r["skipped"], "")
+            continue
+        add("help", f"{r['command']} --help", "wall", r["wall_s"], "s")
+        add("help", f"{r['command']} --help", "cpu", r["cpu_s"], "s", f"< {r['target_s']:g} s",
+            r["cpu_s"] < r["target_s"])
+    r = results.get("report-walk")
+    if r and "skipped" in r:
+        add("report-walk", "Gait10dof18musc walk", "skipped", r["skipped"], "")
+    elif r and "plotting_s" in r:
+        case = "Gait10dof18musc walk, 18 muscles, CMC controls"
+        add("report-walk", case, "report", r["report_s"], "s")
+        add("report-walk", case, "report --no-plots", r["no_plots_s"], "s")
+        add("report-walk", case, "plotting (the difference)", r["plotting_s"], "s")
+        add("report-walk", case, "plotting, CPU time", r["plotting_cpu_s"], "s",
+            f"< {r['target_s']:g} s", r["plotting_cpu_s"] < r["target_s"])
+        add("report-walk", case, "load_average_start", r["load_average_start"], "")
     if "study" in results and "error" not in results["study"]:
         from vm_ros_bench import study_bench
 
@@ -643,7 +670,7 @@ def _measure(name: str, measure, results: dict, out: Path) -> None:
 
 
 def run(args) -> int:
-    from vm_ros_bench import coordination_bench, decode_bench, model_bench
+    from vm_ros_bench import coordination_bench, decode_bench, model_bench, offline_bench
 
     sections = args.only or list(DEFAULT_SECTIONS)
     repeats = args.repeats or (3 if args.quick else 7)
@@ -692,6 +719,7 @@ def run(args) -> int:
         ("kernel", lambda: _kernel_rows(args.quick)),
         ("natural", natural),
         ("offline", offline),
+        ("help", lambda: offline_bench.bench_help(progress=_say)),
         ("decode", lambda: decode_bench.bench_joint_state_decode(
             repeats=repeats, min_seconds=min_seconds, progress=_say)),
         ("node", lambda: _node_rows(node_duration, out)),
@@ -700,6 +728,8 @@ def run(args) -> int:
         ("coordination", lambda: coordination_bench.bench_coordination(
             seconds=1.0 if args.quick else 3.0, progress=_say)),
         ("coordination-walk", lambda: coordination_bench.bench_walk(progress=_say)),
+        ("report-walk", lambda: offline_bench.bench_report_walk(
+            repeats=1 if args.quick else 3, progress=_say)),
         ("study", lambda: _study_section(args.quick)),
         ("node-memory", lambda: _node_memory_row(
             args.node_duration or (MEMORY_QUICK_DURATION_S if args.quick else MEMORY_DURATION_S),
