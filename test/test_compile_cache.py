@@ -27,10 +27,10 @@ INSTALLED = Path(vm_ros.__file__).parent
 _GEOMETRY = """
 import numpy as np
 from vm_ros.geometry import kernel
+from vm_ros.geometry.polynomial import PackedPolynomials
+packed = PackedPolynomials.pack(1, [([0], [0.0], [1.0], [[1]], [1.0])])
 evaluate = kernel._compile()[0]
-length, gradient = evaluate(np.zeros(1), np.zeros((1, 1), dtype=np.int64), np.zeros((1, 1)),
-                            np.ones((1, 1)), np.zeros(1, dtype=np.int64),
-                            np.ones((1, 1), dtype=np.int64), np.ones(1), 1)
+length, gradient = evaluate(np.zeros(1), *kernel._slot_arrays(packed), packed.max_degree)
 print(kernel.__file__)
 print(evaluate.stats.cache_path)
 print(sum(evaluate.stats.cache_hits.values()), sum(evaluate.stats.cache_misses.values()))

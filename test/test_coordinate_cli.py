@@ -1,5 +1,6 @@
 """`vm-ros coordinate` end to end on a one-coordinate geometry file: outputs written, drives
-readable as excitations, the run log recomputed exactly, bad inputs one line and exit 2."""
+readable as excitations, the run log (with a lead-in) recomputed exactly, bad inputs one line
+and exit 2."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 from test_coordination import geometry, library
 
 from vm_ros.geometry import write_geometry
@@ -45,15 +47,16 @@ def _run(*args) -> subprocess.CompletedProcess:
 def test_outputs_drives_as_excitations_and_an_exact_recompute(tmp_path):
     out = tmp_path / "out"
     done = _run("coordinate", *_inputs(tmp_path), "--iterations", "4", "--out", str(out),
-                "--speed", "1.0", "--body-mass", "70")
+                "--speed", "1.0", "--body-mass", "70", "--lead-in", "0.2")
     assert done.returncode == 0, done.stderr
     for name in ("drives.sto", "forces.sto", "reserves.sto", "coordination.mcap",
-                 "coordination.png"):
+                 "coordination.png", "motion.sto"):
         assert (out / name).is_file(), name
     assert "reserve RMS" in done.stdout and "cost of transport" in done.stdout
     assert "pelvis_tx_force" in done.stdout   # named as left to the reserves
     drives = load_excitations(out / "drives.sto", ("a", "b"))
     assert drives.values.shape[1] == 2 and np.all((drives.values >= 0) & (drives.values <= 1))
+    assert drives.time_s[0] == pytest.approx(-0.2)   # the lead-in's drives, before the motion
     time, columns, _ = read_columns(out / "forces.sto", "forces")
     assert set(columns) == {"a", "b"} and len(time) == 37
     again = _run("recompute", str(out / "coordination.mcap"), "--out",

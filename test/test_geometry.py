@@ -151,6 +151,40 @@ def test_compiled_and_numpy_evaluators_agree():
         np.testing.assert_allclose(a.moment_arm, b.moment_arm, rtol=1e-12, atol=1e-16)
 
 
+def test_compiled_slots_written_out_give_the_bits_of_the_loop_over_slots():
+    """The compiled evaluator with SLOTS slots written out (muscles padded to them) against the
+    loop over however many slots a muscle has (kernel.evaluate_wide, used for wider geometries):
+    the same products and sums in the same order, so the same bits; a geometry with a muscle
+    crossing more than SLOTS coordinates takes the loop and agrees with NumPy."""
+    if not geometry_kernel.available():
+        pytest.skip("Numba is not available: only the NumPy evaluator exists")
+    geometry = random_geometry(seed=3, n_muscles=30, backend="compiled")
+    evaluate_wide = geometry_kernel._compile()[3]
+    wide = geometry_kernel._wide_arrays(geometry.packed)
+    rng = np.random.default_rng(5)
+    poses = np.array([random_pose(geometry, rng) for _ in range(20)])
+    many = geometry.evaluate_many(poses, poses)
+    for q, out in zip(poses, many, strict=True):
+        length, gradient = evaluate_wide(q, *wide, geometry.packed.max_degree)
+        one = geometry.evaluate(q, q)
+        for a, b in ((one.length_m, length), (one.moment_arm, -gradient),
+                     (out.length_m, length), (out.moment_arm, -gradient)):
+            assert a.tobytes() == b.tobytes()
+    names = [f"q{j}" for j in range(geometry_kernel.SLOTS + 2)]
+    coordinates = [Coordinate(name, "rad", -1.0, 1.0) for name in names]
+    muscles = [MusclePath("wide", tuple(names), (0.1,) * len(names), (1.3,) * len(names),
+                          total_degree_exponents(len(names), 3),
+                          0.01 * rng.normal(size=len(total_degree_exponents(len(names), 3))))]
+    compiled = PolynomialGeometry(coordinates, muscles, backend="compiled")
+    numpy_geometry = PolynomialGeometry(coordinates, muscles, backend="numpy")
+    for q in rng.uniform(-1, 1, (5, len(names))):
+        a, b = numpy_geometry.evaluate(q, q), compiled.evaluate(q, q)
+        np.testing.assert_allclose(a.length_m, b.length_m, rtol=1e-13, atol=1e-16)
+        np.testing.assert_allclose(a.moment_arm, b.moment_arm, rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(compiled.evaluate_many(q[None], q[None])[0].moment_arm,
+                                   b.moment_arm, rtol=0, atol=0)
+
+
 def test_outside_the_box_is_clamped_not_extrapolated():
     geometry = random_geometry()
     inside = (geometry.lower + geometry.upper) / 2

@@ -8,6 +8,8 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 HEAVY = ("numba", "scipy", "rclpy", "vm_ros.model.bank", "vm_ros.model.kernel")
 
 _LOADED = """
@@ -44,6 +46,16 @@ def test_a_verb_still_gets_its_own_arguments_and_description():
     assert code == 0
     assert "--muscle" in text and "--list-muscles" in text
     assert "usage: vm-ros params" in text
+
+
+@pytest.mark.parametrize("verb", ["import-osim", "import-mjcf"])
+def test_an_importers_help_states_units_and_the_moment_arm_sign(verb):
+    """A user reading --help learns the written geometry's units and r's sign before importing."""
+    text, code, _ = _help("from vm_ros.cli import main", f"[{verb!r}, '--help']")
+    assert code == 0
+    words = " ".join(text.split())  # the description as one line, whatever the wrapping
+    assert "coordinates in rad" in words and "path lengths L in m" in words, words
+    assert "the moment arm is r = -dL/dq" in words and "the joint torque is r * F" in words
 
 
 def test_muscle_node_help_imports_neither_rclpy_nor_the_model():

@@ -162,7 +162,9 @@ def test_real_time_ticks_fall_after_whole_periods_and_run_one_batch(ros, lengths
     after it (left in its own phase, that gap is short of a whole period by the start tick's
     wake-up delay, and every tick woken sooner in its period than the start tick ran 9 steps
     and split the next tick's 11 into two calls). In 1 s of running, about one MuscleBank call
-    per tick."""
+    per publish period (a tick woken a whole period late, on a busy machine, runs two periods in
+    two calls, each ending at its publish step; one woken a few steps late holds the steps past
+    its publish step for the next tick instead of a second call)."""
     node = ros.muscle_node(muscles=MUSCLES, stale_input_policy="hold", input_timeout_s=1000.0)
     probe = ros.probe()
     connected(ros, node, probe)
@@ -178,11 +180,11 @@ def test_real_time_ticks_fall_after_whole_periods_and_run_one_batch(ros, lengths
     for name in ("run", "step"):
         method = getattr(node.bank, name)
         setattr(node.bank, name, lambda *a, _m=method, **k: calls.append(1) or _m(*a, **k))
-    ticks = node.ticks
+    ticks, steps = node.ticks, node.scheduler.total_steps
     ros.spin_for(1.0)
-    ticks = node.ticks - ticks
-    assert ticks >= 50
-    assert len(calls) <= 1.2 * ticks, (len(calls), ticks)
+    ticks, periods = node.ticks - ticks, (node.scheduler.total_steps - steps) // 10
+    assert ticks >= 10 and periods >= 10
+    assert len(calls) <= 1.2 * periods, (len(calls), ticks, periods)
 
 
 @pytest.mark.parametrize("batch_steps", [0, 1])

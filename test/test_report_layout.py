@@ -123,3 +123,52 @@ def test_summary_names_the_top_muscles_and_groups_the_others(runs):
     energy = {row.name: row.energy[-1, -1] for row in summary}
     assert min(energy[m] for m in named) >= max(energy[m] for m in others)
     assert report_plots.top_muscles(summary[:9], [r.name for r in summary[:9]])[1] == []
+
+
+def _outside_px(box, fig) -> float:
+    """How far (px) a text's box reaches beyond the figure on any side (0 when inside)."""
+    return max(0.0, -box.x0, -box.y0, box.x1 - fig.bbox.x1, box.y1 - fig.bbox.y1)
+
+
+def _cut_texts(fig) -> list[str]:
+    """The titles (figure and axes) whose text reaches more than 1 px outside the figure."""
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    titles = [fig._suptitle] + [ax.title for ax in fig.axes]
+    return [t.get_text() for t in titles
+            if t is not None and t.get_text() and t.get_visible()
+            and _outside_px(t.get_window_extent(renderer), fig) > 1.0]
+
+
+@pytest.mark.parametrize("muscles", [18, 80])
+def test_no_title_is_cut_off(runs, muscles, tmp_path):
+    plt, figures = _figures(runs[muscles], tmp_path)
+    for path, fig in figures:
+        assert _cut_texts(fig) == [], path.name
+        plt.close(fig)
+
+
+@pytest.mark.parametrize("muscles", [1, 18, 80])
+def test_energy_models_totals_keeps_its_title_and_legend_inside(muscles):
+    """Tsianos 2012 and the eight published models over n muscles (energies made up: the layout,
+    not the values, is checked): the title is not cut off and the legend covers no plot."""
+    from vm_ros.model.energetics_models import MODEL_NAMES
+    from vm_ros.report.summary import ModelTotals
+
+    names = [f"muscle_with_a_long_name_{k}" for k in range(muscles)]
+    tsianos = np.linspace(10.0, 50.0, muscles)
+    rows = [ModelTotals(report_tables.TSIANOS, tsianos, tsianos)] + [
+        ModelTotals(model, tsianos * (0.5 + 0.1 * j), tsianos)
+        for j, model in enumerate(MODEL_NAMES)]
+    plt = report_verb._pyplot()
+    fig = report_plots.energy_models_totals_figure(plt, rows, names)
+    assert _cut_texts(fig) == []
+    renderer = fig.canvas.get_renderer()
+    scale = report_plots.DPI / fig.dpi  # the PNG's pixels: saved at DPI
+    assert round(fig.bbox.width * scale) <= MAX_PX[0]
+    assert round(fig.bbox.height * scale) <= MAX_PX[1]
+    legend = fig.legends[0].get_window_extent(renderer)
+    assert _outside_px(legend, fig) <= 1.0
+    for ax in fig.axes:
+        assert _overlap_px(legend, ax.get_window_extent(renderer)) < 1.0
+    plt.close(fig)

@@ -299,7 +299,8 @@ def _simulate(args) -> subprocess.CompletedProcess:
 
 def test_excitations_that_miss_the_motion_are_an_error_and_a_partial_cover_warns(tmp_path):
     """A controls file on another time axis than the motion (0.5-0.7 s against 0-0.2 s) used to
-    be held at its first row for the whole run; now it is an error. One that covers the run in
+    be held at its first row for the whole run; now it is an error, and so is the reverse
+    (controls from 0 s, a motion from 0.5 s). One that covers the run in
     part (from 0.1 s) is used on the motion's axis, with a warning printed when found and again
     after the summary; --strict makes that warning an error."""
     geometry = write_geometry_file(tmp_path)
@@ -310,6 +311,14 @@ def test_excitations_that_miss_the_motion_are_an_error_and_a_partial_cover_warns
     late = _controls(tmp_path / "late.sto", [0.5, 0.7], [0.2, 0.8])
     line = _error_of([*common, "--excitations", str(late), "--out", str(tmp_path / "a.mcap")])
     assert "cover 0.5-0.7 s, the run 0-0.2 s: no overlap" in line, line
+    # the reverse: controls from 0 s against a motion from 0.5 s
+    t_late = 0.5 + t
+    late_motion = write_motion(tmp_path / "late.mot", t_late, {"hip_flexion": 30.0 * np.sin(
+        np.pi * t / 0.2), "knee_angle": 5.0 + 300.0 * t})
+    early = _controls(tmp_path / "early.sto", [0.0, 0.2], [0.2, 0.8])
+    line = _error_of(["--motion", str(late_motion), "--geometry", str(geometry), "--excitations",
+                      str(early), "--out", str(tmp_path / "b.mcap")])
+    assert "cover 0-0.2 s, the run 0.5-0.7 s: no overlap" in line, line
 
     part = _controls(tmp_path / "part.sto", [0.1, 0.3], [0.2, 0.6])
     out = tmp_path / "part.mcap"

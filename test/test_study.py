@@ -99,10 +99,13 @@ def test_resume_skips_finished_runs_and_reruns_failed_and_missing(tmp_path):
     table = (out / "results.csv").read_bytes()
     ok_ids = sorted(r["run_id"] for r in executed if r["status"] == "ok")
     (out / "rows" / f"{ok_ids[0]}.json").unlink()  # one finished run goes missing
+    # and its half-written log, as a worker killed mid-run leaves it
+    (out / "runs" / f".{ok_ids[0]}-0badf00d.mcap").write_bytes(b"\x89MCAP0\r\n")
 
     executed.clear()
     second = _run(study, out, workers=2, on_record=executed.append)
     assert second.skipped == 1
+    assert not list((out / "runs").glob(".*")) and (out / "runs" / f"{ok_ids[0]}.mcap").exists()
     assert sorted(r["run_id"] for r in executed) == sorted([ok_ids[0], *(r["run_id"]
                                                                           for r in failed)])
     assert (out / "results.csv").read_bytes() == table

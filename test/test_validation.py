@@ -287,3 +287,27 @@ def test_short_fig7_run_says_its_duration_and_is_not_compared_with_the_180s_tota
     pytest.importorskip("matplotlib")
     plot_fig7(result, tmp_path / "fig7.png")
     assert (tmp_path / "fig7.png").stat().st_size > 0
+
+
+def test_the_cost_figure_says_under_which_load_it_was_measured(monkeypatch, tmp_path):
+    """The natural / lumped ratio moves with the machine's load (56x on a busy machine against
+    4.8x idle): the figure's title states the load average it was measured under."""
+    from vm_ros.validation import plots
+    from vm_ros.validation.results import CheckResult
+
+    drawn = []
+    monkeypatch.setattr(plots, "finish", lambda fig, result, path: drawn.append(fig))
+    sizes = [1, 100]
+    seconds = {("lumped", 1): 2e-5, ("natural", 1): 4e-5, ("lumped", 100): 1e-4,
+               ("natural", 100): 5.6e-3}
+    for data in ({"load_average": 12.5, "cpus": 2}, {}):
+        result = CheckResult("cost", "cost", "claim", data={
+            "seconds_per_step": seconds, "sizes": sizes, **data})
+        plots.plot_cost(result, tmp_path / "cost.png")
+    loaded, idle = (fig.axes[0].get_title() for fig in drawn)
+    assert "measured under load 12.5 (1-minute load average, 2 CPUs)" in " ".join(
+        loaded.split())
+    assert "load" not in idle
+    assert {t.get_text() for t in drawn[0].axes[0].texts} == {"x2.0", "x56.0"}
+    for fig in drawn:
+        plots.plt.close(fig)

@@ -126,7 +126,9 @@ def import_myolegs(folder, quick: bool = False, progress=None) -> dict:
 def time_calls(call: Callable, arguments: list, repeats: int = 7,
                min_seconds: float = 0.2) -> dict:
     """Wall time (s) per ``call(*arguments[k])``, cycling through ``arguments``: median, min and
-    max over ``repeats`` blocks of calls, each block about ``min_seconds`` long."""
+    max over ``repeats`` blocks of calls, each block about ``min_seconds`` long; and the median
+    of the thread's CPU time per call (``cpu_median_s``: on a busy machine the wall time also
+    holds the time other processes had the core)."""
     for args in arguments[:20]:  # warm-up (compilation, caches)
         call(*args)
     count = len(arguments)
@@ -135,19 +137,22 @@ def time_calls(call: Callable, arguments: list, repeats: int = 7,
         call(*arguments[probe % count])
         probe += 1
     block = int(min(20000, max(5, min_seconds * probe / (time.perf_counter() - start))))
-    samples = []
+    samples, cpu = [], []
     for _ in range(repeats):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.thread_time()
         for k in range(block):
             call(*arguments[k % count])
         samples.append((time.perf_counter() - t0) / block)
+        cpu.append((time.thread_time() - c0) / block)
     return {"median_s": statistics.median(samples), "min_s": min(samples),
-            "max_s": max(samples), "calls_per_repeat": block, "repeats": repeats}
+            "max_s": max(samples), "cpu_median_s": statistics.median(cpu),
+            "calls_per_repeat": block, "repeats": repeats}
 
 
 def _timing_us(timing: dict) -> dict:
     return {"call_us": 1e6 * timing["median_s"], "call_us_min": 1e6 * timing["min_s"],
-            "call_us_max": 1e6 * timing["max_s"], "calls_per_repeat": timing["calls_per_repeat"],
+            "call_us_max": 1e6 * timing["max_s"], "call_cpu_us": 1e6 * timing["cpu_median_s"],
+            "calls_per_repeat": timing["calls_per_repeat"],
             "repeats": timing["repeats"]}
 
 
@@ -192,7 +197,8 @@ def bench_geometry(geometry_path, repeats: int = 7, min_seconds: float = 0.2, se
         timing = time_calls(geometry.evaluate, poses, repeats, min_seconds)
         out["rows"].append({"backend": backend, "call": "evaluate", **_timing_us(timing)})
         if progress:
-            progress(f"geometry evaluate {backend}: {out['rows'][-1]['call_us']:.1f} us")
+            progress(f"geometry evaluate {backend}: {out['rows'][-1]['call_us']:.1f} us "
+                     f"(thread CPU {out['rows'][-1]['call_cpu_us']:.1f} us)")
     moment_arm = numpy_geometry.evaluate(q[0], qdot[0]).moment_arm
     forces = [(moment_arm, f) for f in FORCE_MAX_N * rng.random((POSES, len(moment_arm)))]
     out["rows"].append({"backend": "numpy", "call": "generalized_forces",

@@ -33,6 +33,12 @@ Definitions (keys of the returned dict; times are the benchmark's steady clock u
 | key | meaning |
 | cpu_percent_one_core | node process user+sys CPU (/proc/<pid>/stat) over the window / wall time |
 | driver_cpu_percent_one_core | this process (the driver) likewise |
+| node_threads_cpu_percent | the node's CPU by thread name (/proc/<pid>/task/*/stat), largest
+  first; the Python thread that spins the executor is named after the process (python3...) |
+| node_cpus, driver_cpus | the CPUs the node's threads and the driver's were pinned to
+  (sched_setaffinity: the node on the last CPU this process may use, the driver on the others,
+  so that the two do not take turns on one core; other processes of the machine still share
+  them); None with one CPU |
 | load_average_1min_start, _end | the machine's 1-minute load average around the window (other load
   competing with the node shows here) |
 | rss_window_start_mib, rss_final_mib | node VmRSS at the window's start (after the warm-up)
@@ -225,6 +231,38 @@ def memory_mib(pid: int | str) -> tuple[float, float]:
         if key in ("VmRSS", "VmHWM"):
             values[key] = int(rest.split()[0]) / 1024.0  # kB
     return values["VmRSS"], values["VmHWM"]
+
+
+def thread_cpu_seconds(pid: int | str) -> dict[str, float]:
+    """User + system CPU time (s) of each thread of a process by thread name (threads of one
+    name added), from /proc/<pid>/task/*/stat."""
+    out: dict[str, float] = {}
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        try:
+            text = (task / "stat").read_text()
+        except OSError:  # the thread ended
+            continue
+        name = text[text.index("(") + 1:text.rindex(")")]
+        fields = text[text.rindex(")") + 2:].split()
+        out[name] = out.get(name, 0.0) + (int(fields[11]) + int(fields[12])) / os.sysconf(
+            "SC_CLK_TCK")
+    return out
+
+
+def pin_cpus() -> tuple[set[int], set[int]] | None:
+    """(node CPUs, driver CPUs): the last CPU this process may run on for the node, the others
+    for the driver; None with fewer than two (or no sched_setaffinity)."""
+    if not hasattr(os, "sched_setaffinity"):
+        return None
+    cpus = sorted(os.sched_getaffinity(0))
+    return ({cpus[-1]}, set(cpus[:-1])) if len(cpus) >= 2 else None
+
+
+def set_process_affinity(pid: int | str, cpus: set[int]) -> None:
+    """Every thread of a process on ``cpus`` (threads started later inherit their creator's)."""
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        with contextlib.suppress(OSError):  # the thread ended
+            os.sched_setaffinity(int(task.name), cpus)
 
 
 # --- the driver --------------------------------------------------------------------------------
@@ -652,10 +690,11 @@ def log_summary(path: Path) -> dict:
 
 def _run(setup, model_rate_hz, publish_rate_hz, duration_s, mcap, workdir, progress, warmup_s,
          drive_rate_hz, sweep_rate_hz, node_parameters=None, *, log: dict | None = None,
-         rss_sample_period_s: float = RSS_SAMPLE_PERIOD_S) -> dict:
+         rss_sample_period_s: float = RSS_SAMPLE_PERIOD_S, pin: bool = True) -> dict:
     """The benchmark of either input: ``setup(workdir)`` gives (muscle names, library path,
     geometry path or None, Sweep); ``sweep_rate_hz`` None publishes the sweep with the drive;
-    ``log`` from _log_options."""
+    ``log`` from _log_options; ``pin``: the node on one CPU, the driver on the others
+    (pin_cpus)."""
     import rclpy
 
     check_loopback_only()
@@ -683,6 +722,11 @@ def _run(setup, model_rate_hz, publish_rate_hz, duration_s, mcap, workdir, progr
         step_ns = int(round(1e9 / model_rate_hz))
         log_path = workdir / "muscle_node.log"
 
+        pinned = pin_cpus() if pin else None
+        if pinned is not None:  # the driver's threads on the other CPUs, the node on its own
+            before = os.sched_getaffinity(0)
+            set_process_affinity("self", pinned[1])
+            stack.callback(set_process_affinity, "self", before)
         context = rclpy.Context()
         rclpy.init(context=context)
         stack.callback(rclpy.try_shutdown, context=context)
@@ -697,8 +741,13 @@ def _run(setup, model_rate_hz, publish_rate_hz, duration_s, mcap, workdir, progr
                                        cwd=workdir, stdout=log, stderr=subprocess.STDOUT,
                                        stdin=subprocess.DEVNULL)
         try:
+            if pinned is not None:
+                set_process_affinity(process.pid, pinned[0])
             result = _measure(process, driver, executor, duration_s, warmup_s, progress,
-                              log_path, rss_sample_period_s)
+                              log_path, rss_sample_period_s,
+                              None if pinned is None else pinned[0])
+            result.update(node_cpus=sorted(pinned[0]) if pinned else None,
+                          driver_cpus=sorted(pinned[1]) if pinned else None)
             driver.stop_driving()
             window = result.pop("_window")
         finally:
@@ -733,7 +782,8 @@ def _finite(message, size: int) -> bool:
 
 
 def _measure(process, driver: BenchDriver, executor, duration_s: float, warmup_s: float,
-             progress, log_path: Path, rss_sample_period_s: float = RSS_SAMPLE_PERIOD_S) -> dict:
+             progress, log_path: Path, rss_sample_period_s: float = RSS_SAMPLE_PERIOD_S,
+             node_cpus: set[int] | None = None) -> dict:
     """Wait for the model start, warm up, measure the window; the numbers known then."""
 
     def spin_until(end_mono: float, tick: Callable[[float], None] | None = None) -> None:
@@ -763,6 +813,9 @@ def _measure(process, driver: BenchDriver, executor, duration_s: float, warmup_s
 
     spin_until(started + warmup_s, report)
     pid = process.pid
+    if node_cpus is not None:  # threads started since
+        set_process_affinity(pid, node_cpus)
+    threads0 = thread_cpu_seconds(pid)
     cpu0, self_cpu0, load0 = cpu_seconds(pid), cpu_seconds("self"), os.getloadavg()[0]
     rss0, _ = memory_mib(pid)
     mono0, ros0 = time.monotonic_ns(), time.time_ns()
@@ -777,6 +830,7 @@ def _measure(process, driver: BenchDriver, executor, duration_s: float, warmup_s
     spin_until(mono0 * 1e-9 + duration_s, report_and_sample)
     mono1, ros1 = time.monotonic_ns(), time.time_ns()
     cpu1, self_cpu1, load1 = cpu_seconds(pid), cpu_seconds("self"), os.getloadavg()[0]
+    threads1 = thread_cpu_seconds(pid)
     rss1, hwm = memory_mib(pid)
     rss_trace.append(((mono1 - mono0) * 1e-9, rss1))
     report(time.monotonic())
@@ -798,6 +852,10 @@ def _measure(process, driver: BenchDriver, executor, duration_s: float, warmup_s
         "duration_s": wall_s, "warmup_s": float(warmup_s),
         "cpu_percent_one_core": 100.0 * (cpu1 - cpu0) / wall_s,
         "driver_cpu_percent_one_core": 100.0 * (self_cpu1 - self_cpu0) / wall_s,
+        "node_threads_cpu_percent": {
+            name: round(100.0 * (threads1[name] - threads0.get(name, 0.0)) / wall_s, 2)
+            for name in sorted(threads1, key=lambda n: threads0.get(n, 0.0) - threads1[n])
+            if threads1[name] > threads0.get(name, 0.0)},
         "load_average_1min_start": load0, "load_average_1min_end": load1,
         "cpu_cores": os.cpu_count(),
         "rss_window_start_mib": rss0, "rss_final_mib": rss1, "rss_peak_mib": hwm,

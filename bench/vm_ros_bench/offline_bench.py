@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
+import os
 import statistics
 import subprocess
 import tempfile
@@ -124,3 +125,94 @@ def bench_offline_logged(repeats: int = 3, duration_s: float | None = None, cli:
                  f"recompute {result['recompute_s']:.2f} s, "
                  f"{result['recompute_over_simulate_paired']:.2f} x simulate")
     return result
+
+
+REPORT_PLOT_TARGET_S = 5.0  # issue 27: the report's plotting for the 18-muscle walk under 5 s
+
+
+def _timed_report(log: Path, out: Path, plots: bool) -> tuple[float, float]:
+    """(wall s, CPU s of this process) of vm_ros.cli.report.run on ``log``."""
+    cpu = time.process_time()
+    wall, _ = _in_process("report", [str(log), "--out", str(out)] + ([] if plots else
+                                                                     ["--no-plots"]))
+    return wall, time.process_time() - cpu
+
+
+def bench_report_walk(repeats: int = 3, progress=None) -> dict:
+    """`vm-ros report` of opensim-models' Gait10dof18musc walk (18 muscles): the model imported
+    at its own F0, `vm-ros simulate --motion IK --excitations CMC controls` (0.03-2.494 s of the
+    run's 0-2.5 s: simulate warns that the first and last rows are held), then the report with
+    and without plots, alternately in this process (the load average before the first). The
+    plotting time is the difference of the medians, in wall time and in this process's CPU time;
+    the target (< REPORT_PLOT_TARGET_S) is held on the CPU time, which a busy machine does not
+    inflate as it does the wall time (the plotting is single-threaded). ``skipped`` with the
+    reason when the walk is not fetched (scripts/fetch-gait-data)."""
+    from vm_ros.validation.walk import STRENGTHS, import_walk
+    from vm_ros.validation.walk_data import WalkDataError, walk_files
+
+    try:
+        files = walk_files()
+    except WalkDataError as error:
+        return {"skipped": str(error)}
+    times: dict = {True: [], False: []}  # plots: [(wall, cpu), ...]
+    with tempfile.TemporaryDirectory(prefix="vm_ros-bench-report-") as tmp:
+        folder = Path(tmp)
+        _, library = import_walk(files, STRENGTHS["model F0"], folder / "model")
+        log = folder / "walk.mcap"
+        _in_process("simulate", ["--motion", str(files["motion"]), "--geometry",
+                                 str(folder / "model" / "geometry.yaml"), "--library",
+                                 str(library), "--excitations", str(files["cmc_controls"]),
+                                 "--out", str(log)])
+        load = os.getloadavg()[0]
+        for k in range(repeats):
+            for plots in (False, True):
+                times[plots].append(_timed_report(log, folder / f"{plots}{k}", plots))
+    result = {"muscles": 18, "repeats": repeats, "load_average_start": load,
+              "target_s": REPORT_PLOT_TARGET_S}
+    for key, plots in (("report", True), ("no_plots", False)):
+        for column, unit in enumerate(("s", "cpu_s")):
+            values = [row[column] for row in times[plots]]
+            result[f"{key}_{unit}"] = statistics.median(values)
+            result[f"{key}_{unit}_all"] = values
+    result["plotting_s"] = result["report_s"] - result["no_plots_s"]
+    result["plotting_cpu_s"] = result["report_cpu_s"] - result["no_plots_cpu_s"]
+    if progress:
+        progress(f"report of the walk: {result['report_s']:.1f} s, --no-plots "
+                 f"{result['no_plots_s']:.1f} s: plotting {result['plotting_s']:.1f} s "
+                 f"({result['plotting_cpu_s']:.1f} s of CPU)")
+    return result
+
+
+HELP_COMMANDS = ("vm-ros", "muscle_node")  # console scripts beside this Python
+HELP_TARGET_S = 0.5  # issue 27: `vm-ros --help` and `muscle_node --help` under 0.5 s
+
+
+def bench_help(repeats: int = 5, progress=None) -> list[dict]:
+    """`COMMAND --help` of each console script of HELP_COMMANDS as a child process, ``repeats``
+    times: median wall time and CPU time (user + system, from the children's resource usage);
+    the target (< HELP_TARGET_S) is held on the CPU time. ``skipped`` for a script not installed
+    beside this Python."""
+    import resource
+    import sys
+
+    rows = []
+    for name in HELP_COMMANDS:
+        script = Path(sys.executable).parent / name
+        if not script.is_file():
+            rows.append({"command": name, "skipped": f"{script} is not installed"})
+            continue
+        walls, cpus = [], []
+        for _ in range(repeats):
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            start = time.perf_counter()
+            subprocess.run([str(script), "--help"], check=True, capture_output=True, timeout=120)
+            walls.append(time.perf_counter() - start)
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpus.append(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime)
+        rows.append({"command": name, "wall_s": statistics.median(walls), "wall_s_all": walls,
+                     "cpu_s": statistics.median(cpus), "cpu_s_all": cpus,
+                     "load_average": os.getloadavg()[0], "target_s": HELP_TARGET_S})
+        if progress:
+            progress(f"{name} --help: {rows[-1]['wall_s']:.2f} s wall, "
+                     f"{rows[-1]['cpu_s']:.2f} s CPU")
+    return rows

@@ -10,6 +10,17 @@
 - client memory over 1000 short runs (0.05 s of model time each, 2 workers): resident memory of
   this process after every record; growth from the 100th record to the last, target flat
   (at most 10 MiB: a few kB per run would show as several MiB).
+- where the CPU goes (the 64-run study on 1 and 2 workers; the client's also over the short
+  runs): CPU seconds per run of this process (the client, and with the embedded cluster the
+  scheduler and the nannies), of the worker processes, and of the workers' task threads (the
+  verb's own thread; the rest of a worker's CPU is the run's log writer thread and Dask's
+  worker); the cores the 1-worker study kept busy (CPU / wall); and the speed-up bound these
+  CPU times allow on 2 cores, wall(1) / (CPU of the 2-worker study / 2): a 2-worker study cannot
+  finish before both cores have done its CPU work. The CPU times hold under load; the wall
+  times, the speed-up and these two derived numbers only on an otherwise idle machine: Linux
+  with autogroups (kernel.sched_autogroup_enabled) shares the CPU between sessions, so a
+  machine loaded by other sessions gives a study about the same share whatever its number of
+  workers.
 --quick: 8 runs of 5 s and 200 short runs (a smoke run, not the targets).
 """
 
@@ -54,7 +65,18 @@ def _rss_mib() -> float:
     return float("nan")
 
 
+def _cpu_s(process) -> float:
+    times = process.cpu_times()
+    return times.user + times.system
+
+
+def _thread_cpu_s(process) -> dict:
+    return {thread.id: thread.user_time + thread.system_time for thread in process.threads()}
+
+
 def _timed_study(study_path: Path, out: Path, workers: int, on_record=None) -> dict:
+    import psutil  # a dependency of distributed
+
     from vm_ros.cli.study import offline_verbs
     from vm_ros.study.engine import Engine, close, run_study
     from vm_ros.study.study_file import load_study
@@ -63,6 +85,10 @@ def _timed_study(study_path: Path, out: Path, workers: int, on_record=None) -> d
     start = time.perf_counter()
     client, cluster = Engine(workers=workers).open()
     client.run(_warm)
+    me = psutil.Process()
+    worker_processes = [psutil.Process(pid) for pid in client.run(os.getpid).values()]
+    cpu_before = [_cpu_s(p) for p in (me, *worker_processes)]
+    threads_before = [_thread_cpu_s(p) for p in worker_processes]
     started = time.perf_counter()
     records = []
 
@@ -75,12 +101,21 @@ def _timed_study(study_path: Path, out: Path, workers: int, on_record=None) -> d
         summary = run_study(study, out, client, offline_verbs(), say=lambda line: None,
                             on_record=record)
         wall = time.perf_counter() - started
+        cpu = [_cpu_s(p) - before for p, before in zip((me, *worker_processes), cpu_before,
+                                                        strict=True)]
+        # a worker's busiest thread over the study: the task thread that ran the verb
+        task_threads = [max(cpu_s - before.get(thread, 0.0) for thread, cpu_s in
+                            _thread_cpu_s(p).items())
+                        for p, before in zip(worker_processes, threads_before, strict=True)]
     finally:
         close(client, cluster)
+    runs = max(summary.runs, 1)
     return {"workers": workers, "runs": summary.runs, "ok": summary.ok, "failed": summary.failed,
             "cluster_start_s": started - start, "wall_s": wall,
             "run_wall_sum_s": float(sum(records)), "run_wall_mean_s": float(sum(records) /
-                                                                            max(len(records), 1))}
+                                                                            max(len(records), 1)),
+            "client_cpu_per_run_s": cpu[0] / runs, "workers_cpu_per_run_s": sum(cpu[1:]) / runs,
+            "task_thread_cpu_per_run_s": sum(task_threads) / runs}
 
 
 def bench_study(quick: bool = False, progress=print) -> dict:
@@ -102,6 +137,10 @@ def bench_study(quick: bool = False, progress=print) -> dict:
         overhead = (one["wall_s"] - one["run_wall_sum_s"]) / one["runs"]
         result["overhead_per_run_s"] = overhead
         result["overhead_percent_of_run"] = 100.0 * overhead / one["run_wall_mean_s"]
+        one_cpu, two_cpu = (item["client_cpu_per_run_s"] + item["workers_cpu_per_run_s"]
+                            for item in (one, two))
+        result["cores_busy_1_worker"] = one_cpu * one["runs"] / one["wall_s"]
+        result["speedup_cpu_bound"] = one["wall_s"] / (two_cpu * two["runs"] / 2)
         result["tables_equal"] = ((folder / "speed-1" / "results.parquet").read_bytes()
                                   == (folder / "speed-2" / "results.parquet").read_bytes())
 
@@ -135,10 +174,23 @@ def csv_rows(r: dict, add) -> None:
     add("study", f"{case}, 1 worker", "overhead per run", r["overhead_per_run_s"], "s")
     add("study", f"{case}, 1 worker", "overhead / mean run", r["overhead_percent_of_run"], "%",
         f"< {OVERHEAD_TARGET_PERCENT:g} %", r["overhead_percent_of_run"] < OVERHEAD_TARGET_PERCENT)
+    for item in (one, two):
+        where = f"{case}, {item['workers']} worker(s)"
+        add("study", where, "CPU per run: client, scheduler, nannies", item[
+            "client_cpu_per_run_s"], "s")
+        add("study", where, "CPU per run: workers", item["workers_cpu_per_run_s"], "s")
+        add("study", where, "CPU per run: workers' task threads", item[
+            "task_thread_cpu_per_run_s"], "s")
+    add("study", f"{case}, 1 worker ({load})", "cores busy (CPU / wall)", r["cores_busy_1_worker"],
+        "cores")
+    add("study", f"{case} ({load})", "speed-up bound of the CPU times on 2 cores",
+        r["speedup_cpu_bound"], "ratio")
     add("study", case, "table equal, 1 and 2 workers", r["tables_equal"], "", "True",
         r["tables_equal"])
     add("study", f"{memory['runs']} short runs, 2 workers", "client RSS growth after record "
         f"{MEMORY_FIRST_RECORD}", memory["growth_mib"], "MiB",
         f"<= {MEMORY_GROWTH_TARGET_MIB:g} MiB", memory["growth_mib"] <= MEMORY_GROWTH_TARGET_MIB)
+    add("study", f"{memory['runs']} short runs, 2 workers", "CPU per run: client, scheduler, "
+        "nannies", memory["client_cpu_per_run_s"], "s")
     add("study", f"{memory['runs']} short runs, 2 workers", "client RSS at the end",
         memory["rss_last_mib"], "MiB")

@@ -7,8 +7,10 @@ moments at least cost (docs/coordination.md), and write:
   forces.sto      tendon force per muscle (N) at the target frames
   reserves.sto    reserve moment per coordinate (N m or N) at the target frames
   coordination.mcap  the run log of the drives (as `vm-ros simulate --motion` writes it, the
-                  activation starting at the steady state of the first drive; `vm-ros recompute`
-                  reproduces its forces and energy)
+                  activation starting at the steady state of the first drive, the solver's
+                  lead-in first; `vm-ros recompute` reproduces its forces and energy)
+  motion.sto      with --lead-in (config/coordination.yaml drives.lead_in): the run log's
+                  motion, the first pose held from the lead-in's start
   coordination.png   drives over time (heat map), forces, target and muscle moments with the
                   reserves, mean metabolic rate per muscle
 
@@ -36,6 +38,7 @@ from vm_ros.errors import VmRosError
 
 # metadata entries of the run log
 COST_KEY, SOLVE_KEY = "coordination_cost", "coordination_solve"
+LEAD_IN_KEY = "lead_in_s"   # s of the run log before the motion's first frame (first pose held)
 LIMIT_DRIVE = 0.99          # a muscle whose drive reaches this is "at its limit"
 GRAVITY_M_PER_S2 = 9.81     # cost of transport: P / (m g v)
 
@@ -69,6 +72,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f"{defaults.reserve_weight:g})")
     parser.add_argument("--node-step", type=float, default=defaults.node_step_s, metavar="S",
                         help=f"time between drive nodes (default {defaults.node_step_s:g} s)")
+    parser.add_argument("--lead-in", type=float, default=defaults.lead_in_s, metavar="S",
+                        help=f"start the forward runs S before the motion's first frame, first "
+                             f"pose held, drives free (default {defaults.lead_in_s:g} s)")
     parser.add_argument("--iterations", type=int, default=defaults.iterations,
                         help=f"forward runs of the tracking stage at most (default "
                              f"{defaults.iterations})")
@@ -108,6 +114,21 @@ def write_storage(path: Path, title: str, times_s, labels, values) -> Path:
                                                                           strict=True)]
     path.write_text("\n".join(lines) + "\n")
     return path
+
+
+def write_lead_in_motion(path: Path, motion, lead_s: float, dt_s: float) -> Path:
+    """``motion`` (JointMotion) with its first pose held (speed 0) for ``lead_s`` before its
+    first frame, values and speeds in rad or m (rad/s, m/s): the motion the solver's forward
+    runs follow (vm_ros.coordination.forward, the lead-in). The held pose's last row is half
+    a step before the first frame, so that every lead-in step samples it."""
+    start = motion.start_s
+    times = np.concatenate([[start - lead_s, start - dt_s / 2], start + motion.time_s])
+    q = np.vstack([motion.q[:1], motion.q[:1], motion.q])
+    qdot = np.vstack([np.zeros((2, q.shape[1])), motion.qdot])
+    labels = [f"/jointset/motion/{c}/{kind}" for kind in ("value", "speed")
+              for c in motion.coordinates]
+    return write_storage(path, "vm_ros coordinate motion with lead-in", times, labels,
+                         np.hstack([q, qdot]))
 
 
 def _muscles(args, geometry) -> tuple:
@@ -237,6 +258,7 @@ def run(args) -> int:
     options = SolverOptions(cost=args.cost, muscle_weights=_weights(args.muscle_weight),
                             node_step_s=args.node_step, reserve_weight=args.reserve_weight,
                             smoothness=args.smoothness, iterations=args.iterations,
+                            lead_in_s=args.lead_in,
                             refine=args.refine)
     options.check(muscles)
     config = RunConfig(muscles, geometry=args.geometry, library=args.library,
@@ -265,26 +287,31 @@ def run(args) -> int:
                   axis + problem.frame_times_s, muscles, result.forward.force_frames)
     write_storage(out / "reserves.sto", "vm_ros coordinate reserves (N m or N)",
                   axis + problem.frame_times_s, problem.coordinates, result.reserves)
-    rate = vm_rate(result.forward.trajectory, result.forward.drive_steps)
+    rate = result.forward.motion_rate(vm_rate)   # the lead-in's energy left out
     for line in _report_lines(result, rate, args.body_mass, args.speed):
         print(line)
     if targets.unmatched:
         print(f"targets {targets.source}: not coordinates of the motion, left to the reserves: "
               f"{', '.join(targets.unmatched)}")
     figure = _figure(out / "coordination.png", result, rate)
+    lead_s = len(result.forward.lead_in.drive) * args.dt
+    motion_path = args.motion if lead_s == 0 else write_lead_in_motion(
+        out / "motion.sto", joint_motion, lead_s, args.dt)
     parser = argparse.ArgumentParser(prog="vm-ros coordinate")
     simulate.add_arguments(parser)
-    argv = ["--motion", str(args.motion), "--geometry", str(args.geometry), "--excitations",
+    argv = ["--motion", str(motion_path), "--geometry", str(args.geometry), "--excitations",
             str(drives), "--muscles", ",".join(muscles), "--dt", repr(args.dt),
-            "--duration", repr(problem.duration_s), "--out", str(out / "coordination.mcap")]
+            "--duration", repr(lead_s + problem.duration_s),
+            "--out", str(out / "coordination.mcap")]
     argv += [a for name in ("library", "params") if getattr(args, name)
              for a in (f"--{name}", str(getattr(args, name)))]
-    extra = {STEADY_START: "yes", COST_KEY: args.cost, "targets": targets.source,
+    extra = {STEADY_START: "yes", LEAD_IN_KEY: repr(lead_s), COST_KEY: args.cost,
+             "targets": targets.source,
              SOLVE_KEY: f"{len(result.history)} iterations, max reserve RMS "
                         f"{np.max(result.summary.rms_percent):.3f} % of peak"}
-    print(f"run log of the drives (vm-ros simulate --motion, steady start; "
+    print(f"run log of the drives (vm-ros simulate --motion, steady start, lead-in {lead_s:g} s; "
           f"{time.perf_counter() - started:.1f} s so far):")
     code = simulate.run(parser.parse_args(argv), verb="coordinate", extra=extra)
     print(f"wrote {drives}, {out / 'forces.sto'}, {out / 'reserves.sto'}"
-          + (f", {figure}" if figure else ""))
+          + (f", {motion_path}" if lead_s else "") + (f", {figure}" if figure else ""))
     return code

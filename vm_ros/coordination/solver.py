@@ -65,6 +65,7 @@ SETTINGS_FILE = "coordination.yaml"
 @dataclass(frozen=True)
 class DriveSettings:
     node_step: float = holds("s")
+    lead_in: float = holds("s")
 
 
 @dataclass(frozen=True)
@@ -117,7 +118,9 @@ def _setting(section: str, name: str, kind=float):
 @dataclass(frozen=True)
 class SolverOptions:
     """How to solve: ``cost`` (costs.COSTS name), ``muscle_weights`` (name -> w_i, default 1),
-    ``node_step_s`` (s between drive nodes). Defaults: config/coordination.yaml.
+    ``node_step_s`` (s between drive nodes), ``lead_in_s`` (s the forward runs start before the
+    motion's first frame, first pose held, drives free: forward.py). Defaults:
+    config/coordination.yaml.
 
     Stage 1 (distribution.py): ``distribution_reserve_weight`` (w_res of the LP, on mean
     |reserve| / peak), ``distribution_smoothness`` (w_smooth of the LP, s, on mean
@@ -134,6 +137,7 @@ class SolverOptions:
     cost: str = DEFAULT_COST
     muscle_weights: Mapping = field(default_factory=dict)
     node_step_s: float = _setting("drives", "node_step")
+    lead_in_s: float = _setting("drives", "lead_in")
     distribution_reserve_weight: float = _setting("distribution", "reserve_weight")
     distribution_smoothness: float = _setting("distribution", "smoothness")
     iterations: int = _setting("tracking", "iterations", int)
@@ -161,7 +165,7 @@ class SolverOptions:
                      "qp_eps", "memory_s"):
             if not getattr(self, name) > 0:
                 raise VmRosError(f"{name} must be > 0 (got {getattr(self, name)})")
-        for name in ("smoothness", "distribution_smoothness", "lead_s", "refine",
+        for name in ("smoothness", "distribution_smoothness", "lead_s", "refine", "lead_in_s",
                      "tracking_tolerance", "tolerance"):
             if not getattr(self, name) >= 0:
                 raise VmRosError(f"{name} must be >= 0 (got {getattr(self, name)})")
@@ -353,7 +357,7 @@ def solve(bank, problem: CoordinationProblem, options: SolverOptions | None = No
     started = time.perf_counter()
     rate = cost.rate_function(bank.energetics_models)
     forward = ForwardModel(bank, problem, options.node_step_s, {options.cost: rate},
-                           options.memory_s)
+                           options.memory_s, options.lead_in_s)
     weights = np.array([float(options.muscle_weights.get(m, 1.0)) for m in problem.muscles])
     n = len(problem.muscles)
     reference = forward.run(np.full((forward.n_nodes, n), REFERENCE_DRIVE))

@@ -24,7 +24,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from vm_ros.coordination.distribution import StaticTable
-from vm_ros.coordination.forward import hat_matrix
 
 SLOPE_FLOOR = 0.05     # of each muscle's largest table slope
 
@@ -59,7 +58,7 @@ def track(forward, table: StaticTable, target_force: np.ndarray, lead_s: float, 
                 / np.diff(table.levels, axis=2).clip(min=1e-9)).max(axis=(0, 2))
     slope = np.maximum(slope, SLOPE_FLOOR * steepest.clip(min=1e-9))
     # a frame's error is put on the nodes around t_f - lead, by their hat weights
-    spread = hat_matrix(frame_times - lead_s, forward.node_step_s, forward.n_nodes).T.tocsr()
+    spread = forward.node_weights(frame_times - lead_s).T.tocsr()
     weight = np.maximum(np.asarray(spread.sum(axis=1)), 1e-9)
     nodes = np.clip(_at_nodes(shifted, frame_times, static), 0.0, 1.0)
     best, scores, since = None, [], 0

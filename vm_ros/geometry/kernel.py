@@ -1,5 +1,13 @@
 """Compiled polynomial evaluator (Numba, optional): the sums of
-``vm_ros.geometry.polynomial.evaluate_packed`` as one loop over terms, on the same packed arrays.
+``vm_ros.geometry.polynomial.evaluate_packed``, on the same packed arrays.
+
+Muscles that cross at most SLOTS coordinates (every muscle of the myo-sim and OpenSim models
+imported so far) are evaluated with the slots written out: a muscle at a time, the table of
+x_j ** p of its slots, then one loop over its terms with the factors, the products of the other
+factors (by prefix and suffix) and the sums over the terms in registers. Wider geometries take
+the loop over slots (``evaluate_wide``). Both take every product and sum in the same order (the
+slots of a narrower muscle padded with x ** 0 = 1, its terms in order), so they give the same
+bits; test_geometry holds them equal.
 
 Without Numba (not installed, or VM_ROS_NUMBA=0) ``available()`` is False and PolynomialGeometry
 uses the NumPy evaluator; test_geometry holds the two equal to rounding.
@@ -10,6 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from vm_ros.model.jit import HAVE_NUMBA, model_cache_directory, numba
+
+SLOTS = 4  # coordinates per muscle written out in the compiled loop (docs/performance.md)
 
 _evaluate = None
 
@@ -25,8 +35,8 @@ def _compile():
     with model_cache_directory():  # vm_ros.model.jit.cache_root()/<hash>/geometry
 
         @numba.njit(cache=True, fastmath=False, error_model="numpy")
-        def evaluate(q, slot_coordinate, slot_offset, slot_scale, term_muscle, term_exponent,
-                     term_coefficient, max_degree):
+        def evaluate_wide(q, slot_coordinate, slot_offset, slot_scale, term_muscle,
+                          term_exponent, term_coefficient, max_degree):
             n, width = slot_coordinate.shape
             n_q = q.shape[0]
             length = np.zeros(n)
@@ -69,36 +79,159 @@ def _compile():
                         gradient[current, c] += dl_dx[j] / slot_scale[current, j]
             return length, gradient
 
+        @numba.njit(cache=True, fastmath=False, error_model="numpy", boundscheck=False)
+        def evaluate(q, slot_coordinate, slot_offset, slot_scale, first_term, factor_index,
+                     slope_index, exponent, coefficient, max_degree):
+            """factor_index, slope_index, exponent: (T, SLOTS), see _slot_arrays."""
+            n = slot_coordinate.shape[0]
+            n_q = q.shape[0]
+            row = max_degree + 1
+            length = np.zeros(n)
+            gradient = np.zeros((n, n_q))
+            powers = np.empty(SLOTS * row)
+            for m in range(n):
+                for j in range(SLOTS):
+                    c = slot_coordinate[m, j]
+                    x = 0.0 if c >= n_q else (q[c] - slot_offset[m, j]) / slot_scale[m, j]
+                    powers[j * row] = 1.0
+                    for p in range(1, row):
+                        powers[j * row + p] = powers[j * row + p - 1] * x
+                total = d0 = d1 = d2 = d3 = 0.0
+                for t in range(first_term[m], first_term[m + 1]):
+                    f0 = powers[factor_index[t, 0]]
+                    f1 = powers[factor_index[t, 1]]
+                    f2 = powers[factor_index[t, 2]]
+                    f3 = powers[factor_index[t, 3]]
+                    o0 = coefficient[t]   # o_j: the coefficient times the factors before j
+                    o1 = o0 * f0
+                    o2 = o1 * f1
+                    o3 = o2 * f2
+                    total += o3 * f3
+                    s2 = 1.0 * f3         # s_j: the product of the factors after j
+                    s1 = s2 * f2
+                    s0 = s1 * f1
+                    e0, e1, e2, e3 = exponent[t, 0], exponent[t, 1], exponent[t, 2], exponent[t, 3]
+                    v3 = o3 * 1.0 * e3 * powers[slope_index[t, 3]]
+                    v2 = o2 * s2 * e2 * powers[slope_index[t, 2]]
+                    v1 = o1 * s1 * e1 * powers[slope_index[t, 1]]
+                    v0 = o0 * s0 * e0 * powers[slope_index[t, 0]]
+                    d3 += v3 if e3 > 0.0 else 0.0
+                    d2 += v2 if e2 > 0.0 else 0.0
+                    d1 += v1 if e1 > 0.0 else 0.0
+                    d0 += v0 if e0 > 0.0 else 0.0
+                length[m] = total
+                for j, d in enumerate((d0, d1, d2, d3)):
+                    c = slot_coordinate[m, j]
+                    if c < n_q:
+                        gradient[m, c] += d / slot_scale[m, j]
+            return length, gradient
+
         @numba.njit(cache=True, fastmath=False, error_model="numpy")
-        def evaluate_many(poses, slot_coordinate, slot_offset, slot_scale, term_muscle,
-                          term_exponent, term_coefficient, max_degree):
+        def evaluate_many(poses, slot_coordinate, slot_offset, slot_scale, first_term,
+                          factor_index, slope_index, exponent, coefficient, max_degree):
             lengths = np.zeros((poses.shape[0], slot_coordinate.shape[0]))
             gradients = np.zeros((poses.shape[0], slot_coordinate.shape[0], poses.shape[1]))
             for k in range(poses.shape[0]):
                 lengths[k], gradients[k] = evaluate(
-                    poses[k], slot_coordinate, slot_offset, slot_scale, term_muscle,
-                    term_exponent, term_coefficient, max_degree)
+                    poses[k], slot_coordinate, slot_offset, slot_scale, first_term,
+                    factor_index, slope_index, exponent, coefficient, max_degree)
             return lengths, gradients
-    _evaluate = evaluate, evaluate_many
+
+        @numba.njit(cache=True, fastmath=False, error_model="numpy")
+        def evaluate_inside(q, qdot, lower, upper, slot_coordinate, slot_offset, slot_scale,
+                            first_term, factor_index, slope_index, exponent, coefficient,
+                            max_degree):
+            for j in range(q.shape[0]):
+                if not (lower[j] < q[j] < upper[j] and np.isfinite(qdot[j])):
+                    return False, q[:0], np.empty((0, 0)), np.empty((0, 0)), q[:0], q[:0]
+            length, gradient = evaluate(
+                q, slot_coordinate, slot_offset, slot_scale, first_term, factor_index,
+                slope_index, exponent, coefficient, max_degree)
+            return True, length, gradient, -gradient, q.copy(), qdot.copy()
+    _evaluate = evaluate, evaluate_many, evaluate_inside, evaluate_wide
     return _evaluate
+
+
+def _slot_arrays(packed) -> tuple:
+    """The arrays ``evaluate`` reads, from ``packed`` (at most SLOTS slots; terms grouped by
+    muscle, as PackedPolynomials.pack makes them), slots padded to SLOTS (coordinate n_q,
+    x = 0, exponent 0): the slots' coordinates, offsets and scales, each muscle's first term
+    (and the end), each term's factor x_j ** e and slope x_j ** (e - 1) as indices into a
+    muscle's table of powers (row j: x_j ** 0 ... x_j ** max_degree), and e as a float."""
+    n, width = packed.slot_coordinate.shape
+    pad = SLOTS - width
+    row = packed.max_degree + 1
+    if SLOTS * row > np.iinfo(np.uint16).max:
+        raise ValueError(f"polynomial degree {packed.max_degree}: at most "
+                         f"{np.iinfo(np.uint16).max // SLOTS - 1}")
+    exponent = np.pad(packed.term_exponent, ((0, 0), (0, pad)))                      # (T, S)
+    slot = np.arange(SLOTS) * row
+    return (np.pad(packed.slot_coordinate, ((0, 0), (0, pad)),
+                   constant_values=packed.n_coordinates).astype(np.int64),
+            np.pad(packed.slot_offset, ((0, 0), (0, pad))).astype(np.float64),
+            np.pad(packed.slot_scale, ((0, 0), (0, pad)), constant_values=1.0).astype(
+                np.float64),
+            np.concatenate([[0], np.cumsum(np.bincount(packed.term_muscle, minlength=n))]
+                           ).astype(np.int64),
+            np.ascontiguousarray(slot + exponent, dtype=np.uint16),  # unsigned: indexing
+            np.ascontiguousarray(slot + np.maximum(exponent - 1, 0), dtype=np.uint16),  # with
+            # no test for negative indices (a third of the loop's instructions with int64)
+            np.ascontiguousarray(exponent, dtype=np.float64),
+            np.ascontiguousarray(packed.term_coefficient, dtype=np.float64))
+
+
+def _wide_arrays(packed) -> tuple:
+    return (np.ascontiguousarray(packed.slot_coordinate),
+            np.ascontiguousarray(packed.slot_offset), np.ascontiguousarray(packed.slot_scale),
+            np.ascontiguousarray(packed.term_muscle),
+            np.ascontiguousarray(packed.term_exponent),
+            np.ascontiguousarray(packed.term_coefficient))
 
 
 def compiled_evaluator(packed, many: bool = False):
     """A function q -> (L, dL/dq) over ``packed`` (terms must be grouped by muscle, as
     PackedPolynomials.pack makes them); with ``many``, poses (k, n_q) -> (L (k, n), dL/dq
     (k, n, n_q)), each pose's the same numbers as one call."""
-    evaluate = _compile()[1 if many else 0]
-    arrays = (np.ascontiguousarray(packed.slot_coordinate),
-              np.ascontiguousarray(packed.slot_offset), np.ascontiguousarray(packed.slot_scale),
-              np.ascontiguousarray(packed.term_muscle),
-              np.ascontiguousarray(packed.term_exponent),
-              np.ascontiguousarray(packed.term_coefficient))
+    evaluate, evaluate_many, _, evaluate_wide = _compile()
     degree = packed.max_degree
+    if packed.slot_coordinate.shape[1] > SLOTS:
+        arrays = _wide_arrays(packed)
+
+        def run_wide(q):
+            q = np.ascontiguousarray(q, dtype=np.float64)
+            if not many:
+                return evaluate_wide(q, *arrays, degree)
+            out = [evaluate_wide(pose, *arrays, degree) for pose in q]
+            return (np.array([o[0] for o in out]).reshape(len(q), packed.n_muscles),
+                    np.array([o[1] for o in out]).reshape(len(q), packed.n_muscles, q.shape[1]))
+
+        return run_wide
+    arrays = _slot_arrays(packed)
+    call = evaluate_many if many else evaluate
 
     def run(q):
-        return evaluate(np.ascontiguousarray(q, dtype=np.float64), *arrays, degree)
+        return call(np.ascontiguousarray(q, dtype=np.float64), *arrays, degree)
 
     return run
 
 
-__all__ = ["available", "compiled_evaluator"]
+def compiled_inside_evaluator(packed, lower, upper):
+    """A function (q, qdot) -> (inside, L, dL/dq, -dL/dq, copies of q and qdot) for float
+    arrays of shape (n_q,): ``inside`` is False (and the rest placeholders) unless every
+    coordinate lies strictly inside (lower, upper) and every velocity is finite, where clamping
+    changes nothing; the numbers of ``compiled_evaluator``'s function, with the checks in one
+    call. None for a geometry wider than SLOTS."""
+    if packed.slot_coordinate.shape[1] > SLOTS:
+        return None
+    evaluate = _compile()[2]
+    arrays = _slot_arrays(packed)
+    box = (np.array(lower, dtype=np.float64), np.array(upper, dtype=np.float64))
+    degree = packed.max_degree
+
+    def run(q, qdot):
+        return evaluate(q, qdot, *box, *arrays, degree)
+
+    return run
+
+
+__all__ = ["SLOTS", "available", "compiled_evaluator", "compiled_inside_evaluator"]

@@ -283,7 +283,7 @@ class PolynomialGeometry(JointGeometry):
             ([names.index(c) for c in m.coordinates], m.offset, m.scale, m.exponents,
              m.coefficients) for m in self.muscles))
         self._lower, self._upper = self.lower, self.upper
-        self._compiled = None
+        self._compiled = self._compiled_inside = None
         if backend not in ("auto", "numpy", "compiled"):
             raise ValueError(f"backend {backend!r}: one of auto, numpy, compiled")
         if backend != "numpy":
@@ -292,6 +292,8 @@ class PolynomialGeometry(JointGeometry):
             if kernel.available():
                 self._compiled = kernel.compiled_evaluator(self.packed)
                 self._compiled_many = kernel.compiled_evaluator(self.packed, many=True)
+                self._compiled_inside = kernel.compiled_inside_evaluator(
+                    self.packed, self._lower, self._upper)
             elif backend == "compiled":
                 raise ValueError("backend 'compiled' needs Numba (pip install '.[fast]')")
         self.backend = "compiled" if self._compiled is not None else "numpy"
@@ -305,6 +307,18 @@ class PolynomialGeometry(JointGeometry):
         return evaluate_packed(self.packed, q)
 
     def evaluate(self, q, qdot=None) -> GeometryOutput:
+        if self._compiled_inside is not None:  # a pose inside the box: the checks, the
+            # polynomials
+            # and r = -dL/dq in one compiled call (on the box, outside it or bad: as below)
+            q_in = np.ascontiguousarray(q, dtype=float)
+            qdot_in = (np.zeros(q_in.shape) if qdot is None
+                       else np.ascontiguousarray(qdot, dtype=float))
+            if q_in.shape == qdot_in.shape == self._lower.shape:
+                inside, length, gradient, arm, q_used, qdot_used = self._compiled_inside(
+                    q_in, qdot_in)
+                if inside:
+                    return GeometryOutput(length, gradient @ qdot_used, arm, q_used, qdot_used,
+                                          np.zeros(q_used.shape, dtype=bool))
         q, qdot = self.check_pose(q, qdot)
         q_used, qdot_used, clamped = clamp_to_box(q, qdot, self._lower, self._upper)
         length, gradient = self.lengths_and_gradients(q_used)

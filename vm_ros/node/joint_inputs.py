@@ -115,6 +115,7 @@ class JointInputs:
         lo, hi = geometry_length_range(geometry, space.rows)
         inputs.allow_path_range(space.driven_index, lo, hi)
         self._expected: dict = {}  # time_ns -> (pose q, pose qdot, GeometryOutput): expect()
+        self._selected = None  # ((names, size), issues, index, entries) of the last _select
 
     @property
     def ready(self) -> bool:
@@ -139,7 +140,19 @@ class JointInputs:
         return max(now_ns - self.last_message_ns, 0) * 1e-9
 
     def _select(self, names, size: int) -> tuple[list[Issue], np.ndarray | None, list[int]]:
-        """(issues, coordinate index or None when the message is dropped, message index)."""
+        """(issues, coordinate index or None when the message is dropped, message index); the
+        previous message's answer when its names and size were the same (a stream keeps its
+        names: 80 look-ups per message saved)."""
+        key = (names if isinstance(names, tuple) else tuple(names), size)
+        if self._selected is None or self._selected[0] != key:
+            issues, index, entries = self._select_names(*key)
+            if index is not None:
+                index.flags.writeable = False
+            self._selected = key, issues, index, entries
+        _, issues, index, entries = self._selected
+        return list(issues), index, entries
+
+    def _select_names(self, names, size: int):
         space = self.space
         if len(names) == 0:
             if size != len(space.output):

@@ -162,7 +162,10 @@ def scenario_names() -> tuple:
 def load_scenario(name: str, path: str | Path | None = None) -> Scenario:
     """Load a built-in scenario's constants from ``config/scenarios.yaml`` (or ``path``)."""
     path = Path(path) if path is not None else config_dir() / "scenarios.yaml"
-    data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    # libyaml's parser (the same safe constructor: the same values), as load_yaml reads the
+    # model files: 1.5 ms instead of 15 ms, paid by every run of a study
+    data = yaml.load(path.read_text(encoding="utf-8"),
+                     Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
     entries = data.get("scenarios", {})
     if name not in _BUILDERS or name not in entries:
         raise ConfigError(path, f"scenarios.{name}", name,

@@ -86,7 +86,7 @@ def one_line(error: BaseException) -> str:
 def execute(task: RunTask) -> dict:
     """Run ``task``: the record {run_id, status, error, rows, wall_s, worker}."""
     final = Path(task.log_path)
-    partial = final.with_name(f".{final.stem}-{uuid.uuid4().hex[:8]}.mcap")
+    partial = _partial_log(final, uuid.uuid4().hex[:8])
     argv = [*task.argv, "--out", str(partial), "--flush-interval", repr(FLUSH_INTERVAL_S)]
     if task.start_time_ns is not None and task.verb.name == "simulate":
         argv += ["--start-time", str(task.start_time_ns)]
@@ -116,6 +116,18 @@ def execute(task: RunTask) -> dict:
         with contextlib.suppress(OSError):  # best effort: the record carries the error
             final.with_suffix(".txt").write_text(out.getvalue() + err.getvalue())
     return record
+
+
+def partial_logs(task: RunTask) -> list[Path]:
+    """The run's logs still under a temporary name: left by a worker that died mid-run (SIGKILL,
+    out of memory), whose run Dask started again elsewhere."""
+    final = Path(task.log_path)
+    return sorted(final.parent.glob(_partial_log(final, "*").name))
+
+
+def _partial_log(final: Path, tag: str) -> Path:
+    """A log being written: ``.<run id>-<tag>.mcap`` beside its final name."""
+    return final.with_name(f".{final.stem}-{tag}.mcap")
 
 
 def outcome_rows(outcome) -> list[dict]:

@@ -353,6 +353,7 @@ def solution_from_result(label: str, result, motion, specs, params) -> WalkSolut
     (MuscleBank energetics_models='all') for VM's rate, its parts and the models' rates,
     summed over the muscles and interpolated from the model steps to the frames."""
     from vm_ros.coordination.costs import MODEL_TOTAL
+    from vm_ros.coordination.forward import replay as forward_replay
     from vm_ros.model.bank import MuscleBank
 
     problem = result.problem
@@ -361,8 +362,7 @@ def solution_from_result(label: str, result, motion, specs, params) -> WalkSolut
                               for i in range(result.drives.shape[1])])
     drive_steps = result.forward.drive_steps
     bank = MuscleBank(specs, params, "lumped", energetics_models="all")
-    bank.reset(path_length=problem.path_length[0], excitation=drive_steps[0])
-    replay = bank.run(problem.dt_s, drive_steps, problem.path_length, problem.path_velocity)
+    replay = forward_replay(bank, problem, result.forward)   # through the lead-in
     steps = np.arange(drive_steps.shape[0]) * problem.dt_s
 
     def at_frames(per_step):
