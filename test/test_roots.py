@@ -87,6 +87,12 @@ SCIPY_1_10_NAMES = {
     ("scipy.sparse", "linalg"),
     ("scipy.sparse.linalg", "spsolve"),
     ("scipy.sparse.csgraph", "connected_components"),
+    # coordination's OSQP problems: in scipy/sparse/__init__.py, _construct.__all__ and
+    # _extract.__all__ of the SciPy 1.10.1 wheel (read there)
+    ("scipy.sparse", "csc_matrix"),
+    ("scipy.sparse", "hstack"),
+    ("scipy.sparse", "triu"),
+    ("scipy.sparse", "block_diag"),
 }
 
 
