@@ -10,6 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from vm_ros.cli import main
@@ -220,6 +221,36 @@ def test_coordination_walk_runs_only_when_named_and_says_why_it_skips(monkeypatc
                    "seconds": True}
 
 
+def test_coordination_myolegs_runs_only_when_named_on_a_gait_like_motion():
+    """The section is not in the default list; its motion is gait-like at the landmarks it is
+    drawn from (Perry 1992: hip about 30 deg flexed at heel strike, knee about 20 deg in loading
+    response and 60 deg in initial swing, ankle about 20 deg plantarflexed at toe-off), the left
+    leg half a cycle later, other coordinates at 0; a measured row holds the solve to 60 s."""
+    from vm_ros_bench import cli as bench
+    from vm_ros_bench import coordination_bench as cb
+
+    assert "coordination-myolegs" in bench.SECTIONS
+    assert "coordination-myolegs" not in bench.DEFAULT_SECTIONS
+    names = ["hip_flexion_r", "knee_angle_r", "ankle_angle_r", "hip_flexion_l", "mtp_angle_r"]
+    t, columns = cb.gait_motion(names, duration_s=2 * cb.GAIT_CYCLE_S, frame_s=0.001)
+    assert t[-1] == pytest.approx(2 * cb.GAIT_CYCLE_S)
+    hip, knee, ankle, hip_left, mtp = (np.asarray(c) for c in columns)
+
+    def at(column, phase):
+        return column[int(round(phase * cb.GAIT_CYCLE_S / 0.001))]
+
+    assert 25 <= at(hip, 0.0) <= 35 and -15 <= hip.min() <= -5
+    assert 15 <= at(knee, 0.15) <= 25 and 55 <= knee.max() <= 65 and knee.min() >= 0
+    assert 0.65 <= (np.argmax(knee[:len(t) // 2]) * 0.001 / cb.GAIT_CYCLE_S) <= 0.75
+    assert -25 <= at(ankle, 0.63) <= -15 and 5 <= at(ankle, 0.45) <= 15
+    assert at(hip_left, 0.5) == pytest.approx(at(hip, 0.0))
+    assert not mtp.any()
+    measured = {"muscles": 78, "motion_s": 10.0, "rms_percent": {"hip": 2.0},
+                "forward_runs": 20, "cpu_s": 50.0, "targets_s": 1.0, "load_average_start": 1.0,
+                "infeasible_frames": 0, "seconds": 61.0}
+    met = {r["metric"]: r["met"] for r in bench._csv_rows({"coordination-myolegs": measured})
+           if r["target"]}
+    assert met == {"seconds": False}
 def test_report_walk_runs_only_when_named_and_holds_plotting_to_5_s(monkeypatch, tmp_path):
     """Without the walk's files the section is one row saying where they are missing; measured,
     the plotting's CPU time (report with plots less --no-plots) is held to 5 s."""

@@ -1,8 +1,8 @@
 """Measure the model, the offline runner and muscle_node against vm_ros's speed targets; write
 the results (JSON and CSV) and print a table.
 
-Sections (all but coordination-walk, report-walk, study and node-memory by default; --only picks
-some):
+Sections (all but coordination-walk, coordination-myolegs, report-walk, study and node-memory
+by default; --only picks some):
   model     MuscleBank.step for 1, 10, 100, 1000 muscles (lumped units, energetics on,
             dt 1 ms), compiled (Numba) and NumPy back ends; the published energetics models'
             cost at 1000 muscles; the kernel per muscle-step: run against repeated step at 1,
@@ -44,6 +44,13 @@ some):
             F0, default options and --refine 6; reserve RMS per coordinate (% of peak; target
             < 3 %), forward runs, seconds (target < 10 s), load average. Skipped with the reason
             when the walk is not fetched (scripts/fetch-gait-data).
+  coordination-myolegs
+            runs only when named (--only coordination-myolegs; minutes): vm-ros coordinate's
+            offline solve on myo-sim's myolegs (the joint section's import in
+            OUT/joint-cache/myolegs, made first when absent), 10 s of a gait-like motion
+            (vm_ros_bench.coordination_bench.gait_motion), targets from MuJoCo's inverse
+            dynamics, default options: seconds (target < 60 s), forward runs, reserve RMS per
+            coordinate (% of peak). Skipped with the reason without the mujoco extra.
   help      `vm-ros --help` and `muscle_node --help` as child processes, 5 times each:
             median wall and CPU time (target < 0.5 s of CPU)
   report-walk
@@ -103,7 +110,7 @@ from vm_ros.errors import VmRosError
 from vm_ros_bench import FOLDER, child_environment
 
 SECTIONS = ("model", "natural", "offline", "help", "decode", "node", "joint", "coordination",
-            "coordination-walk", "report-walk", "study", "node-memory")
+            "coordination-walk", "coordination-myolegs", "report-walk", "study", "node-memory")
 DEFAULT_SECTIONS = ("model", "natural", "offline", "help", "decode", "node", "joint",
                     "coordination")  # node-memory and study: when named
 MEMORY_DURATION_S, MEMORY_QUICK_DURATION_S = 300.0, 60.0  # node-memory window
@@ -351,6 +358,23 @@ def _kernel_csv_rows(r: dict, add) -> None:
             add("kernel", case, "of which imports", cold["imports_s"], "s")
 
 
+def _myolegs_csv_rows(r: dict | None, add) -> None:
+    from vm_ros_bench.coordination_bench import MYOLEGS_TARGET_S
+
+    if not r or "error" in r:
+        return
+    if "skipped" in r:
+        add("coordination-myolegs", "myolegs", "skipped", r["skipped"], "")
+        return
+    case = f"myolegs, {r['muscles']} muscles, {r['motion_s']:g} s gait-like motion"
+    for name, value in r["rms_percent"].items():
+        add("coordination-myolegs", case, f"reserve_rms_percent {name}", value, "%")
+    for key in ("forward_runs", "cpu_s", "targets_s", "load_average_start", "infeasible_frames"):
+        add("coordination-myolegs", case, key, r[key], "s" if key.endswith("_s") else "")
+    add("coordination-myolegs", case, "seconds", r["seconds"], "s",
+        f"< {MYOLEGS_TARGET_S:g} s", r["seconds"] < MYOLEGS_TARGET_S)
+
+
 def _csv_rows(results: dict) -> list[dict]:
     """Flat (section, case, metric, value, min, max, unit, target, met) rows of the main numbers
     (min and max over the repeats where the value is a median of repeats)."""
@@ -450,6 +474,7 @@ def _csv_rows(results: dict) -> list[dict]:
         add("coordination-walk", case, "load_average_start", r["load_average_start"], "")
         add("coordination-walk", case, "seconds", r["seconds"], "s", f"< {WALK_TARGET_S:g} s",
             r["seconds"] < WALK_TARGET_S)
+    _myolegs_csv_rows(results.get("coordination-myolegs"), add)
     for r in results.get("help", []):
         if "skipped" in r:
             add("help", f"{r['command']} --help", "skipped", r["skipped"], "")
@@ -742,6 +767,8 @@ def run(args) -> int:
         ("coordination", lambda: coordination_bench.bench_coordination(
             seconds=1.0 if args.quick else 3.0, progress=_say)),
         ("coordination-walk", lambda: coordination_bench.bench_walk(progress=_say)),
+        ("coordination-myolegs", lambda: coordination_bench.bench_myolegs(
+            out / "joint-cache", progress=_say)),
         ("report-walk", lambda: offline_bench.bench_report_walk(
             repeats=1 if args.quick else 3, progress=_say)),
         ("study", lambda: _study_section(args.quick)),

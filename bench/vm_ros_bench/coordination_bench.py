@@ -174,3 +174,100 @@ def bench_walk(progress=print) -> list[dict]:
             rows.append({"case": case, "rms_percent": rms, "forward_runs": result.forward_runs,
                          "seconds": seconds, "load_average_start": load})
     return rows
+
+
+# myolegs (issue 30's speed item: 80 muscles, 10 s of motion solved in under a minute)
+MYOLEGS_S, MYOLEGS_FRAME_S, MYOLEGS_TARGET_S = 10.0, 0.01, 60.0
+GAIT_CYCLE_S = 1.1   # s per stride (both legs), about 109 steps per minute
+# Gait-like sagittal angles (deg) over the gait cycle phase p (0 = heel strike): an offset plus
+# bumps a exp(k (cos 2 pi (p - c) - 1)) for (a, c, k); shaped after the normal-walking curves
+# of Perry 1992 (hip about 27 deg flexed at heel strike, 8 deg extended in terminal stance;
+# knee 20 deg in loading response, 60 deg in initial swing; ankle 7 deg plantarflexion after
+# heel strike, 11 deg dorsiflexion in terminal stance, 22 deg plantarflexion at toe-off), drawn
+# from those landmarks, not fitted to data; bump widths such that the angular accelerations
+# stay within 34 / 132 / 129 rad/s^2 (hip, knee, ankle: the curves' second derivative at a
+# 1.1 s stride). The left leg half a cycle later; every other coordinate of the model held at
+# 0 (inside every range of myolegs).
+GAIT_ANGLES_DEG = {"hip_flexion": (-10.0, ((40.0, 0.95, 1.5),)),
+                   "knee_angle": (2.0, ((18.0, 0.15, 6.0), (58.0, 0.72, 4.0))),
+                   "ankle_angle": (0.0, ((-7.0, 0.07, 12.0), (12.0, 0.42, 5.0),
+                                         (-22.0, 0.63, 10.0)))}
+
+
+def gait_angles_deg(joint: str, phase) -> np.ndarray:
+    """GAIT_ANGLES_DEG[joint] at gait phases ``phase`` (cycles; periodic)."""
+    offset, bumps = GAIT_ANGLES_DEG[joint]
+    phase = np.asarray(phase, dtype=float)
+    return offset + sum(a * np.exp(k * (np.cos(2 * np.pi * (phase - c)) - 1.0))
+                        for a, c, k in bumps)
+
+
+def gait_motion(coordinate_names, duration_s: float = MYOLEGS_S,
+                frame_s: float = MYOLEGS_FRAME_S) -> tuple[np.ndarray, list]:
+    """(times (s), one column in degrees per name): GAIT_ANGLES_DEG for ``<joint>_r`` and
+    ``<joint>_l`` (half a cycle later), 0 for every other name."""
+    t = np.arange(0.0, duration_s + frame_s / 2, frame_s)
+    phase = {"r": t / GAIT_CYCLE_S, "l": t / GAIT_CYCLE_S + 0.5}
+    columns = []
+    for name in coordinate_names:
+        joint, _, side = name.rpartition("_")
+        columns.append(gait_angles_deg(joint, phase[side]) if joint in GAIT_ANGLES_DEG
+                       else np.zeros_like(t))
+    return t, columns
+
+
+def bench_myolegs(cache, progress=print, duration_s: float = MYOLEGS_S) -> dict:
+    """`vm-ros coordinate` on myo-sim's myolegs (the joint section's import, cached in
+    ``cache``/myolegs): ``gait_motion`` written as a .mot, targets ``mujoco`` (MuJoCo's inverse
+    dynamics of the motion, the root held in space), every muscle of the library, default
+    options: seconds of the targets and of the solve (wall, and the process's CPU time: the
+    machine's other load does not count in it), the seconds at each kept iterate (the first:
+    after the two stages' start), forward runs, reserve RMS per coordinate (% of its target's
+    peak), the load average before and after. ``skipped`` without the mujoco extra."""
+    import tempfile
+    from pathlib import Path
+
+    from vm_ros.coordination.problem import build_problem
+    from vm_ros.coordination.solver import SolverOptions, solve
+    from vm_ros.coordination.targets import load_targets
+    from vm_ros.geometry import load_geometry
+    from vm_ros.importers.motion import read_motion
+    from vm_ros.model.params import load_model_params, load_muscle_library, resolve_muscles
+    from vm_ros.node.motion_inputs import JointMotion
+    from vm_ros_bench import joint_bench
+
+    reason = joint_bench.missing_extra()
+    if reason is not None:
+        return {"skipped": reason}
+    imported = joint_bench.import_myolegs(Path(cache) / "myolegs", progress=progress)
+    geometry = load_geometry(imported["geometry"])
+    library = load_muscle_library(imported["library"])
+    muscles = tuple(m for m in geometry.muscle_names if m in library)
+    with tempfile.TemporaryDirectory(prefix="vm_ros_bench_myolegs_") as tmp:
+        times, columns = gait_motion(geometry.coordinate_names, duration_s)
+        path = joint_bench.write_mot(Path(tmp) / "gait.mot", times, geometry.coordinate_names,
+                                     columns, title="myolegs gait-like motion")
+        motion = JointMotion.from_motion(read_motion(path), geometry,
+                                         geometry.coordinate_names, {})
+    started = time.perf_counter()
+    targets = load_targets("mujoco", geometry=geometry, motion=motion)
+    targets_s = time.perf_counter() - started
+    params = load_model_params()
+    specs = resolve_muscles(muscles, imported["library"], None, params.generic.ur_default)
+    problem = build_problem(geometry, motion, targets, muscles)
+    load = os.getloadavg()[0]
+    started, cpu = time.perf_counter(), time.process_time()
+    result = solve(MuscleBank(specs, params, "lumped"), problem, SolverOptions())
+    seconds, cpu_s = time.perf_counter() - started, time.process_time() - cpu
+    rms = dict(zip(problem.coordinates, result.summary.rms_percent.tolist(), strict=True))
+    peak = dict(zip(problem.coordinates, problem.peak.tolist(), strict=True))
+    progress(f"coordination-myolegs: {len(muscles)} muscles, {duration_s:g} s: worst reserve "
+             f"RMS {max(rms.values()):.2f} % of peak, {result.forward_runs} runs, "
+             f"{seconds:.1f} s ({cpu_s:.1f} s of CPU; targets {targets_s:.1f} s)")
+    return {"muscles": len(muscles), "coordinates": len(problem.coordinates),
+            "motion_s": duration_s, "frames": len(problem.frame_times_s),
+            "rms_percent": rms, "target_peak": peak, "forward_runs": result.forward_runs,
+            "seconds": seconds, "cpu_s": cpu_s, "targets_s": targets_s,
+            "kept_step_s": [it.seconds for it in result.history],
+            "load_average_start": load, "load_average_end": os.getloadavg()[0],
+            "infeasible_frames": len(result.infeasible)}

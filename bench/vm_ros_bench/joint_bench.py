@@ -320,6 +320,16 @@ def bench_closed_loop(cases: list[dict], duration_s: float = 2.0, repeats: int =
     return rows
 
 
+def write_mot(path, times_s, names, columns_deg, title: str = "bench motion") -> Path:
+    """An OpenSim .mot in degrees: ``columns_deg`` (one array per name) at ``times_s``."""
+    lines = [title, "version=1", f"nRows={len(times_s)}", f"nColumns={len(columns_deg) + 1}",
+             "inDegrees=yes", "endheader", "\t".join(["time", *names])]
+    lines += ["\t".join(repr(float(v)) for v in (times_s[i], *(c[i] for c in columns_deg)))
+              for i in range(len(times_s))]
+    Path(path).write_text("\n".join(lines) + "\n")
+    return Path(path)
+
+
 def write_motion(geometry_path, path, duration_s: float = MOTION_S) -> Path:
     """An OpenSim .mot (degrees) of every coordinate of the geometry: coordinate j at
     mid + 0.4 (upper - lower) sin(2 pi (0.3 + 0.1 j) t), frames every MOTION_FRAME_S."""
@@ -330,13 +340,7 @@ def write_motion(geometry_path, path, duration_s: float = MOTION_S) -> Path:
     columns = [np.degrees((c.lower + c.upper) / 2 + 0.4 * (c.upper - c.lower)
                           * np.sin(2 * np.pi * (0.3 + 0.1 * j) * t))
                for j, c in enumerate(geometry.coordinates)]
-    lines = ["bench motion", "version=1", f"nRows={len(t)}",
-             f"nColumns={len(columns) + 1}", "inDegrees=yes", "endheader",
-             "\t".join(["time", *geometry.coordinate_names])]
-    lines += ["\t".join(repr(float(v)) for v in (t[i], *(c[i] for c in columns)))
-              for i in range(len(t))]
-    Path(path).write_text("\n".join(lines) + "\n")
-    return Path(path)
+    return write_mot(path, t, geometry.coordinate_names, columns)
 
 
 def bench_motion(imported: dict, repeats: int = 7, duration_s: float = MOTION_S,
@@ -397,4 +401,4 @@ def bench_motion(imported: dict, repeats: int = 7, duration_s: float = MOTION_S,
 
 __all__ = ["IMPORTS", "bench_closed_loop", "bench_geometry", "bench_motion", "closed_loop_cases",
            "derived_library", "fixed_root_model", "import_myolegs", "missing_extra",
-           "time_calls", "write_motion"]
+           "time_calls", "write_mot", "write_motion"]

@@ -1,0 +1,130 @@
+"""The Gait10dof18musc walk replayed over ROS as a planned profile (issue 30): the walk's
+inverse-dynamics moments (the targets `vm-ros coordinate` reads, vm_ros.coordination.targets) as
+one trajectory_msgs/JointTrajectory of efforts to muscle_node with coordination.enabled, the
+walk's joint angles and velocities as joint_states every publish period; the published
+joint_efforts of hip, knee and ankle, both sides, within 5 % RMS of each coordinate's peak
+target. The model imported as the walk validation's "model F0" (vm_ros.validation.walk).
+
+Simulated time (/clock, 100 Hz periods): the test paces the model, so the result does not
+depend on the machine's load; every wait is on a predicate with a generous timeout. The node
+starts from rest: the first pose and the first target are held for HOLD_S before the walk
+plays (a planned profile holds its first point before it starts), and only the walk's own
+2.5 s are measured. Skipped, with the reason, when the walk's files are not fetched
+(scripts/fetch-gait-data) or OpenSim (the import) is missing."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_node_coordination import PERIOD_NS, T0, CoordinationProbe, set_clock, stamp_ns
+
+from vm_ros import telemetry as tm
+
+pytestmark = pytest.mark.ros
+
+HOLD_S = 1.0            # the first pose and target held before the walk plays
+BOUND_OF_PEAK = 0.05    # issue 30: the walk replayed over ROS within 5 % RMS of each peak
+
+
+@pytest.fixture(scope="module")
+def walk(tmp_path_factory):
+    """(geometry path, library path, muscles, JointMotion, JointMomentTargets) of the walk at
+    the model's F0; skips when the walk or OpenSim is missing."""
+    from vm_ros.coordination.targets import load_targets
+    from vm_ros.errors import VmRosError
+    from vm_ros.importers.motion import read_motion
+    from vm_ros.importers.osim import load_opensim
+    from vm_ros.node.motion_inputs import JointMotion
+    from vm_ros.validation.walk import STRENGTHS, import_walk
+    from vm_ros.validation.walk_data import WalkDataError, walk_files
+
+    try:
+        files = walk_files()
+    except WalkDataError as exc:
+        pytest.skip(str(exc))
+    try:
+        load_opensim()
+    except VmRosError as exc:
+        pytest.skip(f"the walk's import needs OpenSim ({exc})")
+    out = tmp_path_factory.mktemp("walk")
+    geometry, library = import_walk(files, STRENGTHS["model F0"], out)
+    motion = JointMotion.from_motion(read_motion(files["motion"]), geometry,
+                                     geometry.coordinate_names, {})
+    targets = load_targets(str(files["inverse_dynamics"]), geometry=geometry, motion=motion)
+    return out / "geometry.yaml", library, list(geometry.muscle_names), motion, targets
+
+
+def replay(ros, walk, **params) -> dict:
+    """Run the walk through a coordinating muscle_node with ``params`` (module docstring):
+    the published steps of the walk's span, ``stamps_s`` (from the walk's start), ``effort``
+    and ``planned`` (steps, coordinates), ``rms_of_peak`` per coordinate; the node and probe."""
+    geometry, library, muscles, motion, targets = walk
+    joints = list(targets.coordinates)
+    node = ros.muscle_node(muscles=muscles, library=str(library), geometry=str(geometry),
+                           joints=joints, coordination__enabled=True, use_sim_time=True,
+                           stale_input_policy="hold", input_timeout_s=1000.0, **params)
+    probe = CoordinationProbe(ros)
+    assert ros.spin_until(lambda: all(p.get_subscription_count() > 0 for p in probe.publishers())
+                          and all(node._publishers_by_topic[t].get_subscription_count() > 0
+                                  for t in (tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_MUSCLE_DRIVE,
+                                            tm.TOPIC_JOINT_RESERVES)), timeout_s=30)
+    walk_ns = T0 + int(round(HOLD_S * 1e9))
+    times_s = targets.times_s - targets.times_s[0]     # the profile's time_from_start
+    set_clock(ros, probe, node, T0)
+    probe.send_trajectory(joints, times_s, targets.moments_nm, stamp_ns=walk_ns)
+    assert ros.spin_until(lambda: node.coordination.targets.kind == "planned profile",
+                          timeout_s=30)
+    coordinates = list(motion.coordinates)
+
+    def send_pose(t_ns):
+        t = max(t_ns - walk_ns, 0) * 1e-9
+        q = [np.interp(t, motion.time_s, motion.q[:, j]) for j in range(len(coordinates))]
+        qdot = [np.interp(t, motion.time_s, motion.qdot[:, j]) if t_ns >= walk_ns else 0.0
+                for j in range(len(coordinates))]
+        before = node.joint_inputs.sample
+        probe.joint_states.publish(probe.base.joint_state(coordinates, q, qdot))
+        assert ros.spin_until(lambda: node.joint_inputs.sample is not before, timeout_s=30)
+
+    send_pose(T0)
+    periods = int(round((HOLD_S + times_s[-1]) * 1e9 / PERIOD_NS))
+    for k in range(1, periods + 1):
+        set_clock(ros, probe, node, T0 + k * PERIOD_NS)
+        send_pose(T0 + k * PERIOD_NS)
+    assert ros.spin_until(lambda: len(probe.efforts) >= periods, timeout_s=60)
+    stamps = np.array([stamp_ns(m) for m in probe.efforts])
+    walking = (stamps >= walk_ns) & (stamps <= walk_ns + int(round(times_s[-1] * 1e9)))
+    assert walking.sum() >= 0.9 * times_s[-1] * 1e9 / PERIOD_NS
+    assert list(probe.efforts[-1].name) == joints
+    effort = np.array([m.effort for m in probe.efforts])[walking]
+    planned = np.column_stack([np.interp((stamps[walking] - walk_ns) * 1e-9, times_s, column)
+                               for column in targets.moments_nm.T])
+    peak = np.abs(targets.moments_nm).max(axis=0)
+    rms = np.sqrt(np.mean((effort - planned) ** 2, axis=0)) / peak
+    return {"node": node, "probe": probe, "joints": joints, "muscles": muscles,
+            "stamps_s": (stamps[walking] - walk_ns) * 1e-9, "effort": effort,
+            "planned": planned, "rms_of_peak": rms}
+
+
+class BoundMissedError(AssertionError):
+    """The 5 % bound missed (the other checks passed)."""
+
+
+@pytest.mark.xfail(raises=BoundMissedError, strict=True, reason=(
+    "issue 30's 5 % RMS of peak is not met by muscle_node's live coordination at its default "
+    "settings (measured: docs/coordination.md, 'Replayed over ROS'); the other checks hold"))
+def test_the_walk_replayed_as_a_planned_profile(ros, walk):
+    """Default coordination settings. Drives in [0, 1] for every muscle, no stale input, a
+    joint_efforts message per period of the walk; then each coordinate's RMS error / peak
+    against 5 % (BoundMissedError when missed)."""
+    done = replay(ros, walk)
+    joints, rms, probe, node = done["joints"], done["rms_of_peak"], done["probe"], done["node"]
+    print(f"\nthe walk over ROS, {len(done['stamps_s'])} published steps, RMS error / peak per "
+          "coordinate: " + ", ".join(f"{name} {100 * r:.2f} %" for name, r in
+                                     zip(joints, rms, strict=True)))
+    drives = np.array([m.position for m in probe.drives])
+    assert list(probe.drives[-1].name) == done["muscles"]
+    assert np.all((drives >= 0) & (drives <= 1)) and drives.max() > 0.1
+    assert node.issues.counts["stale_excitation"] == 0
+    if max(rms) >= BOUND_OF_PEAK:
+        raise BoundMissedError(", ".join(f"{name} {100 * r:.2f} %" for name, r in
+                                    zip(joints, rms, strict=True)))
