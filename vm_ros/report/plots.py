@@ -218,6 +218,20 @@ def _plot(ax, t, y, *args, **style):
     return ax.plot(*_thinned(t, y, columns), *args, **style)
 
 
+def _band(ax, x, low, high, **style) -> None:
+    """ax.fill_between(x, low, high, step="mid", **style), built directly: one PolyCollection
+    of the band's finite stretches (fill_between's general checks cost about 1 ms a call, and
+    the 18-muscle walk's report makes 169)."""
+    from matplotlib.cbook import contiguous_regions, pts_to_midstep
+    from matplotlib.collections import PolyCollection
+
+    x, low, high = pts_to_midstep(np.asarray(x, dtype=float), low, high)
+    polygons = [np.concatenate([np.column_stack([x[a:b], high[a:b]]),
+                                np.column_stack([x[a:b], low[a:b]])[::-1]])
+                for a, b in contiguous_regions(np.isfinite(low) & np.isfinite(high))]
+    ax.add_collection(PolyCollection(polygons, **style))
+
+
 def _binned_line(ax, t, y, bin_s, label=None, color=None, band=True, scale=None, **style):
     """The bin mean as a line and the bin's range as a band (the raw line without binning);
     scale: values -> plotted y (lanes)."""
@@ -226,8 +240,7 @@ def _binned_line(ax, t, y, bin_s, label=None, color=None, band=True, scale=None,
     (line,) = _plot(ax, centres, scale(mean), color=color, label=label,
                     lw=style.pop("lw", 1.2), **style)
     if bin_s > 0 and band:
-        ax.fill_between(centres, scale(low), scale(high), color=line.get_color(), alpha=0.2,
-                        lw=0, step="mid")
+        _band(ax, centres, scale(low), scale(high), color=line.get_color(), alpha=0.2, lw=0)
     return line
 
 
@@ -280,9 +293,8 @@ def _draw_series(ax, detail_ax, t, series, bin_s, detail, stacked, styles, scale
         tops = np.cumsum(means, axis=1)
         for k in range(parts.shape[1]):
             below = tops[:, k - 1] if k else np.zeros(len(centres))
-            target.fill_between(centres, scale(below), scale(tops[:, k]), step="mid", lw=0,
-                                color=_series_style(series[k][0], k, styles)["color"],
-                                alpha=0.8)
+            _band(target, centres, scale(below), scale(tops[:, k]), lw=0, alpha=0.8,
+                  color=_series_style(series[k][0], k, styles)["color"])
 
 
 def _legend_handles(labels, stacked: bool, styles: dict | None) -> list:
