@@ -35,6 +35,7 @@ than MAX_FIGURE_PX.
 
 from __future__ import annotations
 
+import gc
 import math
 import textwrap
 from pathlib import Path
@@ -51,7 +52,6 @@ from vm_ros.report.tables import (
     TSIANOS,
     Table,
     energy_models_axes,
-    joint_units,
     model_totals,
     muscle_names,
     run_summary,
@@ -151,8 +151,20 @@ LEGEND = {"fontsize": 7, "frameon": False}
 OUTSIDE_RIGHT = {"loc": "upper left", "bbox_to_anchor": (1.01, 1.0), **LEGEND}
 
 
+PNG_COMPRESS_LEVEL = 3  # zlib; 6 (the default): files 5 % smaller, twice the encoding time
+
+
 def _save(plt, fig, path: Path, written: list) -> None:
-    fig.savefig(path, dpi=DPI)
+    """fig as an opaque RGB PNG at DPI, drawn by its Agg canvas (what savefig does, without its
+    alpha channel, which is 255 everywhere on the report's white figures, and with a faster
+    zlib level: the encoder is a fifth of the plotting time); then closed."""
+    from PIL import Image
+
+    fig.set_dpi(DPI)
+    fig.canvas.draw()
+    rgba = fig.canvas.buffer_rgba()
+    Image.fromarray(np.asarray(rgba)[..., :3]).save(
+        path, format="png", compress_level=PNG_COMPRESS_LEVEL, dpi=(DPI, DPI))
     plt.close(fig)
     written.append(path)
 
@@ -183,16 +195,52 @@ def _detail(time_s: np.ndarray) -> np.ndarray | None:
     return time_s >= time_s[-1] - DETAIL_S
 
 
+def _thinned(t, y, columns: int):
+    """(t, y) with at most two samples per one of ``columns`` runs of consecutive samples: each
+    run's lowest and highest, in time order (with its first and last), so that a line drawn
+    ``columns`` pixels wide looks the same, peaks included; as given when not denser."""
+    t, y = np.asarray(t), np.asarray(y)
+    per = -(-len(y) // max(columns, 1))  # samples per run
+    if per < 3:
+        return t, y
+    whole = len(y) // per * per
+    runs = y[:whole].reshape(-1, per)
+    first = np.arange(0, whole, per)
+    keep = np.concatenate([first, first + runs.argmin(axis=1), first + runs.argmax(axis=1),
+                           first + per - 1, np.arange(whole, len(y))])
+    keep = np.unique(keep)  # sorted: time order
+    return t[keep], y[keep]
+
+
+def _plot(ax, t, y, *args, **style):
+    """ax.plot of (t, y) thinned to the axes' width in pixels (see _thinned)."""
+    columns = math.ceil(ax.get_position().width * ax.figure.get_figwidth() * DPI)
+    return ax.plot(*_thinned(t, y, columns), *args, **style)
+
+
+def _band(ax, x, low, high, **style) -> None:
+    """ax.fill_between(x, low, high, step="mid", **style), built directly: one PolyCollection
+    of the band's finite stretches (fill_between's general checks cost about 1 ms a call, and
+    the 18-muscle walk's report makes 169)."""
+    from matplotlib.cbook import contiguous_regions, pts_to_midstep
+    from matplotlib.collections import PolyCollection
+
+    x, low, high = pts_to_midstep(np.asarray(x, dtype=float), low, high)
+    polygons = [np.concatenate([np.column_stack([x[a:b], high[a:b]]),
+                                np.column_stack([x[a:b], low[a:b]])[::-1]])
+                for a, b in contiguous_regions(np.isfinite(low) & np.isfinite(high))]
+    ax.add_collection(PolyCollection(polygons, **style))
+
+
 def _binned_line(ax, t, y, bin_s, label=None, color=None, band=True, scale=None, **style):
     """The bin mean as a line and the bin's range as a band (the raw line without binning);
     scale: values -> plotted y (lanes)."""
     centres, mean, low, high = bin_stats(t, y, bin_s)
     scale = scale or (lambda v: v)
-    (line,) = ax.plot(centres, scale(mean), color=color, label=label, lw=style.pop("lw", 1.2),
-                      **style)
+    (line,) = _plot(ax, centres, scale(mean), color=color, label=label,
+                    lw=style.pop("lw", 1.2), **style)
     if bin_s > 0 and band:
-        ax.fill_between(centres, scale(low), scale(high), color=line.get_color(), alpha=0.2,
-                        lw=0, step="mid")
+        _band(ax, centres, scale(low), scale(high), color=line.get_color(), alpha=0.2, lw=0)
     return line
 
 
@@ -232,7 +280,7 @@ def _draw_series(ax, detail_ax, t, series, bin_s, detail, stacked, styles, scale
             style = _series_style(label, n, styles)
             _binned_line(ax, t, y, bin_s, label=label, band=not several, scale=scale, **style)
             if detail is not None:
-                detail_ax.plot(t[detail], scale(y[detail]), **{**style, "lw": 1.0})
+                _plot(detail_ax, t[detail], scale(y[detail]), **{**style, "lw": 1.0})
         return
     parts = np.nan_to_num(np.column_stack([y for _, y in series]))
     if not np.any(parts > 0):
@@ -245,9 +293,8 @@ def _draw_series(ax, detail_ax, t, series, bin_s, detail, stacked, styles, scale
         tops = np.cumsum(means, axis=1)
         for k in range(parts.shape[1]):
             below = tops[:, k - 1] if k else np.zeros(len(centres))
-            target.fill_between(centres, scale(below), scale(tops[:, k]), step="mid", lw=0,
-                                color=_series_style(series[k][0], k, styles)["color"],
-                                alpha=0.8)
+            _band(target, centres, scale(below), scale(tops[:, k]), lw=0, alpha=0.8,
+                  color=_series_style(series[k][0], k, styles)["color"])
 
 
 def _legend_handles(labels, stacked: bool, styles: dict | None) -> list:
@@ -560,7 +607,7 @@ def totals_figure(plt, totals: Table, bin_s: float, bin_reason: str):
     _binned_line(axes[0], t, totals.column("energy_rate_total_W"), bin_s)
     axes[0].set_ylabel("energy rate (W)")
     axes[0].set_title(textwrap.fill(f"whole run: {_bin_words(bin_reason)}", 110), fontsize=9)
-    axes[1].plot(t, totals.column("energy_total_J"))
+    _plot(axes[1], t, totals.column("energy_total_J"))
     axes[1].set_ylabel("energy (J)")
     axes[1].set_xlabel("time (s)")
     for ax in axes:
@@ -569,30 +616,41 @@ def totals_figure(plt, totals: Table, bin_s: float, bin_reason: str):
     return fig
 
 
-def joint_figure(plt, run: RunLog, efforts: Table, states: Table | None):
+def effort_joints(efforts: Table) -> list[tuple[str, str]]:
+    """(joint, "rad" or "m") per joint of the joint_efforts table, from its effort columns'
+    unit suffixes (JOINT_UNITS: the table names them by the geometry's units)."""
+    units = {suffixes[2]: unit for unit, suffixes in JOINT_UNITS.items()}
+    return [(joint, units[suffix]) for joint, _, suffix in
+            (c.partition(".effort_") for c in efforts.columns) if suffix]
+
+
+def joint_figure(plt, efforts: Table, states: Table | None):
     """One panel per joint: generalized force (N m or N), and on a twin axis the joint angle
     received (joint_states; deg for rotational joints) or, without them, the one used."""
-    joints = [c.split(".effort_")[0] for c in efforts.columns if ".effort_" in c]
-    units = joint_units(run, joints)
+    joints = effort_joints(efforts)
     fig, axes = plt.subplots(len(joints), 1, figsize=_capped(9, 1.4 + 2.2 * len(joints)),
-                             sharex=True, squeeze=False, layout="constrained")
-    for ax, joint, unit in zip(axes[:, 0], joints, units, strict=True):
+                             sharex=True, squeeze=False)
+    # margins in inches (labels on both sides), no layout engine: one draw instead of two
+    _margins(fig, 0.85, 0.8, 0.45, 0.5, hspace=0.2, rows=len(joints))
+    for ax, (joint, unit) in zip(axes[:, 0], joints, strict=True):
         _joint_axes(ax, joint, unit, efforts, states)
     axes[-1, 0].set_xlabel("time (s)")
-    fig.suptitle("joint torques (robot convention) and joint angles")
+    fig.suptitle("joint torques (robot convention) and joint angles",
+                 y=1 - 0.1 / fig.get_figheight(), va="top")
     return fig
 
 
 def _joint_axes(ax, joint: str, unit: str, efforts: Table, states: Table | None) -> None:
     position, _, effort = (f"{joint}.{q}_{s}" for q, s in zip(
         ("position", "velocity", "effort"), JOINT_UNITS[unit], strict=True))
-    ax.plot(efforts.column("time_s"), efforts.column(effort), color="C0", label="torque")
+    _plot(ax, efforts.column("time_s"), efforts.column(effort), color="C0", label="torque")
     ax.set_ylabel(f"{joint} ({EFFORT_UNITS[unit]})", fontsize=9)
     ax.grid(alpha=0.3)
     source = states if states is not None and position in states.columns else efforts
     scale, angle_unit = (180.0 / np.pi, "deg") if unit == "rad" else (1.0, "m")
     twin = ax.twinx()
-    twin.plot(source.column("time_s"), scale * source.column(position), color="C1", alpha=0.8)
+    _plot(twin, source.column("time_s"), scale * source.column(position), color="C1",
+          alpha=0.8)
     twin.set_ylabel(f"angle ({angle_unit})" if unit == "rad" else "position (m)", color="C1",
                     fontsize=9)
 
@@ -611,9 +669,9 @@ def _muscle_lines(ax, t, columns: dict, named, others) -> None:
     """One line per named muscle (its colour) and thin grey lines for the others (one legend
     entry); columns: muscle -> values."""
     for n, m in enumerate(named):
-        ax.plot(t, columns[m], color=NAMED_COLORS[n % len(NAMED_COLORS)], label=m, lw=1.2)
+        _plot(ax, t, columns[m], color=NAMED_COLORS[n % len(NAMED_COLORS)], label=m, lw=1.2)
     for k, m in enumerate(others):
-        ax.plot(t, columns[m], color=OTHERS_COLOR, lw=0.6, zorder=1,
+        _plot(ax, t, columns[m], color=OTHERS_COLOR, lw=0.6, zorder=1,
                 label=f"others ({len(others)})" if k == 0 else None)
 
 
@@ -670,7 +728,7 @@ def summary_figure(plt, run: RunLog, tables: dict, bin_s: float, bin_reason: str
         t, energy = cumulative
         _muscle_lines(ax, t, energy, named, [])
         if others:
-            ax.plot(t, sum(energy[m] for m in others), color=OTHERS_COLOR, lw=1.5, ls="--",
+            _plot(ax, t, sum(energy[m] for m in others), color=OTHERS_COLOR, lw=1.5, ls="--",
                     label=f"others ({len(others)}), sum")
         ax.legend(**OUTSIDE_RIGHT)
     ax.set_ylabel("energy (J)")
@@ -681,7 +739,7 @@ def summary_figure(plt, run: RunLog, tables: dict, bin_s: float, bin_reason: str
         _partition_barh(ax, summary, named, others)
     ax.set_title("energy partition per muscle", fontsize=9)
     ax = fig.add_subplot(grid[4])
-    _summary_bottom(ax, run, tables, bin_s, named, others)
+    _summary_bottom(ax, tables, bin_s, named, others)
     ax.set_xlabel("time (s)")
     ax.grid(alpha=0.3)
     fig.suptitle(f"vm-ros report: {Path(str(run.path)).name}", y=1 - 0.1 / fig.get_figheight(),
@@ -727,15 +785,14 @@ def _partition_barh(ax, summary, named, others) -> None:
     ax.legend(**OUTSIDE_RIGHT)
 
 
-def _summary_bottom(ax, run: RunLog, tables: dict, bin_s: float, named, others) -> None:
+def _summary_bottom(ax, tables: dict, bin_s: float, named, others) -> None:
     """The summary's last panel: joint torques, else long runs' force in their last DETAIL_S,
     else drive U per muscle."""
     force, telemetry = tables.get("forces"), tables.get("telemetry")
     efforts = tables.get("joint_efforts")
     detail = _detail(force.column("time_s")) if force is not None else None
     if efforts is not None:
-        joints = [c.split(".effort_")[0] for c in efforts.columns if ".effort_" in c]
-        for n, (joint, unit) in enumerate(zip(joints, joint_units(run, joints), strict=True)):
+        for n, (joint, unit) in enumerate(effort_joints(efforts)):
             column = f"{joint}.effort_{JOINT_UNITS[unit][2]}"
             _binned_line(ax, efforts.column("time_s"), efforts.column(column), bin_s,
                          label=f"{joint} ({EFFORT_UNITS[unit]})", color=f"C{n % 10}")
@@ -824,13 +881,20 @@ def report_figures(plt, run: RunLog, tables: dict, out: Path, bin_s: float, bin_
     efforts = tables.get("joint_efforts")
     if efforts is not None:
         yield (out / "joint_torque.png",
-               joint_figure(plt, run, efforts, tables.get("joint_states")))
+               joint_figure(plt, efforts, tables.get("joint_states")))
     yield out / "summary.png", summary_figure(plt, run, tables, bin_s, bin_reason)
 
 
 def plot_run(plt, run: RunLog, tables: dict, out: Path, bin_s: float, bin_reason: str) -> list:
     """Write every figure of :func:`report_figures` into ``out``; the paths written."""
     written: list = []
-    for path, fig in report_figures(plt, run, tables, out, bin_s, bin_reason):
-        _save(plt, fig, path, written)
+    enabled = gc.isenabled()
+    gc.disable()  # a figure makes ~10^5 objects; the automatic full collections they trigger
+    try:  # would walk the whole log each time. Without them a figure's objects stay young:
+        for path, fig in report_figures(plt, run, tables, out, bin_s, bin_reason):
+            _save(plt, fig, path, written)
+            gc.collect(0)  # its cycles, without walking the older objects
+    finally:
+        if enabled:
+            gc.enable()
     return written
