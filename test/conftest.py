@@ -121,6 +121,25 @@ def early_signal_stop(command, sig, delay_s: float, cwd) -> tuple[int, str]:
     return process.returncode, stderr
 
 
+def stamp_ns(msg) -> int:
+    """A message's header stamp in ns."""
+    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+
+def set_clock(ros, probe, node, time_ns: int, tick: bool = True) -> None:
+    """Publish /clock from ``probe`` (a Probe) until the node's clock shows ``time_ns`` and
+    (``tick``) a model tick ran after that. A backward jump re-arms the timer one period later:
+    use tick=False."""
+    ticks = node.ticks
+
+    def done():
+        if node.get_clock().now().nanoseconds != time_ns:
+            probe.send_clock(time_ns)
+            return False
+        return not tick or node.ticks > ticks
+    assert ros.spin_until(done, timeout_s=10), f"clock {time_ns} not reached"
+
+
 class Probe:
     """A test node: publishes inputs (and /clock), records every output message."""
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import set_clock, stamp_ns
 
 from vm_ros import telemetry as tm
 from vm_ros.errors import ConfigError, VmRosError
@@ -26,29 +27,12 @@ def lengths():
     return 0.5 * (lo + hi)
 
 
-def stamp_ns(msg) -> int:
-    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-
-
 def connected(ros, node, probe) -> None:
     """Wait until the probe and the node see each other on every topic used here."""
     assert ros.spin_until(lambda: all(p.get_subscription_count() > 0 for p in (
         probe.excitation, probe.excitation_array, probe.kinematics))
         and all(p.get_subscription_count() > 0
                 for p in node._publishers_by_topic.values()), timeout_s=10)
-
-
-def set_clock(ros, probe, node, time_ns: int, tick: bool = True) -> None:
-    """Publish /clock until the node's clock shows ``time_ns`` and (``tick``) a model tick ran
-    after that. A backward jump re-arms the timer one period later: use tick=False."""
-    ticks = node.ticks
-
-    def done():
-        if node.get_clock().now().nanoseconds != time_ns:
-            probe.send_clock(time_ns)
-            return False
-        return not tick or node.ticks > ticks
-    assert ros.spin_until(done, timeout_s=5), f"clock {time_ns} not reached"
 
 
 def sim_node(ros, lengths, **params):

@@ -12,6 +12,7 @@ from collections import Counter
 
 import numpy as np
 import pytest
+from conftest import set_clock, stamp_ns
 from test_joint_space import small_geometry
 
 from vm_ros import telemetry as tm
@@ -102,22 +103,6 @@ def coordinating_node(ros, geometry_file, **params):
     return node, probe
 
 
-def stamp_ns(msg) -> int:
-    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-
-
-def set_clock(ros, probe, node, time_ns: int) -> None:
-    """Publish /clock until the node's clock shows ``time_ns`` and a model tick ran after."""
-    ticks = node.ticks
-
-    def done():
-        if node.get_clock().now().nanoseconds != time_ns:
-            probe.base.send_clock(time_ns)
-            return False
-        return node.ticks > ticks
-    assert ros.spin_until(done, timeout_s=10), f"clock {time_ns} not reached"
-
-
 def test_a_planned_profile_replayed_gives_its_joint_efforts(ros, geometry_file):
     """Simulated time, 100 Hz periods for 3 s: the knee moves as joint_states say, the planned
     profile (points every 20 ms from T0) asks for an extension moment of 30 +- 20 N m. After the
@@ -126,7 +111,7 @@ def test_a_planned_profile_replayed_gives_its_joint_efforts(ros, geometry_file):
     muscle_drive carries every muscle's drive in [0, 1]."""
     node, probe = coordinating_node(ros, geometry_file, use_sim_time=True,
                                     stale_input_policy="hold", input_timeout_s=1000.0)
-    set_clock(ros, probe, node, T0)
+    set_clock(ros, probe.base, node, T0)
     times = np.arange(0.0, 4.0, 0.02)
     probe.send_trajectory(["knee_angle"], times, knee_target(times)[:, None], stamp_ns=T0)
     assert ros.spin_until(lambda: node.coordination.targets.kind == "planned profile")
@@ -139,7 +124,7 @@ def test_a_planned_profile_replayed_gives_its_joint_efforts(ros, geometry_file):
     send_pose(T0)
     periods = 300
     for k in range(1, periods + 1):
-        set_clock(ros, probe, node, T0 + k * PERIOD_NS)
+        set_clock(ros, probe.base, node, T0 + k * PERIOD_NS)
         send_pose(T0 + k * PERIOD_NS)
     assert ros.spin_until(lambda: len(probe.efforts) >= periods
                           and len(probe.reserves) == len(probe.efforts), timeout_s=20)
@@ -250,7 +235,7 @@ def test_recompute_reproduces_a_live_coordination_log_exactly(ros, geometry_file
     node, probe = coordinating_node(ros, geometry_file, use_sim_time=True,
                                     stale_input_policy="hold", input_timeout_s=1000.0,
                                     mcap__enabled=True, mcap__path=str(path))
-    set_clock(ros, probe, node, T0)
+    set_clock(ros, probe.base, node, T0)
     times = np.arange(0.0, 2.0, 0.02)
     probe.send_trajectory(["knee_angle"], times, knee_target(times)[:, None], stamp_ns=T0)
     assert ros.spin_until(lambda: node.coordination.targets.kind == "planned profile")
@@ -262,7 +247,7 @@ def test_recompute_reproduces_a_live_coordination_log_exactly(ros, geometry_file
         before = node.joint_inputs.sample
         probe.send_joints(k * PERIOD_NS * 1e-9)
         assert ros.spin_until(lambda b=before: node.joint_inputs.sample is not b, timeout_s=10)
-        set_clock(ros, probe, node, T0 + (k + 1) * PERIOD_NS)
+        set_clock(ros, probe.base, node, T0 + (k + 1) * PERIOD_NS)
     assert ros.spin_until(lambda: len(probe.efforts) >= periods, timeout_s=30)
     node.close_run_log()
 

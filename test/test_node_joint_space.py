@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import require_ros
+from conftest import require_ros, set_clock, stamp_ns
 from test_joint_space import small_geometry
 
 from vm_ros import telemetry as tm
@@ -59,10 +59,6 @@ class JointProbe:
         self.joint_states.publish(self.base.joint_state(names, position, velocity))
 
 
-def stamp_ns(msg) -> int:
-    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-
-
 def connected(ros, node, probe: JointProbe) -> None:
     """Every endpoint used here matched, both ways."""
     base = probe.base
@@ -70,18 +66,6 @@ def connected(ros, node, probe: JointProbe) -> None:
         base.excitation_array, base.kinematics, probe.joint_states))
         and all(p.get_subscription_count() > 0 for p in node._publishers_by_topic.values()),
         timeout_s=10)
-
-
-def set_clock(ros, probe: JointProbe, node, time_ns: int) -> None:
-    """Publish /clock until the node's clock shows ``time_ns`` and a model tick ran after."""
-    ticks = node.ticks
-
-    def done():
-        if node.get_clock().now().nanoseconds != time_ns:
-            probe.base.send_clock(time_ns)
-            return False
-        return node.ticks > ticks
-    assert ros.spin_until(done, timeout_s=5), f"clock {time_ns} not reached"
 
 
 def joint_node(ros, geometry_file, **params):
@@ -113,7 +97,7 @@ def test_joint_efforts_equal_the_offline_computation(ros, geometry_file):
         ([-0.2, -1.5, 0.0], []),               # no velocities: 0
     ]
     switch_at = {0: 0, 9: 1, 21: 2}  # clock jump k (10 ms each) -> sample sent after it
-    set_clock(ros, probe, node, SIM_T0)
+    set_clock(ros, probe.base, node, SIM_T0)
     probe.base.send_kinematics(["soleus"], [SOLEUS_LENGTH])
     applied = []  # (model time the node applied it, index)
 
@@ -130,10 +114,10 @@ def test_joint_efforts_equal_the_offline_computation(ros, geometry_file):
     probe.base.send_excitation_array(drive)
     assert ros.spin_until(lambda: np.array_equal(node.inputs.drive, drive))
     start = SIM_T0 + MS
-    set_clock(ros, probe, node, start)
+    set_clock(ros, probe.base, node, start)
     assert node.scheduler.started and node.scheduler.anchor_ns == start
     for k in range(1, 31):
-        set_clock(ros, probe, node, start + k * 10 * MS)
+        set_clock(ros, probe.base, node, start + k * 10 * MS)
         if k in switch_at and k:
             send_sample(switch_at[k])
             assert applied[-1][0] == start + k * 10 * MS
@@ -494,7 +478,7 @@ def test_recompute_reproduces_a_node_joint_space_log_exactly(ros, geometry_file,
     # at the start time, so the state at the start must take it (as recompute does)
     samples = {0: ([0.4, -0.7, 0.1], [0.3, -0.8, 0.0]), 1: ([0.5, -0.9, 0.1], [0.1, 0.2, 0.0]),
                7: ([1.9, -0.2, 0.0], [2.0, 0.5, 0.0]), 15: ([-0.2, -1.5, 0.0], [])}
-    set_clock(ros, probe, node, SIM_T0)
+    set_clock(ros, probe.base, node, SIM_T0)
     probe.base.send_kinematics(["soleus"], [SOLEUS_LENGTH])
     probe.base.send_excitation_array([0.7, 0.4, 0.2])
     for k in range(25):
@@ -502,7 +486,7 @@ def test_recompute_reproduces_a_node_joint_space_log_exactly(ros, geometry_file,
             before = node.joint_inputs.sample
             probe.send_joints(names, *samples[k])
             assert ros.spin_until(lambda before=before: node.joint_inputs.sample is not before)
-        set_clock(ros, probe, node, SIM_T0 + (k + 1) * 10 * MS)
+        set_clock(ros, probe.base, node, SIM_T0 + (k + 1) * 10 * MS)
     assert ros.spin_until(lambda: len(probe.efforts) >= 20)
     node.close_run_log()
     out = tmp_path / "again.mcap"

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import STRICT, early_signal_stop, require_ros
+from conftest import STRICT, early_signal_stop, require_ros, stamp_ns
 
 from vm_ros import telemetry as tm
 from vm_ros.model import MuscleBank
@@ -111,10 +111,6 @@ def test_signal_stops_the_node_and_finishes_the_log(ros, installed, lengths, tmp
     assert run.get(tm.TOPIC_EXCITATION_ARRAY).fields["data"][0].tolist() == [0.5, 0.5]
     received = {stamp_ns(m) for m in probe.forces}
     assert received <= set(forces.time_ns.tolist())  # logged as published, at the stamp
-
-
-def stamp_ns(msg) -> int:
-    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
 
 
 @pytest.mark.parametrize(

@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_node_coordination import PERIOD_NS, T0, CoordinationProbe, set_clock, stamp_ns
+from conftest import set_clock, stamp_ns
+from test_node_coordination import PERIOD_NS, T0, CoordinationProbe
 
 from vm_ros import telemetry as tm
 
@@ -70,7 +71,7 @@ def replay(ros, walk, **params) -> dict:
                                             tm.TOPIC_JOINT_RESERVES)), timeout_s=30)
     walk_ns = T0 + int(round(HOLD_S * 1e9))
     times_s = targets.times_s - targets.times_s[0]     # the profile's time_from_start
-    set_clock(ros, probe, node, T0)
+    set_clock(ros, probe.base, node, T0)
     probe.send_trajectory(joints, times_s, targets.moments_nm, stamp_ns=walk_ns)
     assert ros.spin_until(lambda: node.coordination.targets.kind == "planned profile",
                           timeout_s=30)
@@ -88,7 +89,7 @@ def replay(ros, walk, **params) -> dict:
     send_pose(T0)
     periods = int(round((HOLD_S + times_s[-1]) * 1e9 / PERIOD_NS))
     for k in range(1, periods + 1):
-        set_clock(ros, probe, node, T0 + k * PERIOD_NS)
+        set_clock(ros, probe.base, node, T0 + k * PERIOD_NS)
         send_pose(T0 + k * PERIOD_NS)
     assert ros.spin_until(lambda: len(probe.efforts) >= periods, timeout_s=60)
     stamps = np.array([stamp_ns(m) for m in probe.efforts])
