@@ -21,9 +21,9 @@ from vm_ros.node.timing import StepScheduler
 MS = 1_000_000
 
 
-def run(scheduler: StepScheduler, now_ns: int) -> int:
+def run(scheduler: StepScheduler, now_ns: int, end_on_multiple_of: int = 0) -> int:
     scheduler.went_backwards(now_ns)
-    due = scheduler.due(now_ns)
+    due = scheduler.due(now_ns, end_on_multiple_of)
     for _ in range(due):
         scheduler.advance()
     return due
@@ -47,6 +47,20 @@ def test_a_tick_of_its_period_is_not_a_catch_up():
     assert run(s, 21 * MS) == 11 and s.catch_up_ticks == 1
     with pytest.raises(ValueError):
         StepScheduler(MS, 50, steps_per_tick=0)
+
+
+def test_a_late_tick_ends_on_a_multiple_and_the_rest_waits():
+    """Publishing every 10 steps: a tick 13 steps due runs 10 (to the publish step) and the 3
+    past it wait for the next tick, which runs them with its own 10; fewer than the steps to the
+    next multiple all run; nothing is lost (model time follows the clock at each multiple)."""
+    s = StepScheduler(MS, max_catch_up_steps=50, steps_per_tick=10)
+    s.start(0)
+    assert run(s, 13 * MS, end_on_multiple_of=10) == 10
+    assert run(s, 20 * MS, end_on_multiple_of=10) == 10 and s.model_time_ns == 20 * MS
+    assert run(s, 27 * MS, end_on_multiple_of=10) == 7   # not past the next multiple: all run
+    assert run(s, 55 * MS, end_on_multiple_of=10) == 23  # to 50: 3 to the multiple, then 20
+    assert s.total_steps == 50 and s.skipped_ns == 0
+    assert run(s, 55 * MS) == 5  # without the option every due step runs
 
 
 def test_catch_up_is_bounded_and_the_rest_skipped():

@@ -236,8 +236,9 @@ class MuscleNode(Node):
                              if self.joint_space is not None else None)
         self.scheduler = StepScheduler(c.step_ns, c.max_catch_up_steps, c.steps_per_tick)
         # on the system clock a tick woken late holds back the steps past its last publish step
-        # (_run_steps); a simulated clock's jumps are meant: their steps all run at once
-        self._hold_past_publish = not self.get_parameter("use_sim_time").value
+        # (StepScheduler.due); a simulated clock's jumps are meant: their steps all run at once
+        self._steps_end_on = (0 if self.get_parameter("use_sim_time").value
+                              else c.publish_every_steps)
         self.coordination = (LiveCoordination(self.bank, self.joint_space, self.inputs, c,
                                               c.step_ns * 1e-9 * c.publish_every_steps)
                              if c.coordination_enabled else None)
@@ -570,19 +571,14 @@ class MuscleNode(Node):
         if self._reset_pending:
             self._reset_at_start()
         stalls = self.scheduler.stalls
-        due = self.scheduler.due(now_ns)
+        due = self.scheduler.due(now_ns, self._steps_end_on)
         if self.scheduler.stalls != stalls:
             self._report([Issue("skipped_time", f"model fell behind by more than "
                                 f"{self.scheduler.max_catch_up_steps} steps at "
                                 f"{now_ns * 1e-9:.6f} s")])
-        every = self.config.publish_every_steps
-        to_publish = every - self.scheduler.total_steps % every
-        if self._hold_past_publish and due > to_publish:  # woken late: the steps due past the
-            # last publish step wait for the next tick, which runs them with its own in one
-            # call instead of two (docs/performance.md, muscle_node)
-            due -= (due - to_publish) % every
         if due == 0:
             return
+        every = self.config.publish_every_steps
         joints = self._joint_sample()  # the moment arms of this tick's forces (inputs arrive
         # between ticks); every step's inputs sampled at its own model time, at once
         t0, step_ns = self.scheduler.model_time_ns, self.scheduler.step_ns

@@ -64,8 +64,13 @@ class StepScheduler:
             self._reanchor(now_ns)
         return True
 
-    def due(self, now_ns: int) -> int:
-        """Steps to run now; call :meth:`advance` after each. Call went_backwards() first."""
+    def due(self, now_ns: int, end_on_multiple_of: int = 0) -> int:
+        """Steps to run now; call :meth:`advance` after each. Call went_backwards() first.
+
+        ``end_on_multiple_of`` (k > 0): when more than the steps up to the next multiple of k
+        (counted in total_steps) are due, the ones past the last multiple reached wait for the
+        next call, so that a late tick's steps end on a publish step and run in one call
+        (muscle_node on the system clock, docs/performance.md)."""
         behind = (now_ns - self.model_time_ns) // self.step_ns
         if behind <= 0:
             return 0
@@ -77,6 +82,10 @@ class StepScheduler:
             behind = self.max_catch_up_steps
         if behind > self.steps_per_tick:
             self.catch_up_ticks += 1
+        if end_on_multiple_of > 0:
+            to_multiple = end_on_multiple_of - self.total_steps % end_on_multiple_of
+            if behind > to_multiple:
+                behind -= (behind - to_multiple) % end_on_multiple_of
         return int(behind)
 
     def advance(self) -> None:
