@@ -69,7 +69,9 @@ def test_bad_inputs_are_one_line_errors(tmp_path):
     inputs = _inputs(tmp_path)
     for extra, words in ((["--muscle-weight", "a:2"], "MUSCLE=WEIGHT"),
                          (["--muscle-weight", "zz=2"], "zz"),
-                         (["--speed", "-1"], "--speed")):
+                         (["--speed", "-1"], "--speed"),
+                         (["--targets-lowpass", "-6"], "--targets-lowpass"),
+                         (["--targets-lowpass", "40"], "Nyquist")):
         done = _run("coordinate", *inputs, *extra, "--out", str(tmp_path / "x"))
         assert done.returncode == 2, (extra, done.stderr)
         lines = done.stderr.strip().splitlines()

@@ -10,7 +10,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from vm_ros.coordination.targets import TargetsError, align_to_frames, load_targets
+from vm_ros.coordination.targets import (JointMomentTargets, TargetsError, align_to_frames,
+                                         content_above, load_targets, lowpass_targets)
 from vm_ros.errors import VmRosError
 from vm_ros.geometry.paths import Coordinate
 from vm_ros.node.motion_inputs import JointMotion
@@ -272,3 +273,40 @@ def test_opensim_id_of_the_walk_reproduces_its_reference_output(tmp_path):
                                atol=1e-3 * reference.peak_nm().max())
     assert reference.unmatched == ("pelvis_tilt_moment", "pelvis_tx_force", "pelvis_ty_force",
                                    "lumbar_extension_moment")
+
+
+def _butterworth_filtfilt_gain(f_hz, cutoff_hz, order=2):
+    """Amplitude gain of a Butterworth low-pass run forward and backward, from its magnitude
+    |H|^2 = 1 / (1 + (f / f_c)^(2 order)) of the analogue prototype (bilinear warping at
+    60 Hz sampling moves it by less than the tolerances below)."""
+    return 1.0 / (1.0 + (f_hz / cutoff_hz) ** (2 * order))
+
+
+def test_lowpass_keeps_a_slow_sine_and_removes_a_fast_one():
+    """A 1 Hz sine of 100 N m plus a 20 Hz sine of 10 N m at 60 frames/s, low-passed at 6 Hz:
+    away from the ends the result is the 1 Hz sine within 0.5 N m (its gain 0.9992, the 20 Hz
+    one's 0.008); content_above gives the 20 Hz sine's RMS, 10 / sqrt(2), within 5 %."""
+    t = np.arange(0, 4.0, 1 / 60)
+    slow, fast = 100 * np.sin(2 * np.pi * t), 10 * np.sin(2 * np.pi * 20 * t)
+    targets = JointMomentTargets(t, ("q",), (slow + fast)[:, None], "made up",
+                                 ("pelvis_tx",), (slow + fast)[:, None])
+    out = lowpass_targets(targets, 6.0, 2)
+    middle = slice(60, -60)
+    assert _butterworth_filtfilt_gain(20, 6) < 0.01 < 0.999 < _butterworth_filtfilt_gain(1, 6)
+    np.testing.assert_allclose(out.moments_nm[middle, 0], slow[middle], atol=0.5)
+    np.testing.assert_allclose(out.unmatched_nm, out.moments_nm)
+    assert "low-passed at 6 Hz" in out.notes[-1]
+    assert content_above(t, (slow + fast)[:, None], 6.0, 2)[0] == pytest.approx(
+        10 / np.sqrt(2), rel=0.05)
+
+
+@pytest.mark.parametrize("times, cutoff, message", [
+    (np.r_[0:1:1 / 60, 1.5], 6.0, "uniformly spaced"),
+    (np.arange(0, 1, 1 / 60), 31.0, "Nyquist"),
+    (np.arange(0, 8 / 60, 1 / 60), 6.0, "too few"),
+])
+def test_lowpass_of_frames_it_cannot_filter_is_a_one_line_error(times, cutoff, message):
+    targets = JointMomentTargets(times, ("q",), np.ones((len(times), 1)), "made up")
+    with pytest.raises(TargetsError, match=message):
+        lowpass_targets(targets, cutoff, 2)
+    assert content_above(times, np.ones((len(times), 1)), cutoff, 2) is None

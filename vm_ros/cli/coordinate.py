@@ -45,15 +45,22 @@ GRAVITY_M_PER_S2 = 9.81     # cost of transport: P / (m g v)
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from vm_ros.coordination.costs import COST_NAMES, DEFAULT_COST
-    from vm_ros.coordination.solver import SolverOptions
+    from vm_ros.coordination.solver import SolverOptions, solver_settings
     from vm_ros.coordination.targets import SPEC_HELP
 
-    defaults = SolverOptions()
+    defaults, settings = SolverOptions(), solver_settings()
     parser.add_argument("--geometry", type=Path, required=True, metavar="GEOMETRY.yaml",
                         help="vm_ros.geometry file (vm-ros import-osim / import-mjcf)")
     parser.add_argument("--motion", type=Path, required=True, metavar="FILE.mot|.sto",
                         help="the motion (IK result); units from its header")
     parser.add_argument("--targets", required=True, metavar="SPEC", help=SPEC_HELP)
+    parser.add_argument("--targets-lowpass", type=float, default=settings["targets"].lowpass,
+                        metavar="HZ", help="low-pass the targets at HZ before the solve "
+                        "(zero-phase Butterworth, config/coordination.yaml targets; 0: as "
+                        "given, the default); for inverse dynamics with unfiltered ground "
+                        "reaction forces, whose heel-strike transients no smooth drive "
+                        "follows. The report's 'above' column says how much of each target "
+                        "lies above the drives' smoothness cutoff")
     parser.add_argument("--library", type=Path, metavar="MUSCLES.yaml",
                         help="muscle library (e.g. the muscles.yaml of vm-ros import-osim)")
     parser.add_argument("--params", type=Path, metavar="MODEL.yaml", help="model parameters")
@@ -149,13 +156,25 @@ def _muscles(args, geometry) -> tuple:
 
 
 def _report_lines(result, rate_w, body_mass, speed) -> list[str]:
+    from vm_ros.coordination.solver import solver_settings
+    from vm_ros.coordination.targets import content_above
+
     p, s = result.problem, result.summary
+    cutoff = result.options.smoothness_cutoff_hz
+    above = content_above(p.frame_times_s, p.target, cutoff,
+                          int(solver_settings()["targets"].lowpass_order))
+    above = (np.full(len(s.coordinates), np.nan) if above is None
+             else 100 * above / np.maximum(s.target_peak, 1e-12))
     lines = [f"{'coordinate':<22} {'target peak':>11} {'reserve RMS':>11} {'peak':>9} "
-             f"{'RMS %':>6} {'peak %':>7}"]
+             f"{'RMS %':>6} {'peak %':>7} {f'> {cutoff:g} Hz %':>9}"]
     for j, name in enumerate(s.coordinates):
         unit = "N m" if p.units[j] == "rad" else "N"
         lines.append(f"{name:<22} {s.target_peak[j]:>7.1f} {unit:<3} {s.rms[j]:>11.2f} "
-                     f"{s.peak[j]:>9.2f} {s.rms_percent[j]:>6.2f} {s.peak_percent[j]:>7.1f}")
+                     f"{s.peak[j]:>9.2f} {s.rms_percent[j]:>6.2f} {s.peak_percent[j]:>7.1f} "
+                     f"{above[j]:>9.2f}")
+    lines.append(f"(> {cutoff:g} Hz %: RMS of the target's own content above the drives' "
+                 f"smoothness cutoff, % of its peak; a reserve RMS below it needs drives "
+                 f"faster than the cutoff; --targets-lowpass removes it)")
     if p.uncrossed:
         lines.append(f"crossed by no muscle, left to the reserves: {', '.join(p.uncrossed)}")
     if result.infeasible:
@@ -237,8 +256,8 @@ def run(args) -> int:
     from vm_ros.cli import simulate
     from vm_ros.coordination.costs import COSTS, vm_rate
     from vm_ros.coordination.problem import build_problem
-    from vm_ros.coordination.solver import SolverOptions, solve
-    from vm_ros.coordination.targets import load_targets
+    from vm_ros.coordination.solver import SolverOptions, solve, solver_settings
+    from vm_ros.coordination.targets import load_targets, lowpass_targets
     from vm_ros.geometry import load_geometry
     from vm_ros.importers.motion import read_motion
     from vm_ros.model.run_config import RunConfig
@@ -249,12 +268,19 @@ def run(args) -> int:
         value = getattr(args, name)
         if value is not None and not value > 0:
             raise VmRosError(f"--{name.replace('_', '-')} must be > 0 (got {value})")
+    if not args.targets_lowpass >= 0:
+        raise VmRosError(f"--targets-lowpass must be >= 0 Hz (0: off; got "
+                         f"{args.targets_lowpass})")
     geometry = load_geometry(args.geometry)
     motion = read_motion(args.motion)
     muscles = _muscles(args, geometry)
     crossed = sorted({c for m in geometry.muscles if m.name in muscles for c in m.coordinates})
     joint_motion = JointMotion.from_motion(motion, geometry, crossed, {})
     targets = load_targets(args.targets, geometry=geometry, motion=joint_motion)
+    if args.targets_lowpass > 0:
+        targets = lowpass_targets(targets, args.targets_lowpass,
+                                  int(solver_settings()["targets"].lowpass_order))
+        print(f"targets {targets.source}: {targets.notes[-1]}")
     options = SolverOptions(cost=args.cost, muscle_weights=_weights(args.muscle_weight),
                             node_step_s=args.node_step, reserve_weight=args.reserve_weight,
                             smoothness=args.smoothness, iterations=args.iterations,

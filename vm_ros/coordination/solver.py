@@ -63,6 +63,12 @@ SETTINGS_FILE = "coordination.yaml"
 
 
 @dataclass(frozen=True)
+class TargetSettings:
+    lowpass: float = holds("1/s")
+    lowpass_order: float = holds("1")
+
+
+@dataclass(frozen=True)
 class DriveSettings:
     node_step: float = holds("s")
     lead_in: float = holds("s")
@@ -96,8 +102,9 @@ class GaussNewtonSettings:
     eps: float = holds("1")
 
 
-_SECTIONS = {"drives": DriveSettings, "distribution": DistributionSettings,
-             "tracking": TrackingSettings, "gauss_newton": GaussNewtonSettings}
+_SECTIONS = {"targets": TargetSettings, "drives": DriveSettings,
+             "distribution": DistributionSettings, "tracking": TrackingSettings,
+             "gauss_newton": GaussNewtonSettings}
 
 
 @functools.cache

@@ -42,7 +42,7 @@ import contextlib
 import os
 import sys
 import tempfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -344,6 +344,64 @@ SOURCES = {
 }
 
 
+def zero_phase_lowpass(times_s, values, cutoff_hz: float, order: int, what: str) -> np.ndarray:
+    """``values`` (T, k) at uniformly spaced ``times_s`` (T,) low-passed without phase shift: a
+    Butterworth filter of ``order`` at ``cutoff_hz`` run forward and backward
+    (``scipy.signal.filtfilt``; the gain at the cutoff is 1/2, the effective order doubled),
+    the ends padded by odd reflection (filtfilt's default). TargetsError (naming ``what``) when
+    the times are not uniform within ALIGN_FRACTION of their median interval, the cutoff is not
+    below the Nyquist frequency, or there are too few frames for the padding."""
+    from scipy import signal
+
+    times = np.asarray(times_s, dtype=float)
+    values = np.asarray(values, dtype=float).reshape(len(times), -1)
+    steps = np.diff(times)
+    if len(steps) < 2:
+        raise TargetsError(f"{what}: {len(times)} frame(s) are too few for a low-pass")
+    if np.ptp(steps) > ALIGN_FRACTION * np.median(steps):
+        raise TargetsError(f"{what}: a low-pass needs uniformly spaced frames (intervals "
+                           f"{steps.min():g}-{steps.max():g} s)")
+    nyquist = 0.5 / np.median(steps)
+    if not 0 < cutoff_hz < nyquist:
+        raise TargetsError(f"{what}: low-pass cutoff {cutoff_hz:g} Hz must lie in (0, "
+                           f"{nyquist:g}) Hz, the frames' Nyquist frequency")
+    b, a = signal.butter(int(order), cutoff_hz / nyquist)
+    if len(times) <= 3 * max(len(a), len(b)):
+        raise TargetsError(f"{what}: {len(times)} frames are too few for a low-pass of order "
+                           f"{order} (more than {3 * max(len(a), len(b))} needed)")
+    return signal.filtfilt(b, a, values, axis=0)
+
+
+def lowpass_targets(targets: JointMomentTargets, cutoff_hz: float,
+                    order: int) -> JointMomentTargets:
+    """``targets`` with their moments and residuals low-passed at ``cutoff_hz``
+    (zero_phase_lowpass), a note saying so. For inverse dynamics whose ground reaction forces
+    were not filtered as the kinematics were (the impact transients at heel strike then appear
+    in the moments: Bisseling & Hof 2006; Kristianslund et al. 2012 recommend one cutoff for
+    both); TargetsError as zero_phase_lowpass."""
+    what = f"targets {targets.source}"
+    moments = zero_phase_lowpass(targets.times_s, targets.moments_nm, cutoff_hz, order, what)
+    unmatched = np.asarray(targets.unmatched_nm, dtype=float)
+    if unmatched.size:
+        unmatched = zero_phase_lowpass(targets.times_s, unmatched, cutoff_hz, order, what)
+    note = (f"low-passed at {cutoff_hz:g} Hz (Butterworth of order {order}, forward and "
+            f"backward)")
+    return replace(targets, moments_nm=moments, unmatched_nm=unmatched,
+                   notes=(*targets.notes, note))
+
+
+def content_above(times_s, values, cutoff_hz: float, order: int) -> np.ndarray | None:
+    """RMS over the frames of the part of ``values`` (T, k) above ``cutoff_hz`` (the values
+    less their zero_phase_lowpass), per column (k,); None where the frames allow no low-pass
+    (not uniform, too few, cutoff at or above Nyquist)."""
+    try:
+        smooth = zero_phase_lowpass(times_s, values, cutoff_hz, order, "content above")
+    except TargetsError:
+        return None
+    values = np.asarray(values, dtype=float).reshape(smooth.shape)
+    return np.sqrt(np.mean((values - smooth) ** 2, axis=0))
+
+
 def load_targets(spec: str, *, geometry, motion) -> JointMomentTargets:
     """Target joint moments at the frames of ``motion`` (a JointMotion) for its coordinates, from
     ``spec`` (SPEC_HELP; module docstring); TargetsError (one line) for bad input."""
@@ -360,5 +418,6 @@ def load_targets(spec: str, *, geometry, motion) -> JointMomentTargets:
 
 
 __all__ = ["ALIGN_FRACTION", "SPEC_HELP", "JointMomentTargets", "TargetsError",
-           "align_to_frames", "load_targets", "targets_from_mujoco",
+           "align_to_frames", "content_above", "load_targets", "lowpass_targets",
+           "targets_from_mujoco", "zero_phase_lowpass",
            "targets_from_opensim", "targets_from_storage"]

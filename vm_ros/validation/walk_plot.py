@@ -19,7 +19,7 @@ RIGHT = [c for c in TRACKED if c.endswith("_r")]
 
 def plot_walk(result: CheckResult, path: Path) -> None:
     config, _ = load_walk_config()
-    labels = [k for k in result.data if k != "context"]
+    labels = [k for k, v in result.data.items() if isinstance(v, dict) and "solution" in v]
     context = result.data["context"]
     fig, axes = plt.subplots(len(labels), 5, figsize=(22, 4.2 * len(labels)), squeeze=False)
     for row, label in zip(axes, labels, strict=True):
