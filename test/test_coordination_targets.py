@@ -10,8 +10,14 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from vm_ros.coordination.targets import (JointMomentTargets, TargetsError, align_to_frames,
-                                         content_above, load_targets, lowpass_targets)
+from vm_ros.coordination.targets import (
+    JointMomentTargets,
+    TargetsError,
+    align_to_frames,
+    content_above,
+    load_targets,
+    lowpass_targets,
+)
 from vm_ros.errors import VmRosError
 from vm_ros.geometry.paths import Coordinate
 from vm_ros.node.motion_inputs import JointMotion

@@ -11,8 +11,9 @@ full model, metabolic rate):
   by more than ``spike_of_peak`` of the peak (heel-strike spikes) are left out of the max and
   reported separately; where the ID's own content above ``smoothness_cutoff_hz`` (RMS over the
   peak, target_content_above) exceeds the RMS bound, that criterion is a known gap naming it;
-- a solve on the ID low-passed at ``lowpassed_targets.cutoff_hz`` (variant_reported): its
-  errors against those targets and against the ID as given, reported without a bound;
+- a solve on the ID low-passed at ``lowpassed_targets.cutoff_hz``, with a lead-in of
+  ``lowpassed_targets.lead_in_s`` (variant_reported): its errors against those targets and
+  against the ID as given, reported without a bound;
 - EMG timing: each right-leg muscle's drive, normalised over the right gait cycle to
   (u - min) / (max - min), averaged over its active and silent windows;
 - smoothness: the share of each drive's variance (mean removed) above ``smoothness_cutoff_hz``;
@@ -434,9 +435,9 @@ def solution_from_result(label: str, result, motion, specs, params) -> WalkSolut
 
 def solve_walk(files, config, params) -> tuple[list[WalkSolution], WalkSolution]:
     """One solution per strength (STRENGTHS) and cost (COSTS) of the walk's hip, knee and ankle
-    ID moments, and the variant on low-passed targets (config ``lowpassed_targets``: the first
-    strength, VARIANT_COST); CheckSkippedError when vm_ros.coordination has no solver in this
-    build."""
+    ID moments, and the variant on low-passed targets with a lead-in (config
+    ``lowpassed_targets``: the first strength, VARIANT_COST); CheckSkippedError when
+    vm_ros.coordination has no solver in this build."""
     import tempfile
 
     try:
@@ -473,12 +474,12 @@ def solve_walk(files, config, params) -> tuple[list[WalkSolution], WalkSolution]
                 cutoff = config["lowpassed_targets"]["cutoff_hz"]["value"]
                 smooth = lowpass_targets(targets, cutoff,
                                          int(solver_settings()["targets"].lowpass_order))
+                lead_in = config["lowpassed_targets"]["lead_in_s"]["value"]
                 result = solve(MuscleBank(specs, params, "lumped"),
                                build_problem(geometry, motion, smooth, muscles),
-                               SolverOptions(cost=VARIANT_COST))
-                variant = solution_from_result(f"{VARIANT_COST}, {strength_label}, ID "
-                                               f"at {cutoff:g} Hz", result, motion, specs,
-                                               params)
+                               SolverOptions(cost=VARIANT_COST, lead_in_s=lead_in))
+                variant = solution_from_result(f"ID at {cutoff:g} Hz, lead-in {lead_in:g} s",
+                                               result, motion, specs, params)
     return solutions, variant
 
 
