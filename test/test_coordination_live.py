@@ -16,6 +16,7 @@ from vm_ros.coordination.receding import (
     RecedingHorizon,
     block_edges,
     box_qp,
+    shifted_plan,
     tracking_hessian,
     tracking_lag,
 )
@@ -126,6 +127,15 @@ def test_blocks_cover_the_horizon():
     assert block_edges(30, 2, 3).tolist() == [0, 2, 16, 30]
     assert block_edges(2, 2, 3).tolist() == [0, 2]
     assert block_edges(4, 2, 5).tolist() == [0, 2, 3, 4]
+
+
+def test_the_plan_moves_on_by_one_period_not_one_block():
+    """Blocks over steps [0, 2, 7, 12] (a period of 2 steps): the next period's block 0 covers
+    the old steps 2-3 (old block 1), block 1 the old steps 4-8 (middle 6: old block 1), block 2
+    the old steps 9-13 (old block 2, held beyond the horizon); per muscle."""
+    plan = np.array([[0.1, 1.0], [0.2, 2.0], [0.3, 3.0]])
+    np.testing.assert_array_equal(shifted_plan(plan, np.array([0, 2, 7, 12])),
+                                  [[0.2, 2.0], [0.2, 2.0], [0.3, 3.0]])
 
 
 def test_tracking_lag_finds_a_known_delay():

@@ -14,7 +14,8 @@ rest of the horizon is split evenly), U of shape (B, m), each in [0, 1], and
     M(t; U) = r(t)^T F(t; U), F the tendon forces of a forward run of the full model from x0
     (drive filter, activation, fascicle mass, tendon), t_s every ``eval_step_s`` of the horizon.
 
-Solved by one Gauss-Newton step per period about the previous plan shifted by one block. The
+Solved by one Gauss-Newton step per period about the previous plan moved on by one period
+(shifted_plan). The
 path is prescribed, so muscle i's force depends on its own drive only: the derivatives of every
 force with respect to block b of every drive come from one run with all of block b raised by
 ``probe_drive``. The B + 1 runs (nominal, one per block) run as banks of copies of the muscles,
@@ -225,6 +226,15 @@ def solve_window(forces, moment_arm, target, tracked, probe: Probe, settings: Ho
     return WindowPlan(plan[0].copy(), plan, predicted)
 
 
+def shifted_plan(plan, edges) -> np.ndarray:
+    """(B, m) the previous period's ``plan`` (blocks over the step ``edges``, block_edges) one
+    period on: each block takes the old plan's drive at its middle step, one period (the first
+    block's steps) later, the last block held beyond the horizon."""
+    per_step = np.repeat(plan, np.diff(edges), axis=0)                     # (k, m)
+    middle = (edges[:-1] + edges[1:]) // 2 + edges[1]
+    return per_step[np.minimum(middle, len(per_step) - 1)]
+
+
 @functools.lru_cache(maxsize=4)
 def smoothness_matrix(n_blocks: int) -> np.ndarray:
     """D^T D of one muscle's block-to-block changes U_b - U_{b-1} (U_{-1} fixed: the applied
@@ -407,7 +417,7 @@ class RecedingHorizon:
         target = np.asarray(target, dtype=float)
         tracked = (np.ones(target.shape[1], dtype=bool) if tracked is None
                    else np.asarray(tracked, dtype=bool))
-        nominal = np.concatenate([self.plan[1:], self.plan[-1:]])  # shifted by one period
+        nominal = shifted_plan(self.plan, self.edges)  # one period on
         step = self.settings.probe_drive
         delta = np.where(nominal + step <= 1.0, step, -step)
         copies = self.n_blocks + 1
