@@ -174,6 +174,8 @@ def test_sim_node_round_trip(ros):
     assert extended.position[0] < flexed.position[0] - 0.1
     commands.publish(Float64MultiArray(data=[1.0, 2.0]))
     assert ros.spin_until(lambda: sim.dropped_commands == 1)
+    commands.publish(b"\x00\x01\x00\x00\xff")  # bytes that are no Float64MultiArray
+    assert ros.spin_until(lambda: sim.dropped_commands == 2)
     assert sim.sim.effort[0] == -8.0 and sim.commands == 2
     stamps = [s.header.stamp.sec * 10**9 + s.header.stamp.nanosec for s in states]
     assert all(b >= a for a, b in zip(stamps, stamps[1:], strict=False))

@@ -84,6 +84,24 @@ def test_output_messages_equal_the_serializer_byte_for_byte(steps):
         assert totals[i] == serialize(tm.TYPE_FLOAT64, msgs.float64_fields(out.total_energy))
 
 
+def test_joint_layouts_equal_the_serializer_one_step_at_a_time():
+    """JointLayouts.encode (muscle_node's joint_efforts and joint_effort_commands, one step per
+    publish) gives the serializer's bytes of telemetry's fields, message after message."""
+    from vm_ros.joint_space import JointEfforts
+
+    names = ("r_shoulder_elev", "r_elbow_flex")
+    layouts = bulk.JointLayouts(names)
+    rng = np.random.default_rng(2)
+    for stamp in STAMPS.tolist():
+        efforts = JointEfforts(names, *rng.normal(size=(3, 2)))
+        (state_topic, state), (command_topic, command) = layouts.encode(efforts, stamp)
+        assert (state_topic, command_topic) == (tm.TOPIC_JOINT_EFFORTS,
+                                                tm.TOPIC_JOINT_EFFORT_COMMANDS)
+        assert state == serialize(tm.TYPE_JOINT_STATE, tm.joint_efforts_fields(efforts, stamp))
+        assert command == serialize(tm.TYPE_FLOAT64_MULTI_ARRAY,
+                                    tm.joint_effort_commands_fields(efforts))
+
+
 def test_one_message_at_a_time_equals_the_serializer(steps):
     """encode_one (muscle_node, one message per publish through a kept record) gives the
     serializer's bytes message after message: nothing of one message stays in the next."""

@@ -167,7 +167,11 @@ def joint_work_fields(work_j) -> dict:
     return _joint_array_fields(work_j)
 
 
+def joint_array_layout(n: int) -> list[dict]:
+    """MultiArrayLayout dims of joint_effort_commands and joint_work: one value per joint."""
+    return [{"label": "joint", "size": n, "stride": n}]
+
+
 def _joint_array_fields(values) -> dict:
-    n = len(values)
-    return {"layout": {"dim": [{"label": "joint", "size": n, "stride": n}], "data_offset": 0},
+    return {"layout": {"dim": joint_array_layout(len(values)), "data_offset": 0},
             "data": np.asarray(values, dtype=float).tolist()}

@@ -37,6 +37,7 @@ from vm_ros.recording.run_log import (
     open_run_log,
     resolve_topic,
 )
+from vm_ros.recording.versions import library_versions
 from vm_ros.recording.writer import McapRecorder, RecorderError, RecorderStatus
 
 # node parameter -> McapRecorder option
@@ -106,6 +107,7 @@ class NodeRunLog:
         self._failure_reported = False
         self._closed = False
         self.file_path = self.path  # the MCAP file (NAME/NAME_0.mcap for a bag directory)
+        library_versions()  # looked up now, not at the model start (versions.package_version)
         try:  # fail at start-up, not at the model start
             if is_bag_path(self.path):
                 self.file_path = prepare_bag_directory(self.path)

@@ -260,6 +260,8 @@ class MuscleNode(Node):
         self.run_log = self._open_run_log()
         self._model_timer = self.create_timer(self._dt_s * c.steps_per_tick, self._on_tick)
         self._layouts = bulk.OutputLayouts(self.bank.names, self.bank.energetics_models)
+        self._joint_layouts = (bulk.JointLayouts(self.joint_space.output_names)
+                               if self.joint_space is not None else None)
         self._diagnostics_timer = self.create_timer(
             c.diagnostics_period_s, self._publish_diagnostics,
             clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -662,9 +664,9 @@ class MuscleNode(Node):
 
     def _publish(self, out, joint_sample=None) -> None:
         """The outputs, stamped and logged at the model time; with a geometry also the joint
-        efforts of ``out``'s forces through ``joint_sample``'s moment arms. The muscle topics'
-        bytes come from fixed layouts (vm_ros.recording.bulk, the bytes rclpy would serialise),
-        without a message object."""
+        efforts of ``out``'s forces through ``joint_sample``'s moment arms. The muscle and joint
+        topics' bytes come from fixed layouts (vm_ros.recording.bulk, the bytes rclpy would
+        serialise), without a message object."""
         self._last_output = out
         now_ns = self.get_clock().now().nanoseconds
         stamp_ns = self.scheduler.model_time_ns
@@ -672,13 +674,8 @@ class MuscleNode(Node):
             self._send_bytes(topic, data, stamp_ns, now_ns)
         if joint_sample is not None:
             efforts = self.joint_inputs.efforts(joint_sample, out.force)
-            for topic, msg in (
-                    (tm.TOPIC_JOINT_EFFORTS,
-                     fill_message(JointState(), tm.joint_efforts_fields(efforts, stamp_ns))),
-                    (tm.TOPIC_JOINT_EFFORT_COMMANDS,
-                     fill_message(Float64MultiArray(),
-                                  tm.joint_effort_commands_fields(efforts)))):
-                self._send_bytes(topic, serialize_message(msg), stamp_ns, now_ns)
+            for topic, data in self._joint_layouts.encode(efforts, stamp_ns):
+                self._send_bytes(topic, data, stamp_ns, now_ns)
             if self.coordination is not None:
                 self._publish_coordination(out, efforts, stamp_ns, now_ns)
 

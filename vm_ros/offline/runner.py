@@ -673,9 +673,8 @@ def _joint_messages(names, published: dict, stamps_ns) -> list:
     """[(topic, [bytes])] of joint_efforts (joints ``names``), joint_effort_commands and
     joint_work at the ticks (telemetry.joint_efforts_fields, joint_effort_commands_fields and
     joint_work_fields, in bulk)."""
-    n = len(names)
-    state = bulk.joint_state_layout(names, n, n, n)
-    array = bulk.multi_array_layout([{"label": "joint", "size": n, "stride": n}], n)
+    layouts = bulk.JointLayouts(names)
+    state, array = layouts.state, layouts.array
     return [(tm.TOPIC_JOINT_EFFORTS, state.encode(
                 stamps_ns, position=published["joint_position"],
                 velocity=published["joint_velocity"], effort=published["joint_effort"])),

@@ -213,6 +213,28 @@ class OutputLayouts:
         return [(topic, layout.encode(stamps_ns, **values)) for topic, layout, values in topics]
 
 
+class JointLayouts:
+    """The CDR layouts of the joint topics for the joints ``names`` (joint_efforts: JointState
+    with position, velocity and effort per joint; joint_effort_commands and joint_work:
+    Float64MultiArray of telemetry.joint_array_layout), built once: muscle_node encodes one step
+    at a time (``encode``), offline runs many (vm_ros.offline.runner). The bytes are those of
+    telemetry.joint_efforts_fields, joint_effort_commands_fields and joint_work_fields."""
+
+    def __init__(self, names):
+        n = len(names)
+        self.names = tuple(names)
+        self.state = joint_state_layout(names, n, n, n)
+        self.array = multi_array_layout(tm.joint_array_layout(n), n)
+
+    def encode(self, efforts, stamp_ns: int) -> list:
+        """[(topic, bytes)] of joint_efforts (stamped ``stamp_ns``) and joint_effort_commands of
+        one vm_ros.joint_space.JointEfforts, whose names are ``names``."""
+        return [(tm.TOPIC_JOINT_EFFORTS,
+                 self.state.encode_one(stamp_ns, position=efforts.position,
+                                       velocity=efforts.velocity, effort=efforts.effort)),
+                (tm.TOPIC_JOINT_EFFORT_COMMANDS, self.array.encode_one(data=efforts.effort))]
+
+
 # vm_ros/msg/MuscleTelemetry arrays in message order, with their length per muscle
 TELEMETRY_ARRAYS = (
     ("excitation", 1), ("path_length", 1), ("path_velocity", 1), ("effective_drive", 1),

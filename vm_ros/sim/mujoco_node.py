@@ -20,6 +20,12 @@ generalized forces it received, and publishes the joint coordinates. Topics (rel
 QoS: reliable, keep last 10, volatile, for both streams (as muscle_node's; a best-effort peer
 needs qos_overrides). /clock: reliable, keep last 1.
 
+Both streams go as bytes, as muscle_node's do: joint_states from a fixed CDR layout
+(vm_ros.recording.bulk, the bytes rclpy would serialise), the commands read by the decoder
+muscle_node uses for its array input (vm_ros.recording.cdr.input_decoder), without a Python
+message object per tick (a command that is not a Float64MultiArray's bytes is dropped and
+counted, as one of the wrong length).
+
 Joints are the model's coordinates as vm_ros.geometry.mujoco_backend.MujocoGeometry defines them
 (independent hinge and slide joints that a muscle tendon crosses; dependent joints of joint
 equalities follow through MuJoCo's constraints). Time: a steady-clock timer every ``tick_s``
@@ -45,6 +51,8 @@ from std_msgs.msg import Float64MultiArray
 from vm_ros.errors import VmRosError
 from vm_ros.geometry.mujoco_backend import MujocoGeometry, require_mujoco
 from vm_ros.node.shell import make_executor, run_node
+from vm_ros.recording import bulk
+from vm_ros.recording.cdr import input_decoder
 from vm_ros.telemetry import TOPIC_JOINT_EFFORT_COMMANDS, TOPIC_JOINT_STATES
 
 NODE_NAME = "mujoco_sim_node"
@@ -156,9 +164,12 @@ class MujocoSimNode(Node):
         self.dropped_commands = 0
         self.commands = 0
         self.overrun_steps = 0
+        n = len(self.sim.joint_names)
+        self._state_layout = bulk.joint_state_layout(self.sim.joint_names, n, n, n)
+        self._decode_command = input_decoder("std_msgs/msg/Float64MultiArray")
         self.states = self.create_publisher(JointState, TOPIC_JOINT_STATES, stream_qos())
         self.create_subscription(Float64MultiArray, TOPIC_JOINT_EFFORT_COMMANDS,
-                                 self._on_command, stream_qos())
+                                 self._on_command, stream_qos(), raw=True)
         self.clock_pub = (self.create_publisher(ClockMsg, "/clock", stream_qos(1))
                           if self.publish_clock else None)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -169,8 +180,11 @@ class MujocoSimNode(Node):
             f"{p['model']}: joints {', '.join(self.sim.joint_names)}, dt {p['dt']} s, "
             f"real time factor {self.real_time_factor:g}")
 
-    def _on_command(self, msg: Float64MultiArray) -> None:
-        data = np.asarray(msg.data, dtype=float)
+    def _on_command(self, raw: bytes) -> None:
+        try:
+            data = self._decode_command(raw).data
+        except (ValueError, UnicodeDecodeError):
+            data = np.zeros(0)  # not a Float64MultiArray: dropped as a wrong length
         if data.shape != (len(self.sim.joint_names),) or not np.all(np.isfinite(data)):
             self.dropped_commands += 1
             self.get_logger().warning(
@@ -214,20 +228,16 @@ class MujocoSimNode(Node):
                 "dropped")
 
     def publish_state(self) -> None:
-        msg = JointState()
         if self.publish_clock:
-            sec, nanosec = divmod(int(round(self.sim.time_s * 1e9)), 1_000_000_000)
+            stamp_ns = int(round(self.sim.time_s * 1e9))
             clock = ClockMsg()
-            clock.clock.sec, clock.clock.nanosec = sec, nanosec
+            clock.clock.sec, clock.clock.nanosec = divmod(stamp_ns, 1_000_000_000)
             self.clock_pub.publish(clock)
-            msg.header.stamp = clock.clock
         else:
-            msg.header.stamp = self.get_clock().now().to_msg()
-        msg.name = list(self.sim.joint_names)
-        msg.position = self.sim.positions().tolist()
-        msg.velocity = self.sim.velocities().tolist()
-        msg.effort = self.sim.effort.tolist()
-        self.states.publish(msg)
+            stamp_ns = self.get_clock().now().nanoseconds
+        self.states.publish(self._state_layout.encode_one(
+            stamp_ns, position=self.sim.positions(), velocity=self.sim.velocities(),
+            effort=self.sim.effort))
 
 
 def _argument_parser() -> argparse.ArgumentParser:
