@@ -645,8 +645,8 @@ class _Ticks:
         record telemetry; path_length, path_velocity: the run's inputs (k, n); ``joint``: the
         joint efforts' position, velocity, effort and cumulative work of every step (k, J)."""
         record, snap = run.record, run.snapshots
-        energy_totals = np.array([energy.sum() for energy in snap.energy_j])
-        rate_totals = np.array([rates[:, 3].sum() for rates in record.energy_rates[rows]])
+        energy_totals = _row_sums(snap.energy_j)
+        rate_totals = _row_sums(record.energy_rates[rows][:, :, 3])
         if np.any(published):
             at, j = rows[published], np.flatnonzero(published)
             self.published.append({
@@ -703,6 +703,12 @@ class _Ticks:
             stamps = r.pop("time")
             pending.add(keys, msgs.TOPIC_TELEMETRY, self.record.encode(stamps, **r), stamps)
         self._clear()
+
+
+def _row_sums(values: np.ndarray) -> np.ndarray:
+    """The sum of each row (first axis) of ``values``, as ``row.sum()`` sums it (pairwise, in C
+    order): one reduction along the last axis of a C-contiguous (rows, -1) copy."""
+    return np.ascontiguousarray(values).reshape(len(values), -1).sum(axis=1)
 
 
 def _joint_messages(names, published: dict, stamps_ns) -> list:
