@@ -55,7 +55,7 @@ LOOPBACK = "127.0.0.1"
 # nannies' memory monitor (the memory limit: pause, spill, restart) looks every second instead of
 # every 100 ms, and the system monitor (CPU, memory, disk and network counters for the dashboard)
 # every 2 s instead of 500 ms: an idle 2-worker cluster 0.038 -> 0.017 cores (client, scheduler
-# and nannies 0.021 -> 0.009, each worker 0.0085 -> 0.004; 20 s, 2026-12-02, load average 5).
+# and nannies 0.021 -> 0.009, each worker 0.0085 -> 0.004; 20 s, 2026-12-02, load average 4-6).
 EMBEDDED_CONFIG = {"distributed.worker.profile.enabled": False,
                    "distributed.admin.tick.interval": "1s",
                    "distributed.worker.memory.monitor-interval": "1s",
