@@ -37,7 +37,9 @@ stop request is seen between blocks (at most 1e6 muscle-steps), not between step
 
 from __future__ import annotations
 
+import itertools
 import math
+import operator
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -112,7 +114,8 @@ class LogSink:
         (McapRecorder.write_block), once fewer than _IN_FLIGHT messages wait for it."""
         if self.recorder is None or not len(data):
             return
-        full = [self._full(topic) for topic in topics]
+        names = {topic: self._full(topic) for topic in set(topics)}
+        full = list(map(names.__getitem__, topics))
         self._wait_for_room()
         for _ in range(_RETRIES):
             if self.recorder.write_block(full, data, times_ns):
@@ -146,39 +149,72 @@ class LogSink:
 
 
 class _Pending:
-    """Messages of one block with their sort keys (slot * 16 + rank + order in the slot)."""
+    """Messages of one block with their sort keys (slot * 16 + rank + order in the slot), held
+    as groups in the order added (a group: keys, topics, data and times of its messages), so
+    that ``flush`` puts them in key order with a few whole-list operations instead of Python
+    work per message."""
 
     def __init__(self):
-        self.keys: list = []
-        self.topics: list = []
-        self.data: list = []
-        self.times: list = []
+        self._groups: list = []  # (keys (k,) int64, topics [k], data [k], times (k,) int64)
+        self._loose: tuple = ([], [], [], [])  # messages added one by one, not yet a group
 
     def add_one(self, key: int, topic: str, data: bytes, time_ns: int) -> None:
-        self.keys.append(key)
-        self.topics.append(topic)
-        self.data.append(data)
-        self.times.append(time_ns)
+        for items, item in zip(self._loose, (key, topic, data, time_ns), strict=True):
+            items.append(item)
 
     def add_each(self, keys, topics: list, data: list, times_ns) -> None:
         """Messages each with its own topic."""
-        self.keys.extend(np.asarray(keys, dtype=np.int64).tolist())
-        self.topics.extend(topics)
-        self.data.extend(data)
-        self.times.extend(np.asarray(times_ns, dtype=np.int64).tolist())
+        self._close_loose()
+        self._groups.append((np.asarray(keys, dtype=np.int64), list(topics), list(data),
+                             np.asarray(times_ns, dtype=np.int64)))
 
     def add(self, keys, topic: str, data: list, times_ns) -> None:
         self.add_each(keys, [topic] * len(data), data, times_ns)
 
+    def _close_loose(self) -> None:
+        if self._loose[0]:
+            keys, topics, data, times = self._loose
+            self._loose = ([], [], [], [])
+            self.add_each(keys, topics, data, times)
+
+    def _joined(self, part: int) -> list:
+        self._close_loose()
+        return list(itertools.chain.from_iterable(group[part] for group in self._groups))
+
+    @property
+    def keys(self) -> list:
+        return np.asarray(self._joined(0), dtype=np.int64).tolist()
+
+    @property
+    def topics(self) -> list:
+        return self._joined(1)
+
+    @property
+    def data(self) -> list:
+        return self._joined(2)
+
+    @property
+    def times(self) -> list:
+        return np.asarray(self._joined(3), dtype=np.int64).tolist()
+
     def flush(self, sink: LogSink, steps: int) -> None:
         """Write in key order (stable) what the stepwise loop writes in ``steps`` steps (the
         outputs at the end of the last one, not the inputs of the next), drop the rest."""
-        keys = np.asarray(self.keys, dtype=np.int64)
-        order = np.argsort(keys, kind="stable")
-        order = order[keys[order] < steps * 16 + INPUT_RANK]
-        sink.write_many([self.topics[i] for i in order], [self.data[i] for i in order],
-                        [self.times[i] for i in order])
+        self._close_loose()
+        if self._groups:
+            keys = np.concatenate([group[0] for group in self._groups])
+            order = np.argsort(keys, kind="stable")
+            order = order[keys[order] < steps * 16 + INPUT_RANK]
+            times = np.concatenate([group[3] for group in self._groups])[order]
+            sink.write_many(_pick(self._joined(1), order), _pick(self._joined(2), order), times)
         self.__init__()
+
+
+def _pick(items: list, order: np.ndarray) -> list:
+    """``[items[i] for i in order]`` in one call."""
+    if len(order) < 2:
+        return [items[i] for i in order.tolist()]
+    return list(operator.itemgetter(*order.tolist())(items))
 
 
 class SampledInputs:
@@ -609,8 +645,8 @@ class _Ticks:
         record telemetry; path_length, path_velocity: the run's inputs (k, n); ``joint``: the
         joint efforts' position, velocity, effort and cumulative work of every step (k, J)."""
         record, snap = run.record, run.snapshots
-        energy_totals = np.array([energy.sum() for energy in snap.energy_j])
-        rate_totals = np.array([rates[:, 3].sum() for rates in record.energy_rates[rows]])
+        energy_totals = _row_sums(snap.energy_j)
+        rate_totals = _row_sums(record.energy_rates[rows][:, :, 3])
         if np.any(published):
             at, j = rows[published], np.flatnonzero(published)
             self.published.append({
@@ -667,6 +703,12 @@ class _Ticks:
             stamps = r.pop("time")
             pending.add(keys, msgs.TOPIC_TELEMETRY, self.record.encode(stamps, **r), stamps)
         self._clear()
+
+
+def _row_sums(values: np.ndarray) -> np.ndarray:
+    """The sum of each row (first axis) of ``values``, as ``row.sum()`` sums it (pairwise, in C
+    order): one reduction along the last axis of a C-contiguous (rows, -1) copy."""
+    return np.ascontiguousarray(values).reshape(len(values), -1).sum(axis=1)
 
 
 def _joint_messages(names, published: dict, stamps_ns) -> list:

@@ -118,9 +118,7 @@ class FixedLayout:
         for name in self.value_fields:
             shape = self.fields[name][1]
             records[name] = np.asarray(values[name], dtype=float).reshape((k, *shape))
-        blob = records.tobytes()
-        size = self.size
-        return [blob[i:i + size] for i in range(0, k * size, size)]
+        return records.view(np.dtype((np.void, self.size))).tolist()  # bytes, one per message
 
 
 def _count(stamp_ns, values) -> int:

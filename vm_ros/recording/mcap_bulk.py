@@ -68,10 +68,12 @@ def chunk_length(writer: Writer, record_ends, chunk_size: int) -> int:
 
 
 def message_records(channel_ids, sequences, log_times_ns, publish_times_ns,
-                    payloads) -> tuple[bytes, np.ndarray]:
-    """The Message records of the messages, concatenated, and the offset of each one in it."""
+                    payloads, sizes=None) -> tuple[bytes, np.ndarray]:
+    """The Message records of the messages, concatenated, and the offset of each one in it
+    (``sizes``: the payloads' lengths, if known)."""
     count = len(payloads)
-    sizes = np.fromiter((len(p) for p in payloads), dtype=np.int64, count=count)
+    if sizes is None:
+        sizes = np.fromiter(map(len, payloads), dtype=np.int64, count=count)
     headers = np.empty(count, dtype=_HEADER)
     headers["opcode"] = Opcode.MESSAGE
     headers["length"] = sizes + _AFTER_LENGTH
@@ -79,9 +81,9 @@ def message_records(channel_ids, sequences, log_times_ns, publish_times_ns,
     headers["sequence"] = sequences
     headers["log_time"] = log_times_ns
     headers["publish_time"] = publish_times_ns
-    blob, width = headers.tobytes(), _HEADER.itemsize
+    width = _HEADER.itemsize
     parts: list = [None] * (2 * count)
-    parts[0::2] = [blob[i:i + width] for i in range(0, count * width, width)]
+    parts[0::2] = headers.view(np.dtype((np.void, width))).tolist()  # bytes, one per record
     parts[1::2] = payloads
     offsets = np.zeros(count, dtype=np.int64)
     np.cumsum(sizes[:-1] + width, out=offsets[1:])
@@ -89,10 +91,11 @@ def message_records(channel_ids, sequences, log_times_ns, publish_times_ns,
 
 
 def add_chunk(writer: Writer, channel_ids, sequences, log_times_ns, publish_times_ns,
-              payloads) -> None:
+              payloads, sizes=None) -> None:
     """Write the messages (arrays of channel id, sequence, log and publish time in ns, and a list
-    of payload bytes, in file order) as one chunk of ``writer``: the chunk it has open is closed
-    first, and this one is closed (written) before returning."""
+    of payload bytes, in file order; ``sizes``: the payloads' lengths, if known) as one chunk of
+    ``writer``: the chunk it has open is closed first, and this one is closed (written) before
+    returning."""
     if not len(payloads):
         return
     writer.flush()  # the open chunk, with its own index, goes first
@@ -108,7 +111,7 @@ def add_chunk(writer: Writer, channel_ids, sequences, log_times_ns, publish_time
     builder = _private(writer, "chunk_builder")
     statistics = _private(writer, "statistics")
     records, offsets = message_records(channel_ids, sequences, log_times, publish_times_ns,
-                                       payloads)
+                                       payloads, sizes)
     offsets += builder.count
     builder.record_writer.write(records)
     start, end = int(log_times.min()), int(log_times.max())

@@ -533,7 +533,7 @@ class McapRecorder:
                 mine = np.flatnonzero(ids == self._channel_ids[topic])
                 sequences[mine] = self._sequence[topic] + 1 + np.arange(len(mine))
                 self._sequence[topic] += len(mine)
-            sizes = np.fromiter((len(d) for d in block.data), dtype=np.int64, count=len(ids))
+            sizes = np.fromiter(map(len, block.data), dtype=np.int64, count=len(ids))
             ends = np.cumsum(sizes + mcap_bulk.MESSAGE_RECORD_HEADER)  # record bytes to each
             times = block.log_times_ns
             while handed < len(ids):
@@ -554,7 +554,8 @@ class McapRecorder:
                 self._open_chunk_count += end - begin
                 handed = end
                 mcap_bulk.add_chunk(self._writer, ids[begin:end], sequences[begin:end],
-                                    times[begin:end], times[begin:end], block.data[begin:end])
+                                    times[begin:end], times[begin:end], block.data[begin:end],
+                                    sizes[begin:end])
                 self._note_written_chunks()
         except Exception as exc:
             raise _BlockError(handed) from exc
@@ -565,7 +566,8 @@ class McapRecorder:
         if any(topic not in self._channel_ids for topic in topics):
             self._register_pending()
             self._note_written_chunks()
-        return np.array([self._channel_ids[topic] for topic in block.topics], dtype=np.int64)
+        return np.fromiter(map(self._channel_ids.__getitem__, block.topics), dtype=np.int64,
+                           count=len(block.topics))
 
     def _split_due(self, log_time: int) -> bool:
         """A new file before this message: the current one has reached max_file_size bytes, or
