@@ -23,14 +23,9 @@ VM_ROS_VERSION = package_version("vm_ros")
 
 
 def library_versions() -> dict[str, str]:
-    """``{name: version}`` of Python, vm_ros and the numerical and MCAP libraries."""
-    return dict(_library_versions())
-
-
-@functools.cache
-def _library_versions() -> tuple:
-    """Read once per process (importlib.metadata parses each package's METADATA file: a few ms
-    per run in a study worker)."""
-    return (("python", platform.python_version()),
-            *((name, package_version(name))
-              for name in ("vm_ros", "numpy", "scipy", "mcap", "mcap-ros2-support")))
+    """``{name: version}`` of Python, vm_ros and the numerical and MCAP libraries (each looked
+    up once per process: package_version)."""
+    versions = {"python": platform.python_version()}
+    for name in ("vm_ros", "numpy", "scipy", "mcap", "mcap-ros2-support"):
+        versions[name] = package_version(name)
+    return versions
