@@ -60,6 +60,7 @@ def test_joint_section_quickest_writes_every_item(tmp_path, capsys):
     motion = joint["motion"]
     assert motion["muscles"] == imported["library_muscles"] and motion["motion_s"] == 1.0
     assert motion["simulate_s_min"] <= motion["simulate_s"] <= motion["simulate_s_max"]
+    assert motion["simulate_cpu_s"] > 0
     assert motion["log"].startswith("log: ") and motion["model_s"] > 0
 
     loops = {(r["model"], r["root"]): r for r in joint["closed_loop"]}

@@ -90,6 +90,38 @@ def test_numba_cache_dir_is_honoured(tmp_path):
     assert not (tmp_path / "xdg").exists()
 
 
+# the geometry's functions that call the one-pose evaluator (evaluate_many: offline blocks;
+# evaluate_inside: every evaluate inside the box), called once; prints hits and misses of each
+_GEOMETRY_CALLERS = """
+import numpy as np
+from vm_ros.geometry import kernel
+from vm_ros.geometry.polynomial import PackedPolynomials
+packed = PackedPolynomials.pack(1, [([0], [0.0], [1.0], [[1]], [1.0])])
+_, evaluate_many, evaluate_inside, _ = kernel._compile()
+arrays = kernel._slot_arrays(packed)
+evaluate_many(np.zeros((2, 1)), *arrays, packed.max_degree)
+evaluate_inside(np.zeros(1), np.zeros(1), -np.ones(1), np.ones(1), *arrays, packed.max_degree)
+for function in (evaluate_many, evaluate_inside):
+    print(sum(function.stats.cache_hits.values()), sum(function.stats.cache_misses.values()))
+"""
+
+
+@needs_numba
+def test_the_geometry_functions_that_call_the_evaluator_load_from_the_cache(tmp_path):
+    """Compiled by the first process, loaded by the second (Numba keys a cached function by its
+    closure's pickled contents: a closure over the evaluator, a dispatcher that pickles
+    differently in every process, compiled them again in every process)."""
+    env = _environment(XDG_CACHE_HOME=str(tmp_path / "xdg"))
+    counts = []
+    for _ in range(2):
+        done = subprocess.run([sys.executable, "-c", _GEOMETRY_CALLERS], env=env, cwd=tmp_path,
+                              capture_output=True, text=True, timeout=600)
+        assert done.returncode == 0, done.stderr
+        counts.append(done.stdout.split())
+    assert counts[0] == ["0", "1", "0", "1"]  # compiled
+    assert counts[1] == ["1", "0", "1", "0"]  # loaded
+
+
 _WARM_UP = "from vm_ros.model import kernel; kernel.warm_up(); print('compiled')"
 
 

@@ -638,6 +638,8 @@ def _joint_csv_rows(joint: dict, add) -> None:
         target = motion["target_s"] * motion["motion_s"] / MOTION_S
         add("joint", case, "wall", motion["simulate_s"], "s", f"< {target:g} s",
             motion["simulate_s"] < target, motion["simulate_s_min"], motion["simulate_s_max"])
+        if "simulate_cpu_s" in motion:
+            add("joint", case, "process CPU", motion["simulate_cpu_s"], "s")
         add("joint", case, "model alone (MuscleBank.run)", motion["model_s"], "s")
         add("joint", case, "simulate / model alone (paired)",
             motion["simulate_over_model_paired"], "ratio")

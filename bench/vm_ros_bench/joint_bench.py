@@ -20,7 +20,9 @@ muscle_node from joint_states (vm_ros_bench.node_bench.run_joint_node_benchmark)
   myolegs motion (every coordinate a sinusoid inside its box, frames at 100 Hz, drive 0.2 for
   every muscle of the imported library; model 1 kHz, inputs 1 kHz, publish 100 Hz, log written),
   against the model alone (MuscleBank.run of the same muscles over as many steps, fixed inputs)
-  measured right before it in each repeat: wall time (target < 1 s) and the paired ratio.
+  measured right before it in each repeat: wall time (target < 1 s), the process's CPU time
+  over the run (``simulate_cpu_s``: the log's writer thread included; less inflated than the
+  wall time on a busy machine) and the paired ratio.
 
 The myolegs geometry and muscle library come from ``vm-ros import-mjcf``'s Python API
 (``import_myolegs``), imported once into a cache folder and reused while the model, the import
@@ -361,7 +363,7 @@ def bench_motion(imported: dict, repeats: int = 7, duration_s: float = MOTION_S,
                      "--library", str(library), "--excitation", "0.2", "--out",
                      str(Path(tmp) / "motion.mcap")]
         names = None
-        walls, models, text = [], [], ""
+        walls, cpus, models, text = [], [], [], ""
         for k in range(repeats + 1):  # the first: warm-up (compilation, caches), not counted
             buffer = io.StringIO()
             if names is not None:
@@ -372,10 +374,10 @@ def bench_motion(imported: dict, repeats: int = 7, duration_s: float = MOTION_S,
                 start = time.perf_counter()
                 bank.run(DT_S, np.full_like(lp, 0.2), lp, np.zeros_like(lp))
                 model_s = time.perf_counter() - start
-            start = time.perf_counter()
+            start, cpu_start = time.perf_counter(), time.process_time()
             with contextlib.redirect_stdout(buffer):
                 code = main(arguments)
-            wall = time.perf_counter() - start
+            wall, cpu = time.perf_counter() - start, time.process_time() - cpu_start
             if code != 0:
                 raise RuntimeError(f"vm-ros simulate --motion exited with {code}")
             text = buffer.getvalue()
@@ -385,10 +387,12 @@ def bench_motion(imported: dict, repeats: int = 7, duration_s: float = MOTION_S,
                 names = [m for m in load_geometry(geometry).muscle_names if m in known]
             if k:
                 walls.append(wall)
+                cpus.append(cpu)
                 models.append(model_s)
     result = {"model": MODEL, "muscles": len(names), "motion_s": duration_s,
               "repeats": repeats, "simulate_s": statistics.median(walls),
               "simulate_s_min": min(walls), "simulate_s_max": max(walls),
+              "simulate_cpu_s": statistics.median(cpus),
               "model_s": statistics.median(models),
               "simulate_over_model_paired": statistics.median(
                   w / m for w, m in zip(walls, models, strict=True)),

@@ -22,6 +22,10 @@ from vm_ros.model.jit import HAVE_NUMBA, model_cache_directory, numba
 SLOTS = 4  # coordinates per muscle written out in the compiled loop (docs/performance.md)
 
 _evaluate = None
+# the compiled one-pose evaluator, which evaluate_many and evaluate_inside call: a module global,
+# not a closure variable, since Numba keys a cached function by its closure's pickled contents,
+# and a dispatcher pickles differently in every process (each would compile them again)
+_evaluate_pose = None
 
 
 def available() -> bool:
@@ -29,7 +33,7 @@ def available() -> bool:
 
 
 def _compile():
-    global _evaluate
+    global _evaluate, _evaluate_pose
     if _evaluate is not None:
         return _evaluate
     with model_cache_directory():  # vm_ros.model.jit.cache_root()/<hash>/geometry
@@ -126,13 +130,15 @@ def _compile():
                         gradient[m, c] += d / slot_scale[m, j]
             return length, gradient
 
+        _evaluate_pose = evaluate
+
         @numba.njit(cache=True, fastmath=False, error_model="numpy")
         def evaluate_many(poses, slot_coordinate, slot_offset, slot_scale, first_term,
                           factor_index, slope_index, exponent, coefficient, max_degree):
             lengths = np.zeros((poses.shape[0], slot_coordinate.shape[0]))
             gradients = np.zeros((poses.shape[0], slot_coordinate.shape[0], poses.shape[1]))
             for k in range(poses.shape[0]):
-                lengths[k], gradients[k] = evaluate(
+                lengths[k], gradients[k] = _evaluate_pose(
                     poses[k], slot_coordinate, slot_offset, slot_scale, first_term,
                     factor_index, slope_index, exponent, coefficient, max_degree)
             return lengths, gradients
@@ -144,7 +150,7 @@ def _compile():
             for j in range(q.shape[0]):
                 if not (lower[j] < q[j] < upper[j] and np.isfinite(qdot[j])):
                     return False, q[:0], np.empty((0, 0)), np.empty((0, 0)), q[:0], q[:0]
-            length, gradient = evaluate(
+            length, gradient = _evaluate_pose(
                 q, slot_coordinate, slot_offset, slot_scale, first_term, factor_index,
                 slope_index, exponent, coefficient, max_degree)
             return True, length, gradient, -gradient, q.copy(), qdot.copy()

@@ -27,6 +27,7 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -82,6 +83,29 @@ def stale_behaviour(stream: str, policy: str) -> str:
     if policy == "zero_drive":
         return "drive 0 while stale (stale_input_policy zero_drive)"
     return "last drive held (stale_input_policy hold)"
+
+
+class HeldInputs(NamedTuple):
+    """The inputs a NodeInputs holds, each (rows, n): one row (held now) or a row per message or
+    step (NodeInputs.hold_rows)."""
+
+    drive: np.ndarray
+    drive_seen: np.ndarray
+    drive_time_ns: np.ndarray
+    length_m: np.ndarray
+    velocity_m_per_s: np.ndarray
+    length_seen: np.ndarray
+    length_time_ns: np.ndarray
+
+
+def carried(held: np.ndarray, new: np.ndarray, updated: np.ndarray) -> np.ndarray:
+    """(k + 1, n): row 0 ``held`` (n,), row i + 1 the latest of ``new`` (k, n) at or before
+    row i where ``updated`` (k, n), else ``held`` (a value stored by some messages and kept
+    through the others)."""
+    k = len(new)
+    latest = np.maximum.accumulate(np.where(updated, np.arange(1, k + 1)[:, None], 0), axis=0)
+    rows = np.concatenate([held[None, :], np.asarray(new, dtype=held.dtype)])
+    return np.concatenate([held[None, :], np.take_along_axis(rows, latest, axis=0)])
 
 
 class NodeInputs:
@@ -399,22 +423,80 @@ class NodeInputs:
         """:meth:`sample` at each of ``times_ns`` (model step starts, ns) from the inputs held
         now: (drive, path length, path velocity), (k, n) each, the same values element by
         element as k calls (a batch of steps between two input messages)."""
+        return self.sample_held(times_ns, self.held())
+
+    def held(self) -> HeldInputs:
+        """The inputs held now, each (1, n)."""
+        return HeldInputs(*(array[None, :] for array in (
+            self.drive, self.drive_seen, self.drive_time_ns, self.length_m,
+            self.velocity_m_per_s, self.length_seen, self.length_time_ns)))
+
+    def sample_held(self, times_ns, held: HeldInputs) -> tuple[np.ndarray, np.ndarray,
+                                                               np.ndarray]:
+        """:meth:`sample` at each of ``times_ns`` (k,) from the inputs ``held`` then, (1, n)
+        (held now: sample_many) or (k, n) (a row per step: what a block of messages left
+        before each step, hold_rows): (drive, path length, path velocity), (k, n) each; the
+        same operations element by element whatever the shapes, so the same bits."""
         t_ns = np.asarray(times_ns, dtype=np.int64)[:, None]
         timeout = self.limits.timeout_ns
-        u = self.drive[None, :].repeat(len(t_ns), axis=0)  # a new (k, n) array
+        u = np.repeat(held.drive, len(t_ns), axis=0) if len(held.drive) == 1 else \
+            held.drive.copy()  # a new (k, n) array
         if self.limits.stale_policy == "zero_drive":
-            drive_stale = ~self.drive_seen | (t_ns - self.drive_time_ns > timeout)
+            drive_stale = ~held.drive_seen | (t_ns - held.drive_time_ns > timeout)
             if drive_stale.any():
                 u[drive_stale] = 0.0
-        since_ns = np.maximum(t_ns - self.length_time_ns, 0)
+        since_ns = np.maximum(t_ns - held.length_time_ns, 0)
         horizon_ns = self.limits.extrapolation_max_ns  # <= timeout
-        moving = self.length_seen & (since_ns < horizon_ns)
-        lp = self.length_m + self.velocity_m_per_s * (np.minimum(since_ns, horizon_ns) * 1e-9
-                                                      * self.length_seen)
+        moving = held.length_seen & (since_ns < horizon_ns)
+        lp = held.length_m + held.velocity_m_per_s * (np.minimum(since_ns, horizon_ns) * 1e-9
+                                                      * held.length_seen)
         lo, hi = self._bounds
         clamped = np.minimum(np.maximum(lp, lo), hi)  # np.clip, faster on small arrays
-        vp = np.where(moving & (clamped == lp), self.velocity_m_per_s, 0.0)
+        vp = np.where(moving & (clamped == lp), held.velocity_m_per_s, 0.0)
         return u, clamped, vp
+
+    def drive_many(self, topic: str, names, drives, times_ns):
+        """:meth:`on_drive` of k messages naming ``names`` (rows of ``drives`` (k, m), at
+        ``times_ns``) as arrays, when each would be stored whole with no issue: (muscle index,
+        the drives (k, index size)); None when one of them would not (a name unknown or
+        repeated, a drive not finite or clipped): the caller hands them over one by one."""
+        drives = np.asarray(drives, dtype=float)
+        issues, muscles, entries = self._select(topic, names, drives.shape[1])
+        if issues or muscles is None or muscles.size == 0:
+            return None
+        values = drives if entries is self._order else drives[:, entries]
+        if not (np.isfinite(values).all() and ((values >= 0.0) & (values <= 1.0)).all()):
+            return None
+        return np.asarray(muscles), np.minimum(np.maximum(values, 0.0), 1.0)  # as _set_drive
+
+    def hold_rows(self, times_ns, drive_update, path_update) -> HeldInputs:
+        """What k messages at ``times_ns`` leave held after each of them, and before the first
+        (row 0): HeldInputs of (k + 1, n). ``drive_update`` (muscle index, drives (k, m)) as
+        drive_many gives them, ``path_update`` (updated (k, n) bool per message and muscle,
+        lengths and velocities (k, n)): the path kinematics each message stored."""
+        k = len(times_ns)
+        times = np.asarray(times_ns, dtype=np.int64)[:, None]
+        muscles, drives = drive_update
+        new_drive = np.zeros((k, self.n))
+        new_drive[:, muscles] = drives
+        drive_set = np.zeros((k, self.n), dtype=bool)
+        drive_set[:, muscles] = True
+        updated, lengths, velocities = path_update
+        every = np.broadcast_to(times, (k, self.n))
+        return HeldInputs(
+            carried(self.drive, new_drive, drive_set),
+            carried(self.drive_seen, np.ones((k, self.n), dtype=bool), drive_set),
+            carried(self.drive_time_ns, every, drive_set),
+            carried(self.length_m, lengths, updated),
+            carried(self.velocity_m_per_s, velocities, updated),
+            carried(self.length_seen, np.ones((k, self.n), dtype=bool), updated),
+            carried(self.length_time_ns, every, updated))
+
+    def keep(self, held: HeldInputs, last_excitation_ns: int) -> None:
+        """Hold the last row of ``held`` (hold_rows: after the last message of a block)."""
+        (self.drive, self.drive_seen, self.drive_time_ns, self.length_m, self.velocity_m_per_s,
+         self.length_seen, self.length_time_ns) = (array[-1].copy() for array in held)
+        self.last_excitation_ns = int(last_excitation_ns)
 
     def ages_s(self, now_ns: int) -> dict:
         """Age (s) of the newest excitation and kinematics message; None if never received."""
@@ -442,4 +524,5 @@ def node_receivers(inputs: NodeInputs, on_joint_states) -> dict:
                 on_joint_states(names, position, velocity, time_ns)}
 
 
-__all__ = ["InputLimits", "NodeInputs", "node_receivers", "physical_path_length_range"]
+__all__ = ["HeldInputs", "InputLimits", "NodeInputs", "carried", "node_receivers",
+           "physical_path_length_range"]

@@ -71,6 +71,25 @@ class JointSample:
     moment_arm: np.ndarray
 
 
+@dataclass(frozen=True)
+class JointBlock:
+    """k joint_states messages as JointInputs.on_joint_states_many conditioned them, none stored
+    yet (JointInputs.keep stores the last). Per message (row): ``samples`` (k JointSample),
+    ``q``, ``qdot``, ``q_time_ns`` (k, n_coordinates) the coordinates held after it (model
+    convention, as received: JointInputs.q), ``seen`` (n_coordinates,) after the first;
+    ``path`` (updated (k, n) bool, lengths m, velocities m/s (k, n)) per node muscle, the path
+    kinematics each stored (NodeInputs.hold_rows); ``issues`` their issues, each kind once with
+    the first message's text and the count over all."""
+
+    samples: list
+    q: np.ndarray
+    qdot: np.ndarray
+    q_time_ns: np.ndarray
+    seen: np.ndarray
+    path: tuple
+    issues: list
+
+
 RANGE_MARGIN = 0.1       # of the sampled length range, added on each side (poses miss extremes)
 
 
@@ -222,6 +241,77 @@ class JointInputs:
         self.last_message_ns = now_ns
         return issues
 
+    def on_joint_states_many(self, names: tuple, positions, velocities,
+                             times_ns) -> JointBlock | None:
+        """on_joint_states of k messages naming ``names`` (rows of ``positions`` and
+        ``velocities`` (k, m), at increasing ``times_ns``, no other joint_states in between),
+        conditioned as arrays with the same operations element by element (the geometry at
+        every pose in one call: geometry.evaluate_many), nothing stored (keep stores it). None
+        when one of them would not be the usual accepted message: dropped (a name unknown or
+        repeated, a value not finite, paths NodeInputs would refuse) or before every needed
+        coordinate has a position; the caller then hands them over one by one. Coordinates
+        outside the box are clamped and counted as on_joint_states does."""
+        positions = np.asarray(positions, dtype=float)
+        velocities = np.asarray(velocities, dtype=float)
+        k = len(positions)
+        if k == 0 or positions.ndim != 2 or velocities.shape != positions.shape:
+            return None
+        issues, index, entries = self._select(names, positions.shape[1])
+        if issues or index is None or index.size == 0:
+            return None
+        robot_q, robot_qdot = positions[:, entries], velocities[:, entries]
+        space = self.space
+        seen = self.seen.copy()
+        seen[index] = True
+        if not (np.isfinite(robot_q).all() and np.isfinite(robot_qdot).all()
+                and seen[space.needed].all()):
+            return None
+        times = np.asarray(times_ns, dtype=np.int64)[:, None]
+        q, qdot = np.tile(self.q, (k, 1)), np.tile(self.qdot, (k, 1))
+        q_time = np.tile(self.q_time_ns, (k, 1))
+        with np.errstate(over="ignore", invalid="ignore"):
+            q[:, index], qdot[:, index] = space.map.to_model(index, robot_q, robot_qdot)
+            q_time[:, index] = times
+            if not np.isfinite(q[:, index]).all():
+                return None
+            q_now, qdot_now = self._extrapolated(q, qdot, seen, q_time, times)
+        if not np.isfinite(q_now[:, seen]).all():
+            return None
+        outputs = space.geometry.evaluate_many(*self._pose(q_now, qdot_now, seen))
+        update = np.tile(space.crosses[:, index].any(axis=1), (k, 1))
+        if self.sample is None:
+            update[0] = True  # the first sample gives every joint-driven muscle its path
+        lengths = np.array([out.length_m[space.rows] for out in outputs])
+        speeds = np.array([out.velocity_m_per_s[space.rows] for out in outputs])
+        lo, hi = (bound[space.driven_index] for bound in self.inputs.path_bounds())
+        limit = self.inputs.limits.path_speed_max_m_per_s
+        if not ((((lengths >= lo) & (lengths <= hi)) | ~update).all()
+                and ((np.abs(speeds) <= limit) | ~update).all()):
+            return None  # NodeInputs.set_path_kinematics would refuse one
+        path = tuple(np.zeros((k, self.inputs.n), dtype=dtype) for dtype in (bool, float, float))
+        for array, values in zip(path, (update, lengths, speeds), strict=True):
+            array[:, space.driven_index] = values
+        samples, issues = [], []
+        for row, out in enumerate(outputs):
+            if out.clamped[index].any():
+                issues.append(self._clamped_issue(q_now[row], out, index))
+            sample = JointSample(int(times[row, 0]), out.q, out.qdot, out.moment_arm[space.rows])
+            for array in (sample.q, sample.qdot, sample.moment_arm):
+                array.flags.writeable = False
+            samples.append(sample)
+        if issues:
+            issues = [Issue(issues[0].kind, issues[0].text, count=sum(i.count for i in issues))]
+        return JointBlock(samples, q, qdot, q_time, seen, path, issues)
+
+    def keep(self, block: JointBlock) -> None:
+        """Store what the last message of ``block`` left (on_joint_states_many)."""
+        self.q, self.qdot, self.q_time_ns = (rows[-1].copy() for rows in (
+            block.q, block.qdot, block.q_time_ns))
+        self.seen = block.seen.copy()
+        self.sample = block.samples[-1]
+        self.last_message_ns = self.sample.time_ns
+        self._expected = {}
+
     def expect(self, names: tuple, positions, velocities, times_ns) -> None:
         """joint_states messages about to come (rows of ``positions``, ``velocities`` (k, m), at
         ``times_ns``, all naming ``names`` and no other joint in between): the poses each will be
@@ -281,15 +371,8 @@ class JointInputs:
         None when NodeInputs rejected the paths; issues)."""
         space, issues = self.space, []
         out = self._geometry_at(*self._pose(q, qdot, seen), now_ns)
-        clamped = index[out.clamped[index]]
-        if clamped.size:
-            shown = clamped[:3]
-            before = space.map.to_robot(shown, q[shown], 0.0, 0.0)[0]
-            after = space.map.to_robot(shown, out.q[shown], 0.0, 0.0)[0]
-            details = ", ".join(f"{space.map.robot_names[k]} {a:.6g} -> {b:.6g}"
-                                for k, a, b in zip(shown, before, after, strict=True))
-            issues.append(Issue("joint_clamped", f"{TOPIC}: outside the geometry's box, "
-                                f"clamped: {details}", count=int(clamped.size)))
+        if out.clamped[index].any():
+            issues.append(self._clamped_issue(q, out, index))
         update = (np.ones(len(space.driven), dtype=bool) if self.sample is None
                   else space.crosses[:, index].any(axis=1))
         if np.any(update):
@@ -304,6 +387,19 @@ class JointInputs:
         for array in (sample.q, sample.qdot, sample.moment_arm):
             array.flags.writeable = False
         return sample, issues
+
+    def _clamped_issue(self, q, out, index) -> Issue:
+        """joint_clamped for the coordinates of ``index`` that ``out`` clamped (q: the pose
+        before clamping)."""
+        space = self.space
+        clamped = index[out.clamped[index]]
+        shown = clamped[:3]
+        before = space.map.to_robot(shown, q[shown], 0.0, 0.0)[0]
+        after = space.map.to_robot(shown, out.q[shown], 0.0, 0.0)[0]
+        details = ", ".join(f"{space.map.robot_names[k]} {a:.6g} -> {b:.6g}"
+                            for k, a, b in zip(shown, before, after, strict=True))
+        return Issue("joint_clamped", f"{TOPIC}: outside the geometry's box, clamped: {details}",
+                     count=int(clamped.size))
 
     def efforts(self, sample: JointSample, force) -> JointEfforts:
         """joint_efforts of a step: ``force`` (N, every node muscle, the step's output) through
@@ -329,4 +425,4 @@ class JointInputs:
                               for key in ("position", "velocity", "effort")))
 
 
-__all__ = ["JointInputs", "JointSample", "geometry_length_range"]
+__all__ = ["JointBlock", "JointInputs", "JointSample", "geometry_length_range"]

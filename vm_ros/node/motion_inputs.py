@@ -280,9 +280,11 @@ class MotionInputs:
         each step, (k, n) each. The samples due are taken at once (interpolated as arrays,
         their messages encoded in bulk into ``pending`` at the step that takes them,
         ``first_step`` + index, as SampledInputs.block does, the geometry evaluated at their
-        poses at once: JointInputs.expect), then handed to the conditioning one by one as
-        advance_to hands them. ``block_samples`` then holds the joint sample each step used
-        (block_efforts)."""
+        poses at once), then conditioned as arrays (NodeConditioning.block: the same bits as
+        advance_to's messages one by one), or, where that declines (a message not the usual
+        accepted one), handed to the conditioning one by one as advance_to hands them (the
+        poses evaluated at once beforehand: JointInputs.expect). ``block_samples`` then holds
+        the joint sample each step used (block_efforts)."""
         last = int(step_starts_ns[-1])
         count = max(0, (last - self._next_ns) // self.period_ns + 1)
         times = self._next_ns + self.period_ns * np.arange(count, dtype=np.int64)
@@ -300,6 +302,12 @@ class MotionInputs:
             pending.add(slots * 16 + INPUT_RANK + 1, tm.TOPIC_JOINT_STATES,
                         joints.encode(times, position=robot_q, velocity=robot_qdot), times)
         conditioning, names = self.conditioning, tuple(self._robot_names)
+        done = conditioning.block(self.muscles, drive, names, robot_q, robot_qdot, times,
+                                  step_starts_ns)
+        if done is not None:
+            *inputs, self.block_samples = done
+            self._next_ns += count * self.period_ns
+            return tuple(inputs)
         if conditioning.joints is not None:
             conditioning.joints.expect(names, robot_q, robot_qdot, times)
         u, lp, vp, self.block_samples = [], [], [], []

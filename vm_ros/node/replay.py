@@ -41,7 +41,7 @@ from vm_ros.errors import ConfigError
 from vm_ros.geometry import load_geometry
 from vm_ros.geometry.file import loads as load_geometry_text
 from vm_ros.joint_space import JointEfforts, JointMap, JointSpace
-from vm_ros.node.inputs import InputLimits, NodeInputs, node_receivers
+from vm_ros.node.inputs import HeldInputs, InputLimits, NodeInputs, node_receivers
 from vm_ros.node.joint_inputs import JointInputs
 from vm_ros.node.params import NodeConfig
 from vm_ros.recording.cdr import input_decoder
@@ -175,6 +175,38 @@ class NodeConditioning:
             return self.space.output
         index = (self.space.map.index_of(name) for name in names)
         return np.array([j for j in index if j is not None], dtype=int)
+
+    def block(self, muscles: tuple, drives, joints: tuple, positions, velocities, times_ns,
+              steps_ns):
+        """An excitation naming ``muscles`` and a joint_states naming ``joints`` at each of
+        ``times_ns`` (rows of ``drives``, ``positions``, ``velocities``), then the steps starting
+        at ``steps_ns``, as arrays: what on_excitation and on_joint_states message by message,
+        with ``sample`` at each step start in between, give (the same bits, the same counts):
+        (U, path length, path velocity) (k, n) each and the joint sample each step used. None
+        (nothing applied) when a message is not the usual accepted one, a step would find the
+        inputs not ready or live coordination is on: the caller then goes message by message."""
+        if self.joints is None or len(self.coordinated) or not len(times_ns):
+            return None
+        drive = self.inputs.drive_many("excitation", muscles, drives, times_ns)
+        if drive is None:
+            return None
+        block = self.joints.on_joint_states_many(joints, positions, velocities, times_ns)
+        if block is None:
+            return None
+        held = self.inputs.hold_rows(times_ns, drive, block.path)
+        applied = np.searchsorted(times_ns, steps_ns, side="right")  # messages before each step
+        at_steps = HeldInputs(*(rows[applied] for rows in held))
+        if not np.isfinite(at_steps.length_m).all():
+            return None  # a step not ready: message by message, which says so
+        u, length, velocity = self.inputs.sample_held(steps_ns, at_steps)
+        samples = [self.joints.sample, *block.samples]
+        self.inputs.keep(held, times_ns[-1])
+        self.joints.keep(block)
+        self._count(block.issues)
+        named = self._named(joints)
+        self.clamped[named] += (block.q[:, named] != np.array(
+            [sample.q[named] for sample in block.samples])).sum(axis=0)
+        return u, length, velocity, [samples[a] for a in applied.tolist()]
 
     @property
     def ready(self) -> bool:
