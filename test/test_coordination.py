@@ -13,10 +13,21 @@ import pytest
 import yaml
 from scipy import optimize
 
+from vm_ros.coordination.costs import cost_named
+from vm_ros.coordination.distribution import (
+    COARSE_LEVELS,
+    FINE_LEVELS,
+    STRIDE,
+    TABLE_LENGTHS,
+    distribute,
+    static_table,
+    window,
+    windows,
+)
 from vm_ros.coordination.problem import build_problem
 from vm_ros.coordination.solver import SolverOptions, solve, solver_settings
 from vm_ros.coordination.targets import JointMomentTargets
-from vm_ros.errors import ConfigError
+from vm_ros.errors import ConfigError, VmRosError
 from vm_ros.geometry import Coordinate, MusclePath, PolynomialGeometry
 from vm_ros.model import MuscleBank
 from vm_ros.model.params import load_muscle_library
@@ -207,3 +218,55 @@ def test_a_bad_solver_setting_is_named(tmp_path, old, new, field):
     with pytest.raises(ConfigError) as caught:
         solver_settings(path)
     assert caught.value.field == field
+
+
+def test_lp_windows_cover_every_frame_once_and_solve_the_overlap_twice():
+    """distribution.windows on frames every 10 ms: windows of 0.05 s (frames within 0.05 s of
+    the window's first) keeping all but their last 0.02 s, counted by hand; length 0 is one
+    window."""
+    times = np.arange(10) * 0.01
+    assert windows(times, 0.05, 0.02) == [(0, 5, 3), (3, 8, 6), (6, 10, 10)]
+    assert windows(times, 0.0, 0.0) == [(0, 10, 10)]
+    assert windows(times, 0.005, 0.0) == [(a, a + 1, a + 1) for a in range(10)]
+
+
+def lp_case(tmp_path, smoothness):
+    """Stage 1's LP (drive2, 21 levels) of two muscles (arms 0.02 and 0.04 m) under a moment
+    rising and falling over 1 s at 50 frames per second, solved as one LP and in windows of
+    0.1 s overlapping by 0.04 s: (one, windowed) Distributions."""
+    arms = {"a": 0.02, "b": 0.04}
+    bank = MuscleBank.from_config(list(arms), library=library(tmp_path, a={}, b={}))
+    times = np.linspace(0.0, 1.0, 51)
+    targets = JointMomentTargets(times, ("q",), (30.0 + 20.0 * np.sin(6.0 * times))[:, None],
+                                 "analytic")
+    problem = build_problem(geometry(arms), motion(1.0, 0.3), targets, list(arms))
+    rate = cost_named("drive2").rate_function(bank.energetics_models)
+    table = window(static_table(bank, problem, rate, FINE_LEVELS, TABLE_LENGTHS),
+                   np.zeros((51, 2), int), COARSE_LEVELS, STRIDE)
+    return [distribute(problem, table, np.ones(2), 1e3, smoothness, *span)
+            for span in ((0.0, 0.0), (0.1, 0.04))]
+
+
+def test_without_smoothness_the_windowed_lp_is_the_single_lp(tmp_path):
+    """Without the smoothness term the LP falls apart frame by frame, so solving it in windows
+    must give the single LP's optimum: objective within 1e-6 relative, reserves within
+    1e-6 N m."""
+    one, windowed = lp_case(tmp_path, 0.0)
+    assert windowed.objective == pytest.approx(one.objective, rel=1e-6)
+    np.testing.assert_allclose(windowed.reserves, one.reserves, atol=1e-6)
+
+
+def test_the_windowed_lp_is_feasible_and_not_below_the_single_lp(tmp_path):
+    """With the smoothness term, windows (each fixing the force before it) give a feasible
+    point of the whole LP, so its objective is at least the single LP's optimum; and it stays
+    within 1 % of it on a smooth target."""
+    one, windowed = lp_case(tmp_path, 0.1)
+    assert one.objective <= windowed.objective * (1 + 1e-9)
+    assert windowed.objective == pytest.approx(one.objective, rel=0.01)
+
+
+def test_an_lp_overlap_not_below_its_window_is_an_error():
+    """distribution_overlap_s >= distribution_window_s (> 0) would never advance: VmRosError
+    naming it."""
+    with pytest.raises(VmRosError, match="distribution_overlap_s"):
+        SolverOptions(distribution_window_s=0.1, distribution_overlap_s=0.1).check(())

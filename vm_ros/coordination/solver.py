@@ -78,6 +78,8 @@ class DriveSettings:
 class DistributionSettings:
     reserve_weight: float = holds("1")
     smoothness: float = holds("s")
+    window: float = holds("s")
+    overlap: float = holds("s")
 
 
 @dataclass(frozen=True)
@@ -131,7 +133,9 @@ class SolverOptions:
 
     Stage 1 (distribution.py): ``distribution_reserve_weight`` (w_res of the LP, on mean
     |reserve| / peak), ``distribution_smoothness`` (w_smooth of the LP, s, on mean
-    |dF/dt| / F_max). Stage 2 (tracking.py): ``iterations`` (forward runs at most),
+    |dF/dt| / F_max), ``distribution_window_s`` and ``distribution_overlap_s`` (the LP solved
+    in windows of that length, each keeping all but its last overlap; 0: one LP). Stage 2
+    (tracking.py): ``iterations`` (forward runs at most),
     ``patience``, ``lead_s``, ``gain``, ``tracking_tolerance`` (max RMS reserve / peak that
     stops).
 
@@ -147,6 +151,8 @@ class SolverOptions:
     lead_in_s: float = _setting("drives", "lead_in")
     distribution_reserve_weight: float = _setting("distribution", "reserve_weight")
     distribution_smoothness: float = _setting("distribution", "smoothness")
+    distribution_window_s: float = _setting("distribution", "window")
+    distribution_overlap_s: float = _setting("distribution", "overlap")
     iterations: int = _setting("tracking", "iterations", int)
     patience: int = _setting("tracking", "patience", int)
     lead_s: float = _setting("tracking", "lead")
@@ -172,10 +178,14 @@ class SolverOptions:
                      "qp_eps", "memory_s"):
             if not getattr(self, name) > 0:
                 raise VmRosError(f"{name} must be > 0 (got {getattr(self, name)})")
-        for name in ("smoothness", "distribution_smoothness", "lead_s", "refine", "lead_in_s",
+        for name in ("smoothness", "distribution_smoothness", "distribution_window_s",
+                     "distribution_overlap_s", "lead_s", "refine", "lead_in_s",
                      "tracking_tolerance", "tolerance"):
             if not getattr(self, name) >= 0:
                 raise VmRosError(f"{name} must be >= 0 (got {getattr(self, name)})")
+        if 0 < self.distribution_window_s <= self.distribution_overlap_s:
+            raise VmRosError(f"distribution_overlap_s must be < distribution_window_s (got "
+                             f"{self.distribution_overlap_s} >= {self.distribution_window_s})")
         if not all(w >= 0 for w in self.muscle_weights.values()):
             raise VmRosError("muscle weights must be >= 0")
 
@@ -374,7 +384,8 @@ def solve(bank, problem: CoordinationProblem, options: SolverOptions | None = No
     # stage 1: the distribution; stage 2: drives whose forward run meets it
     fine = static_table(bank, problem, rate, FINE_LEVELS, TABLE_LENGTHS)
     table, shares = refined(problem, fine, weights, options.distribution_reserve_weight,
-                            options.distribution_smoothness)
+                            options.distribution_smoothness, options.distribution_window_s,
+                            options.distribution_overlap_s)
     history = []
 
     def kept(nodes, out, damping):
