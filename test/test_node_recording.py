@@ -4,6 +4,7 @@ messages are CDR-encoded from bundled definitions)."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 
@@ -81,6 +82,24 @@ def test_closing_before_the_start_leaves_a_complete_file(tmp_path):
     run = read_run(path)
     assert run.complete and run.info.extra["started"] == "false"
     assert len(run.get(tm.TOPIC_EXCITATION)) == 1
+
+
+def test_attachments_are_the_files_as_they_were_when_the_node_was_built(tmp_path):
+    """The model file is read when the log object is made (the node's construction, when the
+    model was built from it), not at the model start: a later edit of the file is not logged."""
+    model_file = tmp_path / "model.yaml"
+    model_file.write_bytes(b"# the model the node was built from\n")
+
+    def info_with_model_file(start_time_ns):
+        info = run_info(start_time_ns)
+        return dataclasses.replace(info, config=info.config.replace(params=str(model_file)))
+
+    log = NodeRunLog(tmp_path / "run.mcap", info_with_model_file)
+    model_file.write_bytes(b"# edited after the node started\n")
+    log.start(T0)
+    log.close()
+    run = read_run(tmp_path / "run.mcap")
+    assert run.attachments["model.yaml"] == b"# the model the node was built from\n"
 
 
 def test_unwritable_path_fails_at_once(tmp_path):

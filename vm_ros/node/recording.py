@@ -3,8 +3,10 @@
 The file is a vm_ros run log (vm_ros.recording.run_log): its ``vm_ros.run`` metadata needs the
 model's start time, known only when the first kinematics arrive. So the path is checked (and the
 file created) when the node starts, the log itself is opened when the model starts, and what is
-written before that is held in a bounded buffer and written first. A node stopped before the model
-started still leaves a complete file (metadata key ``started`` = false).
+written before that is held in a bounded buffer and written first. What the log needs but the
+start time (the attachments read from their files, the topics, the recorder options) is prepared
+when the node starts, so that the tick that starts the model does not read files. A node stopped
+before the model started still leaves a complete file (metadata key ``started`` = false).
 
 Recording never stops the model: when the disk is full (or any other write error) at the
 start of the log or later, the status turns failed (``ok`` False, the error, the messages that
@@ -28,14 +30,17 @@ from pathlib import Path
 from vm_ros import telemetry as tm
 from vm_ros.errors import VmRosError
 from vm_ros.recording.bag import BagError, is_bag_path, prepare_bag_directory
+from vm_ros.recording.message_types import schema_text
 from vm_ros.recording.run_log import (
     INPUT_TOPICS,
     JOINT_TOPICS,
+    LOG_TOPIC_TYPES,
     MODEL_TOPICS,
     OUTPUT_TOPICS,
     RunInfo,
     open_run_log,
     resolve_topic,
+    run_attachments,
 )
 from vm_ros.recording.versions import library_versions
 from vm_ros.recording.writer import McapRecorder, RecorderError, RecorderStatus
@@ -118,6 +123,29 @@ class NodeRunLog:
         except OSError as exc:
             raise RecorderError(self.path, f"cannot create the file: {exc.strerror or exc}") \
                 from exc
+        self._prepared = self._prepare()
+
+    def _preparation(self, info: RunInfo) -> tuple[list, dict, dict]:
+        """(topics, attachments, recorder options) of the log: what it needs of the run info
+        but its start time."""
+        topics = [t for t in LOG_TOPICS
+                  if t not in JOINT_TOPICS or info.config.geometry is not None]
+        if info.config.energetics_models:
+            topics += MODEL_TOPICS
+        topics += self._extra_topics
+        options = {**recorded_recorder_options(info), **self._recorder_options}
+        return topics, run_attachments(info.config), options
+
+    def _prepare(self) -> tuple[list, dict, dict] | None:
+        """_preparation before the model start; None when it fails now (an attachment's file
+        unreadable): then ``start`` tries again, and reports the error, as the log opens."""
+        try:
+            prepared = self._preparation(self._run_info(None))
+        except (VmRosError, OSError):
+            return None
+        for topic in prepared[0]:  # each type's definition, composed once and cached
+            schema_text(LOG_TOPIC_TYPES[topic])
+        return prepared
 
     @property
     def started(self) -> bool:
@@ -152,14 +180,9 @@ class NodeRunLog:
             return
         try:
             info = self._run_info(start_time_ns)
-            topics = [t for t in LOG_TOPICS
-                      if t not in JOINT_TOPICS or info.config.geometry is not None]
-            if info.config.energetics_models:
-                topics += MODEL_TOPICS
-            topics += self._extra_topics
-            options = {**recorded_recorder_options(info), **self._recorder_options}
+            topics, attachments, options = self._prepared or self._preparation(info)
             self.recorder = open_run_log(self.path, info, topics=topics, qos=self._qos,
-                                         **options)
+                                         attachments=attachments, **options)
         except (VmRosError, OSError) as exc:
             self._open_error = str(exc)
             self._dropped += len(self._buffer)

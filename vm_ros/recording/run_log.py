@@ -343,6 +343,7 @@ def default_log_topics(info: RunInfo) -> list[str]:
 
 def open_run_log(path, info: RunInfo, bank: MuscleBank | None = None,
                  topics: Iterable[str] | None = None, qos: Mapping[str, str] | None = None,
+                 attachments: Mapping[str, bytes] | None = None,
                  **recorder_options) -> McapRecorder:
     """A McapRecorder with the run's metadata and attachments, its channels declared.
 
@@ -353,7 +354,8 @@ def open_run_log(path, info: RunInfo, bank: MuscleBank | None = None,
     topics: base names to declare (default: all of LOG_TOPIC_TYPES but /diagnostics, telemetry
     when telemetry_rate_hz is 0, the JOINT_TOPICS without a geometry, the MODEL_TOPICS
     without energetics models and the COORDINATION_TOPICS); qos: ``{base name:
-    offered_qos_profiles YAML}``.
+    offered_qos_profiles YAML}``; attachments: run_attachments(info.config) read before (a node
+    reads them when it is built, not at the model start), default read now.
     Raises RecorderError naming the path when the file cannot be created.
     """
     if bank is not None and info.config.recovery_mode is None:
@@ -364,8 +366,10 @@ def open_run_log(path, info: RunInfo, bank: MuscleBank | None = None,
             drive_law=bank.params.lumped.drive_law))
     if topics is None:
         topics = default_log_topics(info)
+    if attachments is None:
+        attachments = run_attachments(info.config)
     recorder = McapRecorder(path, metadata={METADATA_NAME: info.to_metadata()},
-                            attachments=run_attachments(info.config), **recorder_options)
+                            attachments=attachments, **recorder_options)
     for topic in topics:
         recorder.add_channel(info.log_topic(topic), LOG_TOPIC_TYPES[topic],
                              (qos or {}).get(topic))
