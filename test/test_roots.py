@@ -93,6 +93,11 @@ SCIPY_1_10_NAMES = {
     ("scipy.sparse", "hstack"),
     ("scipy.sparse", "triu"),
     ("scipy.sparse", "block_diag"),
+    # coordination targets' low-pass: filtfilt(b, a, x, axis, padtype='odd', padlen=3 max(len(a),
+    # len(b))) and butter(N, Wn) as documented for SciPy 0.18-1.7 (docs.scipy.org), so in 1.10
+    ("scipy", "signal"),
+    ("scipy.signal", "butter"),
+    ("scipy.signal", "filtfilt"),
 }
 
 
