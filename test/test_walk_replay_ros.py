@@ -128,11 +128,9 @@ def test_the_walk_replayed_as_a_planned_profile(ros, walk, lowpass_hz):
     every muscle, no stale input, a joint_efforts message per period of the walk; then each
     coordinate's RMS error / peak of that profile against 5 % (BoundMissedError when
     missed)."""
-    from vm_ros.coordination.solver import solver_settings
     from vm_ros.coordination.targets import lowpass_targets
 
-    profile = lowpass_targets(walk[4], lowpass_hz, int(
-        solver_settings()["targets"].lowpass_order)) if lowpass_hz else None
+    profile = lowpass_targets(walk[4], lowpass_hz) if lowpass_hz else None
     done = replay(ros, walk, targets=profile)
     joints, rms, probe, node = done["joints"], done["rms_of_peak"], done["probe"], done["node"]
     print(f"\nthe walk over ROS ({'ID at 6 Hz' if lowpass_hz else 'ID as given'}), "

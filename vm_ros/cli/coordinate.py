@@ -156,13 +156,11 @@ def _muscles(args, geometry) -> tuple:
 
 
 def _report_lines(result, rate_w, body_mass, speed) -> list[str]:
-    from vm_ros.coordination.solver import solver_settings
     from vm_ros.coordination.targets import content_above
 
     p, s = result.problem, result.summary
     cutoff = result.options.smoothness_cutoff_hz
-    above = content_above(p.frame_times_s, p.target, cutoff,
-                          int(solver_settings()["targets"].lowpass_order))
+    above = content_above(p.frame_times_s, p.target, cutoff)
     above = (np.full(len(s.coordinates), np.nan) if above is None
              else 100 * above / np.maximum(s.target_peak, 1e-12))
     lines = [f"{'coordinate':<22} {'target peak':>11} {'reserve RMS':>11} {'peak':>9} "
@@ -256,7 +254,7 @@ def run(args) -> int:
     from vm_ros.cli import simulate
     from vm_ros.coordination.costs import COSTS, vm_rate
     from vm_ros.coordination.problem import build_problem
-    from vm_ros.coordination.solver import SolverOptions, solve, solver_settings
+    from vm_ros.coordination.solver import SolverOptions, solve
     from vm_ros.coordination.targets import load_targets, lowpass_targets
     from vm_ros.geometry import load_geometry
     from vm_ros.importers.motion import read_motion
@@ -278,8 +276,7 @@ def run(args) -> int:
     joint_motion = JointMotion.from_motion(motion, geometry, crossed, {})
     targets = load_targets(args.targets, geometry=geometry, motion=joint_motion)
     if args.targets_lowpass > 0:
-        targets = lowpass_targets(targets, args.targets_lowpass,
-                                  int(solver_settings()["targets"].lowpass_order))
+        targets = lowpass_targets(targets, args.targets_lowpass)
         print(f"targets {targets.source}: {targets.notes[-1]}")
     options = SolverOptions(cost=args.cost, muscle_weights=_weights(args.muscle_weight),
                             node_step_s=args.node_step, reserve_weight=args.reserve_weight,

@@ -372,14 +372,24 @@ def zero_phase_lowpass(times_s, values, cutoff_hz: float, order: int, what: str)
     return signal.filtfilt(b, a, values, axis=0)
 
 
+def configured_lowpass_order() -> int:
+    """The order of the targets' low-pass: ``targets.lowpass_order`` of
+    config/coordination.yaml."""
+    from vm_ros.coordination.solver import solver_settings  # solver imports this module
+
+    return int(solver_settings()["targets"].lowpass_order)
+
+
 def lowpass_targets(targets: JointMomentTargets, cutoff_hz: float,
-                    order: int) -> JointMomentTargets:
+                    order: int | None = None) -> JointMomentTargets:
     """``targets`` with their moments and residuals low-passed at ``cutoff_hz``
-    (zero_phase_lowpass), a note saying so. For inverse dynamics whose ground reaction forces
-    were not filtered as the kinematics were (the impact transients at heel strike then appear
-    in the moments: Bisseling & Hof 2006; Kristianslund et al. 2012 recommend one cutoff for
-    both); TargetsError as zero_phase_lowpass."""
+    (zero_phase_lowpass; ``order`` None: configured_lowpass_order), a note saying so. For
+    inverse dynamics whose ground reaction forces were not filtered as the kinematics were
+    (the impact transients at heel strike then appear in the moments: Bisseling & Hof 2006;
+    Kristianslund et al. 2012 recommend one cutoff for both); TargetsError as
+    zero_phase_lowpass."""
     what = f"targets {targets.source}"
+    order = configured_lowpass_order() if order is None else order
     moments = zero_phase_lowpass(targets.times_s, targets.moments_nm, cutoff_hz, order, what)
     unmatched = np.asarray(targets.unmatched_nm, dtype=float)
     if unmatched.size:
@@ -390,10 +400,13 @@ def lowpass_targets(targets: JointMomentTargets, cutoff_hz: float,
                    notes=(*targets.notes, note))
 
 
-def content_above(times_s, values, cutoff_hz: float, order: int) -> np.ndarray | None:
+def content_above(times_s, values, cutoff_hz: float,
+                  order: int | None = None) -> np.ndarray | None:
     """RMS over the frames of the part of ``values`` (T, k) above ``cutoff_hz`` (the values
-    less their zero_phase_lowpass), per column (k,); None where the frames allow no low-pass
-    (not uniform, too few, cutoff at or above Nyquist)."""
+    less their zero_phase_lowpass; ``order`` None: configured_lowpass_order), per column (k,);
+    None where the frames allow no low-pass (not uniform, too few, cutoff at or above
+    Nyquist)."""
+    order = configured_lowpass_order() if order is None else order
     try:
         smooth = zero_phase_lowpass(times_s, values, cutoff_hz, order, "content above")
     except TargetsError:
@@ -418,6 +431,6 @@ def load_targets(spec: str, *, geometry, motion) -> JointMomentTargets:
 
 
 __all__ = ["ALIGN_FRACTION", "SPEC_HELP", "JointMomentTargets", "TargetsError",
-           "align_to_frames", "content_above", "load_targets", "lowpass_targets",
-           "targets_from_mujoco", "zero_phase_lowpass",
+           "align_to_frames", "configured_lowpass_order", "content_above", "load_targets",
+           "lowpass_targets", "targets_from_mujoco", "zero_phase_lowpass",
            "targets_from_opensim", "targets_from_storage"]

@@ -27,8 +27,8 @@ the item is skipped and says which.
 
 from __future__ import annotations
 
+import dataclasses
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -47,7 +47,7 @@ SECONDS_PER_MINUTE = 60.0
 M_PER_S_PER_M_PER_MIN = 1.0 / 60.0
 
 
-@dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True)
 class WalkSolution:
     """A coordination result on the walk.
 
@@ -125,11 +125,9 @@ def target_content_above(solution: WalkSolution, cutoff_hz: float) -> dict[str, 
     """Per coordinate: RMS of the targets' content above ``cutoff_hz`` (the targets less their
     zero-phase low-pass, vm_ros.coordination.targets.content_above) over the coordinate's peak;
     empty when the frames allow no low-pass."""
-    from vm_ros.coordination.solver import solver_settings
     from vm_ros.coordination.targets import content_above
 
-    rms = content_above(solution.times_s, solution.targets_nm, cutoff_hz,
-                        int(solver_settings()["targets"].lowpass_order))
+    rms = content_above(solution.times_s, solution.targets_nm, cutoff_hz)
     if rms is None:
         return {}
     peak = np.maximum(np.abs(solution.targets_nm).max(axis=0), 1e-12)
@@ -143,10 +141,7 @@ def variant_reported(variant: WalkSolution, raw: WalkSolution, config: dict) -> 
     and the largest drive variance share above the smoothness cutoff."""
     crit = config["criteria"]
     own = tracking_errors(variant, crit["spike_of_peak"]["value"])
-    against_raw = tracking_errors(WalkSolution(variant.label, variant.times_s, variant.muscles,
-                                               variant.drives, variant.forces_n,
-                                               variant.coordinates, variant.moments_nm,
-                                               raw.targets_nm, variant.metabolic_w),
+    against_raw = tracking_errors(dataclasses.replace(variant, targets_nm=raw.targets_nm),
                                   crit["spike_of_peak"]["value"])
     out = []
     for name in (c for c in TRACKED if c in own):
@@ -446,7 +441,6 @@ def solve_walk(files, config, params) -> tuple[list[WalkSolution], WalkSolution]
     except ImportError as exc:
         raise CheckSkippedError("vm_ros.coordination has no solver in this build: the walk "
                                 f"item needs one ({exc})") from exc
-    from vm_ros.coordination.solver import solver_settings
     from vm_ros.coordination.targets import load_targets, lowpass_targets
     from vm_ros.importers.motion import read_motion
     from vm_ros.model.bank import MuscleBank
@@ -472,8 +466,7 @@ def solve_walk(files, config, params) -> tuple[list[WalkSolution], WalkSolution]
                                                       motion, specs, params))
             if variant is None:
                 cutoff = config["lowpassed_targets"]["cutoff_hz"]["value"]
-                smooth = lowpass_targets(targets, cutoff,
-                                         int(solver_settings()["targets"].lowpass_order))
+                smooth = lowpass_targets(targets, cutoff)
                 lead_in = config["lowpassed_targets"]["lead_in_s"]["value"]
                 result = solve(MuscleBank(specs, params, "lumped"),
                                build_problem(geometry, motion, smooth, muscles),
