@@ -32,6 +32,7 @@ STRICT = os.environ.get("VM_ROS_NETNS") == "1" or os.environ.get("CI", "").lower
     "false",
 )
 COLCON_TIMEOUT_S = 90
+COMPILE_TIMEOUT_S = 240  # the model step's first compile: 11-12 s idle, up to 40 s busy
 EXECUTABLES = ("muscle_node", "mujoco_sim_node")  # each: resource/<name> -> lib/vm_ros/<name>
 
 
@@ -234,13 +235,17 @@ def test_colcon_build_gives_an_ament_prefix(tmp_path, monkeypatch, mode):
     }
     env["PATH"] = f"{venv / 'bin'}{os.pathsep}{env.get('PATH', '')}"
     env["COLCON_HOME"] = str(tmp_path / "colcon_home")  # no user defaults.yaml
+    # An empty Numba cache of its own: the plain install compiles the model step into it
+    # (setup.py InstallAndWarm); the symlink install (setup.py develop) does not warm.
+    env["NUMBA_CACHE_DIR"] = str(tmp_path / "numba_cache")
     argv = [str(venv / "bin" / "colcon"), "build", "--base-paths", "src"]
     if mode == "symlink-install":
         argv.append("--symlink-install")
 
     start = time.monotonic()
     proc = subprocess.run(
-        argv, cwd=workspace, env=env, capture_output=True, text=True, timeout=COLCON_TIMEOUT_S
+        argv, cwd=workspace, env=env, capture_output=True, text=True,
+        timeout=COLCON_TIMEOUT_S + (COMPILE_TIMEOUT_S if mode == "install" else 0),
     )
     elapsed = time.monotonic() - start
     print(f"colcon build ({mode}): {elapsed:.1f} s")
@@ -249,4 +254,23 @@ def test_colcon_build_gives_an_ament_prefix(tmp_path, monkeypatch, mode):
     prefix = workspace / "install" / PACKAGE
     if mode == "symlink-install":
         assert (prefix / "lib" / PACKAGE / "muscle_node").is_symlink()
+    else:
+        _assert_build_warmed_the_cache(venv, prefix, env)
     _assert_ament_prefix(prefix, monkeypatch)
+
+
+def _assert_build_warmed_the_cache(venv: Path, prefix: Path, env: dict) -> None:
+    """After `colcon build`, the installed copy finds its model step in Numba's disk cache
+    (Numba's own index lookup, in a new process with the build's NUMBA_CACHE_DIR)."""
+    sites = sorted(prefix.glob("lib/python*/site-packages"))
+    assert sites, f"no site-packages under {prefix}"
+    check = ("from vm_ros.model import jit, kernel; "
+             "print(jit.cache_root(), jit.in_disk_cache(kernel.advance_series))")
+    proc = subprocess.run(
+        [str(venv / "bin" / "python"), "-c", check], env=dict(env, PYTHONPATH=str(sites[0])),
+        capture_output=True, text=True, timeout=COLCON_TIMEOUT_S,
+    )
+    assert proc.returncode == 0, proc.stderr
+    root, cached = proc.stdout.split()
+    assert Path(root) == Path(env["NUMBA_CACHE_DIR"]), proc.stdout
+    assert cached == "True", f"colcon build left no compiled model step in {root}"
