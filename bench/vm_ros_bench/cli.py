@@ -366,7 +366,8 @@ def _myolegs_csv_rows(r: dict | None, add) -> None:
     if "skipped" in r:
         add("coordination-myolegs", "myolegs", "skipped", r["skipped"], "")
         return
-    case = f"myolegs, {r['muscles']} muscles, {r['motion_s']:g} s gait-like motion"
+    case = (f"myolegs, {r['muscles']} muscles, {r['motion_s']:g} s gait-like motion, "
+            f"{r.get('method', 'trajectory')}")
     for name, value in r["rms_percent"].items():
         add("coordination-myolegs", case, f"reserve_rms_percent {name}", value, "%")
     for key in ("forward_runs", "cpu_s", "targets_s", "load_average_start", "infeasible_frames"):
