@@ -117,3 +117,6 @@ def test_method_auto_picks_by_size_and_names_are_checked(tmp_path):
                                                         receding_above=0)) == "trajectory"
     with pytest.raises(VmRosError, match="method"):
         SolverOptions(method="fast").check(problem.muscles)
+    bank, problem = problem_of(tmp_path, {"a": 0.02, "b": 0.04}, lambda t: np.full_like(t, 10.0))
+    with pytest.raises(VmRosError, match="alike"):
+        receding_offline.solve(bank, problem, SolverOptions(muscle_weights={"a": 2.0}))

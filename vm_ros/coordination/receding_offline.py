@@ -6,14 +6,15 @@ Each period of ``period_s`` from the bank's state, RecedingHorizon.solve gets wh
 predicts, here known exactly: the path lengths and velocities of the coming probe steps (the
 problem's, at each step's start), the moment arms and targets at the probe steps' ends (linear
 between the target frames, held beyond the last); its first block's drive is applied for the
-period and the bank stepped on. The run starts ``lead_in_s`` before the motion (forward.py's
-lead-in: first pose held, here with the first frame's targets tracked) at the steady state of a
-drive found by solving the first period ``start_iterations`` times, each from the steady state
-of the last answer, and that drive is applied over the first period: so the run starts as
-forward.ForwardModel's runs do, at the steady state of its first drive, and the lead-in lets
-the loop settle where that guess was off. The drives (constant over each period) become nodes
-at every model step, so the forward run of forward.ForwardModel reproduces the loop's
-trajectory exactly; every reported reserve, force and energy comes from that run.
+period and the bank stepped on. The run starts ``receding_lead_in_s`` (SolverOptions) before
+the motion (forward.py's lead-in: first pose held, here with the first frame's targets
+tracked) at the steady state of a drive found by solving the first period
+``receding_start_iterations`` times, each from the steady state of the last answer, and that
+drive is applied over the first period: so the run starts as forward.ForwardModel's runs do,
+at the steady state of its first drive, and the lead-in lets the loop settle where that guess
+was off. The drives (constant over each period) become nodes at every model step, so the
+forward run of forward.ForwardModel reproduces the loop's trajectory exactly; every reported
+reserve, force and energy comes from that run.
 
 Cost: one probe of B + 1 copies of the muscles over the horizon and one small QP per period,
 about the live node's CPU per simulated second whatever the motion's length, against the
@@ -39,6 +40,7 @@ from vm_ros.coordination.solver import (
     checked_rate,
     reference_objective,
 )
+from vm_ros.errors import VmRosError
 
 
 def frame_interpolation(frame_times_s, times_s) -> tuple[np.ndarray, np.ndarray]:
@@ -114,13 +116,18 @@ def solve(bank, problem: CoordinationProblem, options: SolverOptions | None = No
           progress=None, settings: HorizonSettings | None = None) -> CoordinationResult:
     """The drives of ``bank``'s muscles (the problem's, in order) by the receding horizon over
     the whole motion (module docstring), as a CoordinationResult like solver.solve's: drive
-    nodes at every model step, one kept iterate. ``options``: the cost, the receding horizon's
-    period, lead-in and start iterations, and the muscle weights and stage 3 settings of the
-    reported cost and objective (the coordinator weighs all muscles alike); ``settings``: the
+    nodes at every model step, one kept iterate (J of solver.py at those nodes). ``options``:
+    the cost, the receding horizon's period, lead-in and start iterations, and the stage 3
+    settings of the reported objective; muscle weights other than 1 are an error (the
+    coordinator weighs all muscles alike); ``settings``: the
     coordinator's (default: the live node's HorizonSettings with ``options.cost``: tracking in
     N m, not relative to each coordinate's peak)."""
     options = options or SolverOptions()
     rate = checked_rate(bank, problem, options)
+    weighted = sorted(m for m, w in options.muscle_weights.items() if w != 1.0)
+    if weighted:
+        raise VmRosError(f"muscle weight for {weighted[0]!r}: the receding-horizon method "
+                         f"weighs all muscles alike (use --method trajectory)")
     settings = settings or HorizonSettings(cost=options.cost)
     started = time.perf_counter()
     forward = ForwardModel(bank, problem, problem.dt_s, {options.cost: rate},
