@@ -45,11 +45,12 @@ by default; --only picks some):
             < 3 %), forward runs, seconds (target < 10 s), load average. Skipped with the reason
             when the walk is not fetched (scripts/fetch-gait-data).
   coordination-myolegs
-            runs only when named (--only coordination-myolegs; minutes): vm-ros coordinate's
-            offline solve on myo-sim's myolegs (the joint section's import in
-            OUT/joint-cache/myolegs, made first when absent), 10 s of a gait-like motion
-            (vm_ros_bench.coordination_bench.gait_motion), targets from MuJoCo's inverse
-            dynamics, default options: seconds (target < 60 s), forward runs, reserve RMS per
+            runs only when named (--only coordination-myolegs; about a minute, plus the
+            import when absent): vm-ros coordinate's offline solve on myo-sim's myolegs (the
+            joint section's import in OUT/joint-cache/myolegs, made first when absent), 10 s of
+            a gait-like motion (vm_ros_bench.coordination_bench.gait_motion), targets from
+            MuJoCo's inverse dynamics, default options (--method auto: the receding horizon at
+            this size): seconds (target < 60 s), CPU seconds, forward runs, reserve RMS per
             coordinate (% of peak). Skipped with the reason without the mujoco extra.
   help      `vm-ros --help` and `muscle_node --help` as child processes, 5 times each:
             median wall and CPU time (target < 0.5 s of CPU)
@@ -366,7 +367,8 @@ def _myolegs_csv_rows(r: dict | None, add) -> None:
     if "skipped" in r:
         add("coordination-myolegs", "myolegs", "skipped", r["skipped"], "")
         return
-    case = f"myolegs, {r['muscles']} muscles, {r['motion_s']:g} s gait-like motion"
+    case = (f"myolegs, {r['muscles']} muscles, {r['motion_s']:g} s gait-like motion, "
+            f"{r.get('method', 'trajectory')}")
     for name, value in r["rms_percent"].items():
         add("coordination-myolegs", case, f"reserve_rms_percent {name}", value, "%")
     for key in ("forward_runs", "cpu_s", "targets_s", "load_average_start", "infeasible_frames"):

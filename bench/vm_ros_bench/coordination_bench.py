@@ -220,15 +220,17 @@ def bench_myolegs(cache, progress=print, duration_s: float = MYOLEGS_S) -> dict:
     """`vm-ros coordinate` on myo-sim's myolegs (the joint section's import, cached in
     ``cache``/myolegs): ``gait_motion`` written as a .mot, targets ``mujoco`` (MuJoCo's inverse
     dynamics of the motion, the root held in space), every muscle of the library, default
-    options: seconds of the targets and of the solve (wall, and the process's CPU time: the
+    options (vm_ros.coordination.methods: "auto" picks the receding horizon at this size):
+    seconds of the targets and of the solve (wall, and the process's CPU time: the
     machine's other load does not count in it), the seconds at each kept iterate (the first:
     after the two stages' start), forward runs, reserve RMS per coordinate (% of its target's
     peak), the load average before and after. ``skipped`` without the mujoco extra."""
     import tempfile
     from pathlib import Path
 
+    from vm_ros.coordination.methods import chosen_method, solve
     from vm_ros.coordination.problem import build_problem
-    from vm_ros.coordination.solver import SolverOptions, solve
+    from vm_ros.coordination.solver import SolverOptions
     from vm_ros.coordination.targets import load_targets
     from vm_ros.geometry import load_geometry
     from vm_ros.importers.motion import read_motion
@@ -257,15 +259,18 @@ def bench_myolegs(cache, progress=print, duration_s: float = MYOLEGS_S) -> dict:
     problem = build_problem(geometry, motion, targets, muscles)
     load = os.getloadavg()[0]
     started, cpu = time.perf_counter(), time.process_time()
-    result = solve(MuscleBank(specs, params, "lumped"), problem, SolverOptions())
+    options = SolverOptions()
+    result = solve(MuscleBank(specs, params, "lumped"), problem, options)
     seconds, cpu_s = time.perf_counter() - started, time.process_time() - cpu
     rms = dict(zip(problem.coordinates, result.summary.rms_percent.tolist(), strict=True))
     peak = dict(zip(problem.coordinates, problem.peak.tolist(), strict=True))
-    progress(f"coordination-myolegs: {len(muscles)} muscles, {duration_s:g} s: worst reserve "
+    method = chosen_method(problem, options)
+    progress(f"coordination-myolegs: {len(muscles)} muscles, {duration_s:g} s, {method}: worst "
+             f"reserve "
              f"RMS {max(rms.values()):.2f} % of peak, {result.forward_runs} runs, "
              f"{seconds:.1f} s ({cpu_s:.1f} s of CPU; targets {targets_s:.1f} s)")
     return {"muscles": len(muscles), "coordinates": len(problem.coordinates),
-            "motion_s": duration_s, "frames": len(problem.frame_times_s),
+            "method": method, "motion_s": duration_s, "frames": len(problem.frame_times_s),
             "rms_percent": rms, "target_peak": peak, "forward_runs": result.forward_runs,
             "seconds": seconds, "cpu_s": cpu_s, "targets_s": targets_s,
             "kept_step_s": [it.seconds for it in result.history],

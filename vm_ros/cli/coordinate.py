@@ -45,7 +45,7 @@ GRAVITY_M_PER_S2 = 9.81     # cost of transport: P / (m g v)
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from vm_ros.coordination.costs import COST_NAMES, DEFAULT_COST
-    from vm_ros.coordination.solver import SolverOptions, solver_settings
+    from vm_ros.coordination.solver import METHODS, SolverOptions, solver_settings
     from vm_ros.coordination.targets import SPEC_HELP
 
     defaults, settings = SolverOptions(), solver_settings()
@@ -85,6 +85,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--iterations", type=int, default=defaults.iterations,
                         help=f"forward runs of the tracking stage at most (default "
                              f"{defaults.iterations})")
+    parser.add_argument("--method", default="auto", choices=METHODS,
+                        help="how to solve: trajectory (the three stages over the whole "
+                             "motion), receding (the live node's receding horizon run over the "
+                             "motion, then one forward run), auto (receding above "
+                             f"{defaults.receding_above:g} muscles x target frames; default)")
     parser.add_argument("--refine", type=int, default=defaults.refine,
                         help=f"Gauss-Newton steps after it, each a QP solved by OSQP (default "
                              f"{defaults.refine})")
@@ -253,8 +258,9 @@ def _figure(path: Path, result, rate_w) -> Path | None:
 def run(args) -> int:
     from vm_ros.cli import simulate
     from vm_ros.coordination.costs import COSTS, vm_rate
+    from vm_ros.coordination.methods import chosen_method, solve
     from vm_ros.coordination.problem import build_problem
-    from vm_ros.coordination.solver import SolverOptions, solve
+    from vm_ros.coordination.solver import SolverOptions
     from vm_ros.coordination.targets import load_targets, lowpass_targets
     from vm_ros.geometry import load_geometry
     from vm_ros.importers.motion import read_motion
@@ -282,7 +288,7 @@ def run(args) -> int:
                             node_step_s=args.node_step, reserve_weight=args.reserve_weight,
                             smoothness=args.smoothness, iterations=args.iterations,
                             lead_in_s=args.lead_in,
-                            refine=args.refine)
+                            refine=args.refine, method=args.method)
     options.check(muscles)
     config = RunConfig(muscles, geometry=args.geometry, library=args.library,
                        params=args.params,
@@ -299,6 +305,8 @@ def run(args) -> int:
         progress.seen.append(it)
 
     progress.seen = []
+    print(f"method: {chosen_method(problem, options)} ({len(muscles)} muscles x "
+          f"{len(problem.frame_times_s)} target frames; --method {args.method})")
     started = time.perf_counter()
     result = solve(bank, problem, options, progress=progress)
     out = args.out

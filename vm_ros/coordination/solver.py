@@ -60,6 +60,7 @@ REFERENCE_DRIVE = 0.5   # C_ref: the cost of every drive held at this value over
 DAMPING_UP = 4.0
 MAX_REJECTED = 4        # rejected steps in a row before the iteration stops
 SETTINGS_FILE = "coordination.yaml"
+METHODS = ("auto", "trajectory", "receding")   # SolverOptions.method (methods.py solves by it)
 
 
 @dataclass(frozen=True)
@@ -104,9 +105,17 @@ class GaussNewtonSettings:
     eps: float = holds("1")
 
 
+@dataclass(frozen=True)
+class RecedingSettings:
+    above: float = holds("1")
+    period: float = holds("s")
+    lead_in: float = holds("s")
+    start_iterations: float = holds("1")
+
+
 _SECTIONS = {"targets": TargetSettings, "drives": DriveSettings,
              "distribution": DistributionSettings, "tracking": TrackingSettings,
-             "gauss_newton": GaussNewtonSettings}
+             "gauss_newton": GaussNewtonSettings, "receding": RecedingSettings}
 
 
 @functools.cache
@@ -143,9 +152,15 @@ class SolverOptions:
     ``reserve_weight`` (w_res), ``smoothness`` (w_smooth), ``smoothness_cutoff_hz`` (f_c),
     ``damping`` (weight of mean du^2), ``delta`` (perturbation of the drive nodes),
     ``memory_s`` (forward.py), ``tolerance`` (relative fall of J that stops), ``qp_eps``
-    (OSQP's tolerances)."""
+    (OSQP's tolerances).
+
+    ``method``: "trajectory" (the three stages, solve()), "receding" (the receding horizon over
+    the whole motion, receding_offline.py) or "auto" (receding above ``receding_above`` muscles x
+    target frames); the receding horizon's ``receding_period_s``, ``receding_lead_in_s`` and
+    ``receding_start_iterations`` (receding_offline.solve)."""
 
     cost: str = DEFAULT_COST
+    method: str = "auto"
     muscle_weights: Mapping = field(default_factory=dict)
     node_step_s: float = _setting("drives", "node_step")
     lead_in_s: float = _setting("drives", "lead_in")
@@ -167,6 +182,10 @@ class SolverOptions:
     memory_s: float = _setting("gauss_newton", "memory")
     tolerance: float = _setting("gauss_newton", "tolerance")
     qp_eps: float = _setting("gauss_newton", "eps")
+    receding_above: float = _setting("receding", "above")
+    receding_period_s: float = _setting("receding", "period")
+    receding_lead_in_s: float = _setting("receding", "lead_in")
+    receding_start_iterations: int = _setting("receding", "start_iterations", int)
 
     def check(self, muscles) -> None:
         cost_named(self.cost)
@@ -175,17 +194,20 @@ class SolverOptions:
             raise VmRosError(f"muscle weight for {unknown[0]!r}: not a muscle of the problem")
         for name in ("node_step_s", "reserve_weight", "delta", "distribution_reserve_weight",
                      "gain", "iterations", "patience", "smoothness_cutoff_hz", "damping",
-                     "qp_eps", "memory_s"):
+                     "qp_eps", "memory_s", "receding_period_s"):
             if not getattr(self, name) > 0:
                 raise VmRosError(f"{name} must be > 0 (got {getattr(self, name)})")
         for name in ("smoothness", "distribution_smoothness", "distribution_window_s",
                      "distribution_overlap_s", "lead_s", "refine", "lead_in_s",
-                     "tracking_tolerance", "tolerance"):
+                     "tracking_tolerance", "tolerance", "receding_above",
+                     "receding_lead_in_s", "receding_start_iterations"):
             if not getattr(self, name) >= 0:
                 raise VmRosError(f"{name} must be >= 0 (got {getattr(self, name)})")
         if 0 < self.distribution_window_s <= self.distribution_overlap_s:
             raise VmRosError(f"distribution_overlap_s must be < distribution_window_s (got "
                              f"{self.distribution_overlap_s} >= {self.distribution_window_s})")
+        if self.method not in METHODS:
+            raise VmRosError(f"method {self.method!r}: not one of {', '.join(METHODS)}")
         if not all(w >= 0 for w in self.muscle_weights.values()):
             raise VmRosError("muscle weights must be >= 0")
 
@@ -358,12 +380,10 @@ class StepQP:
         return np.clip(out.x[:self.size], -u, 1.0 - u).reshape(self.n_nodes, self.n)
 
 
-def solve(bank, problem: CoordinationProblem, options: SolverOptions | None = None,
-          progress=None) -> CoordinationResult:
-    """The drives of ``bank``'s muscles (the problem's, in order) that reproduce the problem's
-    targets at least cost (module docstring). ``bank`` must run the cost's published model when
-    the cost is one (costs.Cost.bank_models). ``progress``: called with each Iteration."""
-    options = options or SolverOptions()
+def checked_rate(bank, problem: CoordinationProblem, options: SolverOptions):
+    """The cost's rate function (costs.Cost.rate_function) of ``bank``, after checking
+    ``options`` and that ``bank`` holds the problem's muscles in order and runs the cost's
+    published model when the cost is one (VmRosError otherwise)."""
     options.check(problem.muscles)
     if tuple(bank.names) != tuple(problem.muscles):
         raise VmRosError("the bank's muscles are not the problem's (same names, same order)")
@@ -371,16 +391,32 @@ def solve(bank, problem: CoordinationProblem, options: SolverOptions | None = No
     missing = [m for m in cost.bank_models if m not in bank.energetics_models]
     if missing:
         raise VmRosError(f"cost {cost.name}: the bank must run energetics model {missing[0]}")
-    started = time.perf_counter()
-    rate = cost.rate_function(bank.energetics_models)
-    forward = ForwardModel(bank, problem, options.node_step_s, {options.cost: rate},
-                           options.memory_s, options.lead_in_s)
+    return cost.rate_function(bank.energetics_models)
+
+
+def reference_objective(problem: CoordinationProblem, options: SolverOptions,
+                        forward: ForwardModel) -> _Objective:
+    """J of the module docstring over ``forward``'s nodes, its C_ref from one forward run with
+    every drive at REFERENCE_DRIVE."""
     weights = np.array([float(options.muscle_weights.get(m, 1.0)) for m in problem.muscles])
-    n = len(problem.muscles)
-    reference = forward.run(np.full((forward.n_nodes, n), REFERENCE_DRIVE))
+    reference = forward.run(np.full((forward.n_nodes, len(problem.muscles)), REFERENCE_DRIVE))
     c_ref = max(float(weights @ reference.rates[options.cost].sum(axis=0)) * problem.dt_s,
                 1e-12)
-    objective = _Objective(problem, options, weights, c_ref, forward)
+    return _Objective(problem, options, weights, c_ref, forward)
+
+
+def solve(bank, problem: CoordinationProblem, options: SolverOptions | None = None,
+          progress=None) -> CoordinationResult:
+    """The drives of ``bank``'s muscles (the problem's, in order) that reproduce the problem's
+    targets at least cost (module docstring). ``bank`` must run the cost's published model when
+    the cost is one (costs.Cost.bank_models). ``progress``: called with each Iteration."""
+    options = options or SolverOptions()
+    rate = checked_rate(bank, problem, options)
+    started = time.perf_counter()
+    forward = ForwardModel(bank, problem, options.node_step_s, {options.cost: rate},
+                           options.memory_s, options.lead_in_s)
+    objective = reference_objective(problem, options, forward)
+    weights = objective.w
     # stage 1: the distribution; stage 2: drives whose forward run meets it
     fine = static_table(bank, problem, rate, FINE_LEVELS, TABLE_LENGTHS)
     table, shares = refined(problem, fine, weights, options.distribution_reserve_weight,
