@@ -41,6 +41,11 @@ COST_KEY, SOLVE_KEY = "coordination_cost", "coordination_solve"
 LEAD_IN_KEY = "lead_in_s"   # s of the run log before the motion's first frame (first pose held)
 LIMIT_DRIVE = 0.99          # a muscle whose drive reaches this is "at its limit"
 GRAVITY_M_PER_S2 = 9.81     # cost of transport: P / (m g v)
+# What a method gives up, printed beside its name (docs/coordination.md, "Receding horizon over
+# a whole motion"): the walk by both methods, 2026-12-02.
+METHOD_CAVEATS = {"receding": ": the live horizon, fast; its cost weighs less than the three "
+                  "stages' (walk: 1.7x their metabolic rate, drives 3x rougher); --method "
+                  "trajectory for the whole-trajectory optimum"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -305,8 +310,9 @@ def run(args) -> int:
         progress.seen.append(it)
 
     progress.seen = []
-    print(f"method: {chosen_method(problem, options)} ({len(muscles)} muscles x "
-          f"{len(problem.frame_times_s)} target frames; --method {args.method})")
+    method = chosen_method(problem, options)
+    print(f"method: {method} ({len(muscles)} muscles x {len(problem.frame_times_s)} target "
+          f"frames; --method {args.method}){METHOD_CAVEATS.get(method, '')}")
     started = time.perf_counter()
     result = solve(bank, problem, options, progress=progress)
     out = args.out
