@@ -3,8 +3,8 @@
 The demo runs as a process, as a user runs it; its MCAP is checked against numbers computed here
 from the geometry file: the joint torques muscle_node published are r(q)^T F at the joint
 positions it logged, with the forces it logged, and the elbow moved. Also: the geometry cache,
-the command line the demo re-runs itself with inside a namespace, and the sim node holding its
-pose until the first command.
+the command line the demo re-runs itself with inside a namespace, the sim node holding its
+pose until the first command, and the nodes' environment keeping Fast DDS off shared memory.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from conftest import require_ros
 pytest.importorskip("mujoco", reason="the mujoco extra is not installed")
 
 from vm_ros import telemetry as tm  # noqa: E402
+from vm_ros.child_process import UDP_ONLY_ENVIRONMENT, module_environment  # noqa: E402
 from vm_ros.cli import build_parser, demo  # noqa: E402
 from vm_ros.geometry import load_geometry  # noqa: E402
 from vm_ros.recording import read_run  # noqa: E402
@@ -147,3 +148,36 @@ def test_sim_node_waits_for_the_first_command(ros):
     # gravity and no muscle: the forearm falls
     assert ros.spin_until(lambda: states[-1].position[0] < 1.0 - 1e-3)
     assert "0 dropped" in sim.run_summary()
+
+
+_DDS_THREADS = """
+import os
+import rclpy
+rclpy.init()
+node = rclpy.create_node("transport_probe")
+print(" ".join(open(f"/proc/self/task/{t}/comm").read().strip()
+               for t in os.listdir("/proc/self/task")))
+node.destroy_node()
+rclpy.shutdown()
+"""
+
+
+@pytest.mark.ros
+def test_nodes_environment_keeps_fast_dds_off_shared_memory():
+    """The demo's nodes run with UDP_ONLY_ENVIRONMENT: a process started so has none of Fast
+    DDS's shared-memory threads (`dds.shm.<port>` listeners, `dds.shm.wdog`), whose transport
+    can stall a node for 333 ms at its first send to a peer (docs/closed_loop.md). The
+    namespace's own environment (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) has them, whatever
+    FASTDDS_BUILTIN_TRANSPORTS says: that is what the test tells apart."""
+    require_ros()
+
+    def dds_threads(env):
+        proc = subprocess.run([sys.executable, "-c", _DDS_THREADS], env=env,
+                              capture_output=True, text=True, timeout=60)
+        assert proc.returncode == 0, proc.stderr
+        return [name for name in proc.stdout.split() if name.startswith("dds.")]
+
+    localhost = dds_threads(module_environment())
+    udp_only = dds_threads(module_environment() | UDP_ONLY_ENVIRONMENT)
+    assert any(name.startswith("dds.shm") for name in localhost), localhost
+    assert udp_only and not any(name.startswith("dds.shm") for name in udp_only), udp_only

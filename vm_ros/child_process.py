@@ -40,6 +40,18 @@ def module_environment() -> dict:
     return env
 
 
+# Fast DDS over UDP alone, for processes inside a loopback-only network namespace. With
+# ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST rmw_fastrtps adds Fast DDS's shared-memory transport
+# whatever FASTDDS_BUILTIN_TRANSPORTS says; that transport checks a peer's port the first time it
+# sends to it and, when a listener of that port was verified idle, sleeps healthy_check_timeout_ms
+# / 3 (333 ms) holding its participant's send lock: every publish of that process waits
+# (Fast DDS 2.14 SharedMemGlobal.hpp, Port::healthy_check; docs/closed_loop.md). SUBNET leaves the
+# transports to Fast DDS, which takes UDPv4 alone from FASTDDS_BUILTIN_TRANSPORTS; the namespace
+# has no interface but loopback, and the static peer finds the others without multicast.
+UDP_ONLY_ENVIRONMENT = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET", "ROS_STATIC_PEERS": "127.0.0.1",
+                        "FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"}
+
+
 def loopback_only(command: list) -> list:
     """``command`` inside a new network namespace with only loopback (as scripts/netns-run)."""
     script = ("set -e; ip link set lo up; "
@@ -48,4 +60,4 @@ def loopback_only(command: list) -> list:
     return ["unshare", "-n", "bash", "-c", script, "netns-run", *command]
 
 
-__all__ = ["loopback_only", "module_command", "module_environment"]
+__all__ = ["UDP_ONLY_ENVIRONMENT", "loopback_only", "module_command", "module_environment"]

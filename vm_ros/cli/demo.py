@@ -48,7 +48,12 @@ from pathlib import Path
 import numpy as np
 
 from vm_ros import telemetry as tm
-from vm_ros.child_process import loopback_only, module_command, module_environment
+from vm_ros.child_process import (
+    UDP_ONLY_ENVIRONMENT,
+    loopback_only,
+    module_command,
+    module_environment,
+)
 from vm_ros.errors import VmRosError
 from vm_ros.model.params import load_muscle_library
 from vm_ros.report.summary import split_energy
@@ -460,8 +465,9 @@ def run_closed_loop(args) -> int:
             str(_params_file(out / "mujoco_sim_node.yaml", sim_params)))}
     print(f"vm-ros demo: {drive.description}", file=sys.stderr)
     wall_start = time.monotonic()
-    processes = {"muscle_node": subprocess.Popen(commands["muscle_node"],
-                                                 env=module_environment())}
+    # the nodes talk over UDP: a first send over shared memory can stall a node for 333 ms
+    environment = module_environment() | UDP_ONLY_ENVIRONMENT
+    processes = {"muscle_node": subprocess.Popen(commands["muscle_node"], env=environment)}
     context = rclpy.Context()
     # no rclpy signal handlers here: Ctrl-C raises KeyboardInterrupt, and `finally` stops both
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
@@ -477,7 +483,7 @@ def run_closed_loop(args) -> int:
         _wait(executor, lambda: driver.sent_to_subscriber >= 2, args.startup_timeout,
               processes, "waiting for muscle_node to subscribe to excitation")
         processes["mujoco_sim_node"] = subprocess.Popen(commands["mujoco_sim_node"],
-                                                         env=module_environment())
+                                                         env=environment)
         _wait(executor, lambda: driver.efforts > 0, args.startup_timeout, processes,
               "waiting for muscle_node's first joint_efforts")
         driver.stop_listening()
