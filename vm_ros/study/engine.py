@@ -17,9 +17,9 @@ Where things happen:
   of those that did and closes the cluster.
 
 The embedded cluster (no --scheduler) is a ``LocalCluster`` of one single-threaded worker
-process per core, bound to 127.0.0.1, without a dashboard, and with less of Dask's periodic
-work (EMBEDDED_CONFIG): on 2 cores the client, scheduler and nannies share the cores with the
-workers.
+process per core, bound to 127.0.0.1, without a dashboard, with less of Dask's periodic work
+and with the workers' C allocator keeping the log chunks' buffers (EMBEDDED_CONFIG): on 2 cores
+the client, scheduler and nannies share the cores with the workers.
 """
 
 from __future__ import annotations
