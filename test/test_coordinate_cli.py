@@ -14,6 +14,7 @@ from test_coordination import geometry, library
 
 from vm_ros.geometry import write_geometry
 from vm_ros.offline.excitations import load_excitations
+from vm_ros.recording.run_log import read_run
 from vm_ros.storage import read_columns
 
 VM_ROS = str(Path(sys.executable).with_name("vm-ros"))
@@ -65,6 +66,15 @@ def test_outputs_drives_as_excitations_and_an_exact_recompute(tmp_path):
     assert "exact: the recomputed outputs equal the recorded ones" in again.stdout
 
 
+def test_receding_method_refuses_options_of_the_three_stages(tmp_path):
+    done = _run("coordinate", *_inputs(tmp_path), "--method", "receding", "--smoothness", "10",
+                "--out", str(tmp_path / "out"))
+    assert done.returncode == 2
+    assert done.stderr.strip().splitlines()[-1].endswith(
+        "--smoothness does not act on the receding-horizon method (--method receding: 2 "
+        "muscles x 37 target frames); leave it out, or use --method trajectory")
+
+
 def test_receding_method_writes_the_same_outputs_and_recomputes_exactly(tmp_path):
     """--method receding: the run starts receding.lead_in (0.3 s) before the motion, its drives
     at every model step; the run log's forces and energy are reproduced by recompute."""
@@ -74,6 +84,9 @@ def test_receding_method_writes_the_same_outputs_and_recomputes_exactly(tmp_path
     assert "method: receding" in done.stdout and "reserve RMS" in done.stdout
     drives = load_excitations(out / "drives.sto", ("a", "b"))
     assert drives.time_s[0] == pytest.approx(-0.3)
+    metadata = read_run(out / "coordination.mcap").metadata   # the run log names its method
+    assert any(entries.get("coordination_method") == "receding (--method receding)"
+               for entries in metadata.values()), metadata
     assert np.diff(drives.time_s) == pytest.approx(np.full(len(drives.time_s) - 1, 0.001))
     again = _run("recompute", str(out / "coordination.mcap"), "--out",
                  str(tmp_path / "again.mcap"))

@@ -12,7 +12,7 @@ from test_coordination import geometry, library, motion, static_optimum, steady_
 
 from vm_ros.coordination import methods, receding_offline
 from vm_ros.coordination.problem import build_problem
-from vm_ros.coordination.solver import SolverOptions
+from vm_ros.coordination.solver import METHODS, SolverOptions
 from vm_ros.coordination.targets import JointMomentTargets
 from vm_ros.errors import VmRosError
 from vm_ros.model import MuscleBank
@@ -104,7 +104,9 @@ def test_slow_swing_is_tracked_and_the_result_is_its_own_forward_run(tmp_path):
     fresh.run(problem.dt_s, lead.drive, lead.path_length, lead.path_velocity)
     run = fresh.run(problem.dt_s, result.forward.drive_steps, problem.path_length,
                     problem.path_velocity)
-    assert run.force[-1] == pytest.approx(result.forward.force[-1], rel=1e-9)
+    # the forward run's force is at model times 0, dt, ..., k dt; the bank's at each step's end
+    assert run.force == pytest.approx(result.forward.force[1:], rel=1e-9, abs=1e-9)
+    assert result.unsolved_qps == 0
 
 
 def test_method_auto_picks_by_size_and_names_are_checked(tmp_path):
@@ -117,6 +119,11 @@ def test_method_auto_picks_by_size_and_names_are_checked(tmp_path):
                                                         receding_above=0)) == "trajectory"
     with pytest.raises(VmRosError, match="method"):
         SolverOptions(method="fast").check(problem.muscles)
+    with pytest.raises(VmRosError, match="'fast'"):   # not taken for "auto"
+        methods.chosen_method(problem, SolverOptions(method="fast"))
+    assert set(METHODS) == {"auto", *methods.SOLVERS}   # the names SolverOptions.check knows
+    with pytest.raises(VmRosError, match="whole number"):
+        SolverOptions(receding_start_iterations=2.7).check(problem.muscles)
     bank, problem = problem_of(tmp_path, {"a": 0.02, "b": 0.04}, lambda t: np.full_like(t, 10.0))
     with pytest.raises(VmRosError, match="alike"):
         receding_offline.solve(bank, problem, SolverOptions(muscle_weights={"a": 2.0}))

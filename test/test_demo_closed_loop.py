@@ -21,7 +21,7 @@ from conftest import require_ros
 pytest.importorskip("mujoco", reason="the mujoco extra is not installed")
 
 from vm_ros import telemetry as tm  # noqa: E402
-from vm_ros.child_process import UDP_ONLY_ENVIRONMENT, module_environment  # noqa: E402
+from vm_ros.child_process import module_environment, node_environment  # noqa: E402
 from vm_ros.cli import build_parser, demo  # noqa: E402
 from vm_ros.geometry import load_geometry  # noqa: E402
 from vm_ros.recording import read_run  # noqa: E402
@@ -164,8 +164,8 @@ rclpy.shutdown()
 
 @pytest.mark.ros
 def test_nodes_environment_keeps_fast_dds_off_shared_memory():
-    """The demo's nodes run with UDP_ONLY_ENVIRONMENT: a process started so has none of Fast
-    DDS's shared-memory threads (`dds.shm.<port>` listeners, `dds.shm.wdog`), whose transport
+    """The demos' nodes run with node_environment() (UDP_ONLY_ENVIRONMENT): a process started
+    so has none of Fast DDS's shared-memory threads (`dds.shm.<port>` listeners, `dds.shm.wdog`), whose transport
     can stall a node for 333 ms at its first send to a peer (docs/closed_loop.md). The
     namespace's own environment (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) has them, whatever
     FASTDDS_BUILTIN_TRANSPORTS says: that is what the test tells apart."""
@@ -178,6 +178,6 @@ def test_nodes_environment_keeps_fast_dds_off_shared_memory():
         return [name for name in proc.stdout.split() if name.startswith("dds.")]
 
     localhost = dds_threads(module_environment())
-    udp_only = dds_threads(module_environment() | UDP_ONLY_ENVIRONMENT)
+    udp_only = dds_threads(node_environment())
     assert any(name.startswith("dds.shm") for name in localhost), localhost
     assert udp_only and not any(name.startswith("dds.shm") for name in udp_only), udp_only

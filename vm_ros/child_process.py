@@ -52,6 +52,12 @@ UDP_ONLY_ENVIRONMENT = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET", "ROS_STATIC_P
                         "FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"}
 
 
+def node_environment() -> dict:
+    """module_environment() with Fast DDS over UDP alone (UDP_ONLY_ENVIRONMENT): for the nodes
+    the demos start inside their loopback-only namespace."""
+    return module_environment() | UDP_ONLY_ENVIRONMENT
+
+
 def loopback_only(command: list) -> list:
     """``command`` inside a new network namespace with only loopback (as scripts/netns-run)."""
     script = ("set -e; ip link set lo up; "
@@ -60,4 +66,5 @@ def loopback_only(command: list) -> list:
     return ["unshare", "-n", "bash", "-c", script, "netns-run", *command]
 
 
-__all__ = ["UDP_ONLY_ENVIRONMENT", "loopback_only", "module_command", "module_environment"]
+__all__ = ["UDP_ONLY_ENVIRONMENT", "loopback_only", "module_command", "module_environment",
+           "node_environment"]

@@ -9,8 +9,9 @@ moments at least cost (docs/coordination.md), and write:
   coordination.mcap  the run log of the drives (as `vm-ros simulate --motion` writes it, the
                   activation starting at the steady state of the first drive, the solver's
                   lead-in first; `vm-ros recompute` reproduces its forces and energy)
-  motion.sto      with --lead-in (config/coordination.yaml drives.lead_in): the run log's
-                  motion, the first pose held from the lead-in's start
+  motion.sto      with a lead-in (--lead-in, config/coordination.yaml drives.lead_in; the
+                  receding method's receding.lead_in): the run log's motion, the first pose
+                  held from the lead-in's start
   coordination.png   drives over time (heat map), forces, target and muscle moments with the
                   reserves, mean metabolic rate per muscle
 
@@ -41,11 +42,17 @@ COST_KEY, SOLVE_KEY = "coordination_cost", "coordination_solve"
 LEAD_IN_KEY = "lead_in_s"   # s of the run log before the motion's first frame (first pose held)
 LIMIT_DRIVE = 0.99          # a muscle whose drive reaches this is "at its limit"
 GRAVITY_M_PER_S2 = 9.81     # cost of transport: P / (m g v)
-# What a method gives up, printed beside its name (docs/coordination.md, "Receding horizon over
-# a whole motion"): the walk by both methods, 2026-12-02.
-METHOD_CAVEATS = {"receding": ": the live horizon, fast; its cost weighs less than the three "
-                  "stages' (walk: 1.7x their metabolic rate, drives 3x rougher); --method "
+METHOD_KEY = "coordination_method"
+# What a method gives up, printed beside its name (measured in docs/coordination.md, "Receding
+# horizon over a whole motion")
+METHOD_CAVEATS = {"receding": ": the live horizon, fast, but its cost weighs less and its drives "
+                  "are rougher than the three stages' (docs/coordination.md); --method "
                   "trajectory for the whole-trajectory optimum"}
+# SolverOptions fields that only the three stages use, with their options: given to the
+# receding-horizon method, an error rather than ignored
+TRAJECTORY_ONLY = {"lead_in_s": "--lead-in", "node_step_s": "--node-step",
+                   "smoothness": "--smoothness", "reserve_weight": "--reserve-weight",
+                   "iterations": "--iterations", "refine": "--refine"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -260,6 +267,18 @@ def _figure(path: Path, result, rate_w) -> Path | None:
     return path
 
 
+def _refuse_trajectory_options(options, why: str) -> None:
+    """VmRosError naming the first of TRAJECTORY_ONLY given a value other than its default:
+    the receding-horizon method does not use it."""
+    from vm_ros.coordination.solver import SolverOptions
+
+    defaults = SolverOptions()
+    for field, flag in TRAJECTORY_ONLY.items():
+        if getattr(options, field) != getattr(defaults, field):
+            raise VmRosError(f"{flag} does not act on the receding-horizon method ({why}); "
+                             f"leave it out, or use --method trajectory")
+
+
 def run(args) -> int:
     from vm_ros.cli import simulate
     from vm_ros.coordination.costs import COSTS, vm_rate
@@ -311,6 +330,9 @@ def run(args) -> int:
 
     progress.seen = []
     method = chosen_method(problem, options)
+    if method == "receding":
+        _refuse_trajectory_options(options, f"--method {args.method}: {len(muscles)} muscles x "
+                                   f"{len(problem.frame_times_s)} target frames")
     print(f"method: {method} ({len(muscles)} muscles x {len(problem.frame_times_s)} target "
           f"frames; --method {args.method}){METHOD_CAVEATS.get(method, '')}")
     started = time.perf_counter()
@@ -324,6 +346,9 @@ def run(args) -> int:
                   axis + problem.frame_times_s, muscles, result.forward.force_frames)
     write_storage(out / "reserves.sto", "vm_ros coordinate reserves (N m or N)",
                   axis + problem.frame_times_s, problem.coordinates, result.reserves)
+    if result.unsolved_qps:
+        print(f"warning: {result.unsolved_qps} periods' QPs were not solved by OSQP (their "
+              "iterate, clipped to the drive box, was applied)")
     rate = result.forward.motion_rate(vm_rate)   # the lead-in's energy left out
     for line in _report_lines(result, rate, args.body_mass, args.speed):
         print(line)
@@ -343,9 +368,10 @@ def run(args) -> int:
     argv += [a for name in ("library", "params") if getattr(args, name)
              for a in (f"--{name}", str(getattr(args, name)))]
     extra = {STEADY_START: "yes", LEAD_IN_KEY: repr(lead_s), COST_KEY: args.cost,
-             "targets": targets.source,
+             "targets": targets.source, METHOD_KEY: f"{method} (--method {args.method})",
              SOLVE_KEY: f"{len(result.history)} iterations, max reserve RMS "
-                        f"{np.max(result.summary.rms_percent):.3f} % of peak"}
+                        f"{np.max(result.summary.rms_percent):.3f} % of peak, "
+                        f"{result.unsolved_qps} unsolved QPs"}
     print(f"run log of the drives (vm-ros simulate --motion, steady start, lead-in {lead_s:g} s; "
           f"{time.perf_counter() - started:.1f} s so far):")
     code = simulate.run(parser.parse_args(argv), verb="coordinate", extra=extra)

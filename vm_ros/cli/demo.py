@@ -48,12 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from vm_ros import telemetry as tm
-from vm_ros.child_process import (
-    UDP_ONLY_ENVIRONMENT,
-    loopback_only,
-    module_command,
-    module_environment,
-)
+from vm_ros.child_process import loopback_only, module_command, node_environment
 from vm_ros.errors import VmRosError
 from vm_ros.model.params import load_muscle_library
 from vm_ros.report.summary import split_energy
@@ -275,7 +270,8 @@ def run(args) -> int:
         mcap_path = Path(args.mcap or datetime.now().strftime("out/demo-%Y%m%d-%H%M%S.mcap"))
         mcap_path = mcap_path.resolve()
 
-    process = subprocess.Popen(_node_command(args, scenario, mcap_path), env=module_environment())
+    process = subprocess.Popen(_node_command(args, scenario, mcap_path),
+                               env=node_environment())
     context = rclpy.Context()
     # no rclpy signal handlers here: Ctrl-C raises KeyboardInterrupt, and `finally` stops the node
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
@@ -466,7 +462,7 @@ def run_closed_loop(args) -> int:
     print(f"vm-ros demo: {drive.description}", file=sys.stderr)
     wall_start = time.monotonic()
     # the nodes talk over UDP: a first send over shared memory can stall a node for 333 ms
-    environment = module_environment() | UDP_ONLY_ENVIRONMENT
+    environment = node_environment()
     processes = {"muscle_node": subprocess.Popen(commands["muscle_node"], env=environment)}
     context = rclpy.Context()
     # no rclpy signal handlers here: Ctrl-C raises KeyboardInterrupt, and `finally` stops both

@@ -25,6 +25,7 @@ further ahead, and each period takes one linearised step (receding.py's docstrin
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
@@ -80,10 +81,10 @@ def horizon_inputs(problem: CoordinationProblem, forward: ForwardModel,
 
 def receding_drives(bank, problem: CoordinationProblem, forward: ForwardModel,
                     period_s: float, settings: HorizonSettings,
-                    start_iterations: int) -> np.ndarray:
-    """(k, n) the drive of every step of ``forward``'s runs (lead-in first): the coordinator
-    over the whole run (module docstring); ``bank`` holds the problem's muscles and is left
-    at the motion's end."""
+                    start_iterations: int) -> tuple[np.ndarray, int]:
+    """((k, n) the drive of every step of ``forward``'s runs (lead-in first), the periods whose
+    QP was not solved): the coordinator over the whole run (module docstring); ``bank`` holds
+    the problem's muscles and is left at the motion's end."""
     n, dt = len(problem.muscles), problem.dt_s
     total = len(forward.path_length)
     period_steps = max(int(round(period_s / dt)), 1)
@@ -109,7 +110,7 @@ def receding_drives(bank, problem: CoordinationProblem, forward: ForwardModel,
         drives[first:end] = drive
         bank.run(dt, np.repeat(drive[None], end - first, axis=0),
                  forward.path_length[first:end], forward.path_velocity[first:end])
-    return drives
+    return drives, coordinator.qp.unsolved
 
 
 def solve(bank, problem: CoordinationProblem, options: SolverOptions | None = None,
@@ -132,15 +133,17 @@ def solve(bank, problem: CoordinationProblem, options: SolverOptions | None = No
     started = time.perf_counter()
     forward = ForwardModel(bank, problem, problem.dt_s, {options.cost: rate},
                            lead_in_s=options.receding_lead_in_s)
-    drives = receding_drives(bank, problem, forward, options.receding_period_s, settings,
-                             options.receding_start_iterations)
+    drives, unsolved = receding_drives(bank, problem, forward, options.receding_period_s,
+                                       settings, options.receding_start_iterations)
     nodes = np.vstack([drives, drives[-1:]])   # a node at every step's start, and the end
     objective = reference_objective(problem, options, forward)
     base = forward.run(nodes)
     history = [_iteration(objective, nodes, base, 0.0, forward, started)]
     if progress is not None:
         progress(history[-1])
-    return _result(problem, options, forward, objective, nodes, base, history, started)
+    return dataclasses.replace(
+        _result(problem, options, forward, objective, nodes, base, history, started),
+        unsolved_qps=unsolved)
 
 
 __all__ = ["at_times", "frame_interpolation", "horizon_inputs", "receding_drives", "solve"]

@@ -206,6 +206,9 @@ class SolverOptions:
         if 0 < self.distribution_window_s <= self.distribution_overlap_s:
             raise VmRosError(f"distribution_overlap_s must be < distribution_window_s (got "
                              f"{self.distribution_overlap_s} >= {self.distribution_window_s})")
+        if self.receding_start_iterations != int(self.receding_start_iterations):
+            raise VmRosError(f"receding_start_iterations must be a whole number (got "
+                             f"{self.receding_start_iterations})")
         if self.method not in METHODS:
             raise VmRosError(f"method {self.method!r}: not one of {', '.join(METHODS)}")
         if not all(w >= 0 for w in self.muscle_weights.values()):
@@ -244,6 +247,7 @@ class CoordinationResult:
     | muscle_cost | (n,) | each muscle's unweighted C_i |
     | history | list of Iteration | one per kept iterate (stage 2's runs, then the steps) |
     | forward_runs, seconds | | forward runs made, wall time of the solve |
+    | unsolved_qps | | the receding method's periods whose QP OSQP did not report solved |
     """
 
     problem: CoordinationProblem
@@ -260,6 +264,7 @@ class CoordinationResult:
     history: list[Iteration]
     forward_runs: int
     seconds: float
+    unsolved_qps: int = 0
 
 
 def second_differences(n_nodes: int, n: int) -> sparse.csr_matrix:
