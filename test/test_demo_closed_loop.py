@@ -165,10 +165,11 @@ rclpy.shutdown()
 @pytest.mark.ros
 def test_nodes_environment_keeps_fast_dds_off_shared_memory():
     """The demos' nodes run with node_environment() (UDP_ONLY_ENVIRONMENT): a process started
-    so has none of Fast DDS's shared-memory threads (`dds.shm.<port>` listeners, `dds.shm.wdog`), whose transport
-    can stall a node for 333 ms at its first send to a peer (docs/closed_loop.md). The
-    namespace's own environment (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) has them, whatever
-    FASTDDS_BUILTIN_TRANSPORTS says: that is what the test tells apart."""
+    so has none of Fast DDS's shared-memory threads (`dds.shm.<port>` listeners,
+    `dds.shm.wdog`), whose transport can stall a node for 333 ms at its first send to a peer
+    (docs/closed_loop.md). The namespace's own environment
+    (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) has them, whatever FASTDDS_BUILTIN_TRANSPORTS
+    says: that is what the test tells apart."""
     require_ros()
 
     def dds_threads(env):

@@ -244,3 +244,20 @@ def test_without_the_study_extra_the_verb_names_it(tmp_path, capsys, monkeypatch
     assert main(["study", "run", str(_study(tmp_path, GRID)), "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and 'pip install "vm_ros[study]"' in err
+
+
+def test_workers_get_the_allocator_settings_and_this_process_keeps_its_own(monkeypatch):
+    """The embedded cluster's workers see MALLOC_ENVIRON (glibc reads it at their start); the
+    process that opened the cluster keeps its own environment for its later children."""
+    from vm_ros.study.engine import MALLOC_ENVIRON
+
+    for name in MALLOC_ENVIRON:
+        monkeypatch.delenv(name, raising=False)
+    client, cluster = Engine(workers=1).open()
+    try:
+        seen = client.run(lambda: {name: os.environ.get(name) for name in MALLOC_ENVIRON})
+    finally:
+        close(client, cluster)
+    assert [dict(v) for v in seen.values()] == [{name: str(value) for name, value
+                                                 in MALLOC_ENVIRON.items()}]
+    assert not any(name in os.environ for name in MALLOC_ENVIRON)
