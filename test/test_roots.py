@@ -68,6 +68,8 @@ def test_each_element_is_evaluated_only_while_it_iterates():
 # a new SciPy import in vm_ros fails here until its name is checked and added.
 SCIPY_1_10_NAMES = {
     ("scipy.integrate", "solve_ivp"),  # SciPy 1.0
+    ("scipy", "integrate"),
+    ("scipy.integrate", "trapezoid"),  # SciPy 1.6 (NumPy's np.trapezoid is NumPy 2.0)
     ("scipy.interpolate", "UnivariateSpline"),  # 0.x
     ("scipy.interpolate", "make_interp_spline"),  # 0.19
     ("scipy.optimize", "least_squares"),  # 0.17
@@ -138,3 +140,32 @@ def test_the_scan_sees_module_attributes_and_elementwise():
     assert _scipy_names(source) == {("scipy.optimize", "elementwise"), ("scipy.stats", "qmc"),
                                     ("scipy.stats.qmc", "Sobol"), ("scipy.linalg", ""),
                                     ("scipy.linalg", "solve")}
+
+
+# NumPy names that are new in NumPy 2.x (the NumPy 2.0 and 2.1 release notes: the array-API
+# names and np.trapezoid; np.bool came back in 2.0 after its removal in 1.24): Debian 12's
+# python3-numpy is 1.24.2, setup.py's lower bound 1.24, so the package must not read them.
+NUMPY_2_ONLY = {"trapezoid", "concat", "permute_dims", "pow", "acos", "acosh", "asin", "asinh",
+                "atan", "atan2", "atanh", "bitwise_left_shift", "bitwise_right_shift",
+                "bitwise_invert", "vecdot", "matrix_transpose", "unique_all", "unique_counts",
+                "unique_inverse", "unique_values", "isdtype", "astype", "cumulative_sum",
+                "cumulative_prod", "long", "ulong", "bool", "unstack"}
+
+
+def _numpy_attributes(source: str) -> set[str]:
+    """Every attribute read from a name bound by ``import numpy`` (``np.trapezoid``)."""
+    tree = ast.parse(source)
+    aliases = {alias.asname or alias.name for node in ast.walk(tree)
+               if isinstance(node, ast.Import) for alias in node.names
+               if alias.name == "numpy"}
+    return {node.attr for node in ast.walk(tree) if isinstance(node, ast.Attribute)
+            and isinstance(node.value, ast.Name) and node.value.id in aliases}
+
+
+def test_the_package_uses_no_numpy_name_that_numpy_1_24_lacks():
+    used = {}
+    for path in sorted(Path(vm_ros.__file__).parent.rglob("*.py")):
+        for name in _numpy_attributes(path.read_text(encoding="utf-8")) & NUMPY_2_ONLY:
+            used.setdefault(name, path.name)
+    assert not used, f"NumPy 2 names (Debian 12 has NumPy 1.24): {used}"
+    assert _numpy_attributes("import numpy as np\nnp.trapezoid(y, x)\n") == {"trapezoid"}

@@ -70,8 +70,9 @@ class Motion:
         peak = np.abs(values).max(axis=0)
         if not self.in_degrees and peak.max() > RADIAN_LIMIT:
             worst = int(np.argmax(peak))
+            value = values[int(np.argmax(np.abs(values[:, worst]))), worst]
             raise VmRosError(f"motion {self.path}: the header says inDegrees=no but "
-                             f"{self.names[columns[worst]]} reaches {peak[worst]:.6g}, beyond a "
+                             f"{self.names[columns[worst]]} reaches {value:.6g}, beyond a "
                              "full turn in radians: the file is in degrees; set inDegrees=yes")
         moving = np.ptp(values, axis=0).max() > 0.0
         if self.in_degrees and moving and peak.max() <= DEGREE_SUSPECT:

@@ -289,8 +289,10 @@ def evaluate_walk(solution: WalkSolution, context: dict, config: dict
 
 
 def _cycle_mean(values, times_s, inside) -> float:
+    from scipy import integrate
+
     t = times_s[inside]
-    return float(np.trapezoid(values[inside], t) / (t[-1] - t[0])) if inside.sum() > 1 \
+    return float(integrate.trapezoid(values[inside], t) / (t[-1] - t[0])) if inside.sum() > 1 \
         else float("nan")
 
 

@@ -84,11 +84,13 @@ def umberger_probe(files) -> dict:
     """OpenSim's Umberger 2010 probe over the CMC walk: ``total_w`` (time average of
     metabolics_TOTAL, W; its BASAL column is 0, so it is the muscles' rate), ``per_kg`` (W/kg,
     mass of the metabolics model), ``muscles_w`` {muscle: W}, ``span_s`` (start, end)."""
+    from scipy import integrate
+
     time, columns, labels = read_columns(files["cmc_probes"], "Umberger probes")
     duration = time[-1] - time[0]
 
     def mean(values):
-        return float(np.trapezoid(values, time) / duration)
+        return float(integrate.trapezoid(values, time) / duration)
 
     mass = body_mass_kg(files["model_metabolics"])
     total = mean(columns["metabolics_TOTAL"])
