@@ -93,6 +93,10 @@ def test_not_a_run_log(tmp_path, capsys):
     bogus.write_bytes(b"not mcap at all")
     assert main(["recompute", str(bogus)]) == 2
     assert "not an MCAP file" in capsys.readouterr().err
+    empty = tmp_path / "empty.mcap"
+    empty.write_bytes(b"")
+    assert main(["recompute", str(empty)]) == 2
+    assert "the file is empty" in capsys.readouterr().err
 
 
 def test_recompute_writes_the_original_messages_byte_for_byte(knee_log, tmp_path, capsys):

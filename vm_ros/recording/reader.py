@@ -304,6 +304,10 @@ class LogReader:
                 except StopIteration:
                     break
                 except Exception as exc:  # truncated or corrupt: keep what was read
+                    if count == 0 and stream.tell() == 0 and path.stat().st_size == 0:
+                        raise LogReadError(path, "the file is empty (nothing was written to "
+                                           "it yet, or it was stopped as it was created)"
+                                           ) from exc
                     if count == 0:
                         raise LogReadError(path, f"not an MCAP file ({exc})") from exc
                     self.stop_reason = f"{type(exc).__name__}: {exc}".rstrip(": ")
