@@ -47,6 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vm_ros.coordination.settings import solver_settings
 from vm_ros.errors import VmRosError
 from vm_ros.storage import read_columns
 
@@ -375,8 +376,6 @@ def zero_phase_lowpass(times_s, values, cutoff_hz: float, order: int, what: str)
 def configured_lowpass_order() -> int:
     """The order of the targets' low-pass: ``targets.lowpass_order`` of
     config/coordination.yaml."""
-    from vm_ros.coordination.solver import solver_settings  # solver imports this module
-
     return int(solver_settings()["targets"].lowpass_order)
 
 
