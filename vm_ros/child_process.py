@@ -13,6 +13,7 @@ that a vm_ros reached through PYTHONPATH (a colcon prefix) is the child's too.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 from pathlib import Path
@@ -58,6 +59,22 @@ def node_environment() -> dict:
     return module_environment() | UDP_ONLY_ENVIRONMENT
 
 
+@contextlib.contextmanager
+def environment_kept(names):
+    """Within the block, a library may set the environment variables ``names`` in this process
+    (OpenSim's import, Dask's nannies); at its end they are put back as they were, so that this
+    process's later children do not inherit them."""
+    saved = {name: os.environ.get(name) for name in names}
+    try:
+        yield
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
+
+
 def loopback_only(command: list) -> list:
     """``command`` inside a new network namespace with only loopback (as scripts/netns-run)."""
     script = ("set -e; ip link set lo up; "
@@ -66,5 +83,5 @@ def loopback_only(command: list) -> list:
     return ["unshare", "-n", "bash", "-c", script, "netns-run", *command]
 
 
-__all__ = ["UDP_ONLY_ENVIRONMENT", "loopback_only", "module_command", "module_environment",
-           "node_environment"]
+__all__ = ["UDP_ONLY_ENVIRONMENT", "environment_kept", "loopback_only", "module_command",
+           "module_environment", "node_environment"]

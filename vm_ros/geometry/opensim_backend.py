@@ -10,13 +10,13 @@ vm_ros.geometry that imports OpenSim, and it does so inside ``load_opensim``.
 
 from __future__ import annotations
 
-import os
 import xml.etree.ElementTree as ElementTree
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from vm_ros.child_process import environment_kept
 from vm_ros.errors import VmRosError
 from vm_ros.geometry.paths import COUPLING_POINTS, CoupledCoordinate
 
@@ -31,17 +31,11 @@ def load_opensim():
     # Importing opensim rewrites this process's LD_LIBRARY_PATH and PATH (and sets SIMBODY_HOME);
     # child processes (muscle_node, other ROS programs) would then fail to load their libraries.
     # Its own libraries are loaded by then: the environment is put back as it was.
-    saved = {name: os.environ.get(name) for name in _ENVIRONMENT_KEPT}
-    try:
-        import opensim
-    except ImportError as exc:
-        raise VmRosError(NEEDS_OPENSIM) from exc
-    finally:
-        for name, value in saved.items():
-            if value is None:
-                os.environ.pop(name, None)
-            else:
-                os.environ[name] = value
+    with environment_kept(_ENVIRONMENT_KEPT):
+        try:
+            import opensim
+        except ImportError as exc:
+            raise VmRosError(NEEDS_OPENSIM) from exc
     opensim.Logger.setLevelString("error")
     opensim.Logger.removeFileSink()  # else OpenSim writes opensim.log into the working directory
     return opensim

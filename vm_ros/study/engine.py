@@ -34,6 +34,7 @@ from pathlib import Path
 
 from distributed.diagnostics.plugin import WorkerPlugin
 
+from vm_ros.child_process import environment_kept
 from vm_ros.study.study_file import Study
 from vm_ros.study.table import (
     PARAMS_DIR,
@@ -91,22 +92,14 @@ class Engine:
 
         if self.scheduler:
             return Client(self.scheduler), None
-        # the nannies set pre-spawn-environ in this process's own environment too (Dask's
-        # Nanny); put it back after the start so that this process's later children (a node,
-        # another bench section) do not inherit the workers' allocator settings
-        saved = {name: os.environ.get(name) for name in MALLOC_ENVIRON}
-        try:
-            with dask.config.set(EMBEDDED_CONFIG):  # the nannies hand it to the workers
-                cluster = LocalCluster(n_workers=self.workers or os.cpu_count() or 1,
-                                       threads_per_worker=1, processes=True, host=LOOPBACK,
-                                       dashboard_address=None, silence_logs=logging.ERROR)
-                client = Client(cluster)
-        finally:
-            for name, value in saved.items():
-                if value is None:
-                    os.environ.pop(name, None)
-                else:
-                    os.environ[name] = value
+        # the nannies hand EMBEDDED_CONFIG to the workers, and set its pre-spawn-environ in this
+        # process's own environment too (Dask's Nanny): put back after the start, so that this
+        # process's later children (a node, another bench section) do not inherit it
+        with environment_kept(MALLOC_ENVIRON), dask.config.set(EMBEDDED_CONFIG):
+            cluster = LocalCluster(n_workers=self.workers or os.cpu_count() or 1,
+                                   threads_per_worker=1, processes=True, host=LOOPBACK,
+                                   dashboard_address=None, silence_logs=logging.ERROR)
+            client = Client(cluster)
         client.register_plugin(IgnoreInterrupt())
         return client, cluster
 
