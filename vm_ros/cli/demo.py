@@ -52,8 +52,15 @@ from vm_ros.child_process import loopback_only, module_command, node_environment
 from vm_ros.errors import VmRosError
 from vm_ros.model.params import load_muscle_library
 from vm_ros.report.summary import split_energy
-from vm_ros.report.validity import DEFAULT_INPUT_BOUND_S, Validity, run_validity
-from vm_ros.sim.loop_log import diagnostics_number, node_diagnostics
+from vm_ros.report.validity import (
+    DEFAULT_INPUT_BOUND_S,
+    Validity,
+    diagnostics_number,
+    logged_gap_bound,
+    logged_inputs,
+    node_diagnostics,
+    run_validity,
+)
 
 SCENARIO = "knee_extension"
 CATCH_UP_S = 1.0  # s of model time muscle_node catches up on after a stall (module docstring)
@@ -320,7 +327,6 @@ def logged_summary(path: Path, duration_s: float, diagnostics: dict) -> DemoSumm
     muscle_kinematics as logged, the node's extrapolation_max_s and its last /diagnostics (else
     ``diagnostics``, the monitor's)."""
     from vm_ros.recording import read_run
-    from vm_ros.recording.run_log import logged_node_parameters
 
     run = read_run(path, topics=(tm.TOPIC_FORCE, tm.TOPIC_ENERGY_RATE, tm.TOPIC_ENERGY_TOTAL,
                                  tm.TOPIC_EXCITATION, tm.TOPIC_KINEMATICS,
@@ -335,14 +341,9 @@ def logged_summary(path: Path, duration_s: float, diagnostics: dict) -> DemoSumm
     rates = rate.fields["data"][rows[1]].reshape(len(common), n, 3, 4)
     logged = node_diagnostics(run)
     diagnostics = logged[-1] if logged else diagnostics
-    inputs = [(topic, s.time_ns, s.fields.get("stamp_ns"))
-              for topic in (tm.TOPIC_EXCITATION, tm.TOPIC_KINEMATICS)
-              if (s := run.get(topic)) is not None and len(s)]
-    bound = (logged_node_parameters(run) or {}).get("extrapolation_max_s",
-                                                     DEFAULT_INPUT_BOUND_S)
     return demo_summary(force.names, common, force.fields["effort"][rows[0]], rates,
                         total.fields["data"][rows[2]], duration_s, diagnostics,
-                        inputs, float(bound))
+                        logged_inputs(run), logged_gap_bound(run))
 
 
 # ---------------------------------------------------------------------------- --closed-loop

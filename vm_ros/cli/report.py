@@ -52,6 +52,7 @@ from pathlib import Path
 import numpy as np
 
 from vm_ros import telemetry as tm
+from vm_ros import topics as tp
 from vm_ros.errors import VmRosError
 from vm_ros.progress import Progress
 from vm_ros.recording.messages import TOPIC_TELEMETRY
@@ -81,6 +82,7 @@ from vm_ros.report.tables import (
     telemetry_table,
     totals_table,
 )
+from vm_ros.report.validity import node_log_validity
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -138,7 +140,9 @@ def run(args) -> int:
                                          tm.TOPIC_ENERGY_RATE_TOTAL, tm.TOPIC_ENERGY_TOTAL,
                                          tm.TOPIC_EXCITATION, TOPIC_TELEMETRY,
                                          tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_JOINT_STATES,
-                                         tm.TOPIC_JOINT_WORK, tm.TOPIC_ENERGY_RATE_MODELS),
+                                         tm.TOPIC_JOINT_WORK, tm.TOPIC_ENERGY_RATE_MODELS,
+                                         *(row.name for row in tp.INPUT_TOPICS),
+                                         tm.TOPIC_DIAGNOSTICS),
                        progress=lambda done, size: p.update(done / max(size, 1)))
     if not muscle_names(log):
         raise VmRosError(f"{log_path}: not a vm_ros run log (no '{METADATA_NAME}' metadata "
@@ -158,6 +162,10 @@ def run(args) -> int:
     if records:
         write_csv(out / "summary.csv", list(records[0]), [r.values() for r in records])
     print(summary_table(summary))
+    if not len(log.get(TOPIC_TELEMETRY) or ()) and summary:
+        print("energy: totals are the model's own; the split into fibre types and components "
+              "follows the logged energy_rate samples (vm_ros.report.tables.run_energy), so a "
+              "component may differ a little from the run's own summary; its totals do not")
     joint_summary = run_joint_summary(log)
     joint_rows = joint_summary_records(joint_summary)
     if joint_rows:
@@ -176,6 +184,14 @@ def run(args) -> int:
         print(f"note: {log.skipped_note()}")
     if log.unlisted_note:
         print(f"note: {log.unlisted_note}")
+    checked = node_log_validity(log)
+    if checked is not None:  # a muscle_node log: did its inputs keep up (vm_ros.report.validity)
+        validity, stale_s = checked
+        print("\n".join(validity.lines(accepted=None)))
+        if stale_s > 0:
+            print(f"note: muscle_node ran {stale_s:.2f} s after its inputs ended (until it was "
+                  "stopped, on stale inputs: its stale_input_policy); the tables include that "
+                  "time, the validity check does not")
     written = []
     if plt is not None:
         bin_s, reason = report_bin(log, *_span_and_interval(tables), args.bin)

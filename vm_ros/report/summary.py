@@ -79,6 +79,16 @@ def _efficiency_cell(efficiency: float, width: int) -> str:
     return f"{100 * efficiency:>{width}.1f}" if np.isfinite(efficiency) else f"{'n/a':>{width}}"
 
 
+def _work_cell(work_j: float, width: int) -> str:
+    """Joules, or "n/a" when the log does not hold it (NaN)."""
+    return f"{work_j:>{width}.2f}" if np.isfinite(work_j) else f"{'n/a':>{width}}"
+
+
+WORK_NOT_LOGGED = ("W mech n/a: the log has no muscle_telemetry, which holds the fibres' "
+                   "mechanical work (muscle_node's logs, offline ones with --telemetry-rate 0); "
+                   "vm-ros recompute LOG --telemetry-rate 100 --out NEW writes it")
+
+
 def summarize(names, force_samples, energy, mechanical_work) -> list[MuscleSummary]:
     """force_samples (k, n) N; energy (n, 3, 4) J; mechanical_work (n,) J."""
     force = np.asarray(force_samples, dtype=float).reshape(-1, len(names))
@@ -132,7 +142,7 @@ def summary_table(rows: list[MuscleSummary]) -> str:
             name = row.name if j == 0 else ""
             force = f"{row.peak_force:>10.1f}{row.mean_force:>10.1f}" if whole else " " * 20
             energies = "".join(f"{row.energy[j, k]:>11.2f}" for k in range(4))
-            tail = (f"{row.mechanical_work:>10.2f}{_efficiency_cell(row.efficiency, 7)}"
+            tail = (f"{_work_cell(row.mechanical_work, 10)}{_efficiency_cell(row.efficiency, 7)}"
                     if whole else "")
             lines.append(f"{name:<{w}}{fibre:<6}{force}{energies}{tail}")
     total = sum(row.energy for row in rows)
@@ -141,9 +151,11 @@ def summary_table(rows: list[MuscleSummary]) -> str:
         lines.append("-" * len(header))
         energies = "".join(f"{total[-1, k]:>11.2f}" for k in range(4))
         efficiency = net_efficiency(work, float(total[-1, -1]))
-        lines.append(f"{'all muscles':<{w}}{'all':<6}{'':>20}{energies}{work:>10.2f}"
+        lines.append(f"{'all muscles':<{w}}{'all':<6}{'':>20}{energies}{_work_cell(work, 10)}"
                      f"{_efficiency_cell(efficiency, 7)}")
-    if any(row.mechanical_work <= 0 for row in rows) or (len(rows) > 1 and work <= 0):
+    if not np.isfinite(work):
+        lines.append(WORK_NOT_LOGGED)
+    elif any(row.mechanical_work <= 0 for row in rows) or (len(rows) > 1 and work <= 0):
         lines.append("eff n/a: net mechanical work not positive (isometric, or the muscle was "
                      "stretched by the load more than it shortened), so work / energy is no "
                      "efficiency")

@@ -23,6 +23,10 @@ A run of muscle_node in real time is not valid when
   parameter, 0.05 s by default) while the model ran: for that long the node extrapolated the
   last sample, then held it, so the model's input left the motion.
 
+``vm-ros report`` of a muscle_node log prints the same check (node_log_validity) over the time
+the node had inputs: from its first output to the last message of its inputs that ended first;
+the time after it, when the node ran on stale inputs until it was stopped, is named apart.
+
 Both are facts of the run log (output stamps on model time, inputs on their receipt time) or of
 the node's diagnostics, never of when a message reached a monitor. A run that is not valid ends
 its command with EXIT_NOT_VALID unless the caller accepts it (``vm-ros demo --accept-skips``),
@@ -36,6 +40,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from vm_ros import telemetry as tm
+from vm_ros import topics as tp
+from vm_ros.recording.run_log import logged_node_parameters
 
 EXIT_NOT_VALID = 3  # exit status of a real-time command whose run is not valid
 GAP_PERIODS = 1.5  # an output gap longer than this many publish periods is skipped model time
@@ -114,8 +122,9 @@ class Validity:
     def valid(self) -> bool:
         return not self.problems
 
-    def lines(self, accepted: bool) -> list[str]:
-        """The summary's closing lines: what was checked, and a verdict when not valid."""
+    def lines(self, accepted: bool | None) -> list[str]:
+        """The summary's closing lines: what was checked, and a verdict when not valid
+        (``accepted``: --accept-skips; None: a report of a finished log, no exit status)."""
         checked = [f"{t.topic} jitter {1e3 * t.jitter_s:.0f} ms (bound "
                    f"{1e3 * INPUT_JITTER_BOUND_S:.0f}), largest gap {1e3 * t.gap_s:.0f} ms "
                    f"(bound {1e3 * self.gap_bound_s:.0f})" for t in self.inputs]
@@ -126,7 +135,8 @@ class Validity:
             lines.append("NOT VALID: " + "; ".join(self.problems) + ". The numbers above are "
                          "not the model's response to the intended inputs (CPU starved: rerun "
                          "on an idle machine)"
-                         + ("; accepted (--accept-skips)" if accepted else
+                         + ("" if accepted is None else "; accepted (--accept-skips)"
+                            if accepted else
                             f"; exit status {EXIT_NOT_VALID} (--accept-skips: 0)"))
         return lines
 
@@ -146,5 +156,57 @@ def run_validity(stamps_ns, diagnostics_skipped_s: float, inputs=(),
     return Validity(float(skipped), timings, float(gap_bound_s))
 
 
+def node_diagnostics(run) -> list[dict]:
+    """muscle_node's /diagnostics values (key -> text) logged in ``run``, in order."""
+    series = run.get(tm.TOPIC_DIAGNOSTICS)
+    return [{kv.key: kv.value for kv in status.values}
+            for msg in ((series.messages or []) if series is not None else [])
+            for status in msg.status if status.hardware_id == "vm_ros"]
+
+
+def diagnostics_number(diagnostics: dict, key: str) -> float:
+    """A /diagnostics value as a number (NaN when missing or not a number)."""
+    try:
+        return float(diagnostics.get(key, "nan"))
+    except ValueError:
+        return float("nan")
+
+
+def logged_inputs(run) -> list:
+    """(topic, log times ns, header stamps ns or None) of each input topic
+    (vm_ros.topics.INPUT_TOPICS) that ``run`` holds messages of: run_validity's inputs."""
+    return [(row.name, s.time_ns, s.fields.get("stamp_ns")) for row in tp.INPUT_TOPICS
+            if (s := run.get(row.name)) is not None and len(s)]
+
+
+def logged_gap_bound(run) -> float:
+    """The input gap bound of a muscle_node log: its extrapolation_max_s (s), else the
+    default's."""
+    return float((logged_node_parameters(run) or {}).get("extrapolation_max_s",
+                                                          DEFAULT_INPUT_BOUND_S))
+
+
+def node_log_validity(run) -> tuple[Validity, float] | None:
+    """(Validity, s the node ran after its inputs ended) of a muscle_node run log, checked
+    over its muscle_force stamps up to the last message of the input that ended first
+    (module docstring); None for a log muscle_node did not write (offline runs step every dt)
+    or one with fewer than 2 outputs or no inputs."""
+    forces = run.get(tm.TOPIC_FORCE)
+    inputs = logged_inputs(run)
+    if logged_node_parameters(run) is None or forces is None or len(forces) < 2 or not inputs:
+        return None
+    stamps = np.sort(np.asarray(forces.time_ns, dtype=np.int64))
+    inputs_end = min(int(np.max(log)) for _, log, _ in inputs)
+    live = stamps[stamps <= inputs_end]
+    if len(live) < 2:
+        return None
+    diagnostics = node_diagnostics(run)
+    skipped = (diagnostics_number(diagnostics[-1], "skipped model time (s)") if diagnostics
+               else float("nan"))
+    return (run_validity(live, skipped, inputs, logged_gap_bound(run)),
+            float((stamps[-1] - live[-1]) * 1e-9))
+
+
 __all__ = ["DEFAULT_INPUT_BOUND_S", "EXIT_NOT_VALID", "INPUT_JITTER_BOUND_S", "InputTiming",
-           "Validity", "input_timing", "run_validity", "skipped_from_stamps"]
+           "Validity", "diagnostics_number", "input_timing", "logged_gap_bound", "logged_inputs",
+           "node_diagnostics", "node_log_validity", "run_validity", "skipped_from_stamps"]

@@ -22,9 +22,15 @@ import numpy as np
 from vm_ros import telemetry as tm
 from vm_ros.geometry.file import loads as load_geometry_text
 from vm_ros.recording import read_run
-from vm_ros.recording.run_log import ATTACHMENT_GEOMETRY, RunLogError, logged_node_parameters
+from vm_ros.recording.run_log import ATTACHMENT_GEOMETRY, RunLogError
 from vm_ros.report.summary import joint_work_increments
-from vm_ros.report.validity import DEFAULT_INPUT_BOUND_S, Validity, run_validity
+from vm_ros.report.validity import (
+    Validity,
+    diagnostics_number,
+    logged_gap_bound,
+    node_diagnostics,
+    run_validity,
+)
 
 TOPICS = (tm.TOPIC_JOINT_STATES, tm.TOPIC_JOINT_EFFORTS, tm.TOPIC_FORCE, tm.TOPIC_EXCITATION,
           tm.TOPIC_ENERGY_RATE_TOTAL, tm.TOPIC_ENERGY_TOTAL, tm.TOPIC_DIAGNOSTICS)
@@ -100,14 +106,6 @@ def _series(run, topic: str, field: str, t0_ns: int, columns=None) -> Series:
     return Series((series.time_ns - t0_ns) * 1e-9, values)
 
 
-def node_diagnostics(run) -> list[dict]:
-    """muscle_node's /diagnostics values (key -> text) logged in ``run``, in order."""
-    series = run.get(tm.TOPIC_DIAGNOSTICS)
-    return [{kv.key: kv.value for kv in status.values}
-            for msg in ((series.messages or []) if series is not None else [])
-            for status in msg.status if status.hardware_id == "vm_ros"]
-
-
 def read_loop_log(path) -> LoopLog:
     """A muscle_node run log with a geometry -> LoopLog. RunLogError when it lacks muscle
     outputs or joint channels (a run without a geometry, or one that never started)."""
@@ -137,12 +135,11 @@ def read_loop_log(path) -> LoopLog:
             by_name = dict(zip(geometry.muscle_names, r, strict=True))
             sign = np.array([np.sign(by_name.get(m, 0.0)) for m in muscles])
     diagnostics = node_diagnostics(run)
-    bound = (logged_node_parameters(run) or {}).get("extrapolation_max_s",
-                                                     DEFAULT_INPUT_BOUND_S)
     validity = run_validity(
         forces.time_ns, diagnostics_number(diagnostics[-1], "skipped model time (s)")
         if diagnostics else float("nan"),
-        [(tm.TOPIC_JOINT_STATES, states.time_ns, states.fields.get("stamp_ns"))], float(bound))
+        [(tm.TOPIC_JOINT_STATES, states.time_ns, states.fields.get("stamp_ns"))],
+        logged_gap_bound(run))
     return LoopLog(
         Path(path), joints, rotational, q,
         _series(run, tm.TOPIC_JOINT_EFFORTS, "position", t0),
@@ -154,14 +151,6 @@ def read_loop_log(path) -> LoopLog:
         _series(run, tm.TOPIC_ENERGY_RATE_TOTAL, "data", t0),
         _series(run, tm.TOPIC_ENERGY_TOTAL, "data", t0),
         diagnostics, validity)
-
-
-def diagnostics_number(diagnostics: dict, key: str) -> float:
-    """A /diagnostics value as a number (NaN when missing or not a number)."""
-    try:
-        return float(diagnostics.get(key, "nan"))
-    except ValueError:
-        return float("nan")
 
 
 def loop_numbers(log: LoopLog) -> dict:

@@ -1,0 +1,92 @@
+"""`vm-ros report` of a muscle_node log says whether its inputs kept up (the demos' check,
+vm_ros.report.validity.node_log_validity), over the time the node had inputs; a log without the
+fibres' work says why W mech is n/a."""
+
+from __future__ import annotations
+
+import json
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from vm_ros.recording.run_log import NODE_PARAMETERS_KEY
+from vm_ros.report.summary import WORK_NOT_LOGGED, summarize, summary_table
+from vm_ros.report.validity import node_log_validity
+
+MS = 1_000_000
+
+
+class _Series(SimpleNamespace):
+    def __len__(self) -> int:
+        return len(self.time_ns)
+
+
+def _series(time_ns, stamp_ns=None):
+    fields = {} if stamp_ns is None else {"stamp_ns": np.asarray(stamp_ns, dtype=np.int64)}
+    return _Series(time_ns=np.asarray(time_ns, dtype=np.int64), fields=fields)
+
+
+def _node_log(outputs_ns, inputs: dict, parameters: dict | None = None):
+    """A stand-in for a RunLog: muscle_force at ``outputs_ns``; each input topic -> (log times,
+    header stamps); muscle_node's parameters unless ``parameters`` is None (an offline log)."""
+    channels = {"muscle_force": _series(outputs_ns)}
+    channels.update({topic: _series(*times) for topic, times in inputs.items()})
+    extra = {} if parameters is None else {NODE_PARAMETERS_KEY: json.dumps(parameters)}
+    return SimpleNamespace(path="node.mcap", info=SimpleNamespace(extra=extra),
+                           get=channels.get)
+
+
+def _replayed(start_ms: int, end_ms: int, delay_ms: int = 3):
+    """Inputs at 1 kHz stamped on their own time and applied ``delay_ms`` later."""
+    stamps = MS * np.arange(start_ms, end_ms)
+    return stamps + delay_ms * MS, stamps
+
+
+def test_a_node_log_whose_inputs_kept_up_is_valid_and_the_stale_tail_is_named():
+    outputs = 10 * MS * np.arange(1, 301)  # 3 s of outputs; the inputs end at 2 s
+    run = _node_log(outputs, {"excitation": _replayed(0, 2000),
+                              "muscle_kinematics": _replayed(0, 2000)}, {})
+    validity, stale_s = node_log_validity(run)
+    assert validity.valid
+    assert [t.topic for t in validity.inputs] == ["excitation", "muscle_kinematics"]
+    assert stale_s == pytest.approx(1.0, abs=0.011)  # outputs after the last input (2.002 s)
+    assert not any("NOT VALID" in line for line in validity.lines(None))
+
+
+def test_a_late_burst_of_inputs_makes_the_report_say_not_valid_without_an_exit_status():
+    outputs = 10 * MS * np.arange(1, 201)
+    applied, stamps = _replayed(0, 2000)
+    applied[1000:1040] = applied[1040]  # 40 samples applied together, up to 40 ms late
+    run = _node_log(outputs, {"muscle_kinematics": (applied, stamps)},
+                    {"extrapolation_max_s": 0.05})
+    validity, _ = node_log_validity(run)
+    assert not validity.valid
+    lines = validity.lines(None)
+    assert "muscle_kinematics applied up to 40 ms off its time" in lines[1]
+    assert "exit status" not in lines[1] and "accept" not in lines[1]
+
+
+def test_the_gap_bound_is_the_node_logs_own_extrapolation_max_s():
+    outputs = 10 * MS * np.arange(1, 201)
+    applied, stamps = _replayed(0, 2000)
+    keep = np.r_[0:1000, 1080:2000]  # 80 ms without kinematics
+    inputs = {"muscle_kinematics": (applied[keep], stamps[keep])}
+    assert not node_log_validity(_node_log(outputs, inputs, {}))[0].valid  # default 0.05 s
+    assert node_log_validity(_node_log(outputs, inputs, {"extrapolation_max_s": 0.1}))[0].valid
+
+
+def test_offline_logs_and_logs_without_inputs_are_not_checked():
+    outputs = 10 * MS * np.arange(1, 201)
+    assert node_log_validity(_node_log(outputs, {"excitation": _replayed(0, 2000)}, None)) is None
+    assert node_log_validity(_node_log(outputs, {}, {})) is None
+
+
+def test_work_not_in_the_log_prints_na_and_says_why():
+    rows = summarize(["a", "b"], np.ones((3, 2)), np.ones((2, 3, 4)), [np.nan, np.nan])
+    text = summary_table(rows)
+    assert "nan" not in text
+    assert text.splitlines()[-1] == WORK_NOT_LOGGED
+    assert text.splitlines()[-2].split()[-2:] == ["n/a", "n/a"]
+    measured = summary_table(summarize(["a"], np.ones((3, 1)), np.ones((1, 3, 4)), [0.5]))
+    assert WORK_NOT_LOGGED not in measured
