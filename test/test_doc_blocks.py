@@ -120,6 +120,23 @@ def test_blocks_not_run_parse():
             assert proc.returncode == 0, f"{block.name}: {proc.stderr}"
 
 
+# how a command or a program starts; a text block whose first line that is not a comment
+# starts so, without synopsis brackets ([--OPTION]), is something to run fenced as text: skipped
+COMMAND_STARTS = ("vm-ros ", "python", "make ", "scripts/", "ros2 ", "dask ", "pip ", "from ",
+                  "import ", "colcon ", "source ")
+
+
+def _first_code_line(code: str) -> str:
+    return next((line for line in code.splitlines() if line.strip() and
+                 not line.startswith("#")), "")
+
+
+def test_no_command_is_fenced_as_text():
+    commands = [b.name for b in BLOCKS if b.language == "text" and "[--" not in b.code and
+                _first_code_line(b.code).startswith(COMMAND_STARTS)]
+    assert not commands, f"commands fenced as text (fence them as sh or python): {commands}"
+
+
 def test_yaml_blocks_parse():
     for block in (b for b in BLOCKS if b.language == "yaml"):
         assert yaml.safe_load(block.code) is not None, block.name
