@@ -7,8 +7,10 @@ is written into that folder for the document's other blocks; ``text`` blocks are
 printed output, not commands. An HTML comment on the line before a fence says what a block needs:
 
     <!-- doc-test: needs FILE ... -->       files (or folders) this test provides, built here from
-                                            nothing but the extras (FIXTURES); ``ROS`` asks for
-                                            rclpy in a loopback-only namespace
+                                            nothing but the extras, or copied from the walk that
+                                            scripts/fetch-gait-data caches (FIXTURES; skipped
+                                            without it); ``ROS`` asks for rclpy in a
+                                            loopback-only namespace
     <!-- doc-test: runs until stopped: N --> a service (a node): it must still be running, or have
                                             exited 0, after N s; it is then stopped with SIGTERM
     <!-- doc-test: not run: REASON -->       only for the reasons in NOT_RUN
@@ -43,6 +45,9 @@ LANGUAGES = ("python", "sh", "yaml", "text")
 NOT_RUN = {  # the only reasons a block may give for not running here
     "it is the command that runs this test suite",
     "installs packages from the package index, which the test namespace cannot reach",
+    "runs on the hosts of a cluster",  # test_study.py runs --scheduler on a local one
+    "needs a Slurm cluster and dask-jobqueue",
+    "needs a Kubernetes cluster and dask-kubernetes",
 }
 BIN = str(Path(sys.executable).parent)
 FENCE = re.compile(r"^```([^\n`]*)\n(.*?)^```[ \t]*$", re.MULTILINE | re.DOTALL)
@@ -104,6 +109,34 @@ def test_every_block_names_its_language_and_a_known_mark():
     assert len(RUN) >= 8  # the README's three examples and the docs' blocks are collected
 
 
+def test_blocks_not_run_parse():
+    """A python or sh block that is not run is still valid code (compile, bash -n)."""
+    for block in (b for b in BLOCKS if b.language in ("python", "sh") and b not in RUN):
+        if block.language == "python":
+            compile(block.code, block.name, "exec")
+        else:
+            proc = subprocess.run(["bash", "-n", "-c", block.code], capture_output=True,
+                                  text=True, timeout=60)
+            assert proc.returncode == 0, f"{block.name}: {proc.stderr}"
+
+
+# how a command or a program starts; a text block whose first line that is not a comment
+# starts so, without synopsis brackets ([--OPTION]), is something to run fenced as text: skipped
+COMMAND_STARTS = ("vm-ros ", "python", "make ", "scripts/", "ros2 ", "dask ", "pip ", "from ",
+                  "import ", "colcon ", "source ")
+
+
+def _first_code_line(code: str) -> str:
+    return next((line for line in code.splitlines() if line.strip() and
+                 not line.startswith("#")), "")
+
+
+def test_no_command_is_fenced_as_text():
+    commands = [b.name for b in BLOCKS if b.language == "text" and "[--" not in b.code and
+                _first_code_line(b.code).startswith(COMMAND_STARTS)]
+    assert not commands, f"commands fenced as text (fence them as sh or python): {commands}"
+
+
 def test_yaml_blocks_parse():
     for block in (b for b in BLOCKS if b.language == "yaml"):
         assert yaml.safe_load(block.code) is not None, block.name
@@ -162,7 +195,38 @@ def _fitted_paths(folder: Path) -> Path:
     return written.rename(folder / "MyModel_FunctionBasedPathSet.xml")
 
 
+def _walk_file(name: str, opensim: bool = False):
+    """A FIXTURES builder: the walk's file ``name`` (vm_ros.validation.walk_data.FILES),
+    copied from the cache scripts/fetch-gait-data fills (skipped when it has not been run, or
+    with ``opensim`` when the opensim extra is not installed)."""
+
+    def copy(folder: Path) -> Path:
+        from vm_ros.validation.walk_data import WalkDataError, walk_files
+
+        if opensim:
+            _osim()
+        try:
+            source = walk_files()[name]
+        except WalkDataError as exc:
+            pytest.skip(str(exc))
+        return Path(shutil.copy(source, folder / source.name))
+
+    return copy
+
+
+def _walk_model(folder: Path) -> Path:
+    """out/model/: the walk's model imported at its own F0 (README's import-osim line)."""
+    _run([f"{BIN}/vm-ros", "import-osim", str(_built(folder, "subject01.osim")), "--motion",
+          str(_built(folder, "subject01_walk_IK.mot")), "--specific-tension", "60",
+          "--strength", "model", "--out", str(folder / "out" / "model")], folder)
+    return folder / "out" / "model"
+
+
 FIXTURES = {
+    "subject01.osim": _walk_file("model", opensim=True),
+    "subject01_walk_IK.mot": _walk_file("motion"),
+    "subject01_walk_ID.sto": _walk_file("inverse_dynamics"),
+    "out/model/": _walk_model,
     "MyModel.osim": lambda folder: _osim().build_hip_knee(folder / "MyModel.osim"),
     "ik_walk.mot": lambda folder: _motion(folder / "ik_walk.mot"),
     "controls.sto": lambda folder: _controls(folder / "controls.sto"),

@@ -458,16 +458,21 @@ def test_a_column_for_a_dependent_coordinate_is_named_as_not_used(tmp_path):
             "(it follows knee_angle): not an input, its values are not used") in printed
 
 
-def test_a_dependent_column_that_disagrees_with_the_coupling_warns(tmp_path):
-    """patella_angle = knee_angle / 2 (a table over the knee's box); a radians motion whose
-    patella column is 0.05 rad off at t = 0.1 s: one input warning in rad, repeated after the
-    summary; the column still is not an input (the run's joint_states hold the knee only)."""
+def half_knee_geometry_file(directory: Path) -> Path:
+    """The leg geometry with patella_angle = knee_angle / 2 (a table over the knee's box)."""
     geometry = make_geometry()
     knee = np.linspace(*BOX["knee_angle"], 201)
     coupled = PolynomialGeometry(geometry.coordinates, geometry.muscles, [CoupledCoordinate(
         "patella_angle", ("knee_angle",), "half the knee", "rad", tuple(knee),
         tuple(knee / 2))], backend="numpy")
-    geometry_file = write_geometry(coupled, tmp_path / "coupled.yaml")
+    return write_geometry(coupled, directory / "coupled.yaml")
+
+
+def test_a_dependent_column_that_disagrees_with_the_coupling_warns(tmp_path):
+    """patella_angle = knee_angle / 2 (a table over the knee's box); a radians motion whose
+    patella column is 0.05 rad off at t = 0.1 s: one input warning in rad, repeated after the
+    summary; the column still is not an input (the run's joint_states hold the knee only)."""
+    geometry_file = half_knee_geometry_file(tmp_path)
     t = np.linspace(0.0, 0.2, 5)
     knee_motion = 0.2 + 4.0 * t
     motion = write_motion(tmp_path / "m.mot", t, {
@@ -486,3 +491,88 @@ def test_a_dependent_column_that_disagrees_with_the_coupling_warns(tmp_path):
     assert tail[-2].startswith("1 input warning(s)") and warning in tail[-1], proc.stdout
     assert "is a dependent coordinate" not in proc.stdout
     assert read_run(out).get("joint_states").names == ("hip_flexion", "knee_angle")
+
+
+def _in_box_motion(path: Path, in_degrees: bool = True, scale: float = 1.0) -> Path:
+    """0.2 s of hip 0 -> 30 -> 0 deg and knee 5 -> 65 deg (inside the box) at 9 frames;
+    ``scale`` multiplies the angles."""
+    t = np.linspace(0.0, 0.2, 9)
+    return write_motion(path, t, {"hip_flexion": scale * 30.0 * np.sin(np.pi * t / 0.2),
+                                  "knee_angle": scale * (5.0 + 300.0 * t)}, in_degrees)
+
+
+def _coupled_motion(directory: Path) -> list[str]:
+    """patella_angle = knee_angle / 2 in the geometry; the motion's column 3 deg off at 0.1 s."""
+    geometry_file = half_knee_geometry_file(directory)
+    t = np.linspace(0.0, 0.2, 5)
+    knee_deg = 10.0 + 200.0 * t
+    motion = write_motion(directory / "coupled.mot", t, {
+        "hip_flexion": 0 * t, "knee_angle": knee_deg,
+        "patella_angle": knee_deg / 2 + np.where(t == 0.1, 3.0, 0.0)})
+    return ["--motion", str(motion), "--geometry", str(geometry_file)]
+
+
+def _input_table(directory: Path) -> list[str]:
+    """A CSV of inputs over 0-0.2 s, run for 0.3 s."""
+    inputs = directory / "inputs.csv"
+    inputs.write_text("time_s,vasti.excitation,vasti.path_length\n0,0.1,0.3\n0.2,0.2,0.31\n")
+    return ["--inputs", str(inputs), "--duration", "0.3"]
+
+
+# every kind of input warning (vm_ros.cli.runs.InputWarnings: simulate's source.check), each
+# alone: (the run's options from a folder, what its one warning must say)
+WARNING_CASES = {
+    "motion frames outside the box": (
+        lambda d: ["--motion", str(leg_motion(d / "leg.mot")), "--geometry",
+                   str(write_geometry_file(d))],
+        f"knee_angle outside the geometry's range 0 to {np.degrees(2.0):.6g} deg in 1 of 9 "
+        "frames (at worst -5 deg): clamped to it"),
+    "degrees header, radian-sized angles": (
+        lambda d: ["--motion", str(_in_box_motion(d / "small.mot", scale=0.018)), "--geometry",
+                   str(write_geometry_file(d))],
+        "the header says inDegrees=yes but every rotational column stays within +-1.17 deg; if "
+        "the file is in radians, set inDegrees=no"),
+    "a run longer than its motion": (
+        lambda d: ["--motion", str(_in_box_motion(d / "m.mot")), "--geometry",
+                   str(write_geometry_file(d)), "--duration", "0.3"],
+        "span 0.2 s, the run 0.3 s: their last row is held for the last 0.1 s"),
+    "a run longer than its input table": (
+        _input_table, "span 0.2 s, the run 0.3 s: their last row is held for the last 0.1 s"),
+    "a dependent column off its coupling": (
+        _coupled_motion,
+        "column patella_angle disagrees with the geometry's coupling to knee_angle by up to 3 "
+        "deg (more than 1 deg): at 0.1 s it has 18 deg, the coupling 15 deg"),
+    "excitations over part of the run": (
+        lambda d: ["--motion", str(_in_box_motion(d / "m.mot")), "--geometry",
+                   str(write_geometry_file(d)), "--excitations",
+                   str(_controls(d / "part.sto", [0.1, 0.3], [0.2, 0.6]))],
+        "cover 0.1-0.3 s, the run 0-0.2 s: the drives hold their first row for the 0.1 s before "
+        "0.1 s"),
+}
+
+
+@pytest.mark.parametrize("kind", WARNING_CASES)
+def test_each_input_warning_is_repeated_at_the_end_and_an_error_with_strict(kind, tmp_path,
+                                                                            capsys):
+    """Without --strict: exit 0, the warning printed when found (stderr) and repeated as the
+    summary's last line under '1 input warning(s)'; with --strict: exit 2, that warning as the
+    one line on stderr, no log."""
+    make_args, expected = WARNING_CASES[kind]
+    args = ["simulate", *make_args(tmp_path), "--telemetry-rate", "0"]
+    strict_out = tmp_path / "strict.mcap"
+    assert main([*args, "--strict", "--out", str(strict_out)]) == 2
+    printed = capsys.readouterr()
+    lines = printed.err.strip().splitlines()
+    assert len(lines) == 1 and expected in lines[0], printed.err
+    prefix, suffix = "vm-ros simulate: error: ", " (an error with --strict)"
+    assert lines[0].startswith(prefix) and lines[0].endswith(suffix), lines[0]
+    warning = lines[0].removeprefix(prefix).removesuffix(suffix)
+    assert not strict_out.exists()
+
+    assert main([*args, "--out", str(tmp_path / "run.mcap")]) == 0
+    printed = capsys.readouterr()
+    assert f"vm-ros simulate: warning: {warning}\n" in printed.err, printed.err
+    tail = printed.out.strip().splitlines()
+    assert tail[-2] == ("1 input warning(s), the numbers above depend on them (--strict makes "
+                        "them errors):"), printed.out
+    assert tail[-1] == f"  {warning}", printed.out
