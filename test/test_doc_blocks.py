@@ -18,8 +18,8 @@ printed output, not commands. An HTML comment on the line before a fence says wh
 Several parts are separated by ';' (``needs elbow/ ROS; runs until stopped: 20``).
 
 A block that fails shows its output. The run of the README's three examples is what a new user
-types; blocks that quote numbers name the command that produced them (test_docs.py checks the
-citations).
+types. Whether a number quoted in the prose names the command that produced it is a rule of
+review, not checked here (test_docs.py checks cited documents and tables against the config).
 """
 
 from __future__ import annotations
