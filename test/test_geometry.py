@@ -164,7 +164,8 @@ def test_compiled_slots_written_out_give_the_bits_of_the_loop_over_slots():
     rng = np.random.default_rng(5)
     poses = np.array([random_pose(geometry, rng) for _ in range(20)])
     many = geometry.evaluate_many(poses, poses)
-    for q, out in zip(poses, many, strict=True):
+    for i, q in enumerate(poses):
+        out = many.row(i)
         length, gradient = evaluate_wide(q, *wide, geometry.packed.max_degree)
         one = geometry.evaluate(q, q)
         for a, b in ((one.length_m, length), (one.moment_arm, -gradient),
@@ -181,7 +182,7 @@ def test_compiled_slots_written_out_give_the_bits_of_the_loop_over_slots():
         a, b = numpy_geometry.evaluate(q, q), compiled.evaluate(q, q)
         np.testing.assert_allclose(a.length_m, b.length_m, rtol=1e-13, atol=1e-16)
         np.testing.assert_allclose(a.moment_arm, b.moment_arm, rtol=1e-12, atol=1e-15)
-        np.testing.assert_allclose(compiled.evaluate_many(q[None], q[None])[0].moment_arm,
+        np.testing.assert_allclose(compiled.evaluate_many(q[None], q[None]).moment_arm[0],
                                    b.moment_arm, rtol=0, atol=0)
 
 

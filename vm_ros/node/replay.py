@@ -42,7 +42,7 @@ from vm_ros.geometry import load_geometry
 from vm_ros.geometry.file import loads as load_geometry_text
 from vm_ros.joint_space import JointEfforts, JointMap, JointSpace
 from vm_ros.node.inputs import HeldInputs, InputLimits, NodeInputs, node_receivers
-from vm_ros.node.joint_inputs import JointInputs
+from vm_ros.node.joint_inputs import JointInputs, JointSamples
 from vm_ros.node.params import NodeConfig
 from vm_ros.recording.cdr import input_decoder
 from vm_ros.recording.run_log import (
@@ -182,7 +182,8 @@ class NodeConditioning:
         ``times_ns`` (rows of ``drives``, ``positions``, ``velocities``), then the steps starting
         at ``steps_ns``, as arrays: what on_excitation and on_joint_states message by message,
         with ``sample`` at each step start in between, give (the same bits, the same counts):
-        (U, path length, path velocity) (k, n) each and the joint sample each step used. None
+        (U, path length, path velocity) (k, n) each and the joint sample each step used
+        (JointSamples, a row per step). None
         (nothing applied) when a message is not the usual accepted one, a step would find the
         inputs not ready or live coordination is on: the caller then goes message by message."""
         if self.joints is None or len(self.coordinated) or not len(times_ns):
@@ -199,14 +200,16 @@ class NodeConditioning:
         if not np.isfinite(at_steps.length_m).all():
             return None  # a step not ready: message by message, which says so
         u, length, velocity = self.inputs.sample_held(steps_ns, at_steps)
-        samples = [self.joints.sample, *block.samples]
+        previous = self.joints.sample
         self.inputs.keep(held, times_ns[-1])
         self.joints.keep(block)
         self._count(block.issues)
         named = self._named(joints)
-        self.clamped[named] += (block.q[:, named] != np.array(
-            [sample.q[named] for sample in block.samples])).sum(axis=0)
-        return u, length, velocity, [samples[a] for a in applied.tolist()]
+        self.clamped[named] += (block.q[:, named] != block.samples.q[:, named]).sum(axis=0)
+        if applied.min() > 0:  # every step after a message of the block
+            return u, length, velocity, block.samples.take(applied - 1)
+        both = JointSamples.stack([previous, *map(block.samples.row, range(len(times_ns)))])
+        return u, length, velocity, both.take(applied)
 
     @property
     def ready(self) -> bool:
