@@ -350,7 +350,8 @@ class PolynomialGeometry(JointGeometry):
         # each velocity as evaluate computes it, gradient @ qdot: a stacked matrix-vector
         # matmul calls BLAS's gemv once per pose with the same arguments but the pointers
         velocity = np.matmul(gradients, qdot_used[:, :, None])[:, :, 0]
-        return GeometryOutput(lengths, velocity, -gradients, q_used, qdot_used, clamped)
+        moment_arm = np.negative(gradients, out=gradients)  # r = -dL/dq, in place (k n n_q)
+        return GeometryOutput(lengths, velocity, moment_arm, q_used, qdot_used, clamped)
 
 
 __all__ = ["COUPLING_POINTS", "Coordinate", "CoupledCoordinate", "FitReport", "GeometryOutput",

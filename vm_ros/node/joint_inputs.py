@@ -97,13 +97,19 @@ class JointSamples:
                    *(np.array([getattr(s, key) for s in samples])
                      for key in ("q", "qdot", "moment_arm")))
 
-    def take(self, index) -> JointSamples:
-        """The samples at ``index`` (k,), in that order (these arrays when it is 0 ... k - 1)."""
+    def take(self, index, before: JointSample | None = None) -> JointSamples:
+        """The samples at ``index`` (k,), in that order (these arrays when it is 0 ... k - 1);
+        ``before`` where ``index`` is -1 (the sample before these)."""
         index = np.asarray(index, dtype=int)
         if np.array_equal(index, np.arange(len(self))):
             return self
-        return JointSamples(self.time_ns[index], self.q[index], self.qdot[index],
-                            self.moment_arm[index])
+        earlier = index < 0
+        taken = [np.take(getattr(self, key), np.maximum(index, 0), axis=0)
+                 for key in ("time_ns", "q", "qdot", "moment_arm")]
+        if earlier.any():
+            for array, key in zip(taken, ("time_ns", "q", "qdot", "moment_arm"), strict=True):
+                array[earlier] = getattr(before, key)
+        return JointSamples(*taken)
 
 
 @dataclass(frozen=True)

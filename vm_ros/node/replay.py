@@ -42,7 +42,7 @@ from vm_ros.geometry import load_geometry
 from vm_ros.geometry.file import loads as load_geometry_text
 from vm_ros.joint_space import JointEfforts, JointMap, JointSpace
 from vm_ros.node.inputs import HeldInputs, InputLimits, NodeInputs, node_receivers
-from vm_ros.node.joint_inputs import JointInputs, JointSamples
+from vm_ros.node.joint_inputs import JointInputs
 from vm_ros.node.params import NodeConfig
 from vm_ros.recording.cdr import input_decoder
 from vm_ros.recording.run_log import (
@@ -206,10 +206,7 @@ class NodeConditioning:
         self._count(block.issues)
         named = self._named(joints)
         self.clamped[named] += (block.q[:, named] != block.samples.q[:, named]).sum(axis=0)
-        if applied.min() > 0:  # every step after a message of the block
-            return u, length, velocity, block.samples.take(applied - 1)
-        both = JointSamples.stack([previous, *map(block.samples.row, range(len(times_ns)))])
-        return u, length, velocity, both.take(applied)
+        return u, length, velocity, block.samples.take(applied - 1, before=previous)
 
     @property
     def ready(self) -> bool:
