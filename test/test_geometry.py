@@ -6,6 +6,7 @@ from the formula, central finite differences, closed-form polynomials, and the p
 
 from __future__ import annotations
 
+import json
 import math
 import re
 
@@ -164,7 +165,8 @@ def test_compiled_slots_written_out_give_the_bits_of_the_loop_over_slots():
     rng = np.random.default_rng(5)
     poses = np.array([random_pose(geometry, rng) for _ in range(20)])
     many = geometry.evaluate_many(poses, poses)
-    for q, out in zip(poses, many, strict=True):
+    for i, q in enumerate(poses):
+        out = many.row(i)
         length, gradient = evaluate_wide(q, *wide, geometry.packed.max_degree)
         one = geometry.evaluate(q, q)
         for a, b in ((one.length_m, length), (one.moment_arm, -gradient),
@@ -181,7 +183,7 @@ def test_compiled_slots_written_out_give_the_bits_of_the_loop_over_slots():
         a, b = numpy_geometry.evaluate(q, q), compiled.evaluate(q, q)
         np.testing.assert_allclose(a.length_m, b.length_m, rtol=1e-13, atol=1e-16)
         np.testing.assert_allclose(a.moment_arm, b.moment_arm, rtol=1e-12, atol=1e-15)
-        np.testing.assert_allclose(compiled.evaluate_many(q[None], q[None])[0].moment_arm,
+        np.testing.assert_allclose(compiled.evaluate_many(q[None], q[None]).moment_arm[0],
                                    b.moment_arm, rtol=0, atol=0)
 
 
@@ -303,6 +305,37 @@ def test_geometry_file_round_trips_exactly(tmp_path):
     q = (geometry.lower + geometry.upper) / 3
     assert geometry.evaluate(q).length_m.tobytes() == again.evaluate(q).length_m.tobytes()
 
+
+
+def test_a_geometry_text_is_parsed_once_then_read_from_the_cache(tmp_path, monkeypatch):
+    """The parsed-data cache (vm_ros.geometry.file): the first read keeps the data, the next
+    read of the same text takes them from the cache (a marked entry shows it), with the values
+    and types of PyYAML's pure-Python safe loader; a changed text is parsed anew, a broken
+    entry is parsed over and rewritten, data JSON cannot give back equal are not kept."""
+    import yaml
+
+    from vm_ros.geometry import file as geometry_file
+
+    folder = tmp_path / "parsed"
+    monkeypatch.setattr(geometry_file, "parsed_cache_dir", lambda: folder)
+    text = dumps(with_fit_reports(random_geometry(fitted=True)))
+    reference = yaml.load(text, Loader=yaml.SafeLoader)
+    assert repr(geometry_file.parsed(text)) == repr(reference)   # parsed, kept
+    (entry,) = folder.iterdir()
+    assert repr(geometry_file.parsed(text)) == repr(reference)   # from the cache
+    entry.write_text('{"marked": 1}')
+    assert geometry_file.parsed(text) == {"marked": 1}
+    entry.write_text('{"marked": ')                               # broken: parsed again
+    assert repr(geometry_file.parsed(text)) == repr(reference)
+    assert repr(json.loads(entry.read_text())) == repr(reference)
+    changed = text.replace("format: vm_ros.geometry", "format: other")
+    assert geometry_file.parsed(changed)["format"] == "other"
+    assert len(list(folder.iterdir())) == 2
+    assert geometry_file.parsed("{1: a}") == {1: "a"}           # a key JSON would make "1"
+    assert len(list(folder.iterdir())) == 2
+    one, again = loads(text), geometry_file.geometry_from_dict(reference)   # cached, parsed
+    for a, b in zip(one.muscles, again.muscles, strict=True):
+        assert a.coefficients.tobytes() == b.coefficients.tobytes()
 
 @pytest.mark.parametrize("mutate, field", [
     (lambda d: d.update(format="other"), "format"),

@@ -107,7 +107,7 @@ def test_a_block_conditions_as_the_node_does_message_by_message(bank, backend):
     for got, expected in zip((np.concatenate([r[k] for r in results]) for k in range(3)),
                              (u, lp, vp), strict=True):
         assert_same_bits(got, expected)
-    got_samples = [s for r in results for s in r[3]]
+    got_samples = [r[3].row(i) for r in results for i in range(len(r[3]))]
     assert len(got_samples) == len(samples)
     for got, expected in zip(got_samples, samples, strict=True):
         assert got.time_ns == expected.time_ns

@@ -1,4 +1,5 @@
-"""Where the shipped configuration lives: source checkout, `pip install .` and colcon alike."""
+"""Where the shipped configuration lives (source checkout, `pip install .` and colcon alike), and
+vm_ros's folder of caches."""
 
 from __future__ import annotations
 
@@ -35,3 +36,9 @@ def config_dir() -> Path:
         + ", ".join(str(c) for c in candidates)
         + " (set VM_ROS_CONFIG_DIR to the folder holding model.yaml)"
     )
+
+
+def cache_home() -> Path:
+    """vm_ros's folder of caches: ``$XDG_CACHE_HOME/vm_ros`` (XDG_CACHE_HOME defaults to
+    ~/.cache)."""
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "vm_ros"

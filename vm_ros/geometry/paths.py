@@ -161,7 +161,8 @@ class MusclePath:
 
 @dataclass
 class GeometryOutput:
-    """Muscle-space kinematics at one pose.
+    """Muscle-space kinematics at one pose (``evaluate_many``: at k poses, every field with a
+    leading axis of k; ``row(i)`` is pose i's).
 
     | field | shape | unit |
     | --- | --- | --- |
@@ -179,6 +180,11 @@ class GeometryOutput:
     q: np.ndarray
     qdot: np.ndarray
     clamped: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+
+    def row(self, i: int) -> GeometryOutput:
+        """Pose ``i`` of an ``evaluate_many`` output (views of its arrays)."""
+        return GeometryOutput(self.length_m[i], self.velocity_m_per_s[i], self.moment_arm[i],
+                              self.q[i], self.qdot[i], self.clamped[i])
 
 
 def generalized_forces(moment_arm: np.ndarray, force: np.ndarray) -> np.ndarray:
@@ -237,9 +243,14 @@ class JointGeometry:
     def evaluate(self, q, qdot=None) -> GeometryOutput:  # pragma: no cover - interface
         raise NotImplementedError
 
-    def evaluate_many(self, q, qdot) -> list[GeometryOutput]:
-        """``evaluate`` at each pose of q, qdot (k, n_q)."""
-        return [self.evaluate(pose, speed) for pose, speed in zip(q, qdot, strict=True)]
+    def evaluate_many(self, q, qdot) -> GeometryOutput:
+        """``evaluate`` at each pose of q, qdot (k, n_q), stacked (GeometryOutput.row)."""
+        n, n_q = len(self.muscle_names), len(self.coordinates)
+        outputs = [self.evaluate(pose, speed) for pose, speed in zip(q, qdot, strict=True)]
+        shapes = {"length_m": (n,), "velocity_m_per_s": (n,), "moment_arm": (n, n_q),
+                  "q": (n_q,), "qdot": (n_q,), "clamped": (n_q,)}
+        return GeometryOutput(**{key: np.array([getattr(out, key) for out in outputs]).reshape(
+            len(outputs), *shape) for key, shape in shapes.items()})
 
 
 class PolynomialGeometry(JointGeometry):
@@ -325,9 +336,10 @@ class PolynomialGeometry(JointGeometry):
         return GeometryOutput(length, gradient @ qdot_used, -gradient, q_used, qdot_used,
                               clamped)
 
-    def evaluate_many(self, q, qdot) -> list[GeometryOutput]:
-        """``evaluate`` at each pose of q, qdot (k, n_q), the polynomials of every pose in one
-        compiled call (the NumPy evaluator: pose by pose); the same numbers as k calls."""
+    def evaluate_many(self, q, qdot) -> GeometryOutput:
+        """``evaluate`` at each pose of q, qdot (k, n_q), stacked (GeometryOutput.row), the
+        polynomials of every pose in one compiled call (the NumPy evaluator: pose by pose); the
+        same numbers as k calls."""
         q, qdot = np.asarray(q, dtype=float), np.asarray(qdot, dtype=float)
         shape = (len(q), len(self.coordinates))
         if (self._compiled is None or not len(q) or q.shape != shape or qdot.shape != shape
@@ -335,9 +347,11 @@ class PolynomialGeometry(JointGeometry):
             return super().evaluate_many(q, qdot)  # check_pose's errors, pose by pose
         q_used, qdot_used, clamped = clamp_to_box(q, qdot, self._lower, self._upper)
         lengths, gradients = self._compiled_many(q_used)
-        # each velocity as evaluate computes it (a stacked matmul may sum in another order)
-        return [GeometryOutput(lengths[k], gradients[k] @ qdot_used[k], -gradients[k],
-                               q_used[k], qdot_used[k], clamped[k]) for k in range(len(q))]
+        # each velocity as evaluate computes it, gradient @ qdot: a stacked matrix-vector
+        # matmul calls BLAS's gemv once per pose with the same arguments but the pointers
+        velocity = np.matmul(gradients, qdot_used[:, :, None])[:, :, 0]
+        moment_arm = np.negative(gradients, out=gradients)  # r = -dL/dq, in place (k n n_q)
+        return GeometryOutput(lengths, velocity, moment_arm, q_used, qdot_used, clamped)
 
 
 __all__ = ["COUPLING_POINTS", "Coordinate", "CoupledCoordinate", "FitReport", "GeometryOutput",

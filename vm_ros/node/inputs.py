@@ -98,12 +98,17 @@ class HeldInputs(NamedTuple):
     length_time_ns: np.ndarray
 
 
-def carried(held: np.ndarray, new: np.ndarray, updated: np.ndarray) -> np.ndarray:
+def latest_rows(updated: np.ndarray) -> np.ndarray:
+    """(k, n): for row i and column j, 1 + the last row at or before i where ``updated`` (k, n)
+    is set, 0 where none is (carried's ``latest``)."""
+    k = len(updated)
+    return np.maximum.accumulate(np.where(updated, np.arange(1, k + 1)[:, None], 0), axis=0)
+
+
+def carried(held: np.ndarray, new: np.ndarray, latest: np.ndarray) -> np.ndarray:
     """(k + 1, n): row 0 ``held`` (n,), row i + 1 the latest of ``new`` (k, n) at or before
-    row i where ``updated`` (k, n), else ``held`` (a value stored by some messages and kept
-    through the others)."""
-    k = len(new)
-    latest = np.maximum.accumulate(np.where(updated, np.arange(1, k + 1)[:, None], 0), axis=0)
+    row i where it was updated (``latest``: latest_rows of the updated mask), else ``held`` (a
+    value stored by some messages and kept through the others)."""
     rows = np.concatenate([held[None, :], np.asarray(new, dtype=held.dtype)])
     return np.concatenate([held[None, :], np.take_along_axis(rows, latest, axis=0)])
 
@@ -483,14 +488,15 @@ class NodeInputs:
         drive_set[:, muscles] = True
         updated, lengths, velocities = path_update
         every = np.broadcast_to(times, (k, self.n))
+        drive_latest, path_latest = latest_rows(drive_set), latest_rows(updated)
         return HeldInputs(
-            carried(self.drive, new_drive, drive_set),
-            carried(self.drive_seen, np.ones((k, self.n), dtype=bool), drive_set),
-            carried(self.drive_time_ns, every, drive_set),
-            carried(self.length_m, lengths, updated),
-            carried(self.velocity_m_per_s, velocities, updated),
-            carried(self.length_seen, np.ones((k, self.n), dtype=bool), updated),
-            carried(self.length_time_ns, every, updated))
+            carried(self.drive, new_drive, drive_latest),
+            carried(self.drive_seen, np.ones((k, self.n), dtype=bool), drive_latest),
+            carried(self.drive_time_ns, every, drive_latest),
+            carried(self.length_m, lengths, path_latest),
+            carried(self.velocity_m_per_s, velocities, path_latest),
+            carried(self.length_seen, np.ones((k, self.n), dtype=bool), path_latest),
+            carried(self.length_time_ns, every, path_latest))
 
     def keep(self, held: HeldInputs, last_excitation_ns: int) -> None:
         """Hold the last row of ``held`` (hold_rows: after the last message of a block)."""
@@ -524,5 +530,5 @@ def node_receivers(inputs: NodeInputs, on_joint_states) -> dict:
                 on_joint_states(names, position, velocity, time_ns)}
 
 
-__all__ = ["HeldInputs", "InputLimits", "NodeInputs", "carried", "node_receivers",
+__all__ = ["HeldInputs", "InputLimits", "NodeInputs", "carried", "latest_rows", "node_receivers",
            "physical_path_length_range"]

@@ -72,16 +72,57 @@ class JointSample:
 
 
 @dataclass(frozen=True)
+class JointSamples:
+    """k JointSample stacked (read-only arrays): ``time_ns`` (k,) int64, ``q``, ``qdot``
+    (k, n_coordinates), ``moment_arm`` (k, n_driven, n_coordinates); ``row(i)`` is sample i."""
+
+    time_ns: np.ndarray
+    q: np.ndarray
+    qdot: np.ndarray
+    moment_arm: np.ndarray
+
+    def __post_init__(self):
+        for array in (self.time_ns, self.q, self.qdot, self.moment_arm):
+            array.flags.writeable = False
+
+    def __len__(self) -> int:
+        return len(self.time_ns)
+
+    def row(self, i: int) -> JointSample:
+        return JointSample(int(self.time_ns[i]), self.q[i], self.qdot[i], self.moment_arm[i])
+
+    @classmethod
+    def stack(cls, samples: Sequence[JointSample]) -> JointSamples:
+        return cls(np.array([s.time_ns for s in samples], dtype=np.int64),
+                   *(np.array([getattr(s, key) for s in samples])
+                     for key in ("q", "qdot", "moment_arm")))
+
+    def take(self, index, before: JointSample | None = None) -> JointSamples:
+        """The samples at ``index`` (k,), in that order (these arrays when it is 0 ... k - 1);
+        ``before`` where ``index`` is -1 (the sample before these)."""
+        index = np.asarray(index, dtype=int)
+        if np.array_equal(index, np.arange(len(self))):
+            return self
+        earlier = index < 0
+        taken = [np.take(getattr(self, key), np.maximum(index, 0), axis=0)
+                 for key in ("time_ns", "q", "qdot", "moment_arm")]
+        if earlier.any():
+            for array, key in zip(taken, ("time_ns", "q", "qdot", "moment_arm"), strict=True):
+                array[earlier] = getattr(before, key)
+        return JointSamples(*taken)
+
+
+@dataclass(frozen=True)
 class JointBlock:
     """k joint_states messages as JointInputs.on_joint_states_many conditioned them, none stored
-    yet (JointInputs.keep stores the last). Per message (row): ``samples`` (k JointSample),
+    yet (JointInputs.keep stores the last). Per message (row): ``samples`` (JointSamples),
     ``q``, ``qdot``, ``q_time_ns`` (k, n_coordinates) the coordinates held after it (model
     convention, as received: JointInputs.q), ``seen`` (n_coordinates,) after the first;
     ``path`` (updated (k, n) bool, lengths m, velocities m/s (k, n)) per node muscle, the path
     kinematics each stored (NodeInputs.hold_rows); ``issues`` their issues, each kind once with
     the first message's text and the count over all."""
 
-    samples: list
+    samples: JointSamples
     q: np.ndarray
     qdot: np.ndarray
     q_time_ns: np.ndarray
@@ -281,8 +322,8 @@ class JointInputs:
         update = np.tile(space.crosses[:, index].any(axis=1), (k, 1))
         if self.sample is None:
             update[0] = True  # the first sample gives every joint-driven muscle its path
-        lengths = np.array([out.length_m[space.rows] for out in outputs])
-        speeds = np.array([out.velocity_m_per_s[space.rows] for out in outputs])
+        lengths = outputs.length_m[:, space.rows]
+        speeds = outputs.velocity_m_per_s[:, space.rows]
         lo, hi = (bound[space.driven_index] for bound in self.inputs.path_bounds())
         limit = self.inputs.limits.path_speed_max_m_per_s
         if not ((((lengths >= lo) & (lengths <= hi)) | ~update).all()
@@ -291,16 +332,14 @@ class JointInputs:
         path = tuple(np.zeros((k, self.inputs.n), dtype=dtype) for dtype in (bool, float, float))
         for array, values in zip(path, (update, lengths, speeds), strict=True):
             array[:, space.driven_index] = values
-        samples, issues = [], []
-        for row, out in enumerate(outputs):
-            if out.clamped[index].any():
-                issues.append(self._clamped_issue(q_now[row], out, index))
-            sample = JointSample(int(times[row, 0]), out.q, out.qdot, out.moment_arm[space.rows])
-            for array in (sample.q, sample.qdot, sample.moment_arm):
-                array.flags.writeable = False
-            samples.append(sample)
-        if issues:
-            issues = [Issue(issues[0].kind, issues[0].text, count=sum(i.count for i in issues))]
+        clamped = outputs.clamped[:, index]
+        issues = []
+        if clamped.any():  # one issue: the first message's text, the count over all
+            first = int(np.argmax(clamped.any(axis=1)))
+            issue = self._clamped_issue(q_now[first], outputs.row(first), index)
+            issues.append(Issue(issue.kind, issue.text, count=int(clamped.sum())))
+        samples = JointSamples(times[:, 0], outputs.q, outputs.qdot,  # take: C-contiguous
+                               np.take(outputs.moment_arm, space.rows, axis=1))
         return JointBlock(samples, q, qdot, q_time, seen, path, issues)
 
     def keep(self, block: JointBlock) -> None:
@@ -308,7 +347,11 @@ class JointInputs:
         self.q, self.qdot, self.q_time_ns = (rows[-1].copy() for rows in (
             block.q, block.qdot, block.q_time_ns))
         self.seen = block.seen.copy()
-        self.sample = block.samples[-1]
+        last = block.samples.row(-1)  # copied: the block's arrays need not stay alive
+        self.sample = JointSample(last.time_ns, *(array.copy() for array in (
+            last.q, last.qdot, last.moment_arm)))
+        for array in (self.sample.q, self.sample.qdot, self.sample.moment_arm):
+            array.flags.writeable = False
         self.last_message_ns = self.sample.time_ns
         self._expected = {}
 
@@ -337,8 +380,8 @@ class JointInputs:
         usable = np.isfinite(pose_q).all(axis=1) & np.isfinite(pose_qdot).all(axis=1)
         rows = np.flatnonzero(usable)
         outputs = self.space.geometry.evaluate_many(pose_q[rows], pose_qdot[rows])
-        self._expected = {int(times[k, 0]): (pose_q[k], pose_qdot[k], out)
-                          for k, out in zip(rows.tolist(), outputs, strict=True)}
+        self._expected = {int(times[k, 0]): (pose_q[k], pose_qdot[k], outputs.row(i))
+                          for i, k in enumerate(rows.tolist())}
 
     def _pose(self, q, qdot, seen) -> tuple[np.ndarray, np.ndarray]:
         """The pose the geometry is evaluated at: coordinates never received at their default,
@@ -412,17 +455,19 @@ class JointInputs:
                                                              sample.qdot[out], tau[out])
         return JointEfforts(self.space.output_names, position, velocity, effort)
 
-    def efforts_many(self, samples: list[JointSample], forces) -> JointEfforts:
+    def efforts_many(self, samples: JointSamples, forces) -> JointEfforts:
         """``efforts`` of k steps: ``samples`` the joint sample of each step, ``forces`` (k, n)
-        their outputs; JointEfforts with (k, n_joints) arrays. Step by step through
-        ``efforts`` itself: the product r^T F's last bits depend on how BLAS is handed the
-        arrays (a stacked matmul, or a row of a block instead of a fresh array, sum in
-        another order for the 80-muscle leg)."""
-        rows = [self.efforts(sample, force) for sample, force in zip(samples, forces,
-                                                                      strict=True)]
-        return JointEfforts(self.space.output_names,
-                            *(np.array([getattr(row, key) for row in rows])
-                              for key in ("position", "velocity", "effort")))
+        their outputs; JointEfforts with (k, n_joints) arrays. The same bits as ``efforts``
+        step by step: r^T F as a stacked matrix-vector matmul, which calls BLAS's gemv once
+        per step with the arguments generalized_forces gives it (the pointers aside; the forces
+        C-contiguous, since OpenBLAS sums a strided vector in another order)."""
+        force = np.take(np.asarray(forces, dtype=float), self.space.driven_index, axis=1)
+        tau = np.matmul(samples.moment_arm.transpose(0, 2, 1), force[:, :, None])[:, :, 0]
+        out = self.space.output
+        position, velocity, effort = self.space.map.to_robot(
+            out, samples.q[:, out], samples.qdot[:, out], tau[:, out])
+        return JointEfforts(self.space.output_names, position, velocity, effort)
 
 
-__all__ = ["JointBlock", "JointInputs", "JointSample", "geometry_length_range"]
+__all__ = ["JointBlock", "JointInputs", "JointSample", "JointSamples",
+           "geometry_length_range"]

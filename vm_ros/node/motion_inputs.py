@@ -39,6 +39,7 @@ from vm_ros.errors import VmRosError
 from vm_ros.importers.motion import Motion, velocity_from_positions
 from vm_ros.joint_space import JointMap
 from vm_ros.model.units import UNITS, units_for
+from vm_ros.node.joint_inputs import JointSamples
 from vm_ros.node.replay import NodeConditioning
 from vm_ros.offline.excitations import ExcitationSeries, interpolate_rows
 from vm_ros.offline.runner import INPUT_RANK
@@ -284,7 +285,7 @@ class MotionInputs:
         advance_to's messages one by one), or, where that declines (a message not the usual
         accepted one), handed to the conditioning one by one as advance_to hands them (the
         poses evaluated at once beforehand: JointInputs.expect). ``block_samples`` then holds
-        the joint sample each step used (block_efforts)."""
+        the joint sample each step used (JointSamples, a row per step: block_efforts)."""
         last = int(step_starts_ns[-1])
         count = max(0, (last - self._next_ns) // self.period_ns + 1)
         times = self._next_ns + self.period_ns * np.arange(count, dtype=np.int64)
@@ -324,6 +325,8 @@ class MotionInputs:
                 rows.append(value)
             self.block_samples.append(conditioning.joints.sample
                                       if conditioning.joints is not None else None)
+        if conditioning.joints is not None:
+            self.block_samples = JointSamples.stack(self.block_samples)
         self._next_ns += count * self.period_ns
         return tuple(np.array(rows) for rows in (u, lp, vp))
 

@@ -182,7 +182,8 @@ class NodeConditioning:
         ``times_ns`` (rows of ``drives``, ``positions``, ``velocities``), then the steps starting
         at ``steps_ns``, as arrays: what on_excitation and on_joint_states message by message,
         with ``sample`` at each step start in between, give (the same bits, the same counts):
-        (U, path length, path velocity) (k, n) each and the joint sample each step used. None
+        (U, path length, path velocity) (k, n) each and the joint sample each step used
+        (JointSamples, a row per step). None
         (nothing applied) when a message is not the usual accepted one, a step would find the
         inputs not ready or live coordination is on: the caller then goes message by message."""
         if self.joints is None or len(self.coordinated) or not len(times_ns):
@@ -199,14 +200,13 @@ class NodeConditioning:
         if not np.isfinite(at_steps.length_m).all():
             return None  # a step not ready: message by message, which says so
         u, length, velocity = self.inputs.sample_held(steps_ns, at_steps)
-        samples = [self.joints.sample, *block.samples]
+        previous = self.joints.sample
         self.inputs.keep(held, times_ns[-1])
         self.joints.keep(block)
         self._count(block.issues)
         named = self._named(joints)
-        self.clamped[named] += (block.q[:, named] != np.array(
-            [sample.q[named] for sample in block.samples])).sum(axis=0)
-        return u, length, velocity, [samples[a] for a in applied.tolist()]
+        self.clamped[named] += (block.q[:, named] != block.samples.q[:, named]).sum(axis=0)
+        return u, length, velocity, block.samples.take(applied - 1, before=previous)
 
     @property
     def ready(self) -> bool:
