@@ -35,6 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
+from vm_ros.resources import cache_home
+
 ENV_SWITCH = "VM_ROS_NUMBA"
 _MODEL_DIR = Path(__file__).resolve().parent
 
@@ -69,8 +71,7 @@ def cache_root() -> Path:
         version = importlib.metadata.version("vm_ros")
     except importlib.metadata.PackageNotFoundError:  # run from a source tree
         version = "source"
-    home = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    return home / "vm_ros" / f"numba-py{sys.version_info[0]}.{sys.version_info[1]}-{version}"
+    return cache_home() / f"numba-py{sys.version_info[0]}.{sys.version_info[1]}-{version}"
 
 
 @functools.cache

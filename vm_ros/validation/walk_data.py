@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from vm_ros.errors import VmRosError
+from vm_ros.resources import cache_home
 
 REPOSITORY = "opensim-org/opensim-models"
 COMMIT = "20a888b9655e73fb84963d6e03eee3752cf6074b"   # master, 2024-12-09
@@ -84,8 +85,7 @@ def data_dir() -> Path:
     """The cache directory of the walk's files (module docstring)."""
     if os.environ.get("VM_ROS_DATA"):
         return Path(os.environ["VM_ROS_DATA"]) / "gait10dof18musc"
-    cache = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(cache) / "vm_ros" / "gait10dof18musc"
+    return cache_home() / "gait10dof18musc"
 
 
 def sha256(content: bytes) -> str:
