@@ -173,9 +173,9 @@ PARAMS = (
     ParamSpec("coordination.lag_window_s", 2.0, "double", "s",
               "Window of published steps over which diagnostics report the tracking lag and "
               "error", low=0.05, high=60.0),
-    ParamSpec("qos_depth", 100, "integer", "messages",
-              "History depth of every subscription and publisher (100: a 100 ms stall of the "
-              "node at 1 kHz input loses nothing)", low=1, high=10000),
+    ParamSpec("qos_depth", 10, "integer", "messages",
+              "History depth of every subscription and publisher (raise it for bursts: 100 "
+              "holds a 100 ms stall at 1 kHz input)", low=1, high=10000),
     ParamSpec("diagnostics_period_s", 1.0, "double", "s",
               "Period of /diagnostics (steady clock, also while a simulated clock is paused)",
               low=0.01, high=3600.0),
