@@ -172,19 +172,20 @@ class Probe:
         self._types = {"JointState": JointState, "Float64MultiArray": Float64MultiArray,
                        "Clock": Clock}
 
-    def joint_state(self, names=(), position=(), velocity=()):
+    def joint_state(self, names=(), position=(), velocity=(), stamp_ns: int = 0):
         msg = self._types["JointState"]()
         msg.name, msg.position, msg.velocity = list(names), list(position), list(velocity)
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(stamp_ns), 1_000_000_000)
         return msg
 
-    def send_excitation(self, names, drive):
-        self.excitation.publish(self.joint_state(names, drive))
+    def send_excitation(self, names, drive, stamp_ns: int = 0):
+        self.excitation.publish(self.joint_state(names, drive, stamp_ns=stamp_ns))
 
     def send_excitation_array(self, drive):
         self.excitation_array.publish(self._types["Float64MultiArray"](data=list(drive)))
 
-    def send_kinematics(self, names, length, velocity=()):
-        self.kinematics.publish(self.joint_state(names, length, velocity))
+    def send_kinematics(self, names, length, velocity=(), stamp_ns: int = 0):
+        self.kinematics.publish(self.joint_state(names, length, velocity, stamp_ns))
 
     def send_clock(self, time_ns: int):
         msg = self._types["Clock"]()

@@ -196,6 +196,50 @@ def test_a_non_finite_step_resets_the_model_at_that_step(ros, lengths, batch_ste
     assert probe.energy_totals[-1].data > energy  # the energy before the reset is kept
 
 
+def test_a_periods_samples_each_drive_their_own_steps(ros, lengths, tmp_path):
+    """The node runs a publish period of steps at each tick, after that period's samples came.
+    Ten kinematics and drive samples stamped 1 ms apart, all received before the tick: each
+    step uses the sample stamped at or before its start, as the offline run of the same
+    samples does (before, every step of the period took the last one: the path length stepped
+    once per period and the tendon turned that into force spikes). The log replays exactly."""
+    path = tmp_path / "run.mcap"
+    node, probe = sim_node(ros, lengths, batch_steps=0, mcap__enabled=True,
+                           mcap__path=str(path))
+    probe.send_excitation(MUSCLES, [0.3, 0.3])
+    assert ros.spin_until(lambda: np.array_equal(node.inputs.drive, [0.3, 0.3]))
+    start = SIM_T0 + 10 * MS
+    set_clock(ros, probe, node, start)
+    assert node.scheduler.started and node.scheduler.anchor_ns == start
+    periods = 4
+    t = np.arange(periods * 10) * 1e-3
+    swing = np.array([0.004, -0.003])  # m: the path lengths move 4 and 3 mm over a period
+    length = lengths + swing * np.sin(2 * np.pi * 25 * t)[:, None]
+    velocity = swing * 2 * np.pi * 25 * np.cos(2 * np.pi * 25 * t)[:, None]
+    drive = 0.3 + 0.5 * (np.arange(periods * 10) % 7 == 3)[:, None] * np.array([1.0, 0.4])
+    for k in range(periods):
+        period_ns = start + 10 * k * MS
+        set_clock(ros, probe, node, period_ns + 9 * MS, tick=False)  # no tick is due before 10
+        for j in range(10):
+            i = 10 * k + j
+            probe.send_kinematics(MUSCLES, length[i], velocity[i], stamp_ns=period_ns + j * MS)
+            probe.send_excitation(MUSCLES, drive[i], stamp_ns=period_ns + j * MS)
+        last_ns = period_ns + 9 * MS  # every sample in, each at its stamp
+        assert ros.spin_until(lambda: node.inputs.length_time_ns.min() == last_ns  # noqa: B023
+                              and node.inputs.drive_time_ns.min() == last_ns)  # noqa: B023
+        assert node.scheduler.model_time_ns == period_ns  # the samples came before the steps
+        set_clock(ros, probe, node, period_ns + 10 * MS)
+    assert ros.spin_until(lambda: len(probe.forces) == periods + 1)
+
+    bank = MuscleBank.from_config(MUSCLES)
+    offline = [bank.reset(path_length=lengths)]
+    offline += [bank.step(1e-3, drive[i], length[i], velocity[i]) for i in range(periods * 10)]
+    forces = [np.array(m.effort) for m in probe.forces]
+    for k, force in enumerate(forces):
+        np.testing.assert_allclose(force, offline[10 * k].force, rtol=1e-9)
+    node.close_run_log()
+    assert_log_replays(path, lengths, forces)
+
+
 def assert_log_replays(path, lengths, forces):
     """The log holds what recomputing needs: inputs at the time the node applied them,
     conditioned as the node did (vm_ros.node.replay), from the recorded start give the

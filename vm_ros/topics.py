@@ -107,6 +107,15 @@ def input_topic_names() -> tuple:
     return tuple(row.name for row in INPUT_TOPICS)
 
 
+def header_stamp_ns(message) -> int:
+    """The header stamp of an input message (ns), 0 for a type without a header
+    (Float64MultiArray)."""
+    header = getattr(message, "header", None)
+    if header is None:
+        return 0
+    return header.stamp.sec * 1_000_000_000 + header.stamp.nanosec
+
+
 def apply_input(row: InputTopic, message, receivers, time_ns: int):
     """Hand the values of ``message`` (an object with the message's fields as attributes) on
     ``row``'s topic to ``receivers[row.role]`` as (topic, names or None, *values, time_ns);
@@ -144,6 +153,7 @@ __all__ = [
     "InputTopic",
     "UnknownInputTopicError",
     "apply_input",
+    "header_stamp_ns",
     "input_topic",
     "input_topic_names",
     "TOPIC_DIAGNOSTICS",

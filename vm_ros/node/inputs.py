@@ -3,8 +3,8 @@ step uses out (no rclpy here; vm_ros.node unpacks the messages).
 
 Every message is checked before anything is stored, so a bad message never reaches the model:
 it is dropped whole (or, for unknown names, those entries are) and reported as an
-:class:`~vm_ros.node.health.Issue`. Times are ROS-clock receipt times in integer ns; a message's
-header stamp is not used (publishers often leave it zero or use another clock).
+:class:`~vm_ros.node.health.Issue`. Times are integer ns on the ROS clock: a sample's header stamp
+when that is on the node's clock, else its receipt time (:func:`input_time_ns`).
 
 Kinematics between samples: the path length is extrapolated with the sample's velocity for at most
 ``extrapolation_max_s`` (and never past ``input_timeout_s``), then held with velocity 0; the result
@@ -35,6 +35,17 @@ from vm_ros import topics as tp
 from vm_ros.geometry.checks import MIN_PATH_LENGTH_M
 from vm_ros.node.health import Issue
 from vm_ros.node.params import NodeConfig
+
+
+def input_time_ns(stamp_ns: int, placed_ns: int, timeout_ns: int) -> int:
+    """The time of an input sample placed at model time ``placed_ns`` (its arrival, or the model
+    time it arrived after: vm_ros.node.input_timeline): its header stamp when the stamp is on the
+    node's clock (not zero, not after the placement, at most ``timeout_ns`` before it), else the
+    placement. Kinematics are extrapolated and inputs age from this time, so a sample that came a
+    few ms late continues the motion from where it was measured instead of stepping it back."""
+    if 0 < stamp_ns <= placed_ns and placed_ns - stamp_ns <= timeout_ns:
+        return int(stamp_ns)
+    return int(placed_ns)
 
 
 @dataclass(frozen=True)
@@ -530,5 +541,5 @@ def node_receivers(inputs: NodeInputs, on_joint_states) -> dict:
                 on_joint_states(names, position, velocity, time_ns)}
 
 
-__all__ = ["HeldInputs", "InputLimits", "NodeInputs", "carried", "latest_rows", "node_receivers",
-           "physical_path_length_range"]
+__all__ = ["HeldInputs", "InputLimits", "NodeInputs", "carried", "input_time_ns", "latest_rows",
+           "node_receivers", "physical_path_length_range"]

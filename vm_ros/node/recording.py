@@ -14,9 +14,13 @@ reached the file counted as written), later messages are dropped and counted, ``
 called once with the error, and closing is quiet.
 
 Times, chosen so that `vm-ros recompute` applies every input at the step where the node did:
-inputs are logged at the model time of the first step that uses them (the current model time when
-they arrive; ROS time before the start) with the ROS receipt time as publish time; outputs at their
-stamp (model time); /diagnostics at the ROS time.
+inputs are logged at the model time from which the steps use them (their header stamp when it is
+on the node's clock, else their arrival; never before the model time reached when they arrived:
+vm_ros.node.input_timeline; the ROS receipt time before the start) with the ROS receipt time as
+publish time; outputs at their stamp (model time); /diagnostics at the ROS time. The ``vm_ros.run``
+key ``input_time`` (INPUT_TIME_STAMPED) says so; logs without it were written by muscle_node
+versions that placed every input at the model time reached when it arrived and gave it that
+time, and `vm-ros recompute` reads them so.
 """
 
 from __future__ import annotations
@@ -54,13 +58,16 @@ INPUT_RULE = ("muscle_node: inputs conditioned by vm_ros.node.inputs.NodeInputs 
               "node_parameters (bad messages dropped, drive clipped, kinematics extrapolated for "
               "at most extrapolation_max_s, stale_input_policy), joint_states by "
               "vm_ros.node.joint_inputs.JointInputs with the geometry; each input is logged at the "
-              "model time of the first step that uses it")
+              "model time from which the steps use it (see input_time)")
+INPUT_TIME_KEY = "input_time"  # vm_ros.run key of a muscle_node log: how inputs were timed
+INPUT_TIME_STAMPED = ("header stamp when on the node's clock, else receipt; placed there, not "
+                      "before the model time reached (vm_ros.node.inputs.input_time_ns)")
 
 
 def node_run_extra(node_name: str, parameters: dict) -> dict:
     """Extra ``vm_ros.run`` metadata keys of a muscle_node log."""
     return {"node": node_name, "node_parameters": json.dumps(parameters, sort_keys=True),
-            "input_hold": INPUT_RULE, "started": "true"}
+            "input_hold": INPUT_RULE, INPUT_TIME_KEY: INPUT_TIME_STAMPED, "started": "true"}
 
 
 def recorded_recorder_options(info: RunInfo) -> dict:

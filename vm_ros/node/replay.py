@@ -1,7 +1,8 @@
 """Recorded inputs of a muscle_node run log, conditioned as the node conditioned them (no rclpy).
 
-muscle_node logs every input message (exact bytes) at the model time of the first step that uses
-it, and its parameters as JSON in the ``vm_ros.run`` metadata key ``node_parameters``
+muscle_node logs every input message (exact bytes) at the model time from which its steps use it
+(vm_ros.node.recording; with the time it gave the sample, its header stamp or that placement:
+``input_time``), and its parameters as JSON in the ``vm_ros.run`` metadata key ``node_parameters``
 (vm_ros.node.recording). Feeding those messages, in log-time order, into a
 :class:`~vm_ros.node.inputs.NodeInputs` built from those parameters, and taking
 ``NodeInputs.sample(t)`` for the step at model time t, gives the inputs the node used step by step
@@ -41,9 +42,10 @@ from vm_ros.errors import ConfigError
 from vm_ros.geometry import load_geometry
 from vm_ros.geometry.file import loads as load_geometry_text
 from vm_ros.joint_space import JointEfforts, JointMap, JointSpace
-from vm_ros.node.inputs import HeldInputs, InputLimits, NodeInputs, node_receivers
+from vm_ros.node.inputs import HeldInputs, InputLimits, NodeInputs, input_time_ns, node_receivers
 from vm_ros.node.joint_inputs import JointInputs
 from vm_ros.node.params import NodeConfig
+from vm_ros.node.recording import INPUT_TIME_KEY, INPUT_TIME_STAMPED
 from vm_ros.recording.cdr import input_decoder
 from vm_ros.recording.run_log import (
     ATTACHMENT_GEOMETRY,
@@ -112,9 +114,11 @@ class NodeConditioning:
     coordinate, named in the message, was outside the geometry's box and clamped).
     """
 
-    def __init__(self, bank, config: NodeConfig, space: JointSpace | None = None):
+    def __init__(self, bank, config: NodeConfig, space: JointSpace | None = None,
+                 stamped: bool = False):
         self.config = config
         self.space = space
+        self.stamped = stamped  # inputs timed by their header stamps (a log's input_time)
         initial = np.array(config.initial_path_length_m) if config.initial_path_length_m else None
         self.inputs = NodeInputs(bank.names, InputLimits.for_bank(bank, config), initial,
                                  joint_driven=space.driven if space is not None else ())
@@ -140,9 +144,13 @@ class NodeConditioning:
         return "; ".join(self._texts.values())
 
     def on_message(self, topic: str, msg, time_ns: int) -> None:
-        """A decoded message on one of the input topics (vm_ros.topics.INPUT_TOPICS), received
-        at ``time_ns``; joint topics without a geometry are not subscribed: nothing happens."""
-        self._count(tp.apply_input(tp.input_topic(topic), msg, self._receivers, time_ns))
+        """A decoded message on one of the input topics (vm_ros.topics.INPUT_TOPICS), placed
+        at ``time_ns`` (its log time), of the time the node gave it there (its header stamp when
+        on the node's clock: input_time_ns); joint topics without a geometry are not subscribed:
+        nothing happens."""
+        sample_ns = (input_time_ns(tp.header_stamp_ns(msg), time_ns, self.inputs.limits.timeout_ns)
+                     if self.stamped else time_ns)
+        self._count(tp.apply_input(tp.input_topic(topic), msg, self._receivers, sample_ns))
 
     def on_coordination_drive(self, names, drive) -> None:
         """A coordination_drive record: the drives of the named joint-driven muscles from now
@@ -248,7 +256,9 @@ class NodeReplayInputs:
         self.config = config
         self._sink = sink
         self._path = run.path
-        self.conditioning = NodeConditioning(bank, config, space)
+        stamped = run.info is not None and \
+            run.info.extra.get(INPUT_TIME_KEY) == INPUT_TIME_STAMPED
+        self.conditioning = NodeConditioning(bank, config, space, stamped)
         self.inputs = self.conditioning.inputs
         self._events = run.events(tp.input_topic_names() + (COORDINATION_INPUT_TOPICS
                                                             if config.coordination_enabled

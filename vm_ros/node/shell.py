@@ -90,7 +90,8 @@ from vm_ros.node.health import (
     format_value,
     lost_key,
 )
-from vm_ros.node.inputs import InputLimits, NodeInputs, node_receivers
+from vm_ros.node.input_timeline import InputTimeline
+from vm_ros.node.inputs import InputLimits, NodeInputs, input_time_ns, node_receivers
 from vm_ros.node.joint_inputs import JointInputs
 from vm_ros.node.live_coordination import LiveCoordination
 from vm_ros.node.params import PARAMS, PARAMS_SOURCE, NodeConfig, ParamSpec
@@ -234,6 +235,8 @@ class MuscleNode(Node):
         self.inputs = NodeInputs(self.bank.names, model.limits, initial, joint_driven=driven)
         self.joint_inputs = (JointInputs(self.joint_space, self.inputs)
                              if self.joint_space is not None else None)
+        # the inputs held after each message, by arrival, for the steps (vm_ros.node.input_timeline)
+        self.timeline = InputTimeline(self.inputs, self.joint_inputs)
         self.scheduler = StepScheduler(c.step_ns, c.max_catch_up_steps, c.steps_per_tick)
         # on the system clock a tick woken late holds back the steps past its last publish step
         # (StepScheduler.due); a simulated clock's jumps are meant: their steps all run at once
@@ -414,6 +417,7 @@ class MuscleNode(Node):
         # and its replay agree on what is undecodable; rclpy's deserialiser printed a stderr line
         # per oversized payload and then returned a garbage message
         decode = input_decoder(_type_name(msg_type))
+        timeout_ns = self.inputs.limits.timeout_ns
 
         def receive(data, info=None) -> None:
             if info is None:  # the EventsExecutor's call: one (data, info) tuple, see below
@@ -423,16 +427,27 @@ class MuscleNode(Node):
                 self._report([Issue("input_lost", f"{topic}: {lost} message(s) lost before "
                                     "the node took them", count=lost)])
             now_ns = self.get_clock().now().nanoseconds
-            # the model time of the first step that will use this message (vm_ros.node.recording)
-            effective_ns = self.scheduler.model_time_ns if self.scheduler.started else now_ns
-            if self.run_log is not None:
-                self.run_log.write(topic, data, effective_ns, now_ns)
             try:
                 msg = decode(data)
             except Exception as exc:  # corrupt bytes: never let them stop the node
+                msg = None
                 self._report([Issue("undecodable", f"{topic}: {type(exc).__name__}: {exc}")])
+            # placed at its header stamp when the stamp is on this clock, else at its arrival,
+            # never before the model time reached; the steps from there on use it
+            # (vm_ros.node.input_timeline); logged there (vm_ros.node.recording)
+            stamp_ns = tp.header_stamp_ns(msg) if msg is not None else 0
+            started = self.scheduler.started
+            placed_ns = (self.timeline.place(input_time_ns(stamp_ns, now_ns, timeout_ns),
+                                             self.scheduler.model_time_ns)
+                         if started else now_ns)
+            if self.run_log is not None:
+                self.run_log.write(topic, data, placed_ns, now_ns)
+            if msg is None:
                 return
-            self._report(tp.apply_input(row, msg, receivers, effective_ns))
+            self._report(tp.apply_input(row, msg, receivers,
+                                        input_time_ns(stamp_ns, placed_ns, timeout_ns)))
+            if started:
+                self.timeline.record(placed_ns)
 
         # rclpy passes the message info (its publication sequence number) to a callback whose
         # signature takes two arguments: SingleThreadedExecutor as receive(data, info), rclpy
@@ -448,8 +463,9 @@ class MuscleNode(Node):
     def _target_receiver(self, topic: str, msg_type):
         """The receiver of a live-coordination target topic (vm_ros.node.effort_targets):
         deserialised by rclpy, an undecodable message counted; losses counted as for the other
-        inputs; logged as received at the model time of the first step that uses it, as the
-        other inputs (a recompute copies them, and applies the coordination_drive records)."""
+        inputs; logged at the model time reached when it arrived (the coordinator takes the
+        targets at the start of each publish period; a recompute copies them, and applies the
+        coordination_drive records)."""
         targets = self.coordination.targets
         handle = {
             tm.TOPIC_JOINT_EFFORT_TRAJECTORY: lambda msg, now_ns: targets.on_trajectory(
@@ -528,6 +544,7 @@ class MuscleNode(Node):
                 self._model_timer.reset()
             if self.joint_inputs is not None:
                 self.joint_inputs.rebase(now_ns)
+            self.timeline.restart()  # the rows' times are of the old time base
             self._report([Issue("time_backwards", f"ROS time went back to {now_ns * 1e-9:.6f} s")])
         self._report(self.inputs.update_staleness(now_ns))
         if not self.scheduler.started:
@@ -535,6 +552,7 @@ class MuscleNode(Node):
                 self._start(now_ns)
         elif self.config.stale_input_policy == "pause" and self.inputs.any_stale:
             self.scheduler.hold(now_ns)
+            self.timeline.consume(self.scheduler.model_time_ns)
         else:
             self._run_steps(now_ns)
         tick_ns = time.perf_counter_ns() - tick_start_ns
@@ -551,23 +569,24 @@ class MuscleNode(Node):
         start tick ran 9 steps, and the next one split its 11 at the publish step into two
         calls (docs/performance.md)."""
         self.scheduler.start(now_ns)
+        self.timeline.restart()
         self._model_timer.reset()
         if self.run_log is not None:
             self.run_log.start(now_ns)
         self._reset_pending = True
 
     def _reset_at_start(self) -> None:
-        """The equilibrium at the start time from the inputs held for it, at the first tick after
-        the start: inputs that arrive in between are logged at the start time and used by the
-        first step, so the reset takes them too, as `vm-ros recompute` does (resetting at once
-        made a real-time log's recompute differ from its first output on)."""
+        """The equilibrium at the start time from the inputs held then, at the first tick after
+        the start (inputs that arrive in between are placed at their arrival, after the start),
+        as `vm-ros recompute` does."""
         self._reset_pending = False
         start_ns = self.scheduler.model_time_ns
-        _, lp, _ = self.inputs.sample(start_ns)
+        _, lp, _, rows = self.timeline.sample_many([start_ns])
+        lp = lp[0]
         out = self.bank.reset(path_length=lp)
         self.get_logger().info(f"model started at {start_ns * 1e-9:.6f} s, path lengths "
                                f"{np.round(lp, 5).tolist()} m")
-        self._publish(out, self._joint_sample())
+        self._publish(out, self.timeline.joint_sample(rows[0]))
 
     def _run_steps(self, now_ns: int) -> None:
         if self._reset_pending:
@@ -581,13 +600,16 @@ class MuscleNode(Node):
         if due == 0:
             return
         every = self.config.publish_every_steps
-        joints = self._joint_sample()  # the moment arms of this tick's forces (inputs arrive
-        # between ticks); every step's inputs sampled at its own model time, at once
+        # every step's inputs: those held after the last message that arrived at or before its
+        # start (InputTimeline), at once
         t0, step_ns = self.scheduler.model_time_ns, self.scheduler.step_ns
-        u, lp, vp = self.inputs.sample_many(t0 + step_ns * np.arange(due, dtype=np.int64))
+        u, lp, vp, rows = self.timeline.sample_many(
+            t0 + step_ns * np.arange(due, dtype=np.int64))
         done = 0
         while done < due:  # batches that end at a publish step or at the last step due
             count = min(due - done, every - self.scheduler.total_steps % every)
+            # the moment arms of the batch's forces: the joint sample its last step used
+            joints = self.timeline.joint_sample(rows[done + count - 1])
             if self.coordination is not None:  # the joint-driven muscles' drives: solved at
                 # the start of each publish period, held over it
                 if self.scheduler.total_steps % every == 0:
@@ -598,6 +620,7 @@ class MuscleNode(Node):
             self._run_batch(u[done:done + count], lp[done:done + count],
                             vp[done:done + count], joints)
             done += count
+        self.timeline.consume(self.scheduler.model_time_ns)
         self._window_steps += due
 
     def _run_batch(self, u, lp, vp, joints) -> None:
@@ -636,9 +659,6 @@ class MuscleNode(Node):
                 out = self._reset_model(lp[j])
             if self.scheduler.total_steps % self.config.publish_every_steps == 0:
                 self._publish(out, joints)
-
-    def _joint_sample(self):
-        return self.joint_inputs.sample if self.joint_inputs is not None else None
 
     def _reset_model(self, lp):
         """Recover from a non-finite model output: equilibrium at the current path lengths."""

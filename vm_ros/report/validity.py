@@ -9,16 +9,16 @@ A run of muscle_node in real time is not valid when
   did not report yet); the state then jumps with no steps between, and the forces and torques
   after the jump are not the model's response to the motion;
 - an input was applied off its own time by more than INPUT_JITTER_BOUND_S: muscle_node logs each
-  input at the model time of the first step that uses it (the model time when it arrived), so
-  its log time minus its header stamp is how far the model's input timeline sat from the
-  publisher's. A constant offset is harmless (it is the transport delay); the jitter is its
-  largest departure from the run's median. It grows when the node's ticks are late (a burst of
-  newer samples is applied at an old model time: the path length steps ahead at once) or the
-  publisher's are (the samples come late): a path-length step stretches the tendon within one
-  step and shows as a force spike, and a drive switch moved by a few ms moves the steep force
-  decay after it by hundreds of newtons. The bound, 20 ms, is two publish periods of the default
-  100 Hz: up to one is the node's own placement (it runs one publish period of steps per tick),
-  one is left for delivery;
+  input at the model time from which its steps use it (vm_ros.node.input_timeline: its header
+  stamp when that is on the node's clock, else its arrival, never before the model time reached),
+  so its log time minus its header stamp is how far the model's input timeline sat from the
+  publisher's. A constant offset is harmless (a publisher whose stamps are its transport delay
+  early); the jitter is its largest departure from the run's median. It grows when samples come
+  after the model has passed their stamps (a late publisher, a late delivery, or the node's own
+  callbacks held up by a long tick): a drive switch moved by a few ms moves the steep force decay
+  after it by hundreds of newtons (path lengths are extrapolated from the stamp, so a late
+  kinematics sample costs less). The bound, 20 ms, is two publish periods of the default 100 Hz;
+  it was set when the node placed inputs up to a period early, and is kept;
 - an input arrived more than ``extrapolation_max_s`` after the previous one (muscle_node's
   parameter, 0.05 s by default) while the model ran: for that long the node extrapolated the
   last sample, then held it, so the model's input left the motion.
