@@ -104,7 +104,8 @@ def test_a_message_after_the_last_step_waits_for_the_next_tick(bank):
 
 
 def test_out_of_order_arrival_times_are_kept_in_order(bank):
-    """A message stamped before the previous one (a clock read out of order) takes its time."""
+    """A message placed before the previous one (a stamp older than the last message's) takes
+    the previous one's place, and supersedes it there."""
     inputs = make_inputs(bank)
     a, b = messages(bank, 2, 0, 5 * MS)
     timeline = InputTimeline(inputs)
@@ -112,7 +113,9 @@ def test_out_of_order_arrival_times_are_kept_in_order(bank):
     timeline.record(3 * MS)
     apply(inputs, (2 * MS, *b[1:]))
     timeline.record(2 * MS)
-    assert timeline.rows_at([2 * MS, 3 * MS]).tolist() == [0, 2]
+    assert timeline.rows_at([2 * MS, 3 * MS]).tolist() == [0, 1]
+    u, *_ = timeline.sample_many([3 * MS])
+    np.testing.assert_array_equal(u[0], b[1])
 
 
 def test_a_sample_takes_its_header_stamp_when_that_is_on_the_nodes_clock():
@@ -138,3 +141,17 @@ def test_a_late_sample_continues_the_motion_from_its_stamp(bank):
     _, lp, vp = inputs.sample(placed)
     np.testing.assert_allclose(lp, length + velocity * 4e-3, rtol=1e-12)
     np.testing.assert_array_equal(vp, velocity)
+
+
+def test_messages_at_one_time_keep_one_row(bank):
+    """A clock that stands still (a paused simulation's /clock) with inputs still coming: the
+    rows do not grow, and the step at that time takes the last message."""
+    inputs = make_inputs(bank)
+    timeline = InputTimeline(inputs)
+    for drive in np.linspace(0.1, 0.9, 500):
+        inputs.on_excitation(MUSCLES, [drive, drive], 5 * MS)
+        timeline.record(5 * MS)
+    assert timeline.pending == 1
+    u, *_ = timeline.sample_many([4 * MS, 5 * MS])
+    np.testing.assert_array_equal(u[1], [0.9, 0.9])
+    assert timeline.rows_at([4 * MS]).tolist() == [0]

@@ -69,7 +69,12 @@ class InputTimeline:
         """After a message was applied: what is held now, from ``time_ns`` (not before the last
         message's time: the rows stay in order)."""
         last = self._times_ns[-1] if self._times_ns else time_ns
-        self._times_ns.append(max(int(time_ns), last))
+        time_ns = max(int(time_ns), last)
+        if self._times_ns and time_ns == last:  # no step can take the row it replaces: the
+            # rows stay as many as the distinct times (a clock that stands still keeps one)
+            self._rows[-1], self._joint_rows[-1] = self._held(), self._joints()
+            return
+        self._times_ns.append(time_ns)
         self._rows.append(self._held())
         self._joint_rows.append(self._joints())
 
