@@ -137,8 +137,9 @@ def test_a_warm_cache_compiles_nothing_and_prints_nothing(tmp_path):
 
 
 # The kernel's cold compile takes 11-12 s on an idle machine and 40 s or more with both cores busy;
-# the process must end well inside that, whatever the load: at most STOP_S after SIGINT.
-STOP_S = 5.0
+# the process must end within STOP_S of SIGINT whatever the load (issue 27's bound; measured
+# 0.014 s for Python and 0.022 s for muscle_node on a lightly loaded machine, 2026-12-02).
+STOP_S = 1.0
 
 
 @needs_numba

@@ -361,3 +361,14 @@ def test_former_model_names_still_work_for_one_release():
         umberger2003(state, constants)  # required: no silent F_iso = 1 or state-derived value
     with pytest.raises(TypeError, match="passive_fibre_force"):
         bhargava2004(state, load_bhargava_constants())
+
+
+def test_a_former_name_on_the_command_line_says_its_new_name(capsys):
+    from vm_ros.cli.simulate import energetics_models_option
+
+    assert energetics_models_option("lichtwark_wilson,umberger2003") == ("lichtwark2005",
+                                                                        "umberger2003")
+    assert capsys.readouterr().err == ("vm-ros: --energetics-models lichtwark_wilson is now "
+                                       "lichtwark2005; the former name goes in the next release\n")
+    energetics_models_option("lichtwark2005")
+    assert capsys.readouterr().err == ""

@@ -12,7 +12,7 @@ import pytest
 
 from vm_ros.recording.run_log import NODE_PARAMETERS_KEY
 from vm_ros.report.summary import WORK_NOT_LOGGED, summarize, summary_table
-from vm_ros.report.validity import node_log_validity
+from vm_ros.report.validity import node_input_losses, node_log_validity
 
 MS = 1_000_000
 
@@ -27,13 +27,15 @@ def _series(time_ns, stamp_ns=None):
     return _Series(time_ns=np.asarray(time_ns, dtype=np.int64), fields=fields)
 
 
-def _node_log(outputs_ns, inputs: dict, parameters: dict | None = None):
+def _node_log(outputs_ns, inputs: dict, parameters: dict | None = None,
+              source: str = "muscle_node"):
     """A stand-in for a RunLog: muscle_force at ``outputs_ns``; each input topic -> (log times,
-    header stamps); muscle_node's parameters unless ``parameters`` is None (an offline log)."""
+    header stamps); muscle_node's parameters unless ``parameters`` is None; written by
+    ``source`` (RunInfo.source)."""
     channels = {"muscle_force": _series(outputs_ns)}
     channels.update({topic: _series(*times) for topic, times in inputs.items()})
     extra = {} if parameters is None else {NODE_PARAMETERS_KEY: json.dumps(parameters)}
-    return SimpleNamespace(path="node.mcap", info=SimpleNamespace(extra=extra),
+    return SimpleNamespace(path="node.mcap", info=SimpleNamespace(extra=extra, source=source),
                            get=channels.get)
 
 
@@ -78,8 +80,14 @@ def test_the_gap_bound_is_the_node_logs_own_extrapolation_max_s():
 
 def test_offline_logs_and_logs_without_inputs_are_not_checked():
     outputs = 10 * MS * np.arange(1, 201)
-    assert node_log_validity(_node_log(outputs, {"excitation": _replayed(0, 2000)}, None)) is None
+    replayed = {"excitation": _replayed(0, 2000)}
+    assert node_log_validity(_node_log(outputs, replayed, None, source="simulate")) is None
     assert node_log_validity(_node_log(outputs, {}, {})) is None
+    # `simulate --motion` and `recompute` of a node log condition their inputs as the node
+    # does and hold its parameters, but step every dt: not checked (their runs end with the
+    # inputs, and a check would name a stale tail that is not there)
+    for source in ("simulate", "recompute"):
+        assert node_log_validity(_node_log(outputs, replayed, {}, source=source)) is None
 
 
 def test_work_not_in_the_log_prints_na_and_says_why():
@@ -90,3 +98,22 @@ def test_work_not_in_the_log_prints_na_and_says_why():
     assert text.splitlines()[-2].split()[-2:] == ["n/a", "n/a"]
     measured = summary_table(summarize(["a"], np.ones((3, 1)), np.ones((1, 3, 4)), [0.5]))
     assert WORK_NOT_LOGGED not in measured
+
+
+def _diagnostics(*values: dict):
+    """A /diagnostics series of muscle_node statuses with ``values`` (key -> text), in order."""
+    def message(kv):
+        return SimpleNamespace(status=[SimpleNamespace(hardware_id="vm_ros", values=[
+            SimpleNamespace(key=k, value=v) for k, v in kv.items()])])
+    return SimpleNamespace(messages=[message(kv) for kv in values])
+
+
+def test_the_losses_the_node_counted_are_read_from_its_last_diagnostics():
+    """The node counts messages lost before it took them per input topic (publisher sequence
+    gaps, diagnostics key 'lost: TOPIC (messages)'); the report names the nonzero ones."""
+    run = SimpleNamespace(get={"/diagnostics": _diagnostics(
+        {"lost: excitation (messages)": "2"},
+        {"lost: excitation (messages)": "6", "lost: muscle_kinematics (messages)": "7",
+         "lost: excitation_array (messages)": "0"})}.get)
+    assert node_input_losses(run) == {"excitation": 6, "muscle_kinematics": 7}
+    assert node_input_losses(SimpleNamespace(get={}.get)) == {}

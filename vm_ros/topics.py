@@ -107,6 +107,12 @@ def input_topic_names() -> tuple:
     return tuple(row.name for row in INPUT_TOPICS)
 
 
+def lost_key(topic: str) -> str:
+    """muscle_node's /diagnostics key of the messages lost on one input topic (publisher
+    sequence gaps, vm_ros.node.health.SequenceGaps)."""
+    return f"lost: {topic} (messages)"
+
+
 def header_stamp_ns(message) -> int:
     """The header stamp of an input message (ns), 0 for a type without a header
     (Float64MultiArray)."""
@@ -155,6 +161,7 @@ __all__ = [
     "apply_input",
     "header_stamp_ns",
     "input_topic",
+    "lost_key",
     "input_topic_names",
     "TOPIC_DIAGNOSTICS",
     "TOPIC_ENERGY_RATE",

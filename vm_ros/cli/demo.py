@@ -72,7 +72,11 @@ def add_arguments(parser) -> None:
     parser.add_argument("--duration", type=float, default=10.0, metavar="S",
                         help="seconds of model time from the model's start (default 10)")
     parser.add_argument("--mcap", metavar="FILE", default=None,
-                        help="MCAP log muscle_node writes (default out/demo-<timestamp>.mcap)")
+                        help="MCAP log muscle_node writes (default DIR/demo-<timestamp>.mcap)")
+    parser.add_argument("--out", metavar="DIR", default=None,
+                        help="folder of the demo's files (default out; with --closed-loop the "
+                             "geometry (cached), MCAP and PNG, default "
+                             "out/demo-closed-loop-<model>)")
     parser.add_argument("--no-mcap", action="store_true", help="do not record")
     parser.add_argument("--executor", choices=("events", "single_threaded"), default="events",
                         help="muscle_node's executor (default events)")
@@ -91,9 +95,6 @@ def add_arguments(parser) -> None:
                       help="muscle_node drives mujoco_sim_node over ROS 2 (extra mujoco)")
     loop.add_argument("--model", default="myoelbow", metavar="NAME|FILE.xml",
                       help="myo-sim model name or MJCF file (default myoelbow)")
-    loop.add_argument("--out", metavar="DIR", default=None,
-                      help="geometry (cached), MCAP and PNG (default "
-                           "out/demo-closed-loop-<model>)")
 
 
 def _command_line(args) -> list[str]:
@@ -274,7 +275,8 @@ def run(args) -> int:
     scenario = load_scenario(SCENARIO)
     mcap_path = None
     if not args.no_mcap:
-        mcap_path = Path(args.mcap or datetime.now().strftime("out/demo-%Y%m%d-%H%M%S.mcap"))
+        mcap_path = Path(args.mcap or Path(args.out or "out")
+                         / datetime.now().strftime("demo-%Y%m%d-%H%M%S.mcap"))
         mcap_path = mcap_path.resolve()
 
     process = subprocess.Popen(_node_command(args, scenario, mcap_path),

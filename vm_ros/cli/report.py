@@ -82,7 +82,7 @@ from vm_ros.report.tables import (
     telemetry_table,
     totals_table,
 )
-from vm_ros.report.validity import node_log_validity
+from vm_ros.report.validity import node_input_losses, node_log_validity
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -192,6 +192,12 @@ def run(args) -> int:
             print(f"note: muscle_node ran {stale_s:.2f} s after its inputs ended (until it was "
                   "stopped, on stale inputs: its stale_input_policy); the tables include that "
                   "time, the validity check does not")
+        lost = node_input_losses(log)
+        if lost:
+            counts = ", ".join(f"{n} {topic}" for topic, n in lost.items())
+            print(f"note: muscle_node lost {counts} message(s) before taking them (publisher "
+                  "sequence gaps; the model held the inputs before each: its qos_depth, "
+                  "docs/node.md section 4)")
     written = []
     if plt is not None:
         bin_s, reason = report_bin(log, *_span_and_interval(tables), args.bin)

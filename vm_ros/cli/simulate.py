@@ -88,7 +88,7 @@ from vm_ros.geometry import load_geometry
 from vm_ros.importers.motion import read_motion
 from vm_ros.joint_space import JointMap, JointSpace
 from vm_ros.model.energetics_models.in_bank import model_names
-from vm_ros.model.energetics_models.vm_state import MODEL_NAMES
+from vm_ros.model.energetics_models.vm_state import MODEL_NAMES, RENAMED
 from vm_ros.model.params import load_muscle_library
 from vm_ros.model.run_config import RunConfig
 from vm_ros.node.motion_inputs import (
@@ -210,6 +210,10 @@ def energetics_models_option(text: str | None) -> tuple | None:
     if not names:
         raise VmRosError(f"--energetics-models: no model named; known: {', '.join(MODEL_NAMES)}"
                          ", all or none")
+    for former in (part.strip() for part in text.split(",")):
+        if former in RENAMED:
+            print(f"vm-ros: --energetics-models {former} is now {RENAMED[former]}; the former "
+                  "name goes in the next release", file=sys.stderr)
     return names
 
 

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vm_ros.topics import lost_key
+
 # kind -> (diagnostics key, behaviour). The README's bad-input table is this table.
 ISSUE_KINDS = {
     "wrong_size": ("rejected: wrong size (messages)",
@@ -224,11 +226,6 @@ class SequenceGaps:
         self._last.append(seq)
         self.lost += lost
         return lost
-
-
-def lost_key(topic: str) -> str:
-    """The diagnostics key of the messages lost on one input topic (SequenceGaps.lost)."""
-    return f"lost: {topic} (messages)"
 
 
 def format_seconds(ns: int) -> str:

@@ -103,7 +103,7 @@ from vm_ros.node.timing import StepScheduler
 from vm_ros.recording import bulk
 from vm_ros.recording.cdr import input_decoder
 from vm_ros.recording.qos import offered_qos_profiles_yaml
-from vm_ros.recording.run_log import COORDINATION_TOPICS, RunInfo, RunTiming
+from vm_ros.recording.run_log import COORDINATION_TOPICS, NODE_SOURCE, RunInfo, RunTiming
 
 NODE_NAME = "muscle_node"
 RCLError = _rclpy.RCLError
@@ -403,7 +403,7 @@ class MuscleNode(Node):
             extra["started"] = "false"
         timing = RunTiming(dt_s=self._dt_s, publish_rate_hz=c.publish_rate_hz,
                            telemetry_rate_hz=0.0, start_time_ns=start_time_ns or 0)
-        return RunInfo(self.run_config, timing, source=NODE_NAME,
+        return RunInfo(self.run_config, timing, source=NODE_SOURCE,
                        namespace=self.get_namespace(),
                        time_base="ROS time (simulated with use_sim_time)", extra=extra)
 

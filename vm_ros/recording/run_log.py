@@ -69,6 +69,7 @@ ATTACHMENT_OVERRIDES = "overrides.yaml"
 ATTACHMENT_GEOMETRY = "geometry.yaml"
 # run metadata key: muscle_node's parameters as JSON, in a log whose inputs the node conditioned
 NODE_PARAMETERS_KEY = "node_parameters"
+NODE_SOURCE = "muscle_node"  # RunInfo.source of a log muscle_node wrote (a real-time run)
 INPUT_HOLD = "zero-order hold: the step [t, t + dt) uses the latest input with log_time <= t"
 
 INPUT_TOPICS = tm.input_topic_names()  # the table vm_ros.topics.INPUT_TOPICS

@@ -220,8 +220,8 @@ def model_totals_table(rows: list[ModelTotals], names) -> str:
         lines.append(f"{row.model:<20}{row.total:>11.2f}{ratio}"
                      + "".join(f"{row.energy[i]:>{c}.2f}" for i in range(len(shown))))
     if len(names) > len(shown):
-        lines.append(f"(first {len(shown)} of {len(names)} muscles shown; model_totals.csv "
-                     "has every muscle)")
+        lines.append(f"(first {len(shown)} of {len(names)} muscles shown; `vm-ros report` of "
+                     "the log writes model_totals.csv with every muscle)")
     lines.append("energies: Tsianos 2012 the model's sum over its steps (E total above); the "
                  "published models the trapezoidal integral of their total rates over the "
                  "published samples")

@@ -43,7 +43,7 @@ import numpy as np
 
 from vm_ros import telemetry as tm
 from vm_ros import topics as tp
-from vm_ros.recording.run_log import logged_node_parameters
+from vm_ros.recording.run_log import NODE_SOURCE, logged_node_parameters
 
 EXIT_NOT_VALID = 3  # exit status of a real-time command whose run is not valid
 GAP_PERIODS = 1.5  # an output gap longer than this many publish periods is skipped model time
@@ -164,6 +164,17 @@ def node_diagnostics(run) -> list[dict]:
             for status in msg.status if status.hardware_id == "vm_ros"]
 
 
+def node_input_losses(run) -> dict:
+    """Input topic -> messages muscle_node counted lost on it (its last /diagnostics; topics
+    with none left out)."""
+    diagnostics = node_diagnostics(run)
+    if not diagnostics:
+        return {}
+    lost = {row.name: diagnostics_number(diagnostics[-1], tp.lost_key(row.name))
+            for row in tp.INPUT_TOPICS}
+    return {topic: int(n) for topic, n in lost.items() if n > 0}
+
+
 def diagnostics_number(diagnostics: dict, key: str) -> float:
     """A /diagnostics value as a number (NaN when missing or not a number)."""
     try:
@@ -189,11 +200,13 @@ def logged_gap_bound(run) -> float:
 def node_log_validity(run) -> tuple[Validity, float] | None:
     """(Validity, s the node ran after its inputs ended) of a muscle_node run log, checked
     over its muscle_force stamps up to the last message of the input that ended first
-    (module docstring); None for a log muscle_node did not write (offline runs step every dt)
-    or one with fewer than 2 outputs or no inputs."""
+    (module docstring); None for a log muscle_node did not write (offline runs step every dt,
+    and those that condition their inputs as the node does, `simulate --motion` and `recompute`
+    of a node log, hold its parameters too) or one with fewer than 2 outputs or no inputs."""
     forces = run.get(tm.TOPIC_FORCE)
     inputs = logged_inputs(run)
-    if logged_node_parameters(run) is None or forces is None or len(forces) < 2 or not inputs:
+    written_by_node = run.info is not None and run.info.source == NODE_SOURCE
+    if not written_by_node or forces is None or len(forces) < 2 or not inputs:
         return None
     stamps = np.sort(np.asarray(forces.time_ns, dtype=np.int64))
     inputs_end = min(int(np.max(log)) for _, log, _ in inputs)
@@ -209,4 +222,5 @@ def node_log_validity(run) -> tuple[Validity, float] | None:
 
 __all__ = ["DEFAULT_INPUT_BOUND_S", "EXIT_NOT_VALID", "INPUT_JITTER_BOUND_S", "InputTiming",
            "Validity", "diagnostics_number", "input_timing", "logged_gap_bound", "logged_inputs",
-           "node_diagnostics", "node_log_validity", "run_validity", "skipped_from_stamps"]
+           "node_diagnostics", "node_input_losses", "node_log_validity", "run_validity",
+           "skipped_from_stamps"]
