@@ -289,6 +289,36 @@ def test_short_fig7_run_says_its_duration_and_is_not_compared_with_the_180s_tota
     assert (tmp_path / "fig7.png").stat().st_size > 0
 
 
+def test_fig7_legends_cover_no_curve(monkeypatch, tmp_path):
+    """Fig. 7's legends (panel 1's once covered the total-energy line, panels 2 and 3's the
+    curves): no vertex of any plotted line lies inside any legend, after the figure's layout."""
+    pytest.importorskip("matplotlib")
+    from vm_ros.validation import knee_extension_plot
+
+    drawn = []
+
+    def keep(fig, result, path):
+        fig.canvas.draw()  # finish's layout without closing the figure
+        fig.tight_layout(rect=(0, 0, 1, 0.9))
+        fig.canvas.draw()
+        drawn.append(fig)
+
+    monkeypatch.setattr(knee_extension_plot, "finish", keep)
+    knee_extension_plot.plot_fig7(CHECKS["fig7"](duration_s=3.0), tmp_path / "fig7.png")
+    fig, = drawn
+    renderer = fig.canvas.get_renderer()
+    legends = [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None]
+    assert len(legends) >= 3
+    for legend in legends:
+        box = legend.get_window_extent(renderer)
+        for ax in fig.axes:
+            for line in ax.get_lines():
+                xy = line.get_transform().transform(line.get_xydata())
+                inside = ((xy[:, 0] > box.x0) & (xy[:, 0] < box.x1)
+                          & (xy[:, 1] > box.y0) & (xy[:, 1] < box.y1))
+                assert not inside.any(), f"a legend covers {line.get_label()!r}"
+
+
 def test_the_cost_figure_says_under_which_load_it_was_measured(monkeypatch, tmp_path):
     """The natural / lumped ratio moves with the machine's load (56x on a busy machine against
     4.8x idle): the figure's title states the load average it was measured under."""
