@@ -172,3 +172,11 @@ def test_energy_models_totals_keeps_its_title_and_legend_inside(muscles):
     for ax in fig.axes:
         assert _overlap_px(legend, ax.get_window_extent(renderer)) < 1.0
     plt.close(fig)
+
+
+def test_a_wrapped_title_keeps_each_number_with_its_unit():
+    text = "whole run: bins of 2.500 s each over 10 s, published at 100 Hz by 18 muscles"
+    for width in range(20, 60):
+        for line in report_plots.wrap_text(text, width).splitlines():
+            assert not line.rstrip().endswith(("2.500", " 10", " 100", " 18")), line
+    assert report_plots.wrap_text(text, 200).replace("\u00a0", " ") == text

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import gc
 import math
+import re
 import textwrap
 from pathlib import Path
 
@@ -67,6 +68,15 @@ STEPS_125 = (1.0, 2.0, 5.0)
 
 
 # --- time bins ------------------------------------------------------------------------------
+
+
+_NUMBER_UNIT = re.compile(r"(\d) (?=[a-zA-Z%(])")
+
+
+def wrap_text(text: str, width: int) -> str:
+    """textwrap.fill that never separates a number from the word after it (its unit: '2.500 s'):
+    a no-break space there, which textwrap does not break at and matplotlib draws as a space."""
+    return textwrap.fill(_NUMBER_UNIT.sub("\\1\u00a0", text), width)
 
 def bin_from_length(span_s: float) -> float:
     """The smallest 1-2-5 step (s) not shorter than span_s / MAX_BINS; 0 for an empty span."""
@@ -325,7 +335,7 @@ def _series_panels(plt, t, cells: list, bin_s: float, bin_reason: str, title: st
     words = _bin_words(bin_reason)
     if stacked or len(labels) > 1:
         words = words.replace("bin mean (line) and range (band)", "bin means")
-    subtitle = textwrap.fill(f"whole run: {words}" + (
+    subtitle = wrap_text(f"whole run: {words}" + (
         "" if detail is None else f"; right: the last {DETAIL_S:g} s as published"), 120)
     legend = len(labels) > 1 or stacked
     if lanes:  # margins in inches, no layout engine: one draw instead of two
@@ -500,7 +510,7 @@ def energy_rate_figure(plt, rates: Table, names, bin_s: float, bin_reason: str):
     _energy_rate_axes(ax, rates, names, bin_s)
     ax.set_xlabel("time (s)")
     what = "mean energy rate per bin" if bin_s > 0 else "energy rate"
-    ax.set_title(textwrap.fill(f"{_muscles_words(names)}: {what}; bins: {bin_reason}", 110),
+    ax.set_title(wrap_text(f"{_muscles_words(names)}: {what}; bins: {bin_reason}", 110),
                  fontsize=9)
     fig.suptitle("energy rate by component (Tsianos 2012 Fig. 7 style)")
     return fig
@@ -569,7 +579,7 @@ def energy_models_totals_figure(plt, rows, muscles):
         ax.grid(alpha=0.3, axis="y")
     handles, labels = chunks[0][0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=min(5, len(rows)), **LEGEND)
-    fig.suptitle(textwrap.fill("energy over the run per published model, relative to Tsianos "
+    fig.suptitle(wrap_text("energy over the run per published model, relative to Tsianos "
                                "2012 (trapezoidal integrals of the published rates)", 100),
                  fontsize=10)
     return fig
@@ -606,7 +616,7 @@ def totals_figure(plt, totals: Table, bin_s: float, bin_reason: str):
     _margins(fig, 0.9, 0.3, 0.9, 0.55, hspace=0.3, rows=2)
     _binned_line(axes[0], t, totals.column("energy_rate_total_W"), bin_s)
     axes[0].set_ylabel("energy rate (W)")
-    axes[0].set_title(textwrap.fill(f"whole run: {_bin_words(bin_reason)}", 110), fontsize=9)
+    axes[0].set_title(wrap_text(f"whole run: {_bin_words(bin_reason)}", 110), fontsize=9)
     _plot(axes[1], t, totals.column("energy_total_J"))
     axes[1].set_ylabel("energy (J)")
     axes[1].set_xlabel("time (s)")
