@@ -58,7 +58,7 @@ INPUT_RULE = ("muscle_node: inputs conditioned by vm_ros.node.inputs.NodeInputs 
               "node_parameters (bad messages dropped, drive clipped, kinematics extrapolated for "
               "at most extrapolation_max_s, stale_input_policy), joint_states by "
               "vm_ros.node.joint_inputs.JointInputs with the geometry; each input is logged at the "
-              "model time from which the steps use it (see input_time)")
+              "model time of the first step that uses it")  # muscle_node: how, in input_time
 INPUT_TIME_KEY = "input_time"  # vm_ros.run key of a muscle_node log: how inputs were timed
 INPUT_TIME_STAMPED = ("header stamp when on the node's clock, else receipt; placed there, not "
                       "before the model time reached (vm_ros.node.inputs.input_time_ns)")
