@@ -168,12 +168,14 @@ def test_compiled_slots_written_out_give_the_bits_of_the_loop_over_slots():
     poses = np.array([random_pose(geometry, rng)
                       for _ in range(geometry_kernel.POSE_BLOCK + 21)])
     many = geometry.evaluate_many(poses, poses)
+    lengths = geometry.lengths_many(poses)
     for i, q in enumerate(poses):
         out = many.row(i)
         length, gradient = evaluate_wide(q, *wide, geometry.packed.max_degree)
         one = geometry.evaluate(q, q)
         for a, b in ((one.length_m, length), (one.moment_arm, -gradient),
-                     (out.length_m, length), (out.moment_arm, -gradient)):
+                     (out.length_m, length), (out.moment_arm, -gradient),
+                     (lengths[i], length)):
             assert a.tobytes() == b.tobytes()
     names = [f"q{j}" for j in range(geometry_kernel.SLOTS + 2)]
     coordinates = [Coordinate(name, "rad", -1.0, 1.0) for name in names]
