@@ -99,7 +99,7 @@ from vm_ros.geometry.polynomial import PackedPolynomials
 packed = PackedPolynomials.pack(1, [([0], [0.0], [1.0], [[1]], [1.0])])
 _, evaluate_many, evaluate_inside, _ = kernel._compile()
 arrays = kernel._slot_arrays(packed)
-evaluate_many(np.zeros((2, 1)), *arrays, packed.max_degree)
+evaluate_many(np.zeros((2, 1)), *arrays, packed.max_degree, kernel.POSE_BLOCK)
 evaluate_inside(np.zeros(1), np.zeros(1), -np.ones(1), np.ones(1), *arrays, packed.max_degree)
 for function in (evaluate_many, evaluate_inside):
     print(sum(function.stats.cache_hits.values()), sum(function.stats.cache_misses.values()))

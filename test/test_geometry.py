@@ -45,9 +45,10 @@ def scalar_length(path: MusclePath, values: dict) -> float:
 
 
 def random_geometry(seed=0, n_muscles=12, backend="numpy",
-                    fitted=False) -> PolynomialGeometry:
-    """Random polynomials; ``fitted``: each maps its box onto x in [-1, 1] as a fit does, so
-    that the paths stay physical (0.3-0.4 m give or take ~0.1 m: a file that loads)."""
+                    fitted=False, widest=3) -> PolynomialGeometry:
+    """Random polynomials, muscle i crossing 1 + i % ``widest`` of the 4 coordinates;
+    ``fitted``: each maps its box onto x in [-1, 1] as a fit does, so that the paths stay
+    physical (0.3-0.4 m give or take ~0.1 m: a file that loads)."""
     rng = np.random.default_rng(seed)
     coordinates = [Coordinate("hip_flexion", "rad", -0.5, 1.8),
                    Coordinate("knee_angle", "rad", -2.0, 0.1),
@@ -57,7 +58,7 @@ def random_geometry(seed=0, n_muscles=12, backend="numpy",
     boxes = {c.name: (c.lower, c.upper) for c in coordinates}
     muscles = []
     for i in range(n_muscles):
-        k = 1 + i % 3
+        k = 1 + i % widest
         crossed = tuple(rng.choice(names, size=k, replace=False))
         exponents = total_degree_exponents(k, 2 + i % 5)
         coefficients = rng.normal(scale=0.01, size=len(exponents))
@@ -159,18 +160,22 @@ def test_compiled_slots_written_out_give_the_bits_of_the_loop_over_slots():
     crossing more than SLOTS coordinates takes the loop and agrees with NumPy."""
     if not geometry_kernel.available():
         pytest.skip("Numba is not available: only the NumPy evaluator exists")
-    geometry = random_geometry(seed=3, n_muscles=30, backend="compiled")
+    geometry = random_geometry(seed=3, n_muscles=30, backend="compiled", widest=4)
     evaluate_wide = geometry_kernel._compile()[3]
     wide = geometry_kernel._wide_arrays(geometry.packed)
     rng = np.random.default_rng(5)
-    poses = np.array([random_pose(geometry, rng) for _ in range(20)])
+    # more poses than evaluate_many takes together: a full block, then part of one
+    poses = np.array([random_pose(geometry, rng)
+                      for _ in range(geometry_kernel.POSE_BLOCK + 21)])
     many = geometry.evaluate_many(poses, poses)
+    lengths = geometry.lengths_many(poses)
     for i, q in enumerate(poses):
         out = many.row(i)
         length, gradient = evaluate_wide(q, *wide, geometry.packed.max_degree)
         one = geometry.evaluate(q, q)
         for a, b in ((one.length_m, length), (one.moment_arm, -gradient),
-                     (out.length_m, length), (out.moment_arm, -gradient)):
+                     (out.length_m, length), (out.moment_arm, -gradient),
+                     (lengths[i], length)):
             assert a.tobytes() == b.tobytes()
     names = [f"q{j}" for j in range(geometry_kernel.SLOTS + 2)]
     coordinates = [Coordinate(name, "rad", -1.0, 1.0) for name in names]

@@ -44,8 +44,7 @@ def sampled_lengths(geometry, poses) -> np.ndarray:
     """Path lengths (P, n_muscles) m of a PolynomialGeometry at ``poses`` (P, n_q), by its own
     evaluator (the one the node uses; no clamping); overflow gives inf or NaN, no warning."""
     with np.errstate(all="ignore"):
-        return np.array([geometry.lengths_and_gradients(q)[0]
-                         for q in np.asarray(poses, dtype=float)])
+        return geometry.lengths_many(poses)
 
 
 def path_problem(geometry) -> tuple[int, str] | None:

@@ -20,12 +20,16 @@ import numpy as np
 from vm_ros.model.jit import HAVE_NUMBA, model_cache_directory, numba
 
 SLOTS = 4  # coordinates per muscle written out in the compiled loop (docs/performance.md)
+# poses evaluate_many takes together (docs/performance.md): passed as an argument, since with a
+# trip count known when compiling LLVM unrolls the loop over them instead of vectorising it
+POSE_BLOCK = 64
 
 _evaluate = None
-# the compiled one-pose evaluator, which evaluate_many and evaluate_inside call: a module global,
-# not a closure variable, since Numba keys a cached function by its closure's pickled contents,
-# and a dispatcher pickles differently in every process (each would compile them again)
-_evaluate_pose = None
+# the compiled one-pose evaluator, which evaluate_inside calls, and the terms of a muscle crossing
+# 4 and at most 3 coordinates, which both evaluators call: module globals, not closure
+# variables, since Numba keys a cached function by its closure's pickled contents, and a
+# dispatcher pickles differently in every process (each would compile them again)
+_evaluate_pose = _term4 = _term3 = None
 
 
 def available() -> bool:
@@ -33,7 +37,7 @@ def available() -> bool:
 
 
 def _compile():
-    global _evaluate, _evaluate_pose
+    global _evaluate, _evaluate_pose, _term4, _term3
     if _evaluate is not None:
         return _evaluate
     with model_cache_directory():  # vm_ros.model.jit.cache_root()/<hash>/geometry
@@ -83,6 +87,43 @@ def _compile():
                         gradient[current, c] += dl_dx[j] / slot_scale[current, j]
             return length, gradient
 
+        @numba.njit(cache=True, fastmath=False, error_model="numpy", inline="always")
+        def term4(c, f0, f1, f2, f3, e0, e1, e2, e3, p0, p1, p2, p3):
+            """A term c x0^e0 x1^e1 x2^e2 x3^e3 of a muscle crossing 4 coordinates, from its
+            factors f_j = x_j^e_j and slopes p_j = x_j^(e_j - 1): (its value, its derivative
+            by each x_j without the slot's scale; 0 where e_j = 0)."""
+            o0 = c        # o_j: the coefficient times the factors before j
+            o1 = o0 * f0
+            o2 = o1 * f1
+            o3 = o2 * f2
+            s2 = 1.0 * f3  # s_j: the product of the factors after j
+            s1 = s2 * f2
+            s0 = s1 * f1
+            v3 = o3 * 1.0 * e3 * p3
+            v2 = o2 * s2 * e2 * p2
+            v1 = o1 * s1 * e1 * p1
+            v0 = o0 * s0 * e0 * p0
+            return (o3 * f3, v0 if e0 > 0.0 else 0.0, v1 if e1 > 0.0 else 0.0,
+                    v2 if e2 > 0.0 else 0.0, v3 if e3 > 0.0 else 0.0)
+
+        @numba.njit(cache=True, fastmath=False, error_model="numpy", inline="always")
+        def term3(c, f0, f1, f2, e0, e1, e2, p0, p1, p2):
+            """term4 of a muscle crossing at most 3 coordinates (slot 3 padding: f3 = 1,
+            e3 = 0), with the products by f3 = 1 and s2 = 1 left out: the same bits."""
+            o0 = c
+            o1 = o0 * f0
+            o2 = o1 * f1
+            o3 = o2 * f2
+            s1 = f2
+            s0 = s1 * f1
+            v2 = o2 * e2 * p2
+            v1 = o1 * s1 * e1 * p1
+            v0 = o0 * s0 * e0 * p0
+            return (o3, v0 if e0 > 0.0 else 0.0, v1 if e1 > 0.0 else 0.0,
+                    v2 if e2 > 0.0 else 0.0)
+
+        _term4, _term3 = term4, term3
+
         @numba.njit(cache=True, fastmath=False, error_model="numpy", boundscheck=False)
         def evaluate(q, slot_coordinate, slot_offset, slot_scale, first_term, factor_index,
                      slope_index, exponent, coefficient, max_degree):
@@ -101,28 +142,28 @@ def _compile():
                     for p in range(1, row):
                         powers[j * row + p] = powers[j * row + p - 1] * x
                 total = d0 = d1 = d2 = d3 = 0.0
-                for t in range(first_term[m], first_term[m + 1]):
-                    f0 = powers[factor_index[t, 0]]
-                    f1 = powers[factor_index[t, 1]]
-                    f2 = powers[factor_index[t, 2]]
-                    f3 = powers[factor_index[t, 3]]
-                    o0 = coefficient[t]   # o_j: the coefficient times the factors before j
-                    o1 = o0 * f0
-                    o2 = o1 * f1
-                    o3 = o2 * f2
-                    total += o3 * f3
-                    s2 = 1.0 * f3         # s_j: the product of the factors after j
-                    s1 = s2 * f2
-                    s0 = s1 * f1
-                    e0, e1, e2, e3 = exponent[t, 0], exponent[t, 1], exponent[t, 2], exponent[t, 3]
-                    v3 = o3 * 1.0 * e3 * powers[slope_index[t, 3]]
-                    v2 = o2 * s2 * e2 * powers[slope_index[t, 2]]
-                    v1 = o1 * s1 * e1 * powers[slope_index[t, 1]]
-                    v0 = o0 * s0 * e0 * powers[slope_index[t, 0]]
-                    d3 += v3 if e3 > 0.0 else 0.0
-                    d2 += v2 if e2 > 0.0 else 0.0
-                    d1 += v1 if e1 > 0.0 else 0.0
-                    d0 += v0 if e0 > 0.0 else 0.0
+                if slot_coordinate[m, SLOTS - 1] < n_q:  # crosses 4 coordinates
+                    for t in range(first_term[m], first_term[m + 1]):
+                        a, b, e = factor_index[t], slope_index[t], exponent[t]
+                        value, v0, v1, v2, v3 = _term4(
+                            coefficient[t], powers[a[0]], powers[a[1]], powers[a[2]],
+                            powers[a[3]], e[0], e[1], e[2], e[3], powers[b[0]], powers[b[1]],
+                            powers[b[2]], powers[b[3]])
+                        total += value
+                        d0 += v0
+                        d1 += v1
+                        d2 += v2
+                        d3 += v3
+                else:
+                    for t in range(first_term[m], first_term[m + 1]):
+                        a, b, e = factor_index[t], slope_index[t], exponent[t]
+                        value, v0, v1, v2 = _term3(
+                            coefficient[t], powers[a[0]], powers[a[1]], powers[a[2]], e[0],
+                            e[1], e[2], powers[b[0]], powers[b[1]], powers[b[2]])
+                        total += value
+                        d0 += v0
+                        d1 += v1
+                        d2 += v2
                 length[m] = total
                 for j, d in enumerate((d0, d1, d2, d3)):
                     c = slot_coordinate[m, j]
@@ -132,15 +173,70 @@ def _compile():
 
         _evaluate_pose = evaluate
 
-        @numba.njit(cache=True, fastmath=False, error_model="numpy")
+        @numba.njit(cache=True, fastmath=False, error_model="numpy", boundscheck=False)
         def evaluate_many(poses, slot_coordinate, slot_offset, slot_scale, first_term,
-                          factor_index, slope_index, exponent, coefficient, max_degree):
-            lengths = np.zeros((poses.shape[0], slot_coordinate.shape[0]))
-            gradients = np.zeros((poses.shape[0], slot_coordinate.shape[0], poses.shape[1]))
-            for k in range(poses.shape[0]):
-                lengths[k], gradients[k] = _evaluate_pose(
-                    poses[k], slot_coordinate, slot_offset, slot_scale, first_term,
-                    factor_index, slope_index, exponent, coefficient, max_degree)
+                          factor_index, slope_index, exponent, coefficient, max_degree, block):
+            """evaluate at each pose, ``block`` poses at a time: a muscle's tables of powers
+            (row: a power, column: a pose) and sums for the block, and each term's factors,
+            products and sums for every pose of the block in an inner loop over the poses
+            (vectorised: the same operations per pose, in the same order)."""
+            count, n_q = poses.shape
+            n = slot_coordinate.shape[0]
+            row = max_degree + 1
+            lengths = np.zeros((count, n))
+            gradients = np.zeros((count, n, n_q))
+            powers = np.empty((SLOTS * row, block))
+            sums = np.empty((SLOTS + 1, block))  # the length, then dL/dx_j
+            for start in range(0, count, block):
+                width = min(block, count - start)
+                for m in range(n):
+                    for j in range(SLOTS):
+                        c = slot_coordinate[m, j]
+                        for k in range(width):
+                            x = 0.0 if c >= n_q else (
+                                poses[start + k, c] - slot_offset[m, j]) / slot_scale[m, j]
+                            powers[j * row, k] = 1.0
+                            for p in range(1, row):
+                                powers[j * row + p, k] = powers[j * row + p - 1, k] * x
+                    sums[:, :width] = 0.0
+                    if slot_coordinate[m, SLOTS - 1] < n_q:  # crosses 4 coordinates
+                        for t in range(first_term[m], first_term[m + 1]):
+                            # the term's numbers read before the loop over poses (in it, LLVM
+                            # would read them again after every store to the sums)
+                            c = coefficient[t]
+                            a0, a1, a2, a3 = factor_index[t]
+                            b0, b1, b2, b3 = slope_index[t]
+                            e0, e1, e2, e3 = exponent[t]
+                            for k in range(width):
+                                value, v0, v1, v2, v3 = _term4(
+                                    c, powers[a0, k], powers[a1, k], powers[a2, k],
+                                    powers[a3, k], e0, e1, e2, e3, powers[b0, k], powers[b1, k],
+                                    powers[b2, k], powers[b3, k])
+                                sums[0, k] += value
+                                sums[1, k] += v0
+                                sums[2, k] += v1
+                                sums[3, k] += v2
+                                sums[4, k] += v3
+                    else:
+                        for t in range(first_term[m], first_term[m + 1]):
+                            c = coefficient[t]
+                            a0, a1, a2 = factor_index[t, 0], factor_index[t, 1], factor_index[t, 2]
+                            b0, b1, b2 = slope_index[t, 0], slope_index[t, 1], slope_index[t, 2]
+                            e0, e1, e2 = exponent[t, 0], exponent[t, 1], exponent[t, 2]
+                            for k in range(width):
+                                value, v0, v1, v2 = _term3(
+                                    c, powers[a0, k], powers[a1, k], powers[a2, k], e0, e1, e2,
+                                    powers[b0, k], powers[b1, k], powers[b2, k])
+                                sums[0, k] += value
+                                sums[1, k] += v0
+                                sums[2, k] += v1
+                                sums[3, k] += v2
+                    for k in range(width):
+                        lengths[start + k, m] = sums[0, k]
+                        for j in range(SLOTS):
+                            c = slot_coordinate[m, j]
+                            if c < n_q:
+                                gradients[start + k, m, c] += sums[j + 1, k] / slot_scale[m, j]
             return lengths, gradients
 
         @numba.njit(cache=True, fastmath=False, error_model="numpy")
@@ -213,10 +309,15 @@ def compiled_evaluator(packed, many: bool = False):
 
         return run_wide
     arrays = _slot_arrays(packed)
-    call = evaluate_many if many else evaluate
+    if many:
+        def run_many(q):
+            return evaluate_many(np.ascontiguousarray(q, dtype=np.float64), *arrays, degree,
+                                 POSE_BLOCK)
+
+        return run_many
 
     def run(q):
-        return call(np.ascontiguousarray(q, dtype=np.float64), *arrays, degree)
+        return evaluate(np.ascontiguousarray(q, dtype=np.float64), *arrays, degree)
 
     return run
 

@@ -317,6 +317,15 @@ class PolynomialGeometry(JointGeometry):
             return self._compiled(q)
         return evaluate_packed(self.packed, q)
 
+    def lengths_many(self, poses) -> np.ndarray:
+        """L (k, n_muscles) at each pose of ``poses`` (k, n_q), with no clamping: the lengths of
+        ``lengths_and_gradients`` pose by pose (compiled: the poses in one call)."""
+        poses = np.asarray(poses, dtype=float)
+        if self._compiled is not None and len(poses):
+            return self._compiled_many(poses)[0]
+        return np.array([self.lengths_and_gradients(q)[0] for q in poses]).reshape(
+            len(poses), len(self.muscles))
+
     def evaluate(self, q, qdot=None) -> GeometryOutput:
         if self._compiled_inside is not None:  # a pose inside the box: the checks, the
             # polynomials

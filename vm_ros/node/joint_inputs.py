@@ -140,7 +140,7 @@ def geometry_length_range(geometry: JointGeometry, rows) -> tuple[np.ndarray, np
     recompute agree), widened by RANGE_MARGIN of the range. NodeInputs floors lo at
     MIN_PATH_LENGTH_M."""
     poses = box_poses(geometry.lower, geometry.upper)
-    lengths = np.array([geometry.evaluate(pose).length_m[rows] for pose in poses])
+    lengths = geometry.evaluate_many(poses, np.zeros_like(poses)).length_m[:, rows]
     lo, hi = lengths.min(axis=0), lengths.max(axis=0)
     return lo - RANGE_MARGIN * (hi - lo), hi + RANGE_MARGIN * (hi - lo)
 
