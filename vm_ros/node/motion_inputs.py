@@ -223,6 +223,19 @@ def box_warnings(motion: JointMotion, geometry, in_degrees: bool) -> list[str]:
     return warnings
 
 
+def motion_checks(motion: Motion, joint_motion: JointMotion, geometry
+                  ) -> tuple[list[str], list[str]]:
+    """Every check of a motion against a geometry, for the verbs that take a motion (`vm-ros
+    simulate --motion`, `vm-ros coordinate`, which runs them before its solve): (warnings,
+    notes) from ``Motion.unit_warnings`` of the rotational coordinates used (VmRosError where
+    the values cannot be in the header's unit), ``box_warnings`` and ``coupled_columns``."""
+    used = rotational_names(geometry) & set(joint_motion.coordinates)
+    warnings = motion.unit_warnings(used) + box_warnings(joint_motion, geometry,
+                                                         motion.in_degrees)
+    coupler_warnings, notes = coupled_columns(motion, geometry)
+    return warnings + coupler_warnings, notes
+
+
 class MotionInputs:
     """Samples, logs and conditions the inputs of a joint-space run (module docstring)."""
 
@@ -337,5 +350,5 @@ class MotionInputs:
 
 
 __all__ = ["COUPLER_TOLERANCE", "JointMotion", "MotionInputs", "box_warnings", "coupled_columns",
-           "parse_hold", "rotational_names", "shown_range", "shown_unit",
+           "motion_checks", "parse_hold", "rotational_names", "shown_range", "shown_unit",
            "velocity_from_positions"]
