@@ -102,6 +102,7 @@ def test_bad_inputs_are_one_line_errors(tmp_path):
     for extra, words in ((["--muscle-weight", "a:2"], "MUSCLE=WEIGHT"),
                          (["--muscle-weight", "zz=2"], "zz"),
                          (["--speed", "-1"], "--speed"),
+                         (["--dt", "0"], "--dt must be > 0"),
                          (["--targets-lowpass", "-6"], "--targets-lowpass"),
                          (["--targets-lowpass", "40"], "Nyquist")):
         done = _run("coordinate", *inputs, *extra, "--out", str(tmp_path / "x"))
