@@ -125,6 +125,14 @@ EXCITATION_CASES = {
         None, None, ["--excitation", "constant:50"], 2,
         "vm-ros closed-loop: error: --excitation constant:50: drive 50 for every muscle: drives "
         "are fractions in [0, 1]; if the values are percent, divide them by 100"),
+    "an initial angle without its unit (90: degrees or radians?)": (
+        None, None, ["--q0", "r_elbow_flex=90"], 2,
+        "vm-ros closed-loop: error: --q0 'r_elbow_flex=90': no unit is given: a unit of "
+        "r_elbow_flex (rad); write it with one of rad, deg, e.g. r_elbow_flex=90deg"),
+    "an initial angle outside the joint's range (myoelbow: 0 to 130 deg)": (
+        None, None, ["--q0", "r_elbow_flex=200deg"], 2,
+        "vm-ros closed-loop: error: --q0 'r_elbow_flex=200deg': outside the geometry's range "
+        "of r_elbow_flex, 0 to 130 deg"),
 }
 
 
@@ -164,6 +172,14 @@ def test_partial_excitation_file_is_a_warning_repeated_after_the_summary(tmp_pat
     bra = table[:, header.index("excitation.BRA")]
     time_s = table[:, 0]
     np.testing.assert_allclose(bra[time_s < 0.1], 0.2)
+
+
+def test_initial_angle_takes_its_unit(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["closed-loop", "--duration", "0.01", "--no-plot", "--out", str(out),
+                 "--q0", "r_elbow_flex=90deg"]) == 0
+    table = np.loadtxt(out / "closed_loop.csv", delimiter=",", skiprows=1)
+    assert table[0, 1] == pytest.approx(np.pi / 2, abs=1e-12)   # q.r_elbow_flex at t = 0
 
 
 def test_cli_writes_files(tmp_path, capsys):

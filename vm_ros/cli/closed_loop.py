@@ -59,7 +59,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--coordinate", metavar="NAME",
                         help="coordinate the pulses move (default: the first)")
     parser.add_argument("--q0", metavar="NAME=VALUE,...",
-                        help="initial coordinates, rad or m (default: the middle of each box)")
+                        help="initial coordinates with their unit (r_elbow_flex=90deg, "
+                             "1.2rad, 0.9m; inside the coordinate's range; default: the middle "
+                             "of each range)")
     parser.add_argument("--library", metavar="FILE.yaml",
                         help="muscle library whose entries replace the derived ones by name")
     add_parameter_arguments(parser)
@@ -70,17 +72,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def parse_q0(text, geometry) -> np.ndarray:
+    """--q0 NAME=VALUE,...: each with its unit and inside the coordinate's range, as `vm-ros
+    simulate --hold` (vm_ros.node.motion_inputs.parse_hold); the others at the middle of their
+    range (rad or m)."""
+    from vm_ros.node.motion_inputs import parse_hold
+
     q0 = (geometry.lower + geometry.upper) / 2
-    for item in filter(None, (s.strip() for s in (text or "").split(","))):
-        name, _, value = item.partition("=")
-        name = name.strip()
-        if name not in geometry.coordinate_names:
-            raise VmRosError(f"--q0: {name!r} is not a coordinate (have: "
-                             f"{', '.join(geometry.coordinate_names)})")
-        try:
-            q0[geometry.coordinate_index(name)] = float(value)
-        except ValueError as exc:
-            raise VmRosError(f"--q0: {item!r} is not NAME=NUMBER") from exc
+    items = [item.strip() for item in (text or "").split(",") if item.strip()]
+    for name, value in parse_hold(items, geometry, "--q0").items():
+        q0[geometry.coordinate_index(name)] = value
     return q0
 
 
