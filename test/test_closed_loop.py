@@ -19,10 +19,9 @@ from vm_ros.cli import main  # noqa: E402
 from vm_ros.closed_loop import (  # noqa: E402
     ClosedLoop,
     constant_excitation,
-    csv_excitation,
     pulse_excitation,
 )
-from vm_ros.errors import ConfigError  # noqa: E402
+from vm_ros.errors import VmRosError  # noqa: E402
 from vm_ros.geometry.mujoco_backend import MujocoGeometry  # noqa: E402
 from vm_ros.importers import common, mjcf  # noqa: E402
 from vm_ros.model import MuscleBank  # noqa: E402
@@ -92,16 +91,95 @@ def test_finer_step_smaller_residual(runs):
 
 
 def test_excitation_sources(elbow, tmp_path):
+    from vm_ros.cli.closed_loop import file_excitation
+
     names = elbow.muscle_names
     path = tmp_path / "u.csv"
     path.write_text("time_s,BRA,TRIlong.excitation\n0,0,0.2\n1,0.6,0.4\n")
-    u = csv_excitation(path, names)
+    u = file_excitation(path, names)
     np.testing.assert_allclose(u(0.5), [0.3, 0, 0, 0, 0, 0.3])
     np.testing.assert_allclose(u(5.0), [0.4, 0, 0, 0, 0, 0.6])
+    assert u.coverage(0.0, 1.0) == []
     np.testing.assert_allclose(constant_excitation(6, 0.1)(3.0), np.full(6, 0.1))
     path.write_text("time_s,deltoid\n0,0\n")
-    with pytest.raises(ConfigError, match="deltoid"):
-        csv_excitation(path, names)
+    with pytest.raises(VmRosError, match="deltoid"):
+        file_excitation(path, names)
+
+
+# Excitation mistakes as cases (issue 27): file name, its text, options, the exit code and the
+# last line on stderr ({path}: the file). The run is [0, 0.2 s].
+EXCITATION_CASES = {
+    "a file on another time axis (5-7 s against a run from 0 s) is an error": (
+        "late.csv", "time_s,BRA\n5,0.2\n7,0.4\n", [], 2,
+        "vm-ros closed-loop: error: excitations {path} cover 5-7 s, the run 0-0.2 s: no "
+        "overlap; they must be on the run's time axis (0 s at its start)"),
+    "drives in percent are an error naming muscle, time and the fix": (
+        "percent.csv", "time_s,BRA,TRIlong\n0,20,0\n1,50,10\n", [], 2,
+        "vm-ros closed-loop: error: excitations {path}: drive 50 for BRA at 1 s: drives are "
+        "fractions in [0, 1]; if the values are percent, divide them by 100"),
+    "a file covering part of the run is an error with --strict": (
+        "part.csv", "time_s,BRA\n0.1,0.2\n2,0.4\n", ["--strict"], 2,
+        "vm-ros closed-loop: error: excitations {path} cover 0.1-2 s, the run 0-0.2 s: the "
+        "drives hold their first row for the 0.1 s before 0.1 s (an error with --strict)"),
+    "a constant in percent": (
+        None, None, ["--excitation", "constant:50"], 2,
+        "vm-ros closed-loop: error: --excitation constant:50: drive 50 for every muscle: drives "
+        "are fractions in [0, 1]; if the values are percent, divide them by 100"),
+    "an initial angle without its unit (90: degrees or radians?)": (
+        None, None, ["--q0", "r_elbow_flex=90"], 2,
+        "vm-ros closed-loop: error: --q0 'r_elbow_flex=90': no unit is given: a unit of "
+        "r_elbow_flex (rad); write it with one of rad, deg, e.g. r_elbow_flex=90deg"),
+    "an initial angle outside the joint's range (myoelbow: 0 to 130 deg)": (
+        None, None, ["--q0", "r_elbow_flex=200deg"], 2,
+        "vm-ros closed-loop: error: --q0 'r_elbow_flex=200deg': outside the geometry's range "
+        "of r_elbow_flex, 0 to 130 deg"),
+}
+
+
+@pytest.mark.parametrize("case", EXCITATION_CASES)
+def test_excitation_mistakes_are_one_line_errors(case, tmp_path, capsys):
+    name, text, options, code, line = EXCITATION_CASES[case]
+    args = list(options)
+    if name:
+        path = tmp_path / name
+        path.write_text(text)
+        args += ["--excitation", str(path)]
+    out = tmp_path / "run"
+    assert main(["closed-loop", "--duration", "0.2", "--no-plot", "--out", str(out),
+                 *args]) == code
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == line.format(path=tmp_path / name if name else "")
+    assert not out.exists(), "nothing is written when an input is refused"
+
+
+def test_partial_excitation_file_is_a_warning_repeated_after_the_summary(tmp_path, capsys):
+    """First row held for 0.1 s: the run goes on (exit 0), the warning is printed when found and
+    again as the last lines of the output, and the drive before 0.1 s is the first row's."""
+    path = tmp_path / "part.csv"
+    path.write_text("time_s,BRA\n0.1,0.2\n2,0.4\n")
+    out = tmp_path / "run"
+    assert main(["closed-loop", "--duration", "0.2", "--no-plot", "--out", str(out),
+                 "--excitation", str(path)]) == 0
+    captured = capsys.readouterr()
+    text = (f"excitations {path} cover 0.1-2 s, the run 0-0.2 s: the drives hold their first "
+            "row for the 0.1 s before 0.1 s")
+    assert f"vm-ros closed-loop: warning: {text}" in captured.err
+    assert captured.out.strip().splitlines()[-2:] == [
+        "1 input warning(s), the numbers above depend on them (--strict makes them errors):",
+        f"  {text}"]
+    header = (out / "closed_loop.csv").read_text().splitlines()[0].split(",")
+    table = np.loadtxt(out / "closed_loop.csv", delimiter=",", skiprows=1)
+    bra = table[:, header.index("excitation.BRA")]
+    time_s = table[:, 0]
+    np.testing.assert_allclose(bra[time_s < 0.1], 0.2)
+
+
+def test_initial_angle_takes_its_unit(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["closed-loop", "--duration", "0.01", "--no-plot", "--out", str(out),
+                 "--q0", "r_elbow_flex=90deg"]) == 0
+    table = np.loadtxt(out / "closed_loop.csv", delimiter=",", skiprows=1)
+    assert table[0, 1] == pytest.approx(np.pi / 2, abs=1e-12)   # q.r_elbow_flex at t = 0
 
 
 def test_cli_writes_files(tmp_path, capsys):

@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vm_ros.errors import ConfigError, VmRosError
+from vm_ros.errors import VmRosError
 from vm_ros.geometry.mujoco_backend import MujocoGeometry, MuscleTendons, require_mujoco
 from vm_ros.geometry.paths import generalized_forces
 
@@ -52,12 +52,20 @@ CROSSING_M = 1e-3                     # a muscle belongs to a pulse group when |
 # ---------------------------------------------------------------------------- excitations
 
 
+def _defined_at_every_time(start_s: float, end_s: float) -> list[str]:
+    return []
+
+
 @dataclass(frozen=True)
 class Excitation:
-    """Drive U(t) (n_muscles,) in [0, 1] for the loop, with a one-line description."""
+    """Drive U(t) (n_muscles,) in [0, 1] for the loop, with a one-line description;
+    ``coverage(start_s, end_s)``: the input warnings of a table that covers only part of the run
+    [start_s, end_s] (s), VmRosError when it does not overlap it (vm_ros.cli.closed_loop: a
+    file's drives; pulses and constants are defined at every time)."""
 
     function: Callable[[float], np.ndarray]
     description: str
+    coverage: Callable[[float, float], list[str]] = _defined_at_every_time
 
     def __call__(self, t: float) -> np.ndarray:
         return self.function(t)
@@ -94,46 +102,6 @@ def constant_excitation(n: int, level: float) -> Excitation:
         raise VmRosError(f"constant drive {level} is outside [0, 1]")
     u = np.full(n, float(level))
     return Excitation(lambda t: u.copy(), f"constant {level:g} on every muscle")
-
-
-def csv_excitation(path, muscle_names) -> Excitation:
-    """Drive from a CSV: header ``time_s`` and one column per muscle (``NAME`` or
-    ``NAME.excitation``); linear interpolation, held outside the table; muscles without a column
-    get 0. ConfigError names the problem."""
-    path = Path(path)
-    try:
-        with open(path, newline="", encoding="utf-8") as handle:
-            rows = [row for row in csv.reader(handle) if row]
-    except OSError as exc:
-        raise ConfigError(path, "<file>", None, f"cannot read: {exc.strerror or exc}") from exc
-    header = [h.strip() for h in rows[0]] if rows else []
-    if "time_s" not in header:
-        raise ConfigError(path, "time_s", None, "missing column 'time_s' in the header row")
-    try:
-        table = np.array([[float(x) for x in row] for row in rows[1:]], dtype=float)
-    except ValueError as exc:
-        raise ConfigError(path, "<rows>", None, f"not a number: {exc}") from exc
-    if table.ndim != 2 or len(table) < 1 or table.shape[1] != len(header):
-        raise ConfigError(path, "<rows>", None, "need at least one full row under the header")
-    time_s = table[:, header.index("time_s")]
-    if np.any(np.diff(time_s) <= 0):
-        raise ConfigError(path, "time_s", None, "times must increase strictly")
-    columns = {h.removesuffix(".excitation"): i for i, h in enumerate(header) if h != "time_s"}
-    unknown = sorted(set(columns) - set(muscle_names))
-    if unknown:
-        raise ConfigError(path, unknown[0], None, f"not a muscle of the model (have: "
-                          f"{', '.join(muscle_names)})")
-    values = np.zeros((len(time_s), len(muscle_names)))
-    for j, name in enumerate(muscle_names):
-        if name in columns:
-            values[:, j] = table[:, columns[name]]
-    if not np.all(np.isfinite(values)) or values.min() < 0 or values.max() > 1:
-        raise ConfigError(path, "<rows>", None, "drives must be finite and in [0, 1]")
-
-    def drive(t: float) -> np.ndarray:
-        return np.array([np.interp(t, time_s, values[:, j]) for j in range(values.shape[1])])
-
-    return Excitation(drive, f"from {path} ({len(columns)} of {len(muscle_names)} muscles)")
 
 
 # ---------------------------------------------------------------------------- the loop
@@ -400,5 +368,4 @@ def plot_result(result: ClosedLoopResult, path, title: str = "") -> Path:
 
 
 __all__ = ["BASELINE_DRIVE", "ClosedLoop", "ClosedLoopResult", "EnergyLedger", "Excitation",
-           "PULSE_DEFAULTS", "constant_excitation", "csv_excitation", "plot_result",
-           "pulse_excitation"]
+           "PULSE_DEFAULTS", "constant_excitation", "plot_result", "pulse_excitation"]

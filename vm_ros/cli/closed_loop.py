@@ -12,7 +12,14 @@ them by name; the library used is written to DIR/muscles.yaml.
                            r < -1 mm at NEG for the second half, 0.05 otherwise
                            (default pulses:0.5,0.2,1)
   constant:U               U on every muscle
-  FILE.csv                 time_s and one column per muscle (NAME or NAME.excitation)
+  FILE.csv|.sto            time_s and one column per muscle (NAME or NAME.excitation; an
+                           OpenSim .sto as `vm-ros simulate --excitations` reads it), on the
+                           run's time axis (0 s at its start); muscles without a column get 0
+
+Drives are fractions in [0, 1]: a value outside is an error naming the muscle and time (percent:
+divide by 100). A file that does not overlap the run [0, --duration] is an error; one that covers
+only part of it holds its first or last row there: a warning, printed when found and repeated
+after the summary (--strict makes it an error, exit 2).
 
 The drive is VM's neural drive U, not a Hill model's activation: at the same number VM makes far
 less force (docs/closed_loop.md).
@@ -33,8 +40,11 @@ import numpy as np
 
 from vm_ros.errors import VmRosError
 
+RUN_AXIS = "the run's time axis (0 s at its start)"   # where an excitation file's times lie
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from vm_ros.cli.runs import add_strict_option
     from vm_ros.importers.common import add_parameter_arguments
 
     parser.add_argument("--model", default="myoelbow", metavar="NAME|FILE.xml",
@@ -44,36 +54,39 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--dt", type=float, default=0.001, metavar="S",
                         help="step of MuJoCo and of the muscles (default 0.001 s)")
     parser.add_argument("--excitation", default="pulses", metavar="SPEC",
-                        help="pulses[:POS,NEG,PERIOD] | constant:U | FILE.csv (see above)")
+                        help="pulses[:POS,NEG,PERIOD] | constant:U | FILE.csv|.sto (see "
+                             "above)")
     parser.add_argument("--coordinate", metavar="NAME",
                         help="coordinate the pulses move (default: the first)")
     parser.add_argument("--q0", metavar="NAME=VALUE,...",
-                        help="initial coordinates, rad or m (default: the middle of each box)")
+                        help="initial coordinates with their unit (r_elbow_flex=90deg, "
+                             "1.2rad, 0.9m; inside the coordinate's range; default: the middle "
+                             "of each range)")
     parser.add_argument("--library", metavar="FILE.yaml",
                         help="muscle library whose entries replace the derived ones by name")
     add_parameter_arguments(parser)
     parser.add_argument("--out", metavar="DIR",
                         help="output folder (default out/closed-loop-<model>-<date>-<time>)")
     parser.add_argument("--no-plot", action="store_true", help="no PNG")
+    add_strict_option(parser)
 
 
 def parse_q0(text, geometry) -> np.ndarray:
+    """--q0 NAME=VALUE,...: each with its unit and inside the coordinate's range, as `vm-ros
+    simulate --hold` (vm_ros.node.motion_inputs.parse_hold); the others at the middle of their
+    range (rad or m)."""
+    from vm_ros.node.motion_inputs import parse_hold
+
     q0 = (geometry.lower + geometry.upper) / 2
-    for item in filter(None, (s.strip() for s in (text or "").split(","))):
-        name, _, value = item.partition("=")
-        name = name.strip()
-        if name not in geometry.coordinate_names:
-            raise VmRosError(f"--q0: {name!r} is not a coordinate (have: "
-                             f"{', '.join(geometry.coordinate_names)})")
-        try:
-            q0[geometry.coordinate_index(name)] = float(value)
-        except ValueError as exc:
-            raise VmRosError(f"--q0: {item!r} is not NAME=NUMBER") from exc
+    items = [item.strip() for item in (text or "").split(",") if item.strip()]
+    for name, value in parse_hold(items, geometry, "--q0").items():
+        q0[geometry.coordinate_index(name)] = value
     return q0
 
 
 def make_excitation(spec: str, geometry, q0, coordinate: str | None):
-    from vm_ros.closed_loop import constant_excitation, csv_excitation, pulse_excitation
+    from vm_ros.closed_loop import constant_excitation, pulse_excitation
+    from vm_ros.offline.excitations import check_drive_range
 
     spec = spec.strip()
     if spec.startswith("constant:"):
@@ -81,6 +94,7 @@ def make_excitation(spec: str, geometry, q0, coordinate: str | None):
             level = float(spec.split(":", 1)[1])
         except ValueError as exc:
             raise VmRosError(f"--excitation {spec!r}: constant:U with a number U") from exc
+        check_drive_range([[level]], ["every muscle"], [0.0], f"--excitation {spec}")
         return constant_excitation(len(geometry.muscle_names), level)
     if spec == "pulses" or spec.startswith("pulses:"):
         name = coordinate or geometry.coordinate_names[0]
@@ -94,12 +108,30 @@ def make_excitation(spec: str, geometry, q0, coordinate: str | None):
             raise VmRosError(f"--excitation {spec!r}: pulses:POS,NEG,PERIOD") from exc
         if len(numbers) not in (0, 3):
             raise VmRosError(f"--excitation {spec!r}: pulses:POS,NEG,PERIOD (three numbers)")
+        check_drive_range([numbers[:2]], ["POS", "NEG"], [0.0], f"--excitation {spec}")
         r = geometry.evaluate(q0).moment_arm[:, geometry.coordinate_index(name)]
         return pulse_excitation(r, name, *numbers)
-    return csv_excitation(spec, geometry.muscle_names)
+    return file_excitation(spec, geometry.muscle_names)
+
+
+def file_excitation(path, muscle_names):
+    """The drives of a .csv/.sto file (vm_ros.offline.excitations.load_excitations, as `vm-ros
+    simulate --excitations` reads them; muscles without a column at 0) on the run's time axis."""
+    from functools import partial
+
+    from vm_ros.closed_loop import Excitation
+    from vm_ros.offline.excitations import load_excitations
+
+    series = load_excitations(path, muscle_names, missing_drive=0.0)
+    given = len(muscle_names) - len(series.absent)
+    others = f"; the other {len(series.absent)} at 0" if series.absent else ""
+    unused = f"; columns not used: {', '.join(series.ignored)}" if series.ignored else ""
+    return Excitation(series.at, f"from {path} ({given} of {len(muscle_names)} muscles{others}"
+                      f"{unused})", partial(series.coverage, axis=RUN_AXIS))
 
 
 def run(args) -> int:
+    from vm_ros.cli.runs import InputWarnings
     from vm_ros.closed_loop import ClosedLoop, plot_result
     from vm_ros.geometry.mujoco_backend import MujocoGeometry
     from vm_ros.importers import common, mjcf
@@ -111,6 +143,8 @@ def run(args) -> int:
     geometry = MujocoGeometry(args.model)
     q0 = parse_q0(args.q0, geometry)  # options checked before anything is written
     excitation = make_excitation(args.excitation, geometry, q0, args.coordinate)
+    warnings = InputWarnings("closed-loop", args.strict)
+    warnings.extend(excitation.coverage(0.0, args.duration))
     out = Path(args.out or Path("out") / f"closed-loop-{Path(str(args.model)).stem}-"
                f"{time.strftime('%Y%m%d-%H%M%S')}")
     choices = common.choices_from_args(args)
@@ -141,6 +175,8 @@ def run(args) -> int:
             print(f"wrote {png}")
         except ModuleNotFoundError:
             print("matplotlib is not installed: no plot (pip install 'vm_ros[plot]')")
+    for line in warnings.closing_lines():
+        print(line)
     return 0
 
 

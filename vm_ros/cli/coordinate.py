@@ -24,6 +24,14 @@ opensim-id:MODEL.osim[,LOADS.xml][,lowpass=HZ] (vm_ros.coordination.targets). Co
 targets no muscle crosses (pelvis, lumbar) are left to the reserves and listed.
 Costs (--cost): tsianos2012 (VM's metabolic energy, default), drive2, or a published energetics
 model's name (vm_ros.coordination.costs).
+
+Every input is checked before the solve, by `vm-ros simulate --motion`'s rules
+(docs/geometry.md): an input that would change the result without a word is an error (one line,
+exit 2, nothing written), e.g. a motion whose header says inDegrees=no with angles beyond a full
+turn; one a user may mean is a warning, printed when found and repeated after the summary
+(a motion whose header says degrees but whose angles all stay within +-3.14, motion frames
+outside the geometry's box, clamped; a dependent coordinate's column that disagrees with the
+geometry's coupling); --strict makes every warning an error.
 """
 
 from __future__ import annotations
@@ -56,6 +64,7 @@ TRAJECTORY_ONLY = {"lead_in_s": "--lead-in", "node_step_s": "--node-step",
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from vm_ros.cli.runs import add_strict_option
     from vm_ros.coordination.costs import COST_NAMES, DEFAULT_COST
     from vm_ros.coordination.solver import METHODS, SolverOptions, solver_settings
     from vm_ros.coordination.targets import SPEC_HELP
@@ -115,6 +124,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="output folder (default out/coordination)")
     parser.add_argument("--progress", action="store_true",
                         help="one line per iteration on stderr even when it is not a terminal")
+    add_strict_option(parser)
 
 
 def _weights(texts) -> dict:
@@ -281,6 +291,7 @@ def _refuse_trajectory_options(options, why: str) -> None:
 
 def run(args) -> int:
     from vm_ros.cli import simulate
+    from vm_ros.cli.runs import InputWarnings
     from vm_ros.coordination.costs import COSTS, vm_rate
     from vm_ros.coordination.methods import chosen_method, solve
     from vm_ros.coordination.problem import build_problem
@@ -289,10 +300,10 @@ def run(args) -> int:
     from vm_ros.geometry import load_geometry
     from vm_ros.importers.motion import read_motion
     from vm_ros.model.run_config import RunConfig
-    from vm_ros.node.motion_inputs import JointMotion
+    from vm_ros.node.motion_inputs import JointMotion, motion_checks
     from vm_ros.offline.runner import STEADY_START
 
-    for name in ("speed", "body_mass"):
+    for name in ("speed", "body_mass", "dt"):
         value = getattr(args, name)
         if value is not None and not value > 0:
             raise VmRosError(f"--{name.replace('_', '-')} must be > 0 (got {value})")
@@ -304,6 +315,9 @@ def run(args) -> int:
     muscles = _muscles(args, geometry)
     crossed = sorted({c for m in geometry.muscles if m.name in muscles for c in m.coordinates})
     joint_motion = JointMotion.from_motion(motion, geometry, crossed, {})
+    warnings = InputWarnings("coordinate", args.strict)   # every input checked before the solve
+    motion_warnings, motion_notes = motion_checks(motion, joint_motion, geometry)
+    warnings.extend(motion_warnings)
     targets = load_targets(args.targets, geometry=geometry, motion=joint_motion)
     if args.targets_lowpass > 0:
         targets = lowpass_targets(targets, args.targets_lowpass)
@@ -374,7 +388,10 @@ def run(args) -> int:
                         f"{result.unsolved_qps} unsolved QPs"}
     print(f"run log of the drives (vm-ros simulate --motion, steady start, lead-in {lead_s:g} s; "
           f"{time.perf_counter() - started:.1f} s so far):")
-    code = simulate.run(parser.parse_args(argv), verb="coordinate", extra=extra)
+    code = simulate.run(parser.parse_args(argv), verb="coordinate", extra=extra,
+                        checked=warnings)
     print(f"wrote {drives}, {out / 'forces.sto'}, {out / 'reserves.sto'}"
           + (f", {motion_path}" if lead_s else "") + (f", {figure}" if figure else ""))
+    for line in [*motion_notes, *warnings.closing_lines()]:
+        print(line)
     return code

@@ -94,10 +94,8 @@ from vm_ros.model.run_config import RunConfig
 from vm_ros.node.motion_inputs import (
     JointMotion,
     MotionInputs,
-    box_warnings,
-    coupled_columns,
+    motion_checks,
     parse_hold,
-    rotational_names,
 )
 from vm_ros.node.params import NodeConfig
 from vm_ros.node.recording import INPUT_RULE as NODE_INPUT_RULE
@@ -317,7 +315,9 @@ def _motion_muscles(args, geometry) -> tuple:
     return muscles
 
 
-def _motion_source(args) -> _Source:
+def _motion_source(args, motion_checked: bool = False) -> _Source:
+    """The joint-space source; ``motion_checked``: the caller has run ``motion_checks`` on the
+    motion and has their warnings and notes (`vm-ros coordinate`, on the motion it solved)."""
     geometry = load_geometry(args.geometry)
     motion = read_motion(args.motion)
     hold = parse_hold(args.hold, geometry)
@@ -332,10 +332,8 @@ def _motion_source(args) -> _Source:
     node = NodeConfig.from_values(node_values)
     needed = [name for name in geometry.coordinate_names if name in crossed]
     joint_motion = JointMotion.from_motion(motion, geometry, needed, hold)
-    warnings = motion.unit_warnings(rotational_names(geometry) & set(joint_motion.coordinates))
-    warnings += box_warnings(joint_motion, geometry, motion.in_degrees)
-    coupler_warnings, coupled_notes = coupled_columns(motion, geometry)
-    warnings += coupler_warnings
+    warnings, coupled_notes = (([], []) if motion_checked
+                               else motion_checks(motion, joint_motion, geometry))
     excitations = (load_excitations(args.excitations, muscles) if args.excitations else
                    constant_excitation(muscles, 0.0 if args.excitation is None
                                        else args.excitation))
@@ -386,21 +384,25 @@ def _positive(name: str, value: float) -> float:
 
 
 def run(args, on_outcome: Callable[[RunOutcome], None] | None = None,
-        verb: str = "simulate", extra: dict | None = None) -> int:
+        verb: str = "simulate", extra: dict | None = None,
+        checked: InputWarnings | None = None) -> int:
     """The verb; ``on_outcome`` (vm_ros.study) gets what the run computed when it succeeded;
-    ``verb`` and ``extra`` (metadata entries; STEADY_START "yes" starts the activation at the
-    steady state of the first drive) for a verb that runs its drives through this one
-    (`vm-ros coordinate`)."""
+    ``verb``, ``extra`` (metadata entries; STEADY_START "yes" starts the activation at the
+    steady state of the first drive) and ``checked`` for a verb that runs its drives through
+    this one (`vm-ros coordinate`): the InputWarnings of a caller that has checked the motion
+    (``motion_checks``) before its own work; the run leaves the motion's checks out, adds its
+    own warnings to it, and the caller prints the closing lines."""
     extra = dict(extra or {})
     models = energetics_models_option(args.energetics_models)
     _check_options(args)
-    source = _motion_source(args) if args.motion else _source(args)
+    source = (_motion_source(args, motion_checked=checked is not None) if args.motion
+              else _source(args))
     if args.duration is None and not source.duration_s > 0:
         raise VmRosError(f"the inputs ({source.name}) span {source.duration_s:g} s, a single "
                          "time: give --duration S, or inputs with at least two times")
     duration = _positive("--duration", source.duration_s if args.duration is None
                          else args.duration)
-    warnings = InputWarnings(verb, args.strict)
+    warnings = InputWarnings(verb, args.strict) if checked is None else checked
     warnings.extend(source.check(duration))
     timing = RunTiming(
         dt_s=_positive("--dt", args.dt),
@@ -448,7 +450,7 @@ def run(args, on_outcome: Callable[[RunOutcome], None] | None = None,
     print(f"log: {shown_log_path(out_path, status.path)} ({status.written} messages, "
           f"{status.bytes_written / 1e6:.2f} MB"
           f"{f', {status.dropped} dropped' if status.dropped else ''})")
-    for line in warnings.closing_lines():
+    for line in warnings.closing_lines() if checked is None else ():
         print(line)
     if stop.signum:
         print(f"vm-ros {verb}: stopped by signal {stop.signum} at t = "

@@ -105,36 +105,38 @@ class JointMotion:
 _HOLD_VALUE = re.compile(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(\S*)\s*")
 
 
-def parse_hold(texts, geometry) -> dict[str, float]:
+def parse_hold(texts, geometry, option: str = "--hold") -> dict[str, float]:
     """``["knee_angle_r=30deg", "pelvis_ty=0.9m"]`` -> ``{"knee_angle_r": 0.5236, ...}`` in rad
     or m. The unit is required (deg or rad for a rotational coordinate, m, cm or mm for a
-    translational one) and the value must lie in the geometry's box; VmRosError otherwise."""
+    translational one) and the value must lie in the geometry's box; VmRosError otherwise,
+    naming ``option`` (the command-line option the texts come from: --hold, closed-loop's
+    --q0)."""
     hold, given = {}, {}
     names = geometry.coordinate_names
     for text in texts or ():
         name, sep, value = (part.strip() for part in text.partition("="))
         match = _HOLD_VALUE.fullmatch(value)
         if not sep or not name or match is None:
-            raise VmRosError(f"--hold {text!r}: expected COORDINATE=VALUE with a unit, e.g. "
+            raise VmRosError(f"{option} {text!r}: expected COORDINATE=VALUE with a unit, e.g. "
                              "knee_angle_r=30deg or pelvis_ty=0.9m")
         if name in given:
-            raise VmRosError(f"--hold {name}: given twice ({given[name]!r} and {text!r}); "
-                             "hold each coordinate once")
+            raise VmRosError(f"{option} {name}: given twice ({given[name]!r} and {text!r}); "
+                             "give each coordinate once")
         given[name] = text
         if name not in names:
-            raise VmRosError(f"--hold {name}: not a coordinate of the geometry (it has: "
+            raise VmRosError(f"{option} {name}: not a coordinate of the geometry (it has: "
                              f"{', '.join(names)})")
         coordinate = geometry.coordinates[names.index(name)]
         accepted = units_for(coordinate.unit)
         number, symbol = float(match.group(1)), match.group(2)
         if symbol not in accepted:
             given = f"{symbol!r} is not" if symbol else "no unit is given:"
-            raise VmRosError(f"--hold {text!r}: {given} a unit of {name} ({coordinate.unit}); "
+            raise VmRosError(f"{option} {text!r}: {given} a unit of {name} ({coordinate.unit}); "
                              f"write it with one of {', '.join(accepted)}, e.g. "
                              f"{name}={match.group(1)}{accepted[-1]}")
         si = number * UNITS[symbol].factor
         if not coordinate.lower <= si <= coordinate.upper:
-            raise VmRosError(f"--hold {text!r}: outside the geometry's range of {name}, "
+            raise VmRosError(f"{option} {text!r}: outside the geometry's range of {name}, "
                              f"{shown_range(coordinate, symbol)}")
         hold[name] = si
     return hold
@@ -221,6 +223,19 @@ def box_warnings(motion: JointMotion, geometry, in_degrees: bool) -> list[str]:
                         f"{shown_range(coordinate, symbol)} in {int((excess > 0).sum())} of "
                         f"{len(q)} frames (at worst {extreme:.6g} {symbol}): clamped to it")
     return warnings
+
+
+def motion_checks(motion: Motion, joint_motion: JointMotion, geometry
+                  ) -> tuple[list[str], list[str]]:
+    """Every check of a motion against a geometry, for the verbs that take a motion (`vm-ros
+    simulate --motion`, `vm-ros coordinate`, which runs them before its solve): (warnings,
+    notes) from ``Motion.unit_warnings`` of the rotational coordinates used (VmRosError where
+    the values cannot be in the header's unit), ``box_warnings`` and ``coupled_columns``."""
+    used = rotational_names(geometry) & set(joint_motion.coordinates)
+    warnings = motion.unit_warnings(used) + box_warnings(joint_motion, geometry,
+                                                         motion.in_degrees)
+    coupler_warnings, notes = coupled_columns(motion, geometry)
+    return warnings + coupler_warnings, notes
 
 
 class MotionInputs:
@@ -337,5 +352,5 @@ class MotionInputs:
 
 
 __all__ = ["COUPLER_TOLERANCE", "JointMotion", "MotionInputs", "box_warnings", "coupled_columns",
-           "parse_hold", "rotational_names", "shown_range", "shown_unit",
+           "motion_checks", "parse_hold", "rotational_names", "shown_range", "shown_unit",
            "velocity_from_positions"]

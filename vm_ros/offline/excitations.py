@@ -13,14 +13,16 @@ Files (the format by suffix):
 - ``.csv``: a header row ``time_s`` and one column per muscle (``NAME`` or ``NAME.excitation``),
   one row per sample. Here every column must be a muscle of the run (a misspelt name is an error).
 
-Every muscle of the run needs a column. Values are drives U, fractions in [0, 1]: a muscle's value
+Every muscle of the run needs a column (unless the caller gives a drive for muscles without one:
+`vm-ros closed-loop` gives 0). Values are drives U, fractions in [0, 1]: a muscle's value
 outside [-DRIVE_TOLERANCE, 1 + DRIVE_TOLERANCE] is an error (a file in percent says so), since
 clipping it would change the result without a word. Values are interpolated linearly in time and
 held constant outside the table.
 
-The table's time axis is the motion's (`vm-ros simulate --motion`): a run whose span the table
-does not reach at all is an error; one it covers only in part holds the first or last row for the
-rest, and ``ExcitationSeries.coverage`` says so (a warning; ``--strict`` makes it an error).
+The table's time axis is the run's (`vm-ros simulate --motion`: the motion's; `vm-ros
+closed-loop`: 0 s at the start): a run whose span the table does not reach at all is an error;
+one it covers only in part holds the first or last row for the rest, and
+``ExcitationSeries.coverage`` says so (a warning; ``--strict`` makes it an error).
 """
 
 from __future__ import annotations
@@ -40,12 +42,14 @@ _SUFFIXES = ("|excitation", "/excitation", ".excitation")
 DRIVE_TOLERANCE = 1e-6
 # A gap between the run's span and a table's time axis shorter than this is not reported (s).
 COVERAGE_TOLERANCE_S = 1e-3
+MOTION_AXIS = "the motion's time axis"   # the run's time axis of `vm-ros simulate --motion`
 
 
 @dataclass(frozen=True)
 class ExcitationSeries:
     """Drive per muscle over time: ``time_s`` (k,) s on the file's own time axis, ``values``
-    (k, n) in ``muscles`` order; ``ignored``: file columns that were not used."""
+    (k, n) in ``muscles`` order; ``ignored``: file columns that were not used; ``absent``:
+    muscles without a column (given the caller's drive)."""
 
     source: str
     muscles: tuple
@@ -53,18 +57,20 @@ class ExcitationSeries:
     values: np.ndarray
     ignored: tuple = ()
     constant: bool = False
+    absent: tuple = ()
 
-    def coverage(self, start_s: float, end_s: float) -> list[str]:
+    def coverage(self, start_s: float, end_s: float, axis: str = MOTION_AXIS) -> list[str]:
         """Warnings for the run span [start_s, end_s] (s, on the table's axis) where the table
         does not reach it and its first or last row is held; VmRosError when they do not
-        overlap at all. None for a constant."""
+        overlap at all, saying the table must be on ``axis`` (the run's time axis, in words).
+        None for a constant."""
         if self.constant:
             return []
         first, last = float(self.time_s[0]), float(self.time_s[-1])
         span = f"excitations {self.source} cover {first:.6g}-{last:.6g} s"
         if last < start_s or first > end_s:
             raise VmRosError(f"{span}, the run {start_s:.6g}-{end_s:.6g} s: no overlap; they "
-                             "must be on the motion's time axis")
+                             f"must be on {axis}")
         held = []
         if first - start_s > COVERAGE_TOLERANCE_S:
             held.append(f"their first row for the {first - start_s:.6g} s before {first:.6g} s")
@@ -146,10 +152,11 @@ def excitation_muscle(label: str) -> str | None:
     return None
 
 
-def load_excitations(path, muscles) -> ExcitationSeries:
+def load_excitations(path, muscles, missing_drive: float | None = None) -> ExcitationSeries:
     """The drives of ``muscles`` from a .sto/.mot or .csv file; VmRosError naming the file and
     the problem (unreadable, no time column, times not increasing, a non-number, a muscle without
-    a column, a CSV column that is not a muscle of the run)."""
+    a column unless ``missing_drive`` gives its drive, a CSV column that is not a muscle of the
+    run, a drive outside [0, 1])."""
     path = Path(path)
     storage = path.suffix.lower() in STORAGE_SUFFIXES
     if not storage and path.suffix.lower() != ".csv":
@@ -178,11 +185,13 @@ def load_excitations(path, muscles) -> ExcitationSeries:
             raise VmRosError(f"excitations {path}: column {label!r} is not a muscle of the run "
                              f"({', '.join(muscles)})")
     missing = [m for m in muscles if m not in columns]
-    if missing:
+    if missing and missing_drive is None:
         raise VmRosError(f"excitations {path}: no column for muscle(s) {', '.join(missing)}")
-    values = table[:, [columns[m] for m in muscles]]
+    values = np.column_stack([table[:, columns[m]] if m in columns
+                              else np.full(len(time), float(missing_drive)) for m in muscles])
     check_drive_range(values, muscles, time, f"excitations {path}")
-    return ExcitationSeries(str(path), tuple(muscles), time, values, tuple(ignored))
+    return ExcitationSeries(str(path), tuple(muscles), time, values, tuple(ignored),
+                            absent=tuple(missing))
 
 
 def _storage_table(path: Path, text: str) -> tuple[list[str], list[list[str]]]:
