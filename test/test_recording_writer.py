@@ -335,7 +335,7 @@ def _two_topic_messages(count):
     return topics, data, times
 
 
-def _record(path, topics, data, times, block, **options):
+def _record(path, topics, data, times, block, after_writes=None, **options):
     with McapRecorder(path, **options) as rec:
         rec.add_channel("/f", FLOAT64)
         rec.add_channel("/j", JOINT_STATE)
@@ -344,6 +344,8 @@ def _record(path, topics, data, times, block, **options):
         else:
             for topic, payload, time_ns in zip(topics, data, times, strict=True):
                 assert rec.write(topic, payload, time_ns)
+        if after_writes is not None:
+            after_writes(rec)
     return rec.status
 
 
@@ -474,3 +476,63 @@ def test_release_free_memory_is_callable_here():
     if platform.system() == "Linux" and platform.libc_ver()[0] == "glibc":
         assert writer._MALLOC_TRIM is not None
     writer.release_free_memory()
+
+
+def _writer_threads() -> list[str]:
+    return [t.name for t in threading.enumerate() if t.name.startswith("mcap-recorder")]
+
+
+@pytest.mark.parametrize("options", [dict(chunk_size=4096, compression="zstd"),
+                                     dict(chunk_size=2048, compression="none",
+                                          max_file_duration_s=0.7)],
+                         ids=["one file", "split bag"])
+def test_written_by_the_caller_the_same_bytes_without_a_thread(tmp_path, options):
+    """background=False: no writer thread, every message in the file when write returns, and
+    the same files, byte for byte, as the writer thread writes, message by message and as
+    blocks."""
+    topics, data, times = _two_topic_messages(3000)
+    name = "log" if "max_file_duration_s" in options else "log.mcap"
+    for block in (False, True):
+        threaded = _record(tmp_path / "thread" / name, topics, data, times, block, **options)
+        before = _writer_threads()
+
+        def after_writes(rec, before=before):
+            assert _writer_threads() == before  # none started for this recorder
+            assert rec.status.written == 3000  # in the chunks written so far or the open one
+
+        caller = _record(tmp_path / "caller" / name, topics, data, times, block, after_writes,
+                         background=False, **options)
+        assert threaded.ok and caller.ok and caller.written == 3000 and caller.dropped == 0
+        files = sorted(p.relative_to(tmp_path / "thread")
+                       for p in (tmp_path / "thread").rglob("*") if p.is_file())
+        assert len(files) >= (3 if "max_file_duration_s" in options else 1)
+        for path in files:
+            assert (tmp_path / "caller" / path).read_bytes() == \
+                (tmp_path / "thread" / path).read_bytes(), (block, path)
+        for folder in (tmp_path / "thread", tmp_path / "caller"):
+            for path in sorted(folder.rglob("*"), reverse=True):
+                path.unlink() if path.is_file() else path.rmdir()
+
+
+def test_written_by_the_caller_a_full_disk_is_counted_not_raised(tmp_path):
+    """background=False on a full disk: nothing raised by write, write_block or close; a write
+    that failed returns False; written = what a reader gets back, written + dropped = every
+    message."""
+    topics, data, times = _two_topic_messages(3000)
+    path = tmp_path / "full.mcap"
+    for room in (3000, 20_000, 45_000):
+        for block in (False, True):
+            with McapRecorder(path, chunk_size=2048, compression="none", background=False,
+                              opener=lambda p, room=room: FullDisk(p, room)) as rec:
+                rec.add_channel("/f", FLOAT64)
+                rec.add_channel("/j", JOINT_STATE)
+                if block:
+                    results = [rec.write_block(topics, data, times)]
+                else:
+                    results = [rec.write(topic, payload, time_ns) for topic, payload, time_ns
+                               in zip(topics, data, times, strict=True)]
+                assert not results[-1]
+            status = rec.status
+            assert not status.ok and "No space left on device" in status.error, (room, block)
+            in_file = sum(1 for _ in LogReader(path).messages())
+            assert (status.written, status.written + status.dropped) == (in_file, 3000), room

@@ -237,6 +237,37 @@ def test_a_full_disk_fails_that_run_alone_with_its_one_line_error(tmp_path, monk
     assert (room / "b.mcap").is_file()
 
 
+def test_a_run_writes_its_own_log_the_bytes_simulate_writes(tmp_path):
+    """A study run writes its log in its own thread (study.task.LOG_WRITER, no writer thread
+    beside it on the worker's core): the same file, byte for byte, as `vm-ros simulate` with the
+    same options, start time and chunk flushing (by size alone) and its default writer
+    thread."""
+    import threading
+
+    from vm_ros.study.task import FLUSH_INTERVAL_S, LOG_WRITER, RunTask, execute
+
+    assert LOG_WRITER == "caller"
+    argv = ("--scenario", "knee_extension", "--duration", "0.5")
+    threads = []
+    real_start = threading.Thread.start
+
+    def start(thread):
+        threads.append(thread.name)
+        return real_start(thread)
+
+    threading.Thread.start = start
+    try:
+        record = execute(RunTask("c" * 16, offline_verbs()["simulate"], argv,
+                                 str(tmp_path / "study.mcap"), 0))
+    finally:
+        threading.Thread.start = real_start
+    assert record["status"] == "ok"
+    assert not [name for name in threads if name.startswith("mcap-recorder")]
+    assert main(["simulate", *argv, "--start-time", "0", "--flush-interval",
+                 repr(FLUSH_INTERVAL_S), "--out", str(tmp_path / "simulate.mcap")]) == 0
+    assert (tmp_path / "study.mcap").read_bytes() == (tmp_path / "simulate.mcap").read_bytes()
+
+
 def test_without_the_study_extra_the_verb_names_it(tmp_path, capsys, monkeypatch):
     import vm_ros.study
 

@@ -69,9 +69,13 @@ def flush_interval_s(text: str) -> float:
     return value
 
 
+# --log-writer: whether the log's McapRecorder writes from a background thread
+LOG_WRITERS = {"thread": True, "caller": False}
+
+
 def add_output_options(parser, default_out: str) -> None:
-    """--out, --publish-rate, --telemetry-rate, --chunk-size, --flush-interval, --max-bag-size,
-    --max-bag-duration, --progress."""
+    """--out, --publish-rate, --telemetry-rate, --chunk-size, --flush-interval, --log-writer,
+    --max-bag-size, --max-bag-duration, --progress."""
     group = parser.add_argument_group("output")
     group.add_argument("--out", type=Path, metavar="FILE.mcap|NAME",
                        help=f"log file ({default_out}); a path without .mcap is a rosbag2 bag "
@@ -88,6 +92,11 @@ def add_output_options(parser, default_out: str) -> None:
                        metavar="S",
                        help=f"longest wall time (s) a message waits before its chunk is written "
                             f"to the file: what a crash can lose (default {FLUSH_INTERVAL_S:g})")
+    group.add_argument("--log-writer", choices=LOG_WRITERS, default="thread",
+                       help="who compresses and writes the log: a background thread while the "
+                            "run goes on (thread, the default: the shorter wall time), or the "
+                            "run's own thread (caller: less CPU in all, one core per run, as "
+                            "a study's workers write theirs)")
     group.add_argument("--max-bag-size", type=int, default=0, metavar="BYTES",
                        help="with a bag directory --out NAME: start a new file NAME_<k>.mcap once "
                             "the current one holds this many bytes (default 0: one file)")
@@ -102,6 +111,7 @@ def recorder_options(args) -> dict:
     """McapRecorder options of the output options:
     ``open_run_log(path, info, bank, **recorder_options(args))``."""
     return {"chunk_size": args.chunk_size, "flush_interval_s": args.flush_interval,
+            "background": LOG_WRITERS[args.log_writer],
             "max_file_size": args.max_bag_size, "max_file_duration_s": args.max_bag_duration}
 
 

@@ -1,4 +1,5 @@
-"""McapRecorder: a ROS 2 MCAP log written by a background thread, never blocking the caller.
+"""McapRecorder: a ROS 2 MCAP log written by a background thread, never blocking the caller (or,
+with ``background=False``, by the caller's own thread).
 
     with McapRecorder("run.mcap", metadata={"vm_ros.run": {...}}) as rec:
         rec.add_channel("/muscle_force", "sensor_msgs/msg/JointState")
@@ -22,6 +23,15 @@ writer thread: ``status.ok`` turns False with the error text and later messages 
 the caller never sees an exception. ``status.written`` then counts the messages that reached
 the file (a reader gets them back): those of the chunk being written are lost with it, unless
 the chunk itself was written whole and the error came after it (in its message index, say).
+
+Written by the caller (``background=False``): no writer thread; each ``write`` and
+``write_block`` encodes, compresses and writes what it takes before it returns, and ``close``
+finishes the file. Nothing is queued, so nothing is dropped for a full queue, and the errors are
+caught and counted as above. It is for a caller that runs on a core of its own with nothing else
+to do meanwhile, such as a study worker (one worker process per core: vm_ros.study.task): a
+background thread there only competes with the other workers for the cores, and the thread's
+hand-offs cost CPU (measured in docs/studies.md, section 7). A chunk is then closed by its size,
+or by the first write after it has been open ``flush_interval_s``.
 
 Crash safety: messages are written in zstd chunks of ``chunk_size`` bytes (uncompressed); each
 closed chunk goes straight to the OS (the sink is unbuffered), so a process killed with SIGKILL
@@ -227,7 +237,8 @@ class McapRecorder:
     when the current one reaches either (0: one file; vm_ros.recording.bag); opener:
     ``opener(path) -> binary file`` (tests inject failing files); attachment_time_ns: log and
     create time of the attachments (None: the wall clock when each file starts; offline runs
-    give their start time, so that a run with a fixed start time writes the same bytes).
+    give their start time, so that a run with a fixed start time writes the same bytes);
+    background: False to write in the caller's thread (module docstring), the same bytes.
     Raises RecorderError naming the path when the file cannot be created or started.
     """
 
@@ -245,6 +256,7 @@ class McapRecorder:
         max_file_duration_s: float = 0.0,
         opener: Callable[[Path], BinaryIO] = open_unbuffered,
         attachment_time_ns: int | None = None,
+        background: bool = True,
     ):
         self._path = Path(path)
         self._attachment_time_ns = attachment_time_ns
@@ -309,9 +321,12 @@ class McapRecorder:
         self._chunk_opened_at: float | None = None
         self._chunks_seen = self._sink.chunks
         self._release_at = time.monotonic() + RELEASE_PERIOD_S
-        self._thread = threading.Thread(target=self._run, name=f"mcap-recorder {self._path.name}",
-                                        daemon=True)
-        self._thread.start()
+        self._thread: threading.Thread | None = None
+        self._caller_lock = threading.Lock()  # background=False: one write at a time
+        if background:
+            self._thread = threading.Thread(target=self._run, daemon=True,
+                                            name=f"mcap-recorder {self._path.name}")
+            self._thread.start()
 
     def _start_file(self) -> Writer:
         """An mcap Writer on the current sink, started, with the metadata and attachments (every
@@ -383,7 +398,12 @@ class McapRecorder:
         return self._put((topic, data, int(log_time_ns), int(publish)), 1)
 
     def _put(self, item, messages: int) -> bool:
-        """Queue ``item`` (``messages`` messages) unless the queue is full (counted dropped)."""
+        """Queue ``item`` (``messages`` messages) unless the queue is full (counted dropped); or,
+        written by the caller, write it now."""
+        if self._thread is None:
+            with self._caller_lock:
+                self._handle(item)
+            return self._error is None
         waiting = len(self._queue)
         if waiting >= self._queue_size:
             self._count_dropped(messages)
@@ -428,9 +448,13 @@ class McapRecorder:
             if self._closed:
                 return
             self._closing = True
-            self._queue.append(_CLOSE)
-            self._wake.set()
-            self._thread.join()
+            if self._thread is None:
+                with self._caller_lock:
+                    self._finish()
+            else:
+                self._queue.append(_CLOSE)
+                self._wake.set()
+                self._thread.join()
             late = 0
             while self._queue:  # written after close() began: never recorded
                 late += _message_count(self._queue.popleft())
@@ -459,21 +483,26 @@ class McapRecorder:
             handled += 1
             if handled % _YIELD_EVERY == 0 and len(self._queue) < self._catch_up_size:
                 time.sleep(0)
-            if self._error is not None:
-                if item is not None:
-                    self._count_dropped(_message_count(item))
-                continue
-            try:
-                if isinstance(item, _Block):
-                    self._add_block(item)
-                elif item is not None:
-                    self._add_message(*item)
-                self._flush_if_old()
-            except Exception as exc:  # disk full, I/O error: record it, keep draining
-                self._fail(exc)
-            if time.monotonic() >= self._release_at:
-                self._release_memory()
+            self._handle(item)
         self._finish()
+
+    def _handle(self, item) -> None:
+        """Write one queued item (None: only close the open chunk if it is due), in the writer
+        thread or, with background=False, in the caller's."""
+        if self._error is not None:
+            if item is not None:
+                self._count_dropped(_message_count(item))
+            return
+        try:
+            if isinstance(item, _Block):
+                self._add_block(item)
+            elif item is not None:
+                self._add_message(*item)
+            self._flush_if_old()
+        except Exception as exc:  # disk full, I/O error: record it, keep draining
+            self._fail(exc)
+        if time.monotonic() >= self._release_at:
+            self._release_memory()
 
     def _next_item(self):
         """The next queued item, or None when the open chunk is due to be flushed first."""

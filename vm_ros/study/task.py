@@ -34,6 +34,9 @@ STATUS_OK, STATUS_FAILED = "ok", "failed"
 # A chunk of a study run's log is closed by its size alone (not after a wall time), so that a run
 # with a fixed start time writes the same bytes on any worker; a run cut short is rerun whole.
 FLUSH_INTERVAL_S = 3600.0
+# A worker process has one core (one worker per core, one thread each): the run writes its own
+# log rather than a second thread competing for the other workers' cores (docs/studies.md).
+LOG_WRITER = "caller"
 # one run at a time per worker process: a run's output is captured by redirecting sys.stdout
 _RUN_LOCK = threading.Lock()
 
@@ -87,7 +90,8 @@ def execute(task: RunTask) -> dict:
     """Run ``task``: the record {run_id, status, error, rows, wall_s, worker}."""
     final = Path(task.log_path)
     partial = _partial_log(final, uuid.uuid4().hex[:8])
-    argv = [*task.argv, "--out", str(partial), "--flush-interval", repr(FLUSH_INTERVAL_S)]
+    argv = [*task.argv, "--out", str(partial), "--flush-interval", repr(FLUSH_INTERVAL_S),
+            "--log-writer", LOG_WRITER]
     if task.start_time_ns is not None and task.verb.name == "simulate":
         argv += ["--start-time", str(task.start_time_ns)]
     record = {"run_id": task.run_id, "status": STATUS_FAILED, "error": "", "rows": [],
