@@ -99,6 +99,16 @@ def test_command_line_round_trips():
             {k: v for k, v in vars(args).items() if k != "_run"}
 
 
+def test_model_without_closed_loop_is_a_one_line_error(capsys):
+    """--model names the closed-loop demo's model: without --closed-loop it was ignored (the knee
+    demo ran); now exit 2 with one line, before any namespace or node is started."""
+    from vm_ros.cli import main
+
+    assert main(["demo", "--model", "myolegs", "--duration", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--closed-loop" in err[0] and "myolegs" in err[0]
+
+
 def test_geometry_is_reused_only_for_the_same_model(tmp_path, monkeypatch):
     from vm_ros.geometry.mujoco_backend import load_model
 

@@ -283,6 +283,18 @@ def test_more_mistakes_are_one_line_and_exit_2(tmp_path):
     assert not out.exists()
 
 
+def test_an_option_is_taken_only_by_its_whole_name(tmp_path):
+    """argparse's prefix matching took ``--durat`` for ``--duration`` (and a misspelt
+    ``--body-mas`` for ``--body-mass``): now an unrecognised argument, one line, exit 2."""
+    out = tmp_path / "x.mcap"
+    proc = subprocess.run([VM_ROS, "simulate", "--scenario", "knee_extension", "--durat", "1",
+                           "--out", str(out)], capture_output=True, text=True, timeout=60)
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1, proc.stderr
+    assert "unrecognized arguments: --durat 1" in lines[0]
+    assert not out.exists()
+
+
 def _controls(path: Path, times, vasti, rectus=None) -> Path:
     """An OpenSim controls file (CMC's form: NAME columns) for the leg's two muscles."""
     rectus = vasti if rectus is None else rectus

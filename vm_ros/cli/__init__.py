@@ -58,7 +58,14 @@ def _module_name(verb: str) -> str:
 class OneLineParser(argparse.ArgumentParser):
     """argparse's parser whose usage errors are one line and exit 2, as every other bad input
     (argparse prints the whole usage first: 18 lines for `vm-ros simulate`); the verbs' parsers
-    are of this class too (add_subparsers makes them of the parent's)."""
+    are of this class too (add_subparsers makes them of the parent's). An option is taken only
+    by its whole name: argparse's prefix matching took a misspelt ``--body-mas`` for
+    ``--body-mass`` and would take an abbreviation written today for another option added
+    later."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str):
         self.exit(2, f"{self.prog}: error: {message} (usage: {self.prog} --help)\n")

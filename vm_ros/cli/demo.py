@@ -66,6 +66,7 @@ SCENARIO = "knee_extension"
 CATCH_UP_S = 1.0  # s of model time muscle_node catches up on after a stall (module docstring)
 LOOP_MCAP = "closed_loop.mcap"
 LOOP_PNG = "closed_loop.png"
+LOOP_MODEL = "myoelbow"  # --closed-loop's default --model
 
 
 def add_arguments(parser) -> None:
@@ -93,16 +94,17 @@ def add_arguments(parser) -> None:
     loop = parser.add_argument_group("closed loop (--closed-loop)")
     loop.add_argument("--closed-loop", action="store_true",
                       help="muscle_node drives mujoco_sim_node over ROS 2 (extra mujoco)")
-    loop.add_argument("--model", default="myoelbow", metavar="NAME|FILE.xml",
-                      help="myo-sim model name or MJCF file (default myoelbow)")
+    loop.add_argument("--model", default=None, metavar="NAME|FILE.xml",
+                      help=f"myo-sim model name or MJCF file (default {LOOP_MODEL}); with "
+                           f"--closed-loop only")
 
 
 def _command_line(args) -> list[str]:
     """``args`` as a vm-ros command line (to run the demo again inside a namespace)."""
     argv = ["demo", "--duration", repr(args.duration), "--executor", args.executor,
             "--model-rate-hz", repr(args.model_rate_hz), "--recruitment", args.recruitment,
-            "--startup-timeout", repr(args.startup_timeout), "--model", str(args.model)]
-    for flag, value in (("--mcap", args.mcap), ("--out", args.out)):
+            "--startup-timeout", repr(args.startup_timeout)]
+    for flag, value in (("--mcap", args.mcap), ("--out", args.out), ("--model", args.model)):
         if value is not None:
             argv += [flag, str(value)]
     for flag, on in (("--no-mcap", args.no_mcap), ("--closed-loop", args.closed_loop),
@@ -256,6 +258,9 @@ def format_summary(summary: DemoSummary, mcap_path: Path | None, description: st
 def run(args) -> int:
     if args.duration <= 0:
         raise VmRosError(f"--duration must be > 0 s (got {args.duration})")
+    if args.model is not None and not args.closed_loop:
+        raise VmRosError(f"--model {args.model} is the closed-loop demo's model: add "
+                         f"--closed-loop (the knee demo runs the {SCENARIO} scenario's muscles)")
     if os.environ.get("VM_ROS_NETNS") != "1":
         return _in_loopback_namespace(args)
     if args.closed_loop:
@@ -444,6 +449,7 @@ def run_closed_loop(args) -> int:
     from vm_ros.geometry.mujoco_backend import require_mujoco
 
     require_mujoco()
+    args.model = args.model or LOOP_MODEL
     if args.no_mcap:
         raise VmRosError("--closed-loop plots from muscle_node's MCAP: drop --no-mcap")
     if not os.environ.get("HOME") and not os.environ.get("ROS_LOG_DIR"):
