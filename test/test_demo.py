@@ -108,3 +108,42 @@ def test_demo_runs_and_logs(tmp_path):
     printed = float(total_line.split()[2])
     assert printed > 0 and any(abs(totals[j] - totals[0] - printed) < 1e-3
                                for j in range(len(totals)))
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize("closed_loop", [False, True], ids=["knee", "closed loop"])
+def test_a_failing_ros_start_leaves_no_node_running(monkeypatch, tmp_path, closed_loop):
+    """rclpy's start failing (here: rclpy.init raising) must not leave muscle_node running on its
+    own: the demos start it only once their ROS side is up, right before the block that stops
+    it (before, the knee demo's node was orphaned and ran on)."""
+    require_ros()
+    import argparse
+
+    import rclpy
+
+    from vm_ros.cli import demo
+
+    if closed_loop:
+        pytest.importorskip("mujoco")
+        monkeypatch.setattr(demo, "prepare_geometry", lambda model, out: (None, None))
+        monkeypatch.setattr(demo, "loop_parameters", lambda *a: ({}, {}, argparse.Namespace(
+            description="drive"), ["m"]))
+    started = []
+
+    class NoNode:
+        def __init__(self, command, **options):
+            started.append(command)
+
+    def failing_init(**options):
+        raise RuntimeError("rclpy could not start")
+
+    monkeypatch.setattr(demo.subprocess, "Popen", NoNode)
+    monkeypatch.setattr(rclpy, "init", failing_init)
+    args = argparse.Namespace(duration=1.0, closed_loop=closed_loop, model=None, no_mcap=False,
+                              mcap=None, out=str(tmp_path), executor="events",
+                              model_rate_hz=1000.0, recruitment="lumped", startup_timeout=5.0,
+                              accept_skips=False)
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(RuntimeError, match="rclpy could not start"):
+        demo.run(args)
+    assert started == []

@@ -284,8 +284,6 @@ def run(args) -> int:
                          / datetime.now().strftime("demo-%Y%m%d-%H%M%S.mcap"))
         mcap_path = mcap_path.resolve()
 
-    process = subprocess.Popen(_node_command(args, scenario, mcap_path),
-                               env=node_environment())
     context = rclpy.Context()
     # no rclpy signal handlers here: Ctrl-C raises KeyboardInterrupt, and `finally` stops the node
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
@@ -295,6 +293,10 @@ def run(args) -> int:
     driver, monitor = DemoDriver(SCENARIO, context=context), DemoMonitor(context=context)
     for node in (driver, monitor):
         executor.add_node(node)
+    # started once this process's ROS side is up, right before the block that stops it: a
+    # failure before (rclpy's start) must not leave muscle_node running on its own
+    process = subprocess.Popen(_node_command(args, scenario, mcap_path),
+                               env=node_environment())
     try:
         deadline = time.monotonic() + args.startup_timeout
         while not monitor.stamps_ns:
@@ -472,7 +474,6 @@ def run_closed_loop(args) -> int:
     wall_start = time.monotonic()
     # the nodes talk over UDP: a first send over shared memory can stall a node for 333 ms
     environment = node_environment()
-    processes = {"muscle_node": subprocess.Popen(commands["muscle_node"], env=environment)}
     context = rclpy.Context()
     # no rclpy signal handlers here: Ctrl-C raises KeyboardInterrupt, and `finally` stops both
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
@@ -482,6 +483,8 @@ def run_closed_loop(args) -> int:
     driver = LoopDriver(muscles, drive, context=context)
     executor.add_node(driver)
     statuses = {}
+    # as in the knee demo: started right before the block that stops it
+    processes = {"muscle_node": subprocess.Popen(commands["muscle_node"], env=environment)}
     try:
         # muscle_node starts on the first joint_states: it must have a drive by then, so the
         # simulator starts only once muscle_node has received some (else the arm would fall)
