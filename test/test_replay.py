@@ -59,6 +59,27 @@ def test_loop_starts_over(log):
     assert times[:50] == times[50:100] and times[100] == times[0]
 
 
+def _replay_to(ros, subscriptions, log, *options) -> tuple[int, str]:
+    """`vm-ros replay LOG --wait 10 OPTIONS` as a subprocess, spinning ``ros`` until it ends:
+    (exit status, stderr). --wait: the replay publishes once its publishers have matched the
+    subscriptions, and a settling time later, so that they have matched back (reliable:
+    nothing is then lost)."""
+    proc = subprocess.Popen([sys.executable, "-m", "vm_ros.cli", "replay", str(log),
+                             "--wait", "10", *options], env=os.environ.copy(),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert ros.spin_until(lambda: all(s.get_publisher_count() for s in subscriptions)
+                              or proc.poll() is not None, 30)
+        assert ros.spin_until(lambda: proc.poll() is not None, 30)
+        ros.spin_for(0.2)
+        _, err = proc.communicate(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+            proc.wait(timeout=5)
+    return proc.returncode, err
+
+
 def test_replay_publishes_recorded_bytes_at_recorded_pace(log, ros):
     """A subscriber in this process receives energy_rate from `vm-ros replay` (a subprocess):
     every recorded message, and at the recorded pace as the replay sent them (the DDS source
@@ -75,23 +96,8 @@ def test_replay_publishes_recorded_bytes_at_recorded_pace(log, ros):
                                      (info["source_timestamp"] * 1e-9, list(msg.data))),
                                  QoSProfile(depth=1000)),
         node.create_subscription(Float64, "energy_total", totals.append, QoSProfile(depth=1000))]
-    # --wait: the replay publishes once its publishers have matched these subscriptions, and a
-    # settling time later, so that they have matched back (reliable: nothing is then lost)
-    proc = subprocess.Popen([sys.executable, "-m", "vm_ros.cli", "replay", str(log),
-                             "--topics", "energy_rate,/energy_total", "--wait", "10"],
-                            env=os.environ.copy(), stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
-    try:
-        assert ros.spin_until(lambda: all(s.get_publisher_count() for s in subscriptions)
-                              or proc.poll() is not None, 30)
-        assert ros.spin_until(lambda: proc.poll() is not None, 30)
-        ros.spin_for(0.2)
-        out, err = proc.communicate(timeout=10)
-    finally:
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-            proc.wait(timeout=5)
-    assert proc.returncode == 0, err
+    code, err = _replay_to(ros, subscriptions, log, "--topics", "energy_rate,/energy_total")
+    assert code == 0, err
     recorded = read_run(log, topics=["energy_rate"]).get("energy_rate")
     assert len(received) == len(recorded) == len(totals) == 50, err
     np.testing.assert_array_equal(np.array([d for _, d in received]), recorded.fields["data"])
@@ -146,3 +152,79 @@ def test_undecodable_messages_are_one_line_per_cause(tmp_path):
     assert lines[1].startswith("vm-ros replay: skipped 100 undecodable messages on /excitation: "
                                "failed to deserialize ROS message")
     assert lines[1].endswith("(first: /excitation at log time 0.000001000 s)")
+
+
+def test_restamped_changes_the_header_stamp_and_nothing_else():
+    import struct
+
+    from vm_ros.recording import cdr
+
+    data = cdr.serialize("sensor_msgs/msg/JointState", {
+        "header": {"stamp": {"sec": 12, "nanosec": 345}, "frame_id": "f"},
+        "name": ["a", "b"], "position": [0.25, 0.5], "velocity": [], "effort": []})
+    assert cdr.header_stamp_ns(data) == 12_000_000_345
+    new = cdr.restamped(data, 1_796_000_000_123_456_789)
+    message = cdr.deserialize("sensor_msgs/msg/JointState", new)
+    assert (message.header.stamp.sec, message.header.stamp.nanosec) == (1_796_000_000, 123_456_789)
+    assert new[:4] == data[:4] and new[12:] == data[12:] and len(new) == len(data)
+    big_endian = b"\x00\x00\x00\x00" + struct.pack(">iI", 5, 7) + b"\x00" * 8
+    assert cdr.header_stamp_ns(big_endian) == 5_000_000_007
+    assert cdr.header_stamp_ns(cdr.restamped(big_endian, 9_000_000_001)) == 9_000_000_001
+    for bad in (b"\x00\x01\x00", b"\x00\x07\x00\x00" + bytes(8)):
+        with pytest.raises(ValueError):
+            cdr.header_stamp_ns(bad)
+    with pytest.raises(ValueError, match="range"):
+        cdr.restamped(data, 1 << 62)
+
+
+def test_restamper_keeps_the_recorded_spacing_over_the_rate():
+    from vm_ros.recording import cdr
+    from vm_ros.recording.replay import Restamper
+
+    def stamped(ns):
+        return cdr.serialize("sensor_msgs/msg/JointState", {"header": {"stamp": {
+            "sec": ns // 1_000_000_000, "nanosec": ns % 1_000_000_000}}})
+
+    restamp = Restamper(rate=2.0)
+    recorded = [5_000_000_000, 5_010_000_000, 5_030_000_000, 0]
+    now = [1_000_000_000_000, 1_000_006_000_000, 1_000_016_000_000, 1_000_020_000_000]
+    new = [cdr.header_stamp_ns(restamp(stamped(s), t)) for s, t in zip(recorded, now,
+                                                                       strict=True)]
+    assert new == [1_000_000_000_000, 1_000_005_000_000, 1_000_015_000_000, 0]
+    with pytest.raises(ValueError):
+        Restamper(rate=0.0)
+
+
+def test_replay_restamps_messages_with_a_header_on_its_clock(log, ros):
+    """`vm-ros replay --restamp`: the excitation's JointState stamps start at the replay's own
+    time (within the replay, after the log's own stamps) and keep the recorded spacing to the ns;
+    energy_total (no header) is sent as recorded; the values are unchanged."""
+    import time
+
+    from rclpy.qos import QoSProfile
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64
+
+    received, totals = [], []
+    node = ros.rclpy.create_node("restamp_probe", context=ros.context)
+    ros._add(node)
+    subscriptions = [
+        node.create_subscription(JointState, "excitation", received.append,
+                                 QoSProfile(depth=1000)),
+        node.create_subscription(Float64, "energy_total", totals.append, QoSProfile(depth=1000))]
+    start_ns = time.time_ns()
+    code, err = _replay_to(ros, subscriptions, log, "--topics", "excitation,energy_total",
+                           "--restamp")
+    end_ns = time.time_ns()
+    assert code == 0, err
+    recorded = read_run(log, topics=["excitation", "energy_total"])
+    excitation = recorded.get("excitation")
+    assert len(received) == len(excitation) == 50, err
+    assert excitation.time_ns[-1] < start_ns  # the log's own stamps: before this replay
+    stamps = np.array([m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec
+                       for m in received], dtype=np.int64)
+    assert start_ns < stamps[0] < end_ns
+    np.testing.assert_array_equal(np.diff(stamps), np.diff(excitation.time_ns))
+    np.testing.assert_array_equal(np.array([m.position for m in received]),
+                                  excitation.fields["position"])
+    assert [m.data for m in totals] == list(recorded.get("energy_total").fields["data"])

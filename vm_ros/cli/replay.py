@@ -11,6 +11,13 @@ records inputs as received, malformed or not) is not published, since subscriber
 it; at the end one line on stderr per cause counts those per topic and names the first (what the
 C typesupport prints on stderr for each of them is captured into that line). Names may be given
 with or without the leading slash.
+
+With --restamp, every message whose type starts with a std_msgs/Header gets a new header stamp on
+this process's ROS clock (recording.replay.Restamper): the first one the time it is published at,
+the others their recorded spacing from it. A node that places its inputs at their stamps
+(muscle_node, within its input_timeout_s) then places them as they were recorded, relative to
+each other, instead of at their arrival; without it the log's own stamps, hours or days old, are
+sent.
 """
 
 from __future__ import annotations
@@ -30,7 +37,7 @@ import yaml
 
 from vm_ros.errors import VmRosError
 from vm_ros.recording.reader import ChannelInfo, log_channels, unlisted_note
-from vm_ros.recording.replay import is_offline_type, replay
+from vm_ros.recording.replay import Restamper, is_offline_type, replay
 from vm_ros.recording.run_log import resolve_topic
 from vm_ros.recording.schema import MESSAGE_ENCODING, full_type_name
 from vm_ros.recording.series import skipped_line
@@ -51,6 +58,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--wait", type=float, default=0.0, metavar="S",
                         help="before the first message, wait up to S seconds until every "
                              "replayed topic has a subscriber (default 0: start at once)")
+    parser.add_argument("--restamp", action="store_true",
+                        help="give messages with a header new stamps on this clock: the first "
+                             "one's publish time, the others their recorded spacing from it "
+                             "(divided by --rate); default: the recorded stamps")
 
 
 def _rclpy():
@@ -100,6 +111,12 @@ def wait_for_subscribers(publishers, timeout_s: float, settle_s: float = 1.0) ->
             return True
         time.sleep(0.02)
     return False
+
+
+def has_header(message_type) -> bool:
+    """Whether an rclpy message class's first field is a std_msgs/Header."""
+    fields = iter(message_type.get_fields_and_field_types().items())
+    return next(fields, None) == ("header", "std_msgs/Header")
 
 
 def not_replayable(channel: ChannelInfo) -> str | None:
@@ -215,14 +232,19 @@ def run(args) -> int:
                  for topic, c in channels.items()}
         publishers = {topic: node.create_publisher(types[topic], topic, _qos(c.metadata))
                       for topic, c in channels.items()}
+        restamp = Restamper(args.rate) if args.restamp else None
+        stamped = {topic for topic, kind in types.items() if has_header(kind)}
         node.get_logger().info(f"replaying {args.log} ({', '.join(publishers)}) at "
-                               f"x{args.rate:g}{', looping' if args.loop else ''}")
+                               f"x{args.rate:g}{', looping' if args.loop else ''}"
+                               f"{', restamped' if restamp is not None else ''}")
         if args.wait > 0 and not wait_for_subscribers(publishers.values(), args.wait):
             node.get_logger().warning(f"not every topic has a subscriber after {args.wait:g} s")
         for message in replay(args.log, topics=set(publishers), rate=args.rate, loop=args.loop):
             data = bytes(message.data)
             if not check(message.topic, data, types[message.topic], message.log_time_ns):
                 continue
+            if restamp is not None and message.topic in stamped:
+                data = restamp(data, node.get_clock().now().nanoseconds)
             publishers[message.topic].publish(data)
             count += 1
     except KeyboardInterrupt:

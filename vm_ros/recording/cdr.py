@@ -180,6 +180,28 @@ class MultiArrayInput:
         self.layout, self.data = layout, data
 
 
+def header_stamp_ns(data: bytes) -> int:
+    """The header stamp (ns) of the CDR bytes of a message whose first field is a
+    ``std_msgs/Header`` (sec, int32, and nanosec, uint32, right after the encapsulation header).
+    ValueError for bytes too short or not ROS 2 CDR."""
+    if len(data) < 12 or data[1] not in _KINDS or data[0] != 0:
+        raise ValueError("not the CDR bytes of a message with a header")
+    sec, nanosec = struct.unpack_from(_KINDS[data[1]] + "iI", data, 4)
+    return sec * 1_000_000_000 + nanosec
+
+
+def restamped(data: bytes, stamp_ns: int) -> bytes:
+    """``data`` (as for :func:`header_stamp_ns`) with its header stamp set to ``stamp_ns``; every
+    other byte unchanged. ValueError as header_stamp_ns, or for a stamp sec cannot hold."""
+    header_stamp_ns(data)
+    sec, nanosec = divmod(int(stamp_ns), 1_000_000_000)
+    if not -(1 << 31) <= sec < 1 << 31:
+        raise ValueError(f"stamp {stamp_ns} ns is out of the header's range")
+    out = bytearray(data)
+    struct.pack_into(_KINDS[data[1]] + "iI", out, 4, sec, nanosec)
+    return bytes(out)
+
+
 def _header(reader: _Reader) -> _Header:
     sec = reader.uint32()
     sec = sec - (1 << 32) if sec >= 1 << 31 else sec  # int32

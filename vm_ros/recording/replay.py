@@ -6,8 +6,10 @@ verb publishes what it yields).
 
 Messages come in file order (log-time order for vm_ros logs). The pace follows the log times:
 item k is yielded (t_k - t_0) / rate after the first, on a monotonic clock; a message whose log
-time is earlier than the previous one is yielded at once. Types this package defines itself
-(vm_ros/msg/...) have no typesupport outside a colcon build and are skipped unless asked for.
+time is earlier than the previous one is yielded at once. ``Restamper`` gives replayed messages
+new header stamps on the replay's clock (the replay verb's --restamp). Types this package
+defines itself (vm_ros/msg/...) have no typesupport outside a colcon build and are skipped
+unless asked for.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Iterable, Iterator
 
+from vm_ros.recording.cdr import header_stamp_ns, restamped
 from vm_ros.recording.reader import LogReader, RecordedMessage
 
 OFFLINE_PACKAGES = ("vm_ros",)
@@ -58,3 +61,26 @@ def replay(path, topics: Iterable[str] | None = None, rate: float = 1.0, loop: b
         yield from paced(recorded_messages(path, topics, include_offline), rate, clock, sleep)
         if not loop:
             return
+
+
+class Restamper:
+    """Header stamps moved onto the replay's clock: the first message restamped gets ``now_ns``
+    (the time it is published at), each later one that time plus the distance of its recorded
+    stamp from the first one's, divided by ``rate``, so that the stamps keep their recorded
+    spacing. A message stamped 0 (not stamped) is left so. ``restamper(data, now_ns)``: the
+    CDR bytes of a message whose first field is a std_msgs/Header (ValueError otherwise)."""
+
+    def __init__(self, rate: float = 1.0):
+        if not rate > 0:
+            raise ValueError(f"rate must be > 0, got {rate}")
+        self.rate = rate
+        self.origin: tuple[int, int] | None = None  # (recorded stamp, new stamp) of the first
+
+    def __call__(self, data: bytes, now_ns: int) -> bytes:
+        stamp = header_stamp_ns(data)
+        if stamp == 0:
+            return data
+        if self.origin is None:
+            self.origin = (stamp, int(now_ns))
+        recorded, new = self.origin
+        return restamped(data, new + round((stamp - recorded) / self.rate))
