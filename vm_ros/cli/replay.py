@@ -241,10 +241,10 @@ def run(args) -> int:
             node.get_logger().warning(f"not every topic has a subscriber after {args.wait:g} s")
         for message in replay(args.log, topics=set(publishers), rate=args.rate, loop=args.loop):
             data = bytes(message.data)
+            if restamp is not None and message.topic in stamped and len(data) >= 12:
+                data = restamp(data, node.get_clock().now().nanoseconds)  # at its due time
             if not check(message.topic, data, types[message.topic], message.log_time_ns):
                 continue
-            if restamp is not None and message.topic in stamped:
-                data = restamp(data, node.get_clock().now().nanoseconds)
             publishers[message.topic].publish(data)
             count += 1
     except KeyboardInterrupt:
