@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from vm_ros.recording.run_log import NODE_PARAMETERS_KEY
+from vm_ros.recording.run_log import INPUT_TIME_KEY, INPUT_TIME_STAMPED, NODE_PARAMETERS_KEY
 from vm_ros.report.summary import WORK_NOT_LOGGED, summarize, summary_table
 from vm_ros.report.validity import node_input_losses, node_log_validity
 
@@ -28,13 +28,15 @@ def _series(time_ns, stamp_ns=None):
 
 
 def _node_log(outputs_ns, inputs: dict, parameters: dict | None = None,
-              source: str = "muscle_node"):
+              source: str = "muscle_node", input_time: str | None = None):
     """A stand-in for a RunLog: muscle_force at ``outputs_ns``; each input topic -> (log times,
     header stamps); muscle_node's parameters unless ``parameters`` is None; written by
-    ``source`` (RunInfo.source)."""
+    ``source`` (RunInfo.source); its input_time key unless None."""
     channels = {"muscle_force": _series(outputs_ns)}
     channels.update({topic: _series(*times) for topic, times in inputs.items()})
     extra = {} if parameters is None else {NODE_PARAMETERS_KEY: json.dumps(parameters)}
+    if input_time is not None:
+        extra[INPUT_TIME_KEY] = input_time
     return SimpleNamespace(path="node.mcap", info=SimpleNamespace(extra=extra, source=source),
                            get=channels.get)
 
@@ -117,3 +119,41 @@ def test_the_losses_the_node_counted_are_read_from_its_last_diagnostics():
          "lost: excitation_array (messages)": "0"})}.get)
     assert node_input_losses(run) == {"excitation": 6, "muscle_kinematics": 7}
     assert node_input_losses(SimpleNamespace(get={}.get)) == {}
+
+
+def test_inputs_placed_at_their_arrival_are_counted_and_named_not_failed():
+    """Stamps an hour old (a replayed log's own) are not on the node's clock: every sample was
+    placed at its arrival. The report counts them per input in a note, the run stays valid
+    (its jitter is the delivery's); samples placed at their stamps (a few ms late or on time)
+    are not counted; a log written before the stamps were used (no input_time key) is not
+    counted either."""
+    outputs = 10 * MS * np.arange(1, 201)
+    applied, stamps = _replayed(0, 2000)
+    old = stamps - 3600_000 * MS
+    mixed = stamps.copy()
+    mixed[:100] = 0  # not stamped: placed at arrival too
+    parameters = {"input_timeout_s": 0.5}
+    run = _node_log(outputs, {"excitation": (applied, old), "muscle_kinematics": (applied, mixed)},
+                    parameters, input_time=INPUT_TIME_STAMPED)
+    validity, _ = node_log_validity(run)
+    assert validity.valid
+    counts = {t.topic: (t.at_arrival, t.messages) for t in validity.inputs}
+    window = (applied >= outputs[0]) & (applied <= outputs[-1])  # checked over the outputs
+    inside, unstamped = int(np.count_nonzero(window)), int(np.count_nonzero(window[:100]))
+    assert counts == {"excitation": (inside, inside), "muscle_kinematics": (unstamped, inside)}
+    note = [line for line in validity.lines(None) if line.startswith("note: placed at")]
+    assert len(note) == 1 and f"excitation {inside} of {inside}" in note[0]
+    assert f"muscle_kinematics {unstamped} of {inside}" in note[0] and "--restamp" in note[0]
+
+    late = stamps.copy()
+    late[500] = applied[500] - 600 * MS  # older than input_timeout_s by 100 ms: at arrival
+    on_clock = _node_log(outputs, {"excitation": (applied, late)}, parameters,
+                         input_time=INPUT_TIME_STAMPED)
+    validity, _ = node_log_validity(on_clock)
+    assert [(t.at_arrival, t.messages) for t in validity.inputs] == [(1, inside)]
+    assert node_log_validity(_node_log(outputs, {"excitation": (applied, stamps)}, parameters,
+                                       input_time=INPUT_TIME_STAMPED))[0].inputs[0].at_arrival == 0
+    before = _node_log(outputs, {"excitation": (applied, old)}, parameters)
+    validity, _ = node_log_validity(before)
+    assert validity.inputs[0].at_arrival == -1
+    assert not any(line.startswith("note: placed at") for line in validity.lines(None))

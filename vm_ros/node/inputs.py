@@ -35,6 +35,7 @@ from vm_ros import topics as tp
 from vm_ros.geometry.checks import MIN_PATH_LENGTH_M
 from vm_ros.node.health import Issue
 from vm_ros.node.params import NodeConfig
+from vm_ros.recording.run_log import stamp_on_clock
 
 
 def input_time_ns(stamp_ns: int, placed_ns: int, timeout_ns: int) -> int:
@@ -43,9 +44,7 @@ def input_time_ns(stamp_ns: int, placed_ns: int, timeout_ns: int) -> int:
     node's clock (not zero, not after the placement, at most ``timeout_ns`` before it), else the
     placement. Kinematics are extrapolated and inputs age from this time, so a sample that came a
     few ms late continues the motion from where it was measured instead of stepping it back."""
-    if 0 < stamp_ns <= placed_ns and placed_ns - stamp_ns <= timeout_ns:
-        return int(stamp_ns)
-    return int(placed_ns)
+    return int(stamp_ns) if stamp_on_clock(stamp_ns, placed_ns, timeout_ns) else int(placed_ns)
 
 
 @dataclass(frozen=True)

@@ -36,6 +36,8 @@ from vm_ros.errors import VmRosError
 from vm_ros.recording.bag import BagError, is_bag_path, prepare_bag_directory
 from vm_ros.recording.message_types import schema_text
 from vm_ros.recording.run_log import (
+    INPUT_TIME_KEY,
+    INPUT_TIME_STAMPED,
     INPUT_TOPICS,
     JOINT_TOPICS,
     LOG_TOPIC_TYPES,
@@ -59,9 +61,6 @@ INPUT_RULE = ("muscle_node: inputs conditioned by vm_ros.node.inputs.NodeInputs 
               "at most extrapolation_max_s, stale_input_policy), joint_states by "
               "vm_ros.node.joint_inputs.JointInputs with the geometry; each input is logged at the "
               "model time of the first step that uses it")  # muscle_node: how, in input_time
-INPUT_TIME_KEY = "input_time"  # vm_ros.run key of a muscle_node log: how inputs were timed
-INPUT_TIME_STAMPED = ("header stamp when on the node's clock, else receipt; placed there, not "
-                      "before the model time reached (vm_ros.node.inputs.input_time_ns)")
 
 
 def node_run_extra(node_name: str, parameters: dict) -> dict:

@@ -45,11 +45,12 @@ from vm_ros.joint_space import JointEfforts, JointMap, JointSpace
 from vm_ros.node.inputs import HeldInputs, InputLimits, NodeInputs, input_time_ns, node_receivers
 from vm_ros.node.joint_inputs import JointInputs
 from vm_ros.node.params import NodeConfig
-from vm_ros.node.recording import INPUT_TIME_KEY, INPUT_TIME_STAMPED
 from vm_ros.recording.cdr import input_decoder
 from vm_ros.recording.run_log import (
     ATTACHMENT_GEOMETRY,
     COORDINATION_INPUT_TOPICS,
+    INPUT_TIME_KEY,
+    INPUT_TIME_STAMPED,
     METADATA_NAME,
     NODE_PARAMETERS_KEY,
     RunLog,

@@ -70,6 +70,17 @@ ATTACHMENT_GEOMETRY = "geometry.yaml"
 # run metadata key: muscle_node's parameters as JSON, in a log whose inputs the node conditioned
 NODE_PARAMETERS_KEY = "node_parameters"
 NODE_SOURCE = "muscle_node"  # RunInfo.source of a log muscle_node wrote (a real-time run)
+INPUT_TIME_KEY = "input_time"  # vm_ros.run key of a muscle_node log: how inputs were timed
+INPUT_TIME_STAMPED = ("header stamp when on the node's clock, else receipt; placed there, not "
+                      "before the model time reached (vm_ros.node.inputs.input_time_ns)")
+
+
+def stamp_on_clock(stamp_ns, placed_ns, timeout_ns):
+    """Whether muscle_node takes an input's header stamp as its time (INPUT_TIME_STAMPED): the
+    stamp is not zero, not after the sample's placement (its arrival, or a later model time) and
+    at most ``timeout_ns`` (input_timeout_s) before it; else the sample is placed at its arrival.
+    Python ints (the node, per message: no NumPy) or int64 arrays (elementwise)."""
+    return (stamp_ns > 0) & (stamp_ns <= placed_ns) & (placed_ns - stamp_ns <= timeout_ns)
 INPUT_HOLD = "zero-order hold: the step [t, t + dt) uses the latest input with log_time <= t"
 
 INPUT_TOPICS = tm.input_topic_names()  # the table vm_ros.topics.INPUT_TOPICS
