@@ -103,7 +103,8 @@ def run(args) -> int:
               f"{client.scheduler.address}")
         summary = run_study(study, args.out, client, offline_verbs())
     except StudyWriteError as error:  # the records written before it are kept
-        print(f"vm-ros study: error: {error}; the study stopped", file=sys.stderr)
+        print(f"vm-ros study: error: {error}; the study stopped, the runs recorded before "
+              f"are kept in {args.out / 'rows'}", file=sys.stderr)
         return 1
     finally:
         close(client, cluster)
