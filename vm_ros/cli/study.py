@@ -15,10 +15,13 @@ results.parquet and results.csv (one row per run and muscle), runs.csv (status, 
 time, worker per run), params/ (model files of model.* changes) and study.yaml (a copy).
 
 A run's id is a content hash of its input and parameters: `study run` again on the same DIR
-skips the runs that finished and reruns failed or missing ones. The table is the same bit for
-bit whatever the number of workers. A run that fails is recorded with its one-line error and the
-study goes on; a lost worker's runs are rerun on another; Ctrl-C stops, keeping every finished
-run and the table of them (exit 130). A bad study file is one line naming the field, exit 2.
+skips the runs that finished and reruns failed or missing ones, and those whose log is missing
+from runs/. The table is the same bit for bit whatever the number of workers. A run that fails
+is recorded with its one-line error and the study goes on; a lost worker's runs are rerun on
+another; Ctrl-C stops, keeping every finished run and the table of them (exit 130); a file of
+DIR that cannot be written (disk full) stops the study with one line naming it, keeping the runs
+recorded before (exit 1). A bad study file, --out naming a file or a --scheduler address Dask
+cannot connect to is one line naming the field or option, exit 2.
 
 Needs the study extra: pip install "vm_ros[study]" (dask[distributed], pyarrow); the report's
 plots need matplotlib (the plot extra).
@@ -27,6 +30,7 @@ plots need matplotlib (the plot extra).
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from vm_ros.errors import VmRosError
@@ -82,11 +86,14 @@ def run(args) -> int:
         from vm_ros.study.report import report
 
         return report(args.dir, plots=not args.no_plots, energy=args.energy, by=args.by)
-    from vm_ros.study.engine import Engine, close, run_study
+    from vm_ros.study.engine import Engine, StudyWriteError, close, run_study
 
     study = load_study(args.study)
     if args.workers is not None and args.workers < 1:
         raise VmRosError(f"--workers must be >= 1, got {args.workers}")
+    if args.out.exists() and not args.out.is_dir():
+        raise VmRosError(f"--out {args.out} is a file: give a folder (a new one, or the folder "
+                         "of this study to resume it)")
     try:
         client, cluster = Engine(args.scheduler, args.workers).open()
     except OSError as error:
@@ -95,6 +102,10 @@ def run(args) -> int:
         print(f"Dask: {len(client.scheduler_info()['workers'])} workers at "
               f"{client.scheduler.address}")
         summary = run_study(study, args.out, client, offline_verbs())
+    except StudyWriteError as error:  # the records written before it are kept
+        print(f"vm-ros study: error: {error}; the study stopped, the runs recorded before "
+              f"are kept in {args.out / 'rows'}", file=sys.stderr)
+        return 1
     finally:
         close(client, cluster)
     print(summary.line())

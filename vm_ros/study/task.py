@@ -4,11 +4,13 @@ options, runner and log writer.
 The run's rows are the numbers its summary printed (vm_ros.cli.runs.RunOutcome). The log is
 written under a temporary name beside its final one and renamed when the run has
 finished, so ``runs/<run id>.mcap`` is always a complete log, whichever worker wrote it and
-however often the run was started. What the verb prints goes to ``runs/<run id>.txt``.
+however often the run was started. What the verb prints goes to ``runs/<run id>.txt``, with
+the log's final name.
 
 A run that fails for a reason of its own (a VmRosError: an unreadable input, a model file that
 does not build; or a log that could not be written: disk full) returns a record with status
-``failed`` and the one-line error; any other exception propagates, so that Dask retries the run
+``failed`` and the one-line error, as does a run that computed no step (dt longer than the
+run), which has no rows; any other exception propagates, so that Dask retries the run
 (the study's ``retries``) and the client records it if it still fails.
 """
 
@@ -28,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from vm_ros import telemetry as tm
-from vm_ros.errors import VmRosError
+from vm_ros.errors import VmRosError, plain_value
 
 STATUS_OK, STATUS_FAILED = "ok", "failed"
 # A chunk of a study run's log is closed by its size alone (not after a wall time), so that a run
@@ -81,9 +83,21 @@ def _last_error(text: str, verb: str) -> str:
 
 def one_line(error: BaseException) -> str:
     """An exception as one line: its type (unless a VmRosError) and the first line of its
-    text."""
-    text = (str(error).strip().splitlines() or [""])[0]
+    text (:func:`error_text`)."""
+    text = (error_text(error).splitlines() or [""])[0]
     return text if isinstance(error, VmRosError) else f"{type(error).__name__}: {text}"
+
+
+def error_text(error: BaseException) -> str:
+    """The exception's text; when it has none, that of the same exception made again from its
+    args, else its repr (cut). An exception that Dask carried back from a worker (pickled with
+    tblib) can lose the text its class builds from its fields: a UnicodeDecodeError arrived
+    with an empty text and its args intact."""
+    text = str(error).strip()
+    if not text and error.args:
+        with contextlib.suppress(Exception):
+            text = str(type(error)(*error.args)).strip()
+    return text or plain_value(error)
 
 
 def execute(task: RunTask) -> dict:
@@ -105,7 +119,9 @@ def execute(task: RunTask) -> dict:
         outcomes = []
         with _RUN_LOCK, contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
             code = int(task.verb.run(args, on_outcome=outcomes.append) or 0)
-        if code == 0 and outcomes:
+        if code == 0 and outcomes and not outcomes[0].muscles:
+            record["error"] = no_step_error(outcomes[0], args)
+        elif code == 0 and outcomes:
             os.replace(partial, final)
             record.update(status=STATUS_OK, rows=outcome_rows(outcomes[0]))
         else:
@@ -117,9 +133,21 @@ def execute(task: RunTask) -> dict:
         record["wall_s"] = time.perf_counter() - start
         with contextlib.suppress(OSError):
             partial.unlink(missing_ok=True)
+        printed = out.getvalue() + err.getvalue()
+        if record["status"] == STATUS_OK:  # the verb printed the log's temporary name
+            printed = printed.replace(str(partial), str(final))
         with contextlib.suppress(OSError):  # best effort: the record carries the error
-            final.with_suffix(".txt").write_text(out.getvalue() + err.getvalue())
+            final.with_suffix(".txt").write_text(printed)
     return record
+
+
+def no_step_error(outcome, args) -> str:
+    """The one-line error of a run that finished without a step (no muscle summary, so no
+    rows): its time step is longer than the run."""
+    given = ", ".join(f"--{name} {value:g}" for name in ("dt", "duration")
+                      if (value := getattr(args, name, None)) is not None)
+    return (f"the run computed no step ({outcome.duration_s:g} s of model time, {given}): "
+            "dt is longer than the run")
 
 
 def partial_logs(task: RunTask) -> list[Path]:
