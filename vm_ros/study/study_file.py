@@ -24,9 +24,17 @@ Parameters (PARAMETERS, then the two prefixes):
                                     ``params`` file), in the unit the file writes it in
   library.MUSCLE.FIELD              a muscle-library field (as --override MUSCLE.FIELD=VALUE)
 
-A run's id is the SHA-256 (first 16 hex digits) of its verb, its input (files by content) and
-every parameter (files by content): the same run in another study, or the same study started
-again, has the same id, which is how a study resumes.
+A run's id is the SHA-256 (first 16 hex digits) of its verb, its input (files by content),
+every parameter (files by content), the shipped files it reads because the study does not give
+them (config/model.yaml without ``params``, config/muscles.yaml without ``library``,
+config/energetics_models.yaml with published energetics models; by content) and the vm_ros
+version: the same run in another study, or the same study started again, has the same id, which
+is how a study resumes; after an upgrade that changes a default or the version, every run gets a
+new id and runs again.
+
+The results table has a column for every parameter the study changes: those of ``runs`` and
+``grid`` (varied), then those of ``settings`` (the same value in every row), named as in the
+file.
 """
 
 from __future__ import annotations
@@ -47,7 +55,10 @@ from vm_ros.model.params import (
     RECOVERY_MODES,
     SCHEMES,
     load_model_params,
+    load_muscle_library,
+    near_matches,
 )
+from vm_ros.recording.versions import VM_ROS_VERSION
 from vm_ros.resources import config_dir
 
 STUDY_VERSION = 1
@@ -142,6 +153,13 @@ PARAMETERS = {
 }
 
 
+# shipped file a run reads unless the study gives its parameter: parameter -> file of config_dir()
+DEFAULT_FILES = {"params": "model.yaml", "library": "muscles.yaml"}
+# read (for its constants) only by a run with published energetics models
+ENERGETICS_FILE = "energetics_models.yaml"
+NO_MODELS = "none"
+
+
 # --- inputs ---------------------------------------------------------------------------------
 
 
@@ -182,12 +200,16 @@ def file_digest(path: Path) -> str:
 @dataclass(frozen=True)
 class StudyInput:
     """One input of a study: ``label`` for the table, the verb and its arguments, ``content``
-    (what the run id hashes: kind, option values, file digests)."""
+    (what the run id hashes: kind, option values, file digests), its place in the study file
+    (``inputs[0]``) and the muscles it names (``muscles:``, checked against each run's
+    library)."""
 
     label: str
     verb: str
     argv: tuple
     content: Mapping
+    where: str = ""
+    muscles: tuple = ()
 
 
 # --- runs -----------------------------------------------------------------------------------
@@ -224,8 +246,10 @@ class RunSpec:
 
 @dataclass(frozen=True)
 class Study:
-    """A validated study: its file, name, runs (study order), varied parameters (table
-    columns, in file order), start time and retries."""
+    """A validated study: its file, name, runs (study order), varied parameters (in file
+    order), start time, retries and the parameters every run gets (``settings``, in file
+    order). The table has a column for each parameter the study changes:
+    ``parameter_columns``."""
 
     path: Path
     name: str
@@ -233,6 +257,18 @@ class Study:
     varied: tuple
     start_time_ns: int | None
     retries: int
+    settings: Mapping = field(default_factory=dict)
+
+    @property
+    def parameter_columns(self) -> tuple:
+        """The varied parameters, then those of ``settings``: every parameter the study
+        changes, named as in the study file."""
+        return (*self.varied, *self.settings)
+
+    def value(self, spec: RunSpec, key: str):
+        """The value of parameter ``key`` in run ``spec`` (None: the verb's default, for a
+        parameter of another change set)."""
+        return self.settings[key] if key in self.settings else spec.changes.get(key)
 
 
 def _load(path: Path) -> dict:
@@ -262,6 +298,7 @@ class _Checker:
         self.path = path
         self.base = path.parent
         self._digests: dict = {}
+        self._libraries: dict = {}
 
     def fail(self, where: str, reason: str):
         raise StudyError(self.path, where, reason)
@@ -317,7 +354,8 @@ class _Checker:
             argv_values, content[key] = self.input_value(f"{where}.{key}", key, entry[key],
                                                          key in kind.file_keys)
             argv += [item for text in argv_values for item in (option, text)]
-        return StudyInput(label, kind.verb, tuple(argv), content)
+        muscles = tuple(entry.get("muscles") or ()) if "muscles" in kind.keys else ()
+        return StudyInput(label, kind.verb, tuple(argv), content, where, muscles)
 
     def input_value(self, where: str, key: str, value, is_file: bool):
         """(option values, hashed content) of one input key."""
@@ -374,6 +412,27 @@ class _Checker:
         if option.is_file:
             self.existing(where, value)
 
+    def library_muscles(self, where: str, path: Path) -> dict:
+        """The muscles of a library file (read once); its errors name ``where``."""
+        if path not in self._libraries:
+            try:
+                self._libraries[path] = load_muscle_library(path)
+            except VmRosError as error:
+                self.fail(where, str(error))
+        return self._libraries[path]
+
+    def input_muscles(self, item: StudyInput, library: Path, library_at: str) -> None:
+        """Each muscle the input names is in the run's muscle library (``library``, given at
+        ``library_at``), else StudyError naming the muscle and the input."""
+        if not item.muscles:
+            return
+        known = self.library_muscles(library_at, library)
+        for i, muscle in enumerate(item.muscles):
+            if muscle not in known:
+                self.fail(f"{item.where}.muscles[{i}]",
+                          f"muscle {muscle!r} of input {item.label} is not in the muscle "
+                          f"library {library} ({near_matches(muscle, known)})")
+
     def parameter_content(self, key: str, value):
         """What the run id hashes for one parameter: file parameters by content."""
         option = PARAMETERS.get(key)
@@ -382,9 +441,11 @@ class _Checker:
         return value
 
 
-def _grid(checker: _Checker, grid, verbs) -> list[dict]:
+def _grid(checker: _Checker, grid, verbs) -> list[tuple[dict, dict]]:
+    """[(point, {parameter: where})]: every combination of the grid's values, each parameter
+    with the place of its value (``grid.dt[1]``)."""
     if grid is None:
-        return [{}]
+        return [({}, {})]
     if not isinstance(grid, dict) or not grid:
         checker.fail("grid", "expected a mapping of parameter -> list of values")
     for key, values in grid.items():
@@ -394,12 +455,15 @@ def _grid(checker: _Checker, grid, verbs) -> list[dict]:
         for i, value in enumerate(values):
             checker.parameter(f"grid.{key}[{i}]", key, value, verbs)
     keys = list(grid)
-    return [dict(zip(keys, combo, strict=True)) for combo in itertools.product(*grid.values())]
+    return [({key: grid[key][i] for key, i in zip(keys, combo, strict=True)},
+             {key: f"grid.{key}[{i}]" for key, i in zip(keys, combo, strict=True)})
+            for combo in itertools.product(*(range(len(grid[key])) for key in keys))]
 
 
-def _change_sets(checker: _Checker, runs, verbs) -> list[dict]:
+def _change_sets(checker: _Checker, runs, verbs) -> list[tuple[dict, dict]]:
+    """[(changes, {parameter: where})] of the list of change sets (``runs[2].dt``)."""
     if runs is None:
-        return [{}]
+        return [({}, {})]
     if not isinstance(runs, list) or not runs:
         checker.fail("runs", "expected a non-empty list of parameter mappings")
     for i, changes in enumerate(runs):
@@ -408,42 +472,78 @@ def _change_sets(checker: _Checker, runs, verbs) -> list[dict]:
                                        f"{plain_value(changes)}")
         for key, value in changes.items():
             checker.parameter(f"runs[{i}].{key}", key, value, verbs)
-    return [dict(changes) for changes in runs]
+    return [(dict(changes), {key: f"runs[{i}].{key}" for key in changes})
+            for i, changes in enumerate(runs)]
 
 
-def _model_text(checker: _Checker, where: str, base: Path, changes: Mapping) -> str:
-    """The model file ``base`` with the model.* ``changes``, checked by loading it."""
-    data = yaml.safe_load(base.read_text(encoding="utf-8"))
+def _model_text(checker: _Checker, where: Mapping, base: Path, changes: Mapping) -> str:
+    """The model file ``base`` with the model.* ``changes``, checked by loading it; an error
+    names the place of the change at fault (``where``: parameter -> place in the study)."""
+    original = base.read_text(encoding="utf-8")
+    data = yaml.safe_load(original)
     for key, value in changes.items():
-        parts = key[len(MODEL_PREFIX):].split(".")
-        node = data
-        for part in parts[:-1]:
-            node = node.get(part) if isinstance(node, dict) else None
-        last = parts[-1]
-        if isinstance(node, dict) and isinstance(node.get(last), dict) and "value" in node[last]:
-            node[last]["value"] = value
-        elif isinstance(node, dict) and last in FIBRE_KEYS and last in node and "unit" in node:
-            node[last] = value
-        else:
-            checker.fail(where, f"{key}: no such constant in {base} (a constant is "
-                                f"{MODEL_PREFIX}SECTION.NAME, or .slow/.fast for fibre-type "
-                                "parameters; `vm-ros params` lists them)")
+        if not _set_constant(data, key, value):
+            checker.fail(where[key], f"{key}: no such constant in {base} (a constant is "
+                                     f"{MODEL_PREFIX}SECTION.NAME, or .slow/.fast for fibre-type "
+                                     "parameters; `vm-ros params` lists them)")
     text = yaml.safe_dump(data, sort_keys=False)
+    error = _model_error(text)
+    if error is not None:
+        checker.fail(_place_of(error.field, original, changes, where),
+                     f"model constant {error.field} = {plain_value(error.value)}: "
+                     f"{error.reason}")
+    return text
+
+
+def _set_constant(data: dict, key: str, value) -> bool:
+    """Set model.* constant ``key`` in a model file's ``data``; False when it has none."""
+    parts = key[len(MODEL_PREFIX):].split(".")
+    node = data
+    for part in parts[:-1]:
+        node = node.get(part) if isinstance(node, dict) else None
+    last = parts[-1]
+    if isinstance(node, dict) and isinstance(node.get(last), dict) and "value" in node[last]:
+        node[last]["value"] = value
+    elif isinstance(node, dict) and last in FIBRE_KEYS and last in node and "unit" in node:
+        node[last] = value
+    else:
+        return False
+    return True
+
+
+def _model_error(text: str) -> ConfigError | None:
+    """The error of loading a model file of ``text``, or None."""
     with tempfile.TemporaryDirectory(prefix="vm_ros-study-") as tmp:
         path = Path(tmp) / "model.yaml"
         path.write_text(text, encoding="utf-8")
         try:
             load_model_params(path)
         except ConfigError as error:
-            checker.fail(where, f"model constant {error.field} = {plain_value(error.value)}: "
-                                f"{error.reason}")
-    return text
+            return error
+    return None
 
 
-def _check_library(checker: _Checker, where: str, library: Path | None, changes: Mapping,
+def _place_of(constant: str, original: str, changes: Mapping, where: Mapping) -> str:
+    """The place of the model.* change at fault for an error in ``constant``: the change that
+    set it (``energetics.recovery_kernel``, or a part of it), else the first change that fails
+    on its own (``generic.fmax`` below ``generic.fmin``), else the places of all the run's
+    model.* changes and of its ``params``."""
+    for key in changes:
+        name = key[len(MODEL_PREFIX):]
+        if constant == name or constant.startswith(f"{name}.") or name.startswith(f"{constant}."):
+            return where[key]
+    for key, value in changes.items():
+        data = yaml.safe_load(original)
+        _set_constant(data, key, value)
+        if _model_error(yaml.safe_dump(data, sort_keys=False)) is not None:
+            return where[key]
+    return " and ".join(where[key] for key in [*changes, "params"] if key in where)
+
+
+def _check_library(checker: _Checker, where: Mapping, library: Path | None, changes: Mapping,
                    seen: set) -> None:
     """Build a one-muscle bank for each library change not checked before (ConfigError ->
-    StudyError naming ``where``)."""
+    StudyError naming the change's place, ``where[key]``)."""
     from vm_ros.model import MuscleBank
 
     for key, value in changes.items():
@@ -457,15 +557,36 @@ def _check_library(checker: _Checker, where: str, library: Path | None, changes:
         try:
             MuscleBank.from_config(
                 [muscle], overrides={muscle: {name: value}},
-                library=library or config_dir() / "muscles.yaml",
-                params=config_dir() / "model.yaml")
+                library=library or config_dir() / DEFAULT_FILES["library"],
+                params=config_dir() / DEFAULT_FILES["params"])
         except VmRosError as error:
-            checker.fail(where, f"{key} = {plain_value(value)}: {error}")
+            checker.fail(where[key], f"{key} = {plain_value(value)}: {error}")
 
 
 def run_id(content: Mapping) -> str:
     text = json.dumps(content, sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def default_files(parameters: Mapping) -> dict:
+    """{file name: path} of the shipped files a run with ``parameters`` reads because the study
+    does not give them: the model file (no ``params``), the muscle library (no ``library``),
+    the energetics models' constants (with published energetics models)."""
+    files = {name: config_dir() / name for key, name in DEFAULT_FILES.items()
+             if key not in parameters}
+    if str(parameters.get("energetics_models", NO_MODELS)).strip() != NO_MODELS:
+        files[ENERGETICS_FILE] = config_dir() / ENERGETICS_FILE
+    return files
+
+
+def run_content(checker: _Checker, item: StudyInput, parameters: Mapping) -> dict:
+    """What a run's id hashes: study format version, vm_ros version, verb, input, parameters
+    (files by content) and the shipped files the run reads (by content)."""
+    return {"version": STUDY_VERSION, "vm_ros": VM_ROS_VERSION, "verb": item.verb,
+            "input": item.content,
+            "parameters": {k: checker.parameter_content(k, v) for k, v in parameters.items()},
+            "defaults": {name: checker.digest(path)
+                         for name, path in default_files(parameters).items()}}
 
 
 def load_study(path) -> Study:
@@ -493,13 +614,13 @@ def load_study(path) -> Study:
         checker.parameter(f"settings.{key}", key, value, verbs)
     change_sets = _change_sets(checker, data.get("runs"), verbs)
     grid = _grid(checker, data.get("grid"), verbs)
-    varied = list(dict.fromkeys(key for changes in change_sets for key in changes))
+    varied = list(dict.fromkeys(key for changes, _ in change_sets for key in changes))
     varied += [key for key in (data.get("grid") or {}) if key not in varied]
     overlap = [key for key in varied if key in settings]
     if overlap:
         checker.fail(f"settings.{overlap[0]}", "also varied in grid or runs: give it in one place")
     both = [key for key in (data.get("grid") or {})
-            if any(key in changes for changes in change_sets)]
+            if any(key in changes for changes, _ in change_sets)]
     if both:
         checker.fail(f"grid.{both[0]}", "also given in runs: give it in one place")
     start = data.get("start_time_ns")
@@ -510,12 +631,13 @@ def load_study(path) -> Study:
     if isinstance(retries, bool) or not isinstance(retries, int) or retries < 0:
         checker.fail("retries", f"expected an integer >= 0, got {plain_value(retries)}")
     runs, seen_library, model_texts = [], set(), {}
+    settings_at = {key: f"settings.{key}" for key in settings}
     for item in study_inputs:
-        for changes in change_sets:
-            for point in grid:
+        for changes, changes_at in change_sets:
+            for point, point_at in grid:
                 varied_values = {**changes, **point}
                 parameters = {**settings, **varied_values}
-                where = "settings, runs and grid"
+                where = {**settings_at, **changes_at, **point_at}  # parameter -> its place
                 argv = list(item.argv)
                 for key, value in parameters.items():
                     option = PARAMETERS.get(key)
@@ -529,25 +651,25 @@ def load_study(path) -> Study:
                         argv += ["--override", f"{key[len(LIBRARY_PREFIX):]}={json.dumps(value)}"]
                 library = (_resolve(checker.base, parameters["library"])
                            if "library" in parameters else None)
+                checker.input_muscles(item, library or config_dir() / DEFAULT_FILES["library"],
+                                      where.get("library", item.where))
                 _check_library(checker, where, library, parameters, seen_library)
                 model = {k: v for k, v in parameters.items() if k.startswith(MODEL_PREFIX)}
                 params_text = None
                 if model or "params" in parameters:
                     base = (_resolve(checker.base, parameters["params"])
-                            if "params" in parameters else config_dir() / "model.yaml")
+                            if "params" in parameters else config_dir() / DEFAULT_FILES["params"])
                     token = (str(base), json.dumps(model, sort_keys=True, default=str))
                     if token not in model_texts:
                         model_texts[token] = _model_text(checker, where, base, model)
                     params_text = model_texts[token]
-                content = {"version": STUDY_VERSION, "verb": item.verb, "input": item.content,
-                           "parameters": {k: checker.parameter_content(k, v)
-                                          for k, v in parameters.items()}}
-                runs.append(RunSpec(run_id(content), len(runs), item.label, item.verb,
-                                    tuple(argv), varied_values, params_text))
+                runs.append(RunSpec(run_id(run_content(checker, item, parameters)), len(runs),
+                                    item.label, item.verb, tuple(argv), varied_values,
+                                    params_text))
     ids = [r.run_id for r in runs]
     if len(set(ids)) != len(ids):
         twice = next(r for r in runs if ids.count(r.run_id) > 1)
         checker.fail("runs", f"the same run twice ({twice.input}, {plain_value(twice.changes)}): "
                              "every run must differ in its input or parameters")
     return Study(path, str(data.get("name") or path.stem), tuple(runs), tuple(varied),
-                 start, retries)
+                 start, retries, dict(settings))

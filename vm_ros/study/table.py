@@ -97,23 +97,28 @@ def _text(value) -> str:
 
 def table_rows(study: Study, store: RecordStore) -> tuple[list[str], dict, list[dict]]:
     """(columns, {column: 'double' | 'string'}, rows) of the study's recorded runs in study
-    order: one row per muscle of a finished run, one row (no muscle) for a failed one."""
+    order: one row per muscle of a finished run, one row (no muscle) for a failed one. A column
+    for every parameter the study changes (Study.parameter_columns: varied, then settings),
+    empty in the runs of a change set that does not set it."""
     records = [(spec, store.read(spec.run_id)) for spec in study.runs]
     records = [(spec, record) for spec, record in records if record is not None]
     models = list(dict.fromkeys(key for _, record in records for row in record["rows"]
                                 for key in row if key.endswith(".energy_J")
                                 and key not in RESULT_COLUMNS))
-    columns = [*FIXED_COLUMNS, *study.varied, *RESULT_COLUMNS, *models]
+    parameters = study.parameter_columns
+    columns = [*FIXED_COLUMNS, *parameters, *RESULT_COLUMNS, *models]
     types = {column: "string" if column in STRING_COLUMNS else "double" for column in columns}
-    for key in study.varied:
-        types[key] = _parameter_type([spec.changes[key] for spec in study.runs])
+    for key in parameters:
+        types[key] = _parameter_type([value for spec in study.runs
+                                      if (value := study.value(spec, key)) is not None])
     rows = []
     for spec, record in records:
         base = {"run_id": spec.run_id, "input": spec.input, "status": record["status"],
                 "error": record.get("error", "")}
-        for key in study.varied:
-            value = spec.changes[key]
-            base[key] = float(value) if types[key] == "double" else _text(value)
+        for key in parameters:
+            value = study.value(spec, key)  # None: not set in this run's change set
+            base[key] = (None if value is None else float(value) if types[key] == "double"
+                         else _text(value))
         for row in record["rows"] or [{}]:
             rows.append({**{c: None for c in columns}, **base, **row})
     return columns, types, rows
