@@ -1,7 +1,8 @@
 """`vm-ros bench --only study`: a study on the embedded Dask LocalCluster (vm_ros.study).
 
-- speed: a 64-run study (the knee extension, 30 s of model time; fibre mix of both muscles, 32
-  values, x recovery kernel, 2) on 1 worker and on 2; speed-up = wall(1) / wall(2), target at
+- speed: a 64-run study (the knee extension, 30 s of model time; the vasti's slow-fibre fraction
+  library.vasti.fpcsa_slow, 32 values from 0.1 to 0.9, x recovery kernel, 2; rectus femoris
+  keeps its library mix) on 1 worker and on 2; speed-up = wall(1) / wall(2), target at
   least 1.8 on 2 cores. The workers are started and warmed (vm_ros imported, the compiled step
   loaded) before the clock starts; the cluster's start is reported apart.
 - overhead per run on 1 worker: (study wall - the sum of the runs' own wall times, measured in
