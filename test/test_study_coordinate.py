@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from test_coordinate_cli import _storage
 from test_coordination import geometry, library
 
@@ -98,6 +99,23 @@ def test_a_grid_of_costs_gives_the_logs_numbers_the_same_with_one_and_two_worker
         totals[row["cost"]] = totals.get(row["cost"], 0.0) + row["all.total_energy_J"]
     # least metabolic energy finds less of it than least squared drive, at the same moments
     assert totals["tsianos2012"] < 0.95 * totals["drive2"], totals
+
+
+def test_library_changes_reach_the_solve_and_the_log(tmp_path):
+    """library.b.fpcsa_slow over 0.2 and 0.8 (as --override): the log's overrides attachment
+    holds it, and more slow fibres in b give b's slow fibres a larger share of its energy."""
+    study = _study(tmp_path, "{library: muscles.yaml, iterations: 4, cost: drive2}",
+                   "  library.b.fpcsa_slow: [0.2, 0.8]\n")
+    out = tmp_path / "out"
+    assert _run(study, out, workers=2).ok == 2
+    rows = {r["library.b.fpcsa_slow"]: r for r in
+            pyarrow_parquet.read_table(out / "results.parquet").to_pylist() if r["muscle"] == "b"}
+    for fraction, row in rows.items():
+        log = read_run(out / "runs" / f"{row['run_id']}.mcap")
+        assert yaml.safe_load(log.attachments["overrides.yaml"]) == {"b": {"fpcsa_slow":
+                                                                            fraction}}
+    share = {f: r["slow.total_energy_J"] / r["all.total_energy_J"] for f, r in rows.items()}
+    assert share[0.8] > share[0.2] + 0.2, share
 
 
 def test_the_run_id_hashes_the_targets_by_content(tmp_path):
