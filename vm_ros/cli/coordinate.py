@@ -15,6 +15,12 @@ moments at least cost (docs/coordination.md), and write:
   coordination.png   drives over time (heat map), forces, target and muscle moments with the
                   reserves, mean metabolic rate per muscle
 
+--out FILE.mcap instead of a folder (as a study runs it, vm_ros.study): the run log alone, at
+FILE.mcap, with drives.sto, forces.sto, reserves.sto (and motion.sto) attached to it and named
+in its metadata by attachment, so that the log is one file and its bytes do not depend on where
+the solve wrote them; no figure. --start-time, --flush-interval and --log-writer are the run
+log's, as for `vm-ros simulate`.
+
 and print per coordinate the reserves (RMS, peak, % of the target's peak), the frames where the
 target exceeds what the muscles can give (with the moment they lack), muscles at their limit,
 whole-body metabolic rate and, with --speed and --body-mass, the cost of transport.
@@ -37,8 +43,11 @@ geometry's coupling); --strict makes every warning an error.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
+import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -58,16 +67,20 @@ METHOD_CAVEATS = {"receding": ": the live horizon, fast, but its cost weighs les
                   "trajectory for the whole-trajectory optimum"}
 # SolverOptions fields that only the three stages use, with their options: given to the
 # receding-horizon method, an error rather than ignored
+LOG_NAME = "coordination.mcap"   # the run log in an --out folder
+LOG_SUFFIX = ".mcap"             # --out FILE.mcap: the run log alone, the outputs attached
 TRAJECTORY_ONLY = {"lead_in_s": "--lead-in", "node_step_s": "--node-step",
                    "smoothness": "--smoothness", "reserve_weight": "--reserve-weight",
                    "iterations": "--iterations", "refine": "--refine"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from vm_ros.cli.runs import add_strict_option
+    from vm_ros.cli.runs import LOG_WRITERS, add_strict_option, flush_interval_s
+    from vm_ros.cli.simulate import start_time_ns
     from vm_ros.coordination.costs import COST_NAMES, DEFAULT_COST
     from vm_ros.coordination.solver import METHODS, SolverOptions, solver_settings
     from vm_ros.coordination.targets import SPEC_HELP
+    from vm_ros.recording.writer import FLUSH_INTERVAL_S
 
     defaults, settings = SolverOptions(), solver_settings()
     parser.add_argument("--geometry", type=Path, required=True, metavar="GEOMETRY.yaml",
@@ -120,8 +133,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="walking speed, for the cost of transport")
     parser.add_argument("--body-mass", type=float, metavar="KG",
                         help="body mass, for W/kg and the cost of transport")
-    parser.add_argument("--out", type=Path, default=Path("out/coordination"), metavar="DIR",
-                        help="output folder (default out/coordination)")
+    parser.add_argument("--out", type=Path, default=Path("out/coordination"),
+                        metavar="DIR|FILE.mcap",
+                        help="output folder (default out/coordination); FILE.mcap: the run log "
+                             "alone, the other outputs attached to it (no figure)")
+    parser.add_argument("--override", action="append", default=[], metavar="MUSCLE.FIELD=VALUE",
+                        help="change one muscle-library field, e.g. soleus_r.fpcsa_slow=0.6 "
+                             "(repeatable; the solve and the run log)")
+    log = parser.add_argument_group("run log (as vm-ros simulate's)")
+    log.add_argument("--start-time", type=start_time_ns, metavar="NS",
+                     help="log time of model time 0, integer ns since the Unix epoch (default: "
+                          "the wall clock when the run log starts)")
+    log.add_argument("--flush-interval", type=flush_interval_s, default=FLUSH_INTERVAL_S,
+                     metavar="S", help=f"longest wall time (s) a message waits before its chunk "
+                                       f"is written (default {FLUSH_INTERVAL_S:g})")
+    log.add_argument("--log-writer", choices=LOG_WRITERS, default="thread",
+                     help="who writes the log: a background thread (default) or the run's own "
+                          "thread (caller)")
     parser.add_argument("--progress", action="store_true",
                         help="one line per iteration on stderr even when it is not a terminal")
     add_strict_option(parser)
@@ -289,19 +317,84 @@ def _refuse_trajectory_options(options, why: str) -> None:
                              f"leave it out, or use --method trajectory")
 
 
-def run(args) -> int:
+def _write_outputs(args, out: Path, log_path: Path, log_alone: bool, result, problem,
+                   joint_motion, targets, muscles, warnings, motion_notes, method, started,
+                   on_outcome) -> int:
+    """Write the solve's outputs to ``out``, print the report and make the run log of the drives
+    at ``log_path`` (``log_alone``: the outputs attached to it, no figure)."""
     from vm_ros.cli import simulate
+    from vm_ros.coordination.costs import vm_rate
+    from vm_ros.offline.runner import STEADY_START
+
+    axis = joint_motion.start_s
+    drives = write_storage(out / "drives.sto", "vm_ros coordinate drives",
+                           axis + result.node_times_s, muscles, result.drives)
+    written = [drives,
+               write_storage(out / "forces.sto", "vm_ros coordinate forces (N)",
+                             axis + problem.frame_times_s, muscles, result.forward.force_frames),
+               write_storage(out / "reserves.sto", "vm_ros coordinate reserves (N m or N)",
+                             axis + problem.frame_times_s, problem.coordinates,
+                             result.reserves)]
+    if result.unsolved_qps:
+        print(f"warning: {result.unsolved_qps} periods' QPs were not solved by OSQP (their "
+              "iterate, clipped to the drive box, was applied)")
+    rate = result.forward.motion_rate(vm_rate)   # the lead-in's energy left out
+    for line in _report_lines(result, rate, args.body_mass, args.speed):
+        print(line)
+    if targets.unmatched:
+        print(f"targets {targets.source}: not coordinates of the motion, left to the reserves: "
+              f"{', '.join(targets.unmatched)}")
+    figure = None if log_alone else _figure(out / "coordination.png", result, rate)
+    lead_s = len(result.forward.lead_in.drive) * args.dt
+    motion_path = args.motion if lead_s == 0 else write_lead_in_motion(
+        out / "motion.sto", joint_motion, lead_s, args.dt)
+    written += [motion_path] if lead_s else []
+    parser = argparse.ArgumentParser(prog="vm-ros coordinate")
+    simulate.add_arguments(parser)
+    argv = ["--motion", str(motion_path), "--geometry", str(args.geometry), "--excitations",
+            str(drives), "--muscles", ",".join(muscles), "--dt", repr(args.dt),
+            "--duration", repr(lead_s + problem.duration_s), "--out", str(log_path),
+            "--flush-interval", repr(args.flush_interval), "--log-writer", args.log_writer]
+    argv += [a for name in ("library", "params") if getattr(args, name)
+             for a in (f"--{name}", str(getattr(args, name)))]
+    argv += [a for text in args.override for a in ("--override", text)]
+    argv += [] if args.start_time is None else ["--start-time", str(args.start_time)]
+    extra = {STEADY_START: "yes", LEAD_IN_KEY: repr(lead_s), COST_KEY: args.cost,
+             "targets": targets.source, METHOD_KEY: f"{method} (--method {args.method})",
+             SOLVE_KEY: f"{len(result.history)} iterations, max reserve RMS "
+                        f"{np.max(result.summary.rms_percent):.3f} % of peak, "
+                        f"{result.unsolved_qps} unsolved QPs"}
+    attachments = None
+    if log_alone:   # the outputs travel in the log, named there by attachment, not by path
+        attachments = {path.name: path.read_bytes() for path in written}
+        extra["excitations"] = f"attachment {drives.name}"
+        if lead_s:
+            extra["motion_file"] = f"attachment {motion_path.name}"
+    print(f"run log of the drives (vm-ros simulate --motion, steady start, lead-in {lead_s:g} s; "
+          f"{time.perf_counter() - started:.1f} s so far):")
+    code = simulate.run(parser.parse_args(argv), on_outcome=on_outcome, verb="coordinate",
+                        extra=extra, checked=warnings, attachments=attachments)
+    shown = [str(path) for path in written] + ([str(figure)] if figure else [])
+    print(f"attached to the log: {', '.join(attachments)}" if log_alone
+          else f"wrote {', '.join(shown)}")
+    for line in [*motion_notes, *warnings.closing_lines()]:
+        print(line)
+    return code
+
+
+def run(args, on_outcome: Callable | None = None) -> int:
+    """The verb; ``on_outcome`` (vm_ros.study) gets the RunOutcome of the run log of the drives
+    (vm_ros.cli.runs) when it succeeded."""
     from vm_ros.cli.runs import InputWarnings
-    from vm_ros.coordination.costs import COSTS, vm_rate
+    from vm_ros.coordination.costs import COSTS
     from vm_ros.coordination.methods import chosen_method, solve
     from vm_ros.coordination.problem import build_problem
     from vm_ros.coordination.solver import SolverOptions
     from vm_ros.coordination.targets import load_targets, lowpass_targets
     from vm_ros.geometry import load_geometry
     from vm_ros.importers.motion import read_motion
-    from vm_ros.model.run_config import RunConfig
+    from vm_ros.model.run_config import RunConfig, parse_overrides
     from vm_ros.node.motion_inputs import JointMotion, motion_checks
-    from vm_ros.offline.runner import STEADY_START
 
     for name in ("speed", "body_mass", "dt"):
         value = getattr(args, name)
@@ -330,7 +423,8 @@ def run(args) -> int:
     options.check(muscles)
     config = RunConfig(muscles, geometry=args.geometry, library=args.library,
                        params=args.params,
-                       energetics_models=COSTS[args.cost].bank_models)
+                       energetics_models=COSTS[args.cost].bank_models).with_overrides(
+        parse_overrides(args.override))
     bank = config.make_bank()
     problem = build_problem(geometry, joint_motion, targets, muscles, dt_s=args.dt)
     verbose = args.progress or sys.stderr.isatty()
@@ -351,47 +445,12 @@ def run(args) -> int:
           f"frames; --method {args.method}){METHOD_CAVEATS.get(method, '')}")
     started = time.perf_counter()
     result = solve(bank, problem, options, progress=progress)
-    out = args.out
-    out.mkdir(parents=True, exist_ok=True)
-    axis = joint_motion.start_s
-    drives = write_storage(out / "drives.sto", "vm_ros coordinate drives",
-                           axis + result.node_times_s, muscles, result.drives)
-    write_storage(out / "forces.sto", "vm_ros coordinate forces (N)",
-                  axis + problem.frame_times_s, muscles, result.forward.force_frames)
-    write_storage(out / "reserves.sto", "vm_ros coordinate reserves (N m or N)",
-                  axis + problem.frame_times_s, problem.coordinates, result.reserves)
-    if result.unsolved_qps:
-        print(f"warning: {result.unsolved_qps} periods' QPs were not solved by OSQP (their "
-              "iterate, clipped to the drive box, was applied)")
-    rate = result.forward.motion_rate(vm_rate)   # the lead-in's energy left out
-    for line in _report_lines(result, rate, args.body_mass, args.speed):
-        print(line)
-    if targets.unmatched:
-        print(f"targets {targets.source}: not coordinates of the motion, left to the reserves: "
-              f"{', '.join(targets.unmatched)}")
-    figure = _figure(out / "coordination.png", result, rate)
-    lead_s = len(result.forward.lead_in.drive) * args.dt
-    motion_path = args.motion if lead_s == 0 else write_lead_in_motion(
-        out / "motion.sto", joint_motion, lead_s, args.dt)
-    parser = argparse.ArgumentParser(prog="vm-ros coordinate")
-    simulate.add_arguments(parser)
-    argv = ["--motion", str(motion_path), "--geometry", str(args.geometry), "--excitations",
-            str(drives), "--muscles", ",".join(muscles), "--dt", repr(args.dt),
-            "--duration", repr(lead_s + problem.duration_s),
-            "--out", str(out / "coordination.mcap")]
-    argv += [a for name in ("library", "params") if getattr(args, name)
-             for a in (f"--{name}", str(getattr(args, name)))]
-    extra = {STEADY_START: "yes", LEAD_IN_KEY: repr(lead_s), COST_KEY: args.cost,
-             "targets": targets.source, METHOD_KEY: f"{method} (--method {args.method})",
-             SOLVE_KEY: f"{len(result.history)} iterations, max reserve RMS "
-                        f"{np.max(result.summary.rms_percent):.3f} % of peak, "
-                        f"{result.unsolved_qps} unsolved QPs"}
-    print(f"run log of the drives (vm-ros simulate --motion, steady start, lead-in {lead_s:g} s; "
-          f"{time.perf_counter() - started:.1f} s so far):")
-    code = simulate.run(parser.parse_args(argv), verb="coordinate", extra=extra,
-                        checked=warnings)
-    print(f"wrote {drives}, {out / 'forces.sto'}, {out / 'reserves.sto'}"
-          + (f", {motion_path}" if lead_s else "") + (f", {figure}" if figure else ""))
-    for line in [*motion_notes, *warnings.closing_lines()]:
-        print(line)
+    log_alone = args.out.suffix == LOG_SUFFIX
+    with contextlib.ExitStack() as stack:
+        out = (Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="vm_ros-coordinate-")))
+               if log_alone else args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        code = _write_outputs(args, out, args.out if log_alone else out / LOG_NAME, log_alone,
+                              result, problem, joint_motion, targets, muscles, warnings,
+                              motion_notes, method, started, on_outcome)
     return code

@@ -68,7 +68,7 @@ import argparse
 import json
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -110,7 +110,7 @@ from vm_ros.offline.runner import STEADY_START, OfflineResult, OfflineRun, Sampl
 from vm_ros.offline.scenarios import load_scenario, scenario_names
 from vm_ros.progress import Progress
 from vm_ros.recording.bag import shown_log_path
-from vm_ros.recording.run_log import RunInfo, RunTiming, open_run_log
+from vm_ros.recording.run_log import RunInfo, RunTiming, open_run_log, run_attachments
 from vm_ros.report.summary import (
     joint_summary_table,
     model_totals_table,
@@ -385,13 +385,16 @@ def _positive(name: str, value: float) -> float:
 
 def run(args, on_outcome: Callable[[RunOutcome], None] | None = None,
         verb: str = "simulate", extra: dict | None = None,
-        checked: InputWarnings | None = None) -> int:
+        checked: InputWarnings | None = None,
+        attachments: Mapping[str, bytes] | None = None) -> int:
     """The verb; ``on_outcome`` (vm_ros.study) gets what the run computed when it succeeded;
     ``verb``, ``extra`` (metadata entries; STEADY_START "yes" starts the activation at the
     steady state of the first drive) and ``checked`` for a verb that runs its drives through
     this one (`vm-ros coordinate`): the InputWarnings of a caller that has checked the motion
     (``motion_checks``) before its own work; the run leaves the motion's checks out, adds its
-    own warnings to it, and the caller prints the closing lines."""
+    own warnings to it, and the caller prints the closing lines; ``attachments`` (name ->
+    bytes): files the caller attaches to the log beside the run's own (model, library,
+    geometry)."""
     extra = dict(extra or {})
     models = energetics_models_option(args.energetics_models)
     _check_options(args)
@@ -422,6 +425,8 @@ def run(args, on_outcome: Callable[[RunOutcome], None] | None = None,
     # signals stay caught until the log is closed, so that SIGTERM cannot cut the file short
     with StopOnSignal() as stop, open_run_log(
             out_path, info, bank, attachment_time_ns=timing.start_time_ns,
+            attachments=None if attachments is None else {
+                **run_attachments(info.config), **attachments},
             **recorder_options(args)) as recorder, Progress(
             f"simulate {source.name}", n_steps, enabled=True if args.progress else None) \
             as progress:

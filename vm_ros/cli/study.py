@@ -38,11 +38,12 @@ from vm_ros.errors import VmRosError
 
 def offline_verbs() -> dict:
     """The verbs a study runs, by name (vm_ros.study.task.Verb)."""
-    from vm_ros.cli import recompute, simulate
+    from vm_ros.cli import coordinate, recompute, simulate
     from vm_ros.study.task import Verb
 
     return {name: Verb(name, module.add_arguments, module.run)
-            for name, module in (("simulate", simulate), ("recompute", recompute))}
+            for name, module in (("simulate", simulate), ("recompute", recompute),
+                                 ("coordinate", coordinate))}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

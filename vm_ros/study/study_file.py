@@ -120,6 +120,18 @@ def _models(value) -> str:
     return text
 
 
+def _cost(value) -> str:
+    from vm_ros.coordination.costs import COST_NAMES
+
+    return _choice(COST_NAMES)(value)
+
+
+def _method(value) -> str:
+    from vm_ros.coordination.solver import METHODS
+
+    return _choice(METHODS)(value)
+
+
 def _file(value) -> str:
     if not isinstance(value, str) or not value:
         raise ValueError(f"expected a file name, got {plain_value(value)}")
@@ -143,13 +155,22 @@ PARAMETERS = {
     "recovery_mode": Option("--recovery-mode", _choice(RECOVERY_MODES)),
     "drive_law": Option("--drive-law", _choice(DRIVE_LAWS)),
     "energetics_models": Option("--energetics-models", _models),
-    "dt": Option("--dt", _positive),
+    "dt": Option("--dt", _positive, ("simulate", "recompute", "coordinate")),
     "duration": Option("--duration", _positive, ("simulate",)),
     "units_per_type": Option("--units-per-type", _count),
     "publish_rate": Option("--publish-rate", _positive),
     "telemetry_rate": Option("--telemetry-rate", _non_negative),
-    "library": Option("--library", _file, is_file=True),
-    "params": Option("--params", _file, is_file=True),  # the base of model.* changes
+    "library": Option("--library", _file, ("simulate", "recompute", "coordinate"), True),
+    # the base of model.* changes
+    "params": Option("--params", _file, ("simulate", "recompute", "coordinate"), True),
+    # vm-ros coordinate's (docs/coordination.md)
+    "cost": Option("--cost", _cost, ("coordinate",)),
+    "method": Option("--method", _method, ("coordinate",)),
+    "smoothness": Option("--smoothness", _non_negative, ("coordinate",)),
+    "reserve_weight": Option("--reserve-weight", _positive, ("coordinate",)),
+    "node_step": Option("--node-step", _positive, ("coordinate",)),
+    "lead_in": Option("--lead-in", _non_negative, ("coordinate",)),
+    "iterations": Option("--iterations", _count, ("coordinate",)),
 }
 
 
@@ -173,6 +194,7 @@ class InputKind:
     is_file: bool
     keys: Mapping = field(default_factory=dict)
     file_keys: tuple = ()
+    required: tuple = ()
 
 
 INPUT_KINDS = {
@@ -184,6 +206,10 @@ INPUT_KINDS = {
                          "hold": "--hold", "muscles": "--muscles"},
                         ("geometry", "excitations")),
     "log": InputKind("recompute", None, True),
+    "coordinate": InputKind("coordinate", "--motion", True,
+                            {"targets": "--targets", "geometry": "--geometry",
+                             "muscles": "--muscles"},
+                            ("targets", "geometry"), ("targets", "geometry")),
 }
 
 
@@ -331,6 +357,9 @@ class _Checker:
         if unknown:
             known = ", ".join(kind.keys) or "none"
             self.fail(f"{where}.{unknown[0]}", f"not a key of a {name} input (its keys: {known})")
+        missing = [k for k in kind.required if k not in entry]
+        if missing:
+            self.fail(where, f"a {name} input needs {missing[0]}: FILE")
         value = entry[name]
         content: dict = {"kind": name}
         if kind.is_file:
@@ -403,8 +432,9 @@ class _Checker:
                              f"{MODEL_PREFIX}SECTION.NAME, {LIBRARY_PREFIX}MUSCLE.FIELD)")
         other = sorted(set(verbs) - set(option.verbs))
         if other:
-            self.fail(where, f"{key} is not a parameter of a {other[0]} run (an input of kind "
-                             "log is recomputed over its recorded span)")
+            takes = [name for name, each in PARAMETERS.items() if other[0] in each.verbs]
+            self.fail(where, f"{key} is not a parameter of a {other[0]} run (its parameters: "
+                             f"{', '.join(takes)}, {MODEL_PREFIX}*, {LIBRARY_PREFIX}*)")
         try:
             option.check(value)
         except ValueError as error:

@@ -106,7 +106,7 @@ def execute(task: RunTask) -> dict:
     partial = _partial_log(final, uuid.uuid4().hex[:8])
     argv = [*task.argv, "--out", str(partial), "--flush-interval", repr(FLUSH_INTERVAL_S),
             "--log-writer", LOG_WRITER]
-    if task.start_time_ns is not None and task.verb.name == "simulate":
+    if task.start_time_ns is not None and task.verb.name != "recompute":  # keeps its log's
         argv += ["--start-time", str(task.start_time_ns)]
     record = {"run_id": task.run_id, "status": STATUS_FAILED, "error": "", "rows": [],
               "worker": f"{os.uname().nodename}:{os.getpid()}"}
