@@ -90,7 +90,8 @@ def plot(columns: list[str], rows: list[dict], path: Path, energy: str, by: str 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    panels = together([p for p in varied_columns(columns) if p != by], rows)
+    panels = together([p for p in varied_columns(columns)  # a setting has one value: no panel
+                       if p != by and len({r[p] for r in rows}) > 1], rows)
     fig, axes = plt.subplots(1, max(len(panels), 1), figsize=(5.5 * max(len(panels), 1), 4.2),
                              squeeze=False)
     styles = ["-", "--", ":", "-."]
