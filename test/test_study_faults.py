@@ -199,3 +199,20 @@ def test_an_exception_that_lost_its_text_on_its_way_back_is_still_one_line_of_te
     assert one_line(carried) == ("UnicodeDecodeError: 'utf-8' codec can't decode byte 0xad in "
                                  "position 0: invalid start byte")
     assert one_line(KeyError()) == "KeyError: KeyError()"
+
+
+def test_the_report_piped_into_a_reader_that_leaves_ends_quietly(tmp_path):
+    """`vm-ros study report DIR | head -1`: once the reader has gone, no BrokenPipeError
+    traceback, exit 0 (vm_ros.cli.main, for every verb)."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "out"
+    assert _run(_study(tmp_path, TWO_RUNS), out).ok == 2
+    reader_gone = subprocess.Popen([sys.executable, "-m", "vm_ros.cli", "study", "report",
+                                    str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                   env={**os.environ, "PYTHONUNBUFFERED": "1"})  # line by line
+    reader_gone.stdout.readline()
+    reader_gone.stdout.close()  # as `| head -1`: one line read, then gone
+    _, stderr = reader_gone.communicate(timeout=120)
+    assert reader_gone.returncode == 0 and b"Traceback" not in stderr, stderr.decode()

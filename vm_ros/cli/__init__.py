@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import importlib.util
+import os
 import sys
 
 # verb name -> (module under vm_ros.cli, one-line help)
@@ -107,6 +108,11 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print(f"vm-ros {args.verb}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # a reader that closed the pipe (`| head`) ends the output quietly, for every verb;
+        # Python flushes stdout again at exit: point it at /dev/null so that flush is silent
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 if __name__ == "__main__":

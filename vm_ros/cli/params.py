@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import csv
 import io
-import os
 import sys
 from pathlib import Path
 
@@ -118,11 +117,7 @@ def run(args) -> int:
 
 
 def _print(text: str) -> int:
-    """Write ``text`` to stdout; a closed pipe (``| head``) ends the output quietly."""
-    try:
-        sys.stdout.write(text)
-        sys.stdout.flush()
-    except BrokenPipeError:
-        # Python flushes stdout again at exit: point it at /dev/null so that flush is silent.
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    """Write ``text`` to stdout (a closed pipe, ``| head``, ends quietly: vm_ros.cli.main)."""
+    sys.stdout.write(text)
+    sys.stdout.flush()
     return 0
