@@ -61,6 +61,20 @@ def _environment_as_at_start():
                          "vm_ros.importers.osim.load_opensim")
 
 
+def require_module(name: str, extra: str):
+    """The module ``name`` of the optional extra ``extra``; without it skip the test (or the
+    module, where called at its top), or fail under make test / CI, which install every extra."""
+    import importlib
+
+    try:
+        return importlib.import_module(name)
+    except ImportError as exc:
+        reason = f"{name} is not importable ({exc}): install the [{extra}] extra"
+        if STRICT:
+            pytest.fail(f"{reason} (not skipped: CI or VM_ROS_NETNS=1 is set)")
+        pytest.skip(reason, allow_module_level=True)
+
+
 def require_ros():
     """rclpy, inside the loopback-only namespace; else skip (or fail under make test / CI)."""
     if os.environ.get("VM_ROS_NETNS") != "1":

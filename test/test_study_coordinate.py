@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from conftest import require_module
 from test_coordinate_cli import _storage
 from test_coordination import geometry, library
 
@@ -21,8 +22,8 @@ from vm_ros.geometry import write_geometry
 from vm_ros.recording.run_log import read_run
 from vm_ros.report.tables import run_summary
 
-pytest.importorskip("distributed")
-pyarrow_parquet = pytest.importorskip("pyarrow.parquet")
+require_module("distributed", "study")
+pyarrow_parquet = require_module("pyarrow.parquet", "study")
 
 from vm_ros.study.engine import Engine, close, run_study  # noqa: E402
 from vm_ros.study.study_file import load_study  # noqa: E402

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from conftest import require_module
 
 from vm_ros.cli import main
 
@@ -50,7 +51,7 @@ def _shortened_fig7(folder: Path) -> Path:
 @pytest.mark.slow
 def test_fig7_example_total_energy_falls_with_slow_fibres_and_kernels_differ_in_recovery(
         tmp_path, capsys):
-    pytest.importorskip("distributed")
+    require_module("distributed", "study")
     out = tmp_path / "out"
     code = main(["study", "run", str(_shortened_fig7(tmp_path)), "--out", str(out),
                  "--workers", "2"])

@@ -10,13 +10,14 @@ import os
 from pathlib import Path
 
 import pytest
+from conftest import require_module
 
 from vm_ros.cli import main
 from vm_ros.cli import simulate as simulate_verb
 from vm_ros.cli.study import offline_verbs
 
-pytest.importorskip("distributed")
-pytest.importorskip("pyarrow")
+require_module("distributed", "study")
+require_module("pyarrow", "study")
 
 from vm_ros.study import table  # noqa: E402
 from vm_ros.study.engine import Engine, close, run_study  # noqa: E402

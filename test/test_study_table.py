@@ -8,6 +8,7 @@ import shutil
 
 import pytest
 import yaml
+from conftest import require_module
 
 from vm_ros.cli import main
 from vm_ros.resources import config_dir
@@ -64,7 +65,7 @@ def test_a_parameter_of_one_change_set_only_is_empty_in_the_others(tmp_path):
 
 
 def test_the_table_files_have_the_settings_columns(tmp_path):
-    pq = pytest.importorskip("pyarrow.parquet")
+    pq = require_module("pyarrow.parquet", "study")
     from vm_ros.study.table import write_table
 
     study = load_study(_study(tmp_path, SETTINGS))
