@@ -41,9 +41,9 @@ by default; --only picks some):
   coordination-walk
             runs only when named (--only coordination-walk; about a minute): vm-ros
             coordinate's offline solve of opensim-models' Gait10dof18musc walk at the model's
-            F0, default options and --refine 6; reserve RMS per coordinate (% of peak; target
-            < 3 %), forward runs, seconds (target < 10 s), load average. Skipped with the reason
-            when the walk is not fetched (scripts/fetch-gait-data).
+            F0, default options (6 steps) and --refine 4; reserve RMS per coordinate (% of
+            peak; target < 3 %), forward runs, seconds (target < 10 s), load average. Skipped
+            with the reason when the walk is not fetched (scripts/fetch-gait-data).
   coordination-myolegs
             runs only when named (--only coordination-myolegs; about a minute, plus the
             import when absent): vm-ros coordinate's offline solve on myo-sim's myolegs (the

@@ -126,7 +126,7 @@ if __name__ == "__main__":
     print(json.dumps(bench_coordination(progress=print), indent=2))
 
 
-WALK_CASES = {"default": {}, "refine 6": {"refine": 6}}   # SolverOptions changes per case
+WALK_CASES = {"default": {}, "refine 4": {"refine": 4}}   # SolverOptions changes per case
 WALK_TARGET_PERCENT, WALK_TARGET_S = 3.0, 10.0            # issue 30: 3 % RMS of peak in < 10 s
 
 
