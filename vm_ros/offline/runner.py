@@ -29,10 +29,12 @@ MuscleBank.run steps the bank over the block keeping the state at every publish 
 tick (snapshot_every), the joint efforts of every step come at once from the inputs'
 ``block_efforts`` (joint space: MotionInputs), the messages of the block are built in bulk from
 those arrays (vm_ros.recording.bulk) in the order the step-by-step loop writes them, and handed
-to the recorder as one block (write_block: whole chunks, no call per message). The log is the
-same message for message (``block_steps=0`` runs the step-by-step loop, the reference kept for
-the tests and for inputs with joint efforts but no ``block_efforts``: a node log's replay); a
-stop request is seen between blocks (at most 1e6 muscle-steps), not between steps.
+to the recorder as one block (write_block: whole chunks, no call per message). A block is
+built and handed over in parts of PART_STEPS steps (write_block's ``more``: the chunks are those
+of the whole block), so that the writer thread compresses a part while the next is built. The
+log is the same message for message (``block_steps=0`` runs the step-by-step loop, the reference
+kept for the tests and for inputs with joint efforts but no ``block_efforts``: a node log's
+replay); a stop request is seen between parts (at most 1e6 muscle-steps), not between steps.
 """
 
 from __future__ import annotations
