@@ -412,6 +412,63 @@ def test_write_block_splits_a_bag_where_write_does(tmp_path):
             path.rmdir()
 
 
+def _record_in_parts(path, topics, data, times, cuts, **options):
+    """The messages as one block handed over in parts ending at ``cuts`` (write_block's more)."""
+    with McapRecorder(path, **options) as rec:
+        rec.add_channel("/f", FLOAT64)
+        rec.add_channel("/j", JOINT_STATE)
+        bounds = [0, *cuts, len(data)]
+        for begin, end in zip(bounds[:-1], bounds[1:], strict=True):
+            assert rec.write_block(topics[begin:end], data[begin:end], times[begin:end],
+                                   more=end < len(data))
+    return rec.status
+
+
+@pytest.mark.parametrize("options", [
+    dict(chunk_size=4096, compression="zstd"),
+    dict(chunk_size=4096, compression="none", background=False),
+    dict(chunk_size=2048, compression="none", max_file_duration_s=0.7),
+    dict(chunk_size=2048, compression="none", max_file_size=20_000)],
+    ids=["zstd", "caller", "split-duration", "split-size"])
+def test_a_block_in_parts_gives_the_bytes_of_the_whole_block(tmp_path, options):
+    """A block handed over in parts (more=True but the last; parts of one message, parts that
+    end inside a chunk and parts that end where a chunk does) writes the same files, byte for
+    byte, as the whole block at once, which writes those of write: the chunks, sequence numbers
+    and file splits do not depend on where the parts end."""
+    topics, data, times = _two_topic_messages(3000)
+    _record(tmp_path / "one", topics, data, times, True, **options)
+    status = _record_in_parts(tmp_path / "parts", topics, data, times,
+                              [1, 2, 700, 701, 1234, 2999], **options)
+    assert status.ok and status.written == 3000 and status.dropped == 0
+    ones = sorted((tmp_path / "one").glob("*.mcap"))
+    assert [p.name.replace("one", "parts") for p in ones] == sorted(
+        p.name for p in (tmp_path / "parts").glob("*.mcap"))
+    for one in ones:
+        parts = tmp_path / "parts" / one.name.replace("one", "parts")
+        assert parts.read_bytes() == one.read_bytes(), one.name
+    _, summary, decoded, _, _ = _read_all(ones[0])
+    assert summary.statistics.chunk_count > 3
+
+
+def test_the_waiting_part_of_a_block_goes_first_at_a_write_and_at_close(tmp_path):
+    """Messages of a block with more to come that wait for its next part are written before a
+    later write's message, and at close when no part comes: every message in the file, in
+    order, counted as written."""
+    topics, data, times = _two_topic_messages(100)
+    with McapRecorder(tmp_path / "w.mcap", chunk_size=1 << 20, compression="none") as rec:
+        rec.add_channel("/f", FLOAT64)
+        rec.add_channel("/j", JOINT_STATE)
+        assert rec.write_block(topics[:50], data[:50], times[:50], more=True)
+        assert rec.write(topics[50], data[50], times[50])
+        assert rec.write_block(topics[51:], data[51:], times[51:], more=True)
+    assert (rec.status.written, rec.status.dropped) == (100, 0)
+    with open(tmp_path / "w.mcap", "rb") as stream:
+        read = [(channel.topic, message.log_time, message.sequence) for _, channel, message
+                in make_reader(stream).iter_messages(log_time_order=False)]
+    assert [(t, s) for t, s, _ in read] == list(zip(topics, times, strict=True))
+    assert [s for t, _, s in read if t == "/f"] == list(range(1, topics.count("/f") + 1))
+
+
 def test_write_block_on_a_full_disk_counts_every_message(tmp_path):
     """A block that meets a full disk: written + dropped = every message, written = what a
     reader gets back, and nothing is raised."""

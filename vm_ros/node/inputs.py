@@ -108,19 +108,27 @@ class HeldInputs(NamedTuple):
     length_time_ns: np.ndarray
 
 
-def latest_rows(updated: np.ndarray) -> np.ndarray:
+def latest_rows(updated: np.ndarray) -> np.ndarray | None:
     """(k, n): for row i and column j, 1 + the last row at or before i where ``updated`` (k, n)
-    is set, 0 where none is (carried's ``latest``)."""
+    is set, 0 where none is (carried's ``latest``); None when every entry is set (then row i's
+    own, i + 1, in every column)."""
+    if updated.all():
+        return None
     k = len(updated)
     return np.maximum.accumulate(np.where(updated, np.arange(1, k + 1)[:, None], 0), axis=0)
 
 
-def carried(held: np.ndarray, new: np.ndarray, latest: np.ndarray) -> np.ndarray:
-    """(k + 1, n): row 0 ``held`` (n,), row i + 1 the latest of ``new`` (k, n) at or before
-    row i where it was updated (``latest``: latest_rows of the updated mask), else ``held`` (a
-    value stored by some messages and kept through the others)."""
+def carried(held: np.ndarray, new: np.ndarray, latest: np.ndarray | None,
+            applied: np.ndarray) -> np.ndarray:
+    """(m, n): for each of ``applied`` (m,), a count of rows of ``new`` (k, n), the latest of
+    those rows where it was updated (``latest``: latest_rows of the updated mask), per column,
+    else ``held`` (n,) (a value stored by some messages and kept through the others): values
+    picked, never computed, so the same bits as row-by-row storing."""
     rows = np.concatenate([held[None, :], np.asarray(new, dtype=held.dtype)])
-    return np.concatenate([held[None, :], np.take_along_axis(rows, latest, axis=0)])
+    if latest is None:  # every row updated: row applied[i] as it is
+        return rows[applied]
+    latest = np.concatenate([np.zeros((1, latest.shape[1]), dtype=latest.dtype), latest])
+    return np.take_along_axis(rows, latest[applied], axis=0)
 
 
 class NodeInputs:
@@ -484,12 +492,13 @@ class NodeInputs:
             return None
         return np.asarray(muscles), np.minimum(np.maximum(values, 0.0), 1.0)  # as _set_drive
 
-    def hold_rows(self, times_ns, drive_update, path_update) -> HeldInputs:
-        """What k messages at ``times_ns`` leave held after each of them, and before the first
-        (row 0): HeldInputs of (k + 1, n). ``drive_update`` (muscle index, drives (k, m)) as
-        drive_many gives them, ``path_update`` (updated (k, n) bool per message and muscle,
-        lengths and velocities (k, n)): the path kinematics each message stored."""
+    def hold_rows(self, times_ns, drive_update, path_update, applied) -> HeldInputs:
+        """What k messages at ``times_ns`` leave held after the first ``applied`` (m,) of them
+        (0: before the first): HeldInputs of (m, n). ``drive_update`` (muscle index, drives
+        (k, m)) as drive_many gives them, ``path_update`` (updated (k, n) bool per message and
+        muscle, lengths and velocities (k, n)): the path kinematics each message stored."""
         k = len(times_ns)
+        applied = np.asarray(applied, dtype=int)
         times = np.asarray(times_ns, dtype=np.int64)[:, None]
         muscles, drives = drive_update
         new_drive = np.zeros((k, self.n))
@@ -498,18 +507,19 @@ class NodeInputs:
         drive_set[:, muscles] = True
         updated, lengths, velocities = path_update
         every = np.broadcast_to(times, (k, self.n))
+        seen = np.ones((k, self.n), dtype=bool)
         drive_latest, path_latest = latest_rows(drive_set), latest_rows(updated)
         return HeldInputs(
-            carried(self.drive, new_drive, drive_latest),
-            carried(self.drive_seen, np.ones((k, self.n), dtype=bool), drive_latest),
-            carried(self.drive_time_ns, every, drive_latest),
-            carried(self.length_m, lengths, path_latest),
-            carried(self.velocity_m_per_s, velocities, path_latest),
-            carried(self.length_seen, np.ones((k, self.n), dtype=bool), path_latest),
-            carried(self.length_time_ns, every, path_latest))
+            carried(self.drive, new_drive, drive_latest, applied),
+            carried(self.drive_seen, seen, drive_latest, applied),
+            carried(self.drive_time_ns, every, drive_latest, applied),
+            carried(self.length_m, lengths, path_latest, applied),
+            carried(self.velocity_m_per_s, velocities, path_latest, applied),
+            carried(self.length_seen, seen, path_latest, applied),
+            carried(self.length_time_ns, every, path_latest, applied))
 
     def keep(self, held: HeldInputs, last_excitation_ns: int) -> None:
-        """Hold the last row of ``held`` (hold_rows: after the last message of a block)."""
+        """Hold the last row of ``held`` (hold_rows after every message of a block)."""
         (self.drive, self.drive_seen, self.drive_time_ns, self.length_m, self.velocity_m_per_s,
          self.length_seen, self.length_time_ns) = (array[-1].copy() for array in held)
         self.last_excitation_ns = int(last_excitation_ns)

@@ -203,9 +203,11 @@ class NodeConditioning:
         block = self.joints.on_joint_states_many(joints, positions, velocities, times_ns)
         if block is None:
             return None
-        held = self.inputs.hold_rows(times_ns, drive, block.path)
         applied = np.searchsorted(times_ns, steps_ns, side="right")  # messages before each step
-        at_steps = HeldInputs(*(rows[applied] for rows in held))
+        # held before each step, then after the last message
+        held = self.inputs.hold_rows(times_ns, drive, block.path,
+                                     np.append(applied, len(times_ns)))
+        at_steps = HeldInputs(*(rows[:-1] for rows in held))
         if not np.isfinite(at_steps.length_m).all():
             return None  # a step not ready: message by message, which says so
         u, length, velocity = self.inputs.sample_held(steps_ns, at_steps)

@@ -29,10 +29,12 @@ MuscleBank.run steps the bank over the block keeping the state at every publish 
 tick (snapshot_every), the joint efforts of every step come at once from the inputs'
 ``block_efforts`` (joint space: MotionInputs), the messages of the block are built in bulk from
 those arrays (vm_ros.recording.bulk) in the order the step-by-step loop writes them, and handed
-to the recorder as one block (write_block: whole chunks, no call per message). The log is the
-same message for message (``block_steps=0`` runs the step-by-step loop, the reference kept for
-the tests and for inputs with joint efforts but no ``block_efforts``: a node log's replay); a
-stop request is seen between blocks (at most 1e6 muscle-steps), not between steps.
+to the recorder as one block (write_block: whole chunks, no call per message). A block is
+built and handed over in parts of PART_STEPS steps (write_block's ``more``: the chunks are those
+of the whole block), so that the writer thread compresses a part while the next is built. The
+log is the same message for message (``block_steps=0`` runs the step-by-step loop, the reference
+kept for the tests and for inputs with joint efforts but no ``block_efforts``: a node log's
+replay); a stop request is seen between parts (at most 1e6 muscle-steps), not between steps.
 """
 
 from __future__ import annotations
@@ -68,7 +70,13 @@ _RETRIES = 5000  # an offline run waits up to 5 s for room in the recorder queue
 # block of BLOCK_STEPS steps of the knee extension holds 12,500): the run steps on while the
 # writer thread compresses, and the queue (20 000 entries by default) never fills
 _IN_FLIGHT = 40000
-BLOCK_STEPS = 5000  # steps whose inputs are taken, and messages built, at once
+# steps whose messages are one block of the log (McapRecorder.write_block: the block's last
+# chunk ends with it)
+BLOCK_STEPS = 5000
+# steps whose inputs are taken, and messages built, at once: a block goes to the writer in parts
+# of this many steps (write_block's more), so that the writer thread compresses a part while the
+# run builds the next, and only the last part is left to write at the end of the run
+PART_STEPS = 1000
 # at most this many muscle-steps per block (one MuscleBank.run): a stop request (Ctrl-C) waits
 # for the block, about 1 s at 1000 muscles
 _BLOCK_MUSCLE_STEPS = 1_000_000
@@ -109,16 +117,17 @@ class LogSink:
             return
         self._write(self._full(topic), data, time_ns)
 
-    def write_many(self, topics, data, times_ns) -> None:
+    def write_many(self, topics, data, times_ns, more: bool = False) -> None:
         """Write messages in the given order (topics: base names) as one block of the recorder
-        (McapRecorder.write_block), once fewer than _IN_FLIGHT messages wait for it."""
+        (McapRecorder.write_block; ``more``: a part of a block, the next part to come), once
+        fewer than _IN_FLIGHT messages wait for it."""
         if self.recorder is None or not len(data):
             return
         names = {topic: self._full(topic) for topic in set(topics)}
         full = list(map(names.__getitem__, topics))
         self._wait_for_room()
         for _ in range(_RETRIES):
-            if self.recorder.write_block(full, data, times_ns):
+            if self.recorder.write_block(full, data, times_ns, more=more):
                 self._sent += len(data)
                 return
             if not self.recorder.status.ok:
@@ -197,16 +206,18 @@ class _Pending:
     def times(self) -> list:
         return np.asarray(self._joined(3), dtype=np.int64).tolist()
 
-    def flush(self, sink: LogSink, steps: int) -> None:
+    def flush(self, sink: LogSink, steps: int, more: bool = False) -> None:
         """Write in key order (stable) what the stepwise loop writes in ``steps`` steps (the
-        outputs at the end of the last one, not the inputs of the next), drop the rest."""
+        outputs at the end of the last one, not the inputs of the next), drop the rest;
+        ``more``: a part of a log block (LogSink.write_many)."""
         self._close_loose()
         if self._groups:
             keys = np.concatenate([group[0] for group in self._groups])
             order = np.argsort(keys, kind="stable")
             order = order[keys[order] < steps * 16 + INPUT_RANK]
             times = np.concatenate([group[3] for group in self._groups])[order]
-            sink.write_many(_pick(self._joined(1), order), _pick(self._joined(2), order), times)
+            sink.write_many(_pick(self._joined(1), order), _pick(self._joined(2), order), times,
+                            more)
         self.__init__()
 
 
@@ -587,13 +598,14 @@ class OfflineRun:
             muscle_steps = min(muscle_steps, _BLOCK_MODEL_VALUES // values)
         steps_per_block = min(block_steps, max(1, muscle_steps // self.bank.n))
         chunk = max(tick, steps_per_block // tick * tick)
+        part = min(chunk, max(tick, PART_STEPS // tick * tick))
         ticks = _Ticks(self.bank)
         pending = _Pending()
         out, k = None, 0
         while k < n_steps:
             if should_stop():
                 return k, out, True
-            count = min(chunk, n_steps - k)
+            count = min(part, chunk - k % chunk, n_steps - k)
             step_starts = start + (k + np.arange(count, dtype=np.int64)) * dt_ns
             u, lp, vp = self._block_inputs(inputs, step_starts, k, pending)
             run = self.bank.run(t.dt_s, u, lp, vp, snapshot_every=tick)
@@ -616,7 +628,7 @@ class OfflineRun:
             times.extend((start + steps[published] * dt_ns).tolist())
             k += count
             ticks.flush(pending, self.sink)
-            pending.flush(self.sink, k)
+            pending.flush(self.sink, k, more=k % chunk != 0 and k < n_steps)
             if progress is not None:
                 progress(k, n_steps)
         return n_steps, out, False
@@ -645,6 +657,16 @@ class _Ticks:
         record telemetry; path_length, path_velocity: the run's inputs (k, n); ``joint``: the
         joint efforts' position, velocity, effort and cumulative work of every step (k, J)."""
         record, snap = run.record, run.snapshots
+        energy_rates: dict = {}  # the energy_rate rows of each set of ticks, built once (ticks
+        # that both publish and record telemetry share them: the default rates)
+
+        def energy_rate(at) -> np.ndarray:
+            key = at.tobytes()
+            if key not in energy_rates:
+                energy_rates[key] = tm.energy_rate_rows(record.energy_components[at],
+                                                        record.energy_rates[at])
+            return energy_rates[key]
+
         energy_totals = _row_sums(snap.energy_j)
         rate_totals = _row_sums(record.energy_rates[rows][:, :, 3])
         if np.any(published):
@@ -653,8 +675,7 @@ class _Ticks:
                 "time": times_ns[published], "slot": slots[published],
                 "position": run.fascicle_length[at], "velocity": run.fascicle_velocity[at],
                 "effort": record.force[at],
-                "energy_rate": tm.energy_rate_rows(record.energy_components[at],
-                                                record.energy_rates[at]),
+                "energy_rate": energy_rate(at),
                 "rate_total": rate_totals[j], "energy_total": energy_totals[j],
                 **({} if self.outputs.models is None else {"models": run.energy_rate_models[at]}),
                 **{key: values[at] for key, values in (joint or {}).items()}})
@@ -675,8 +696,7 @@ class _Ticks:
                 "firing_rate": eq.per_type_mean(snap.firing_rate_effective[j]),
                 "recruited_fraction": recruited @ eq.membership,
                 "effective_activation": record.effective_activation[at],
-                "energy_rate": tm.energy_rate_rows(record.energy_components[at],
-                                                record.energy_rates[at]),
+                "energy_rate": energy_rate(at),
                 "energy": _energies(snap.energy_j[j]),
                 "total_energy_rate": rate_totals[j], "total_energy": energy_totals[j]})
 

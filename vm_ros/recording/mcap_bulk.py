@@ -67,6 +67,14 @@ def chunk_length(writer: Writer, record_ends, chunk_size: int) -> int:
                len(record_ends))
 
 
+def chunk_closes(writer: Writer, record_ends, chunk_size: int) -> bool:
+    """Whether ``writer.add_message`` of the messages (``record_ends`` as for chunk_length)
+    would close its open chunk after the last one: they take it past ``chunk_size`` bytes."""
+    builder = _private(writer, "chunk_builder")
+    held = builder.count if builder is not None else 0
+    return len(record_ends) > 0 and int(record_ends[-1]) > chunk_size - held
+
+
 def message_records(channel_ids, sequences, log_times_ns, publish_times_ns,
                     payloads, sizes=None) -> tuple[bytes, np.ndarray]:
     """The Message records of the messages, concatenated, and the offset of each one in it
@@ -132,4 +140,5 @@ def add_chunk(writer: Writer, channel_ids, sequences, log_times_ns, publish_time
     writer.flush()
 
 
-__all__ = ["MESSAGE_RECORD_HEADER", "add_chunk", "bulk_available", "message_records"]
+__all__ = ["MESSAGE_RECORD_HEADER", "add_chunk", "bulk_available", "chunk_closes",
+           "message_records"]

@@ -5,6 +5,7 @@ with ``background=False``, by the caller's own thread).
         rec.add_channel("/muscle_force", "sensor_msgs/msg/JointState")
         rec.write("/muscle_force", cdr_bytes, log_time_ns)
         rec.write_block(topics, cdr_bytes_list, log_times_ns)   # many at once (offline runs)
+        rec.write_block(..., more=True)   # a block handed over in parts (its chunks the same)
     rec.status      # RecorderStatus(ok, error, written, dropped, bytes_written, path)
 
 The file follows rosbag2's MCAP conventions (profile ``ros2``; schema ``pkg/msg/Type``,
@@ -62,7 +63,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import BinaryIO
 
@@ -153,11 +154,23 @@ class RecorderStatus:
 
 @dataclass(frozen=True)
 class _Block:
-    """Messages queued together by ``write_block``."""
+    """Messages queued together by ``write_block``; ``more``: the block goes on in the next
+    one (write_block's ``more``)."""
 
     topics: list
     data: list
     log_times_ns: np.ndarray
+    more: bool = False
+
+    def joined(self, after: _Block) -> _Block:
+        """These messages, then ``after``'s (with its ``more``)."""
+        return _Block(self.topics + after.topics, self.data + after.data,
+                      np.concatenate([self.log_times_ns, after.log_times_ns]), after.more)
+
+    def tail(self, start: int) -> _Block:
+        """The messages from ``start`` on."""
+        return _Block(self.topics[start:], self.data[start:], self.log_times_ns[start:],
+                      self.more)
 
 
 def _message_count(item) -> int:
@@ -319,6 +332,7 @@ class McapRecorder:
         # chunks known to be in the file
         self._open_chunk_count = 0
         self._chunk_opened_at: float | None = None
+        self._carry: _Block | None = None  # a block's messages waiting for its next part
         self._chunks_seen = self._sink.chunks
         self._release_at = time.monotonic() + RELEASE_PERIOD_S
         self._thread: threading.Thread | None = None
@@ -413,13 +427,19 @@ class McapRecorder:
             self._wake.set()
         return True
 
-    def write_block(self, topics: Sequence[str], data: Sequence[bytes], log_times_ns) -> bool:
+    def write_block(self, topics: Sequence[str], data: Sequence[bytes], log_times_ns,
+                    more: bool = False) -> bool:
         """Queue many serialised messages at once (``topics``, ``data`` and ``log_times_ns``
         per message, in file order; publish time = log time): one queue entry, written as whole
         chunks of about ``chunk_size`` bytes without a Python call per message
-        (vm_ros.recording.mcap_bulk). Otherwise as ``write``: never blocks; False, with every
-        message counted as dropped, when the queue is full, the writer failed or the recorder
-        is closed."""
+        (vm_ros.recording.mcap_bulk), the last one at once, however full. ``more``: the block
+        goes on in the next write_block, so its messages after the last chunk they fill wait
+        for the next block's and are written with them (until then they are neither in the
+        file nor counted as written; a ``write``, ``close`` or a failure ends the wait): the
+        chunks are those of one block of all the parts, and the writer compresses the first
+        parts while the caller builds the next. Otherwise as ``write``: never blocks; False,
+        with every message counted as dropped, when the queue is full, the writer failed or the
+        recorder is closed."""
         unknown = set(topics) - self._channels.keys()
         if unknown:
             raise RecorderError(self._path, f"write to undeclared channel {sorted(unknown)[0]!r}")
@@ -431,7 +451,8 @@ class McapRecorder:
         if self._error is not None or self._closing:
             self._count_dropped(len(data))
             return False
-        block = _Block(list(topics), list(data), np.asarray(log_times_ns, dtype=np.int64))
+        block = _Block(list(topics), list(data), np.asarray(log_times_ns, dtype=np.int64),
+                       bool(more))
         return self._put(block, len(data))
 
     @property
@@ -497,6 +518,7 @@ class McapRecorder:
             if isinstance(item, _Block):
                 self._add_block(item)
             elif item is not None:
+                self._write_carry()
                 self._add_message(*item)
             self._flush_if_old()
         except Exception as exc:  # disk full, I/O error: record it, keep draining
@@ -542,18 +564,31 @@ class McapRecorder:
         self._note_written_chunks()
 
     def _add_block(self, block: _Block) -> None:
-        """The block's messages as whole chunks, cut where ``write`` would cut them (after the
-        message that takes a chunk past chunk_size bytes), the last one written at once; a file
-        split falls between chunks, before the first message due to start a new file. On a failure
-        the messages not yet handed to the writer count as dropped (those of the chunk being
-        written: _fail)."""
+        """The block's messages (after those a previous part left waiting) as whole chunks, cut
+        where ``write`` would cut them (after the message that takes a chunk past chunk_size
+        bytes), the last one written at once unless the block has ``more`` to come (then its
+        messages wait: write_block); a file split falls between chunks, before the first
+        message due to start a new file. On a failure the messages not yet handed to the
+        writer count as dropped (those of the chunk being written: _fail)."""
+        if self._carry is not None:
+            block, self._carry = self._carry.joined(block), None
         try:
-            self._write_block_chunks(block)
+            handed = self._write_block_chunks(block)
         except _BlockError as failure:
             self._count_dropped(len(block.data) - failure.handed)
             raise failure.__cause__ from None
+        if handed < len(block.data):
+            self._carry = block.tail(handed)
 
-    def _write_block_chunks(self, block: _Block) -> None:
+    def _write_carry(self) -> None:
+        """Write the messages waiting for a block's next part, as the block's last chunk."""
+        if self._carry is not None:
+            carry, self._carry = self._carry, None
+            self._add_block(replace(carry, more=False))
+
+    def _write_block_chunks(self, block: _Block) -> int:
+        """Write the block's chunks; the number of its messages written (all but the
+        waiting ones of a block with ``more``)."""
         topics, handed = set(block.topics), 0
         try:
             ids = self._block_channel_ids(block, topics)
@@ -575,10 +610,14 @@ class McapRecorder:
                 base = ends[begin - 1] if begin else 0
                 end = begin + mcap_bulk.chunk_length(self._writer, ends[begin:] - base,
                                                      self._chunk_size)
+                cut = end < len(ids) or mcap_bulk.chunk_closes(
+                    self._writer, ends[begin:end] - base, self._chunk_size)
                 if self._max_file_duration_ns:  # stop before the message that starts a file
                     late = np.flatnonzero(times[begin + 1:end] - self._file_start_log_time
                                           >= self._max_file_duration_ns)
-                    end = begin + 1 + int(late[0]) if len(late) else end
+                    end, cut = (begin + 1 + int(late[0]), True) if len(late) else (end, cut)
+                if block.more and not cut:  # the block's last chunk, not full: it waits
+                    break
                 self._written += end - begin
                 self._open_chunk_count += end - begin
                 handed = end
@@ -588,6 +627,9 @@ class McapRecorder:
                 self._note_written_chunks()
         except Exception as exc:
             raise _BlockError(handed) from exc
+        for topic in topics:  # the waiting messages are numbered again when they are written
+            self._sequence[topic] -= block.topics[handed:].count(topic)
+        return handed
 
     def _block_channel_ids(self, block: _Block, topics: set) -> np.ndarray:
         """The channel id of each message of ``block`` in the current file (channels registered
@@ -658,10 +700,14 @@ class McapRecorder:
     def _finish(self) -> None:
         if self._error is None:
             try:
+                self._write_carry()
                 self._register_pending()
                 self._writer.finish()
             except Exception as exc:
                 self._fail(exc)
+        if self._carry is not None:  # after a failure: never written
+            self._count_dropped(len(self._carry.data))
+            self._carry = None
         try:
             self._sink.close()
         except OSError as exc:
