@@ -97,6 +97,11 @@ def test_force_rms_is_that_of_each_case_run_alone():
                 scale = f1
         rms = 100 * np.sqrt(np.mean((np.array(forces[1]) - np.array(forces[0])) ** 2)) / scale
         assert run.force_rms_percent[i] == pytest.approx(rms, rel=1e-6, abs=1e-9)
+    # each counted jump names its case and the step at which that case's drive jumps
+    assert len(run.jump_step) == len(run.jump_case) == len(run.jump_energy_ratio) > 0
+    for case, step in zip(run.jump_case, run.jump_step, strict=True):
+        drive = cases[case].drive
+        assert step in cases[case].jumps and drive[step] != drive[step - 1]
 
 
 def test_reduced_check_carries_the_targets():

@@ -195,6 +195,7 @@ class HeldOutRun:
     | jump_energy_ratio | (j,) | 1 | lumped / natural initial energy per counted jump |
     | jump_case | (j,) | | the case of each counted jump |
     | window_energy_ratio | (w,) | 1 | lumped / natural total energy per counted window |
+    | jump_step | (j,) | step | the step at which each counted jump starts (None: not kept) |
     """
 
     force_rms_percent: np.ndarray
@@ -202,6 +203,7 @@ class HeldOutRun:
     jump_energy_ratio: np.ndarray
     jump_case: np.ndarray
     window_energy_ratio: np.ndarray
+    jump_step: np.ndarray | None = None
 
 
 def _path(bank: MuscleBank, length_l0, velocity_l0_per_s):
@@ -244,17 +246,19 @@ def compare_held_out(params, cases, lumped=None, dt: float = DT,
     for lumped_params in lumped or (params,):
         lum_f, lum_e, lum_t, *_ = _simulate(MuscleBank(specs, lumped_params, "lumped"), cases, dt)
         error = (lum_f - nat_f) / f1
-        ratios, owners = [], []
+        ratios, owners, starts = [], [], []
         for i, c in enumerate(cases):
             edges = np.append(c.jumps, len(c.drive))
             for start, stop in zip(edges[:-1], edges[1:], strict=True):
                 if nat_e[start:stop, i].mean() >= MIN_RATE_FRACTION * e1[i]:
                     ratios.append(lum_e[start:stop, i].sum() / nat_e[start:stop, i].sum())
                     owners.append(i)
+                    starts.append(start)
         lum_w = lum_t[:n_windows * w].reshape(n_windows, w, len(cases)).sum(axis=1)
         runs.append(HeldOutRun(100.0 * np.sqrt(np.mean(error**2, axis=0)),
                                100.0 * error[len(error) // 2:].mean(axis=0), np.array(ratios),
-                               np.array(owners, dtype=int), lum_w[counted] / nat_w[counted]))
+                               np.array(owners, dtype=int), lum_w[counted] / nat_w[counted],
+                               np.array(starts, dtype=int)))
     return runs
 
 
