@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_joint_block import assert_same_bits
+from test_joint_block import JOINT_MAP, JOINTS, assert_same_bits
 from test_joint_space import MUSCLES, small_geometry
 
 from vm_ros.joint_space import JointMap, JointSpace
@@ -18,15 +18,6 @@ from vm_ros.model import MuscleBank
 from vm_ros.node.joint_inputs import JointInputs
 from vm_ros.node.params import PARAMS_SOURCE, NodeConfig
 from vm_ros.node.replay import NodeConditioning
-
-MS = 1_000_000
-JOINT_MAP = "{knee: {coordinate: knee_angle, sign: -1, offset: 0.1}}"
-JOINTS = ("hip_flexion", "knee", "ankle_angle")
-
-
-@pytest.fixture(scope="module")
-def bank():
-    return MuscleBank.from_config(list(MUSCLES))
 
 
 def conditioning(bank, backend: str, extrapolation_s: float) -> NodeConditioning:
@@ -83,10 +74,11 @@ def state(joints: JointInputs, cond: NodeConditioning):
 
 @pytest.mark.parametrize("backend", ["numpy", "compiled"])
 @pytest.mark.parametrize("extrapolation_s", [0.0, 0.005])
-def test_a_full_message_is_conditioned_as_the_general_way_does(bank, backend, extrapolation_s,
+def test_a_full_message_is_conditioned_as_the_general_way_does(backend, extrapolation_s,
                                                                monkeypatch):
     if backend == "compiled":
         pytest.importorskip("numba")
+    bank = MuscleBank.from_config(list(MUSCLES))
     shorter = conditioning(bank, backend, extrapolation_s)
     general = conditioning(bank, backend, extrapolation_s)
     monkeypatch.setattr(general.joints, "_every_coordinate", lambda index, entries: None)
