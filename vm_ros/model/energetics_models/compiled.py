@@ -335,6 +335,10 @@ class CompiledModels:
             muscle.l0, muscle.f0, muscle.mass, muscle.fpcsa[:, 0], muscle.fpcsa[:, 1],
             muscle.lmax)])
         self._fl_columns = type_columns(muscle.fibre, (2, 1))
+        # FPE1 and FPE2 enter the passive force alone, which Bhargava's model alone takes (the
+        # registry's extras): without it they are left at 0 (the other models never read it)
+        self._passive = any("passive_fibre_force" in model.extras for model in models)
+        self._repeated = {}  # rows -> the per-muscle constants repeated over that many steps
         columns = type_columns(muscle.fibre)
         self._fv_columns = tuple(tuple(float(np.asarray(columns[name])[t]) for name in (
             T.vmax, T.cv0, T.cv1, T.av0, T.av1, T.av2, T.bv)) for t in range(2))
@@ -349,13 +353,18 @@ class CompiledModels:
         activity = np.asarray(effective_activation, dtype=float).reshape(-1, 2)
         duration = (np.zeros(x.shape) if stimulation_duration is None
                     else np.ascontiguousarray(stimulation_duration, dtype=float).reshape(-1))
-        l0, f0, mass, fpcsa_slow, fpcsa_fast, lmax = np.broadcast_to(
-            self._per_muscle[:, None], (len(self._per_muscle), *shape)).reshape(
-            len(self._per_muscle), -1)
+        if shape[0] not in self._repeated:
+            self._repeated[shape[0]] = np.broadcast_to(
+                self._per_muscle[:, None], (len(self._per_muscle), *shape)).reshape(
+                len(self._per_muscle), -1)
+        l0, f0, mass, fpcsa_slow, fpcsa_fast, lmax = self._repeated[shape[0]]
         l, v = x / l0, xdot / l0
         ft = self._fl_columns
         fl = curves.force_length_cheng2000(l[None], ft[T.omega], ft[T.beta], ft[T.rho])
-        pe1, pe2 = passive_curves(l, v, dataclasses.replace(self.muscle, lmax=lmax))
+        if self._passive:
+            pe1, pe2 = passive_curves(l, v, dataclasses.replace(self.muscle, lmax=lmax))
+        else:
+            pe1 = pe2 = np.zeros(x.size)
         inputs = np.empty((6, x.size))
         _inputs_loop(np.ascontiguousarray(activity[:, 0]), np.ascontiguousarray(activity[:, 1]),
                      l, v, fl, pe1, pe2, f0, fpcsa_slow, fpcsa_fast, self._fv_columns,
