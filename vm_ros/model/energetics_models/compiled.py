@@ -32,11 +32,11 @@ from __future__ import annotations
 
 import collections
 import dataclasses
-import functools
 
 import numpy as np
 
 from vm_ros.model import curves
+from vm_ros.model.energetics_models import constants as model_constants
 from vm_ros.model.energetics_models.bhargava import (
     bhargava2004,
     bhargava2004_rates,
@@ -76,10 +76,23 @@ from vm_ros.model.layout import T, type_columns
 ACTIVATION_MAINTENANCE, SHORTENING_LENGTHENING, BASAL, MECHANICAL_WORK, TOTAL = range(5)
 
 
-@functools.cache
-def _tuple_type(cls):
-    return collections.namedtuple(f"{cls.__name__}Compiled", [f.name for f in
-                                                               dataclasses.fields(cls)])
+def _named_tuple(cls):
+    """A named tuple of the fields of the constants class ``cls``, named ``<cls>Compiled`` in
+    this module (where Numba's disk cache finds it again in the next process)."""
+    return collections.namedtuple(f"{cls.__name__}Compiled",
+                                  [f.name for f in dataclasses.fields(cls)], module=__name__)
+
+
+UmbergerConstantsCompiled = _named_tuple(model_constants.UmbergerConstants)
+BhargavaConstantsCompiled = _named_tuple(model_constants.BhargavaConstants)
+LichtwarkConstantsCompiled = _named_tuple(model_constants.LichtwarkConstants)
+HoudijkConstantsCompiled = _named_tuple(model_constants.HoudijkConstants)
+MargariaConstantsCompiled = _named_tuple(model_constants.MargariaConstants)
+MinettiConstantsCompiled = _named_tuple(model_constants.MinettiConstants)
+TUPLE_TYPES = {getattr(model_constants, cls.__name__.removesuffix("Compiled")): cls
+               for cls in (UmbergerConstantsCompiled, BhargavaConstantsCompiled,
+                           LichtwarkConstantsCompiled, HoudijkConstantsCompiled,
+                           MargariaConstantsCompiled, MinettiConstantsCompiled)}
 
 
 def compiled_constants(constants):
@@ -88,7 +101,7 @@ def compiled_constants(constants):
     def value(v):
         return tuple(float(x) for x in v) if isinstance(v, tuple) else v
 
-    return _tuple_type(type(constants))(**{f.name: value(getattr(constants, f.name))
+    return TUPLE_TYPES[type(constants)](**{f.name: value(getattr(constants, f.name))
                                            for f in dataclasses.fields(constants)})
 
 
