@@ -398,7 +398,8 @@ def _csv_rows(results: dict) -> list[dict]:
     for r in results.get("model", []):
         if "models_over_none" in r:  # every published energetics model against none
             add("model", f"{r['backend']} {r['muscles']} muscles, {r['call']}",
-                f"{r['energetics_models']} energetics models / none", r["models_over_none"],
+                f"{r['energetics_models']} energetics models "
+                f"({r.get('selection', 'all')}) / none", r["models_over_none"],
                 "ratio", f"<= {r['target_ratio']:g}",
                 r["models_over_none"] <= r["target_ratio"])
     for r in results.get("natural", []):

@@ -127,7 +127,8 @@ class MuscleBank:
         if energetics_models:
             names = model_names(energetics_models)
             if names:
-                self._models = BankModels(names, VmMuscleConstants.from_bank(self))
+                self._models = BankModels(names, VmMuscleConstants.from_bank(self),
+                                          compile_models=self.backend == "numba")
 
     def replicated(self, copies: int) -> MuscleBank:
         """A new bank of ``copies`` copies of every muscle (muscle order repeated ``copies``

@@ -18,6 +18,16 @@ from vm_ros.model.layout import T
 
 
 @jitable
+def _force_length_parts(l, omega, beta, rho):
+    """(L clipped at 0, L^beta, z, |z|^rho, FL) of :func:`force_length_cheng2000`."""
+    l = np.maximum(l, 0.0)
+    l_beta = power(l, beta)
+    z = (l_beta - 1.0) / omega
+    z_rho = power(np.abs(z), rho)
+    return l, l_beta, z, z_rho, exp(-z_rho)
+
+
+@jitable
 def force_length_cheng2000(l, omega, beta, rho):
     """Active force-length relation.
 
@@ -25,7 +35,7 @@ def force_length_cheng2000(l, omega, beta, rho):
 
     omega, beta, rho per fibre type (docs/model.md section 8). FL(1) = 1. L is clipped at 0.
     """
-    return force_length_and_slope_cheng2000(l, omega, beta, rho)[0]
+    return _force_length_parts(l, omega, beta, rho)[4]
 
 
 @jitable
@@ -35,11 +45,7 @@ def force_length_and_slope_cheng2000(l, omega, beta, rho):
     z = (L^beta - 1) / omega,  FL = exp(-|z|^rho),
     dFL/dL = -FL rho (|z|^rho / z) beta L^beta / (L omega)      (0 at z = 0 and at L <= 0)
     """
-    l = np.maximum(l, 0.0)
-    l_beta = power(l, beta)
-    z = (l_beta - 1.0) / omega
-    z_rho = power(np.abs(z), rho)
-    fl = exp(-z_rho)
+    l, l_beta, z, z_rho, fl = _force_length_parts(l, omega, beta, rho)
     defined = (z != 0.0) & (l > 0.0)
     ratio = where(defined, z_rho / where(defined, z * l, 1.0), 0.0)
     return fl, -fl * rho * ratio * beta * l_beta / omega

@@ -79,9 +79,12 @@ def sources_hash(py_file: str) -> str:
     """A hash of every model source file, of ``py_file`` and of Numba's version: Numba checks a
     cached function against its own file only, not against the modules whose functions it
     inlines; and two Numba versions (a venv's, a ROS workspace's) would each find the other's
-    index stale and compile again, over and over."""
+    index stale and compile again, over and over. For a file in a folder below the model's
+    (energetics_models), that folder's sources too."""
     digest = hashlib.sha256(numba.__version__.encode() if HAVE_NUMBA else b"")
-    for path in sorted({*_MODEL_DIR.glob("*.py"), Path(py_file).resolve()}):
+    folder = Path(py_file).resolve().parent
+    below = folder.glob("*.py") if folder.parent == _MODEL_DIR else ()
+    for path in sorted({*_MODEL_DIR.glob("*.py"), *below, Path(py_file).resolve()}):
         digest.update(path.name.encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()[:16]
@@ -236,6 +239,26 @@ def log(x):
 def log1p(x):
     """``np.log1p``; arithmetic when compiled for scalars (module docstring)."""
     return np.log1p(x)
+
+
+def maximum(a, b):
+    """``np.maximum``; compiled for scalars, NumPy's result bit for bit: NaN if either is NaN,
+    and ``b`` where a == b (so max(-0.0, 0.0) is 0.0, as NumPy's SIMD loops give it)."""
+    return np.maximum(a, b)
+
+
+def minimum(a, b):
+    """``np.minimum``; compiled for scalars as :func:`maximum` (``b`` where a == b)."""
+    return np.minimum(a, b)
+
+
+def divide_where(numerator, denominator, condition, otherwise):
+    """``numerator / denominator`` where ``condition``, else ``otherwise``, without dividing
+    where not (``np.divide`` with ``out`` and ``where``); a branch when compiled for scalars."""
+    shape = np.broadcast_shapes(np.shape(numerator), np.shape(denominator), np.shape(condition),
+                                np.shape(otherwise))
+    out = np.array(np.broadcast_to(otherwise, shape), dtype=float)
+    return np.divide(numerator, denominator, out=out, where=condition)
 
 
 def fixed_tuple(array, length):
@@ -403,6 +426,30 @@ if HAVE_NUMBA:
     _compiled_overload(log)(_scalar_or_array(_log_scalar, np.log))
     _compiled_overload(log1p)(_scalar_or_array(_log1p_scalar, np.log1p))
 
+    def _scalars(*args):
+        return all(isinstance(arg, (_nb_types.Number, _nb_types.Boolean)) for arg in args)
+
+    @_compiled_overload(maximum)
+    def _maximum_compiled(a, b):
+        if _scalars(a, b):
+            return lambda a, b: a if (a > b or a != a) else b
+        return lambda a, b: np.maximum(a, b)
+
+    @_compiled_overload(minimum)
+    def _minimum_compiled(a, b):
+        if _scalars(a, b):
+            return lambda a, b: a if (a < b or a != a) else b
+        return lambda a, b: np.minimum(a, b)
+
+    @_compiled_overload(divide_where)
+    def _divide_where_compiled(numerator, denominator, condition, otherwise):
+        if _scalars(numerator, denominator, condition, otherwise):
+            def scalar_divide_where(numerator, denominator, condition, otherwise):
+                return numerator / denominator if condition else otherwise
+
+            return scalar_divide_where
+        return None
+
     @_compiled_overload(fixed_tuple)
     def _fixed_tuple_compiled(array, length):
         if not isinstance(length, _nb_types.IntegerLiteral):
@@ -438,6 +485,6 @@ if HAVE_NUMBA:
 
 
 __all__ = ["COMPILE_POLL_S", "ENV_SWITCH", "HAVE_NUMBA", "LLVM_OPTIONS", "cache_root", "clip",
-           "compile_interruptibly", "exp", "expm1", "fixed_tuple", "in_disk_cache", "jitable",
-           "literal_unroll", "log", "log1p", "model_cache_directory", "power", "set_llvm_options",
-           "sources_hash", "where"]
+           "compile_interruptibly", "divide_where", "exp", "expm1", "fixed_tuple", "in_disk_cache",
+           "jitable", "literal_unroll", "log", "log1p", "maximum", "minimum",
+           "model_cache_directory", "power", "set_llvm_options", "sources_hash", "where"]

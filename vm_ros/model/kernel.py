@@ -50,7 +50,7 @@ N_SHARED, N_TYPE_COLUMNS = len(S), len(T)
 FIBRE_TYPES = (0, 1)
 
 
-def _renamed(function, name: str):
+def renamed(function, name: str):
     """A copy of ``function`` under another name (Numba caches each compiled copy by name)."""
     code = function.__code__.replace(co_name=name, co_qualname=name)
     copy = types.FunctionType(code, function.__globals__, name, function.__defaults__,
@@ -365,7 +365,7 @@ def _pool_loop(dt, count, u, x, xdot, f_int, f_eff, sag, yield_factor, activity,
 
 # _fibre_terms compiled as a function of its own, called rather than inlined: for the rare
 # refresh of the kept terms below, where inlining it only costs compile time
-_fibre_terms_called = jitable(_renamed(_fibre_terms, "_fibre_terms_called"))
+_fibre_terms_called = jitable(renamed(_fibre_terms, "_fibre_terms_called"))
 
 
 @jitable
@@ -634,7 +634,7 @@ if HAVE_NUMBA:
                     **COMPILE_OPTIONS}
         advance_series = numba.njit(**_options)(_advance_series)
         advance_series_parallel = numba.njit(parallel=True, **_options)(
-            _renamed(_advance_series, "_advance_series_parallel"))
+            renamed(_advance_series, "_advance_series_parallel"))
 AVAILABLE = advance_series is not None
 
 # The parallel switch (CompiledStep(parallel=...), or this environment variable) and the bank

@@ -36,49 +36,67 @@ from vm_ros.model.energetics_models.state import (
     mechanical_work_rate,
     shortening_heat_for_nonnegative_total,
 )
+from vm_ros.model.jit import jitable, where
+
+
+@jitable
+def recruited_excitations_from_angle(slow_fraction, sin_angle, cos_angle):
+    """:func:`recruited_excitations` from sin and cos of pi u / 2."""
+    return slow_fraction * sin_angle, (1.0 - slow_fraction) * (1.0 - cos_angle)
 
 
 def recruited_excitations(excitation, slow_fraction):
     """Bhargava 2004's recruitment: the slow- and fast-twitch excitations (1),
     r sin(pi u / 2) and (1 - r) (1 - cos(pi u / 2))."""
-    half_pi_u = 0.5 * np.pi * excitation
-    return (slow_fraction * np.sin(half_pi_u),
-            (1.0 - slow_fraction) * (1.0 - np.cos(half_pi_u)))
+    return recruited_excitations_from_angle(slow_fraction, *recruitment_sin_cos(excitation))
 
 
+@jitable
+def _segment(x, xp, fp, j):
+    """The line through points j and j + 1 at x."""
+    return fp[j] + (x - xp[j]) * ((fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j]))
+
+
+@jitable
 def piecewise_linear(x, xp, fp):
     """OpenSim's PiecewiseLinearFunction: linear between the points, extended beyond the ends
-    with the slope of the end segments."""
-    xp = np.asarray(xp, dtype=float)
-    fp = np.asarray(fp, dtype=float)
-    x = np.asarray(x, dtype=float)
-    slopes = np.diff(fp) / np.diff(xp)
-    k = np.clip(np.searchsorted(xp, x, side="right") - 1, 0, len(xp) - 2)
-    inside = fp[k] + (x - xp[k]) * slopes[k]
-    below = fp[0] + (x - xp[0]) * slopes[0]
-    above = fp[-1] + (x - xp[-1]) * slopes[-1]
-    return np.where(x < xp[0], below, np.where(x > xp[-1], above, inside))
+    with the slope of the end segments. ``xp``, ``fp``: sequences of the points (xp rising);
+    x: an array, or a scalar in a compiled loop. The segment is the last whose first point is
+    at or below x (the first below xp[0] and for NaN); above xp[-1] the line through the last
+    point."""
+    value = _segment(x, xp, fp, 0)
+    for j in range(1, len(xp) - 1):
+        value = where(x >= xp[j], _segment(x, xp, fp, j), value)
+    last = len(xp) - 1
+    return where(x > xp[last], fp[last] + (x - xp[last]) * ((fp[last] - fp[last - 1])
+                                                            / (xp[last] - xp[last - 1])), value)
 
 
-def bhargava2004(state: MuscleState, constants: BhargavaConstants, *,
-                 passive_fibre_force) -> HeatRates:
-    """Heat and work rates (W per muscle) of Bhargava et al. 2004 (equations in the module
-    docstring). ``passive_fibre_force`` (N, OpenSim's getPassiveFiberForce) enters F_total; it is
-    not in MuscleState and is required (0 makes F_total the active force alone,
-    docs/energetics_models.md section 3). ``basal`` is 0: the basal rate is whole-body
-    (constants.basal_rate, probe_total)."""
-    c = constants
+def recruitment_sin_cos(excitation):
+    """sin and cos of pi u / 2 (u: the scaled excitation), by NumPy on either path."""
+    half_pi_u = 0.5 * np.pi * np.asarray(excitation, dtype=float)
+    return np.sin(half_pi_u), np.cos(half_pi_u)
+
+
+def bhargava2004_transcendentals(constants: BhargavaConstants, excitation):
+    """The parts of the heat rates computed by NumPy on either path, over arrays: sin and cos
+    of pi u / 2 (u the scaled excitation; :func:`recruitment_sin_cos`)."""
+    return recruitment_sin_cos(constants.muscle_effort_scaling_factor
+                               * np.asarray(excitation, dtype=float))
+
+
+@jitable
+def bhargava2004_rates(c, mass, velocity, active_fibre_force, passive_fibre_force,
+                       isometric_force, length_norm, slow_fraction, sin_angle, cos_angle):
+    """(activation + maintenance, shortening, work, total) rates (W) of :func:`bhargava2004`
+    from its transcendental parts (:func:`bhargava2004_transcendentals`): NumPy arrays, or
+    scalars in a compiled loop. ``c``: BhargavaConstants or its compiled form."""
     k = c.muscle_effort_scaling_factor
-    u = k * np.asarray(state.excitation, dtype=float)
-    mass = np.asarray(state.mass, dtype=float)
-    velocity = np.asarray(state.fibre_velocity, dtype=float)
-    f_active = k * np.asarray(state.active_fibre_force, dtype=float)
-    passive = np.asarray(passive_fibre_force, dtype=float)
-    f_total = f_active + passive
-    f_iso = k * np.asarray(state.isometric_force, dtype=float)
-    length_norm = np.asarray(state.fibre_length, dtype=float) / state.optimal_fibre_length
+    f_active = k * active_fibre_force
+    f_total = f_active + passive_fibre_force
+    f_iso = k * isometric_force
 
-    u_slow, u_fast = recruited_excitations(u, np.asarray(state.slow_fraction, dtype=float))
+    u_slow, u_fast = recruited_excitations_from_angle(slow_fraction, sin_angle, cos_angle)
     activation_heat = mass * c.decay_function_value * (
         c.activation_constant_slow_twitch * u_slow + c.activation_constant_fast_twitch * u_fast)
     length_dependence = piecewise_linear(length_norm, c.maintenance_length_dependence_x,
@@ -88,12 +106,12 @@ def bhargava2004(state: MuscleState, constants: BhargavaConstants, *,
 
     shortening = velocity <= 0.0
     if c.use_force_dependent_shortening_prop_constant:
-        alpha = np.where(shortening,
-                         c.shortening_isometric_coefficient * f_iso
-                         + c.shortening_total_force_coefficient * f_total,
-                         c.lengthening_total_force_coefficient * f_total)
+        alpha = where(shortening,
+                      c.shortening_isometric_coefficient * f_iso
+                      + c.shortening_total_force_coefficient * f_total,
+                      c.lengthening_total_force_coefficient * f_total)
     else:
-        alpha = np.where(shortening, c.shortening_coefficient * f_total, 0.0)
+        alpha = where(shortening, c.shortening_coefficient * f_total, 0.0)
     shortening_heat = -alpha * velocity
 
     work = mechanical_work_rate(f_active, velocity, c.include_negative_mechanical_work)
@@ -102,19 +120,37 @@ def bhargava2004(state: MuscleState, constants: BhargavaConstants, *,
         shortening_heat = shortening_heat_for_nonnegative_total(
             shortening_heat, activation_heat + maintenance_heat + shortening_heat + work)
 
-    all_heat_on = c.activation_rate_on and c.maintenance_rate_on and c.shortening_rate_on
-    if all_heat_on:
+    if c.activation_rate_on and c.maintenance_rate_on and c.shortening_rate_on:
         heat = activation_heat + maintenance_heat + shortening_heat
         if c.enforce_minimum_heat_rate_per_muscle:
             floor = c.minimum_heat_rate * mass
-            heat = np.where(heat < floor, floor, heat)
+            heat = where(heat < floor, floor, heat)
     else:
         heat = (c.activation_rate_on * activation_heat + c.maintenance_rate_on * maintenance_heat
                 + c.shortening_rate_on * shortening_heat)
     total = heat + c.mechanical_work_rate_on * work
+    return activation_heat + maintenance_heat, shortening_heat, work, total
+
+
+def bhargava2004(state: MuscleState, constants: BhargavaConstants, *,
+                 passive_fibre_force) -> HeatRates:
+    """Heat and work rates (W per muscle) of Bhargava et al. 2004 (equations in the module
+    docstring). ``passive_fibre_force`` (N, OpenSim's getPassiveFiberForce) enters F_total; it is
+    not in MuscleState and is required (0 makes F_total the active force alone,
+    docs/energetics_models.md section 3). ``basal`` is 0: the basal rate is whole-body
+    (constants.basal_rate, probe_total)."""
+    length_norm = np.asarray(state.fibre_length, dtype=float) / state.optimal_fibre_length
+    sin_angle, cos_angle = bhargava2004_transcendentals(constants, state.excitation)
+    activation_maintenance, shortening, work, total = bhargava2004_rates(
+        constants, np.asarray(state.mass, dtype=float),
+        np.asarray(state.fibre_velocity, dtype=float),
+        np.asarray(state.active_fibre_force, dtype=float),
+        np.asarray(passive_fibre_force, dtype=float),
+        np.asarray(state.isometric_force, dtype=float), length_norm,
+        np.asarray(state.slow_fraction, dtype=float), sin_angle, cos_angle)
     return HeatRates(
-        activation_maintenance=activation_heat + maintenance_heat,
-        shortening_lengthening=shortening_heat,
+        activation_maintenance=activation_maintenance,
+        shortening_lengthening=shortening,
         basal=np.zeros_like(total),
         mechanical_work=work,
         total=total,

@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from vm_ros.errors import InputError
+from vm_ros.model.energetics_models import compiled
 from vm_ros.model.energetics_models.vm_state import (
     MODEL_NAMES,
     VmMuscleConstants,
@@ -63,13 +64,19 @@ def model_names(selection) -> tuple:
 
 
 class BankModels:
-    """The selected models of one bank, their constants (loaded once) and their state."""
+    """The selected models of one bank, their constants (loaded once) and their state. With
+    ``compile_models`` (and Numba) a series goes through compiled loops (compiled.CompiledModels:
+    the NumPy path's values to the bit), compiled or loaded from Numba's cache here."""
 
-    def __init__(self, names, muscle: VmMuscleConstants):
+    def __init__(self, names, muscle: VmMuscleConstants, compile_models: bool = True):
         self.names = model_names(names)
         self.muscle = muscle
         self._models = [published_model(name) for name in self.names]
         self._constants = [model.load_constants() for model in self._models]
+        self._compiled = None
+        if compile_models and compiled.AVAILABLE and self.names:
+            self._compiled = compiled.CompiledModels(self._models, self._constants, muscle)
+            compiled.warm_up(self._compiled)
         self.n = len(np.atleast_1d(muscle.f0))
         self.reset()
 
@@ -80,6 +87,10 @@ class BankModels:
     def stimulation_duration(self, time_s, excitation) -> np.ndarray:
         """Time (s) since the drive last rose above 0, (k, n), at the end times (k,) of k steps
         with drive (k, n), continuing from ``onset_s``, which it advances."""
+        if self._compiled is not None:  # the same times, in one compiled pass
+            duration, self.onset_s = compiled.stimulation_duration(time_s, excitation,
+                                                                   self.onset_s)
+            return duration
         t = np.asarray(time_s, dtype=float)
         on = np.asarray(excitation) > 0.0
         before = np.vstack([~np.isnan(self.onset_s)[None, :], on[:-1]])
@@ -112,7 +123,13 @@ class BankModels:
 
     def _fill(self, out, excitation, effective_activation, length_m, velocity_m_per_s,
               stimulation_duration) -> None:
-        """out[m, c] = component c of model m; the mapping once for every model."""
+        """out[m, c] = component c of model m; the mapping once for every model. A series
+        block goes through the compiled loops where Numba is there (compiled.CompiledModels: the
+        same bits)."""
+        if self._compiled is not None and np.ndim(length_m) == 2:
+            self._compiled.fill(out, excitation, effective_activation, length_m,
+                                velocity_m_per_s, stimulation_duration)
+            return
         inputs = vm_model_inputs(self.muscle, excitation, effective_activation, length_m,
                                  velocity_m_per_s, stimulation_duration)
         for m, (model, constants) in enumerate(zip(self._models, self._constants,
@@ -135,6 +152,10 @@ class BankModels:
         if totals.shape[-2] == 1:  # one step: E + rate dt, the same sum without the stacking
             self.energy_j = self.energy_j + totals[:, 0].T * dt[0]
             return rates, self.energy_j[None].copy()
+        if self._compiled is not None:  # the same sums, in a compiled loop
+            energies = compiled.integrate_energies(self.energy_j, totals, dt)
+            self.energy_j = energies[-1].copy()
+            return rates, energies
         steps = np.empty((len(self.names), totals.shape[-2] + 1, self.n))  # (M, 1 + k, n)
         steps[:, 0] = self.energy_j.T
         np.multiply(totals, dt[None, :, None], out=steps[:, 1:])

@@ -28,6 +28,7 @@ import numpy as np
 
 from vm_ros.model.energetics_models.constants import LichtwarkConstants
 from vm_ros.model.energetics_models.state import HeatRates, MuscleState, mechanical_work_rate
+from vm_ros.model.jit import jitable, where
 
 
 def force_velocity_multiplier_from_state(state: MuscleState):
@@ -49,6 +50,49 @@ def maintenance_decay(stimulation_duration, constants: LichtwarkConstants):
             + c.maintenance_decay_slow_amplitude * np.exp(-c.maintenance_decay_slow_rate * t))
 
 
+def lichtwark2005_transcendentals(constants: LichtwarkConstants, stimulation_duration,
+                                  force_velocity_multiplier):
+    """The parts of the heat rates computed by NumPy on either path, over arrays: the isometric
+    maintenance gamma Vmax / G^2 (gamma: :func:`maintenance_decay`; G^2 a Python float's
+    power, kept out of compiled code, where the power of a float would be compiled once for the
+    model step's kernel and these loops alike) and the lengthening maintenance's
+    exp(-7 Vmax (g - 1))."""
+    c = constants
+    g = np.asarray(force_velocity_multiplier, dtype=float)
+    vmax = c.max_contraction_velocity
+    return (maintenance_decay(stimulation_duration, c) * vmax / c.force_velocity_curvature ** 2,
+            np.exp(-c.lengthening_maintenance_decay * vmax * (g - 1.0)))
+
+
+@jitable
+def lichtwark2005_rates(c, activation, optimal_fibre_length, max_isometric_force, velocity,
+                        active_fibre_force, force_length_multiplier, force_velocity_multiplier,
+                        isometric_maintenance, lengthening_decay):
+    """(activation maintenance, shortening, work, total) rates (W) of :func:`lichtwark2005` from
+    its transcendental parts (:func:`lichtwark2005_transcendentals`): NumPy arrays, or scalars
+    in a compiled loop. ``c``: LichtwarkConstants or its compiled form."""
+    a = activation
+    l0 = optimal_fibre_length
+    shortening_velocity = -velocity / l0
+    f_iso = force_length_multiplier
+    g = force_velocity_multiplier
+    curvature = c.force_velocity_curvature
+    shortening = shortening_velocity > 0.0
+
+    floor = c.lengthening_maintenance_floor
+    maintenance = where(shortening, isometric_maintenance, isometric_maintenance * (
+        floor + (1.0 - floor) * lengthening_decay))
+    shortening_heat = where(shortening, shortening_velocity / curvature,
+                            -c.lengthening_heat_coefficient * g * shortening_velocity)
+    scale = max_isometric_force * l0
+    stable = c.stable_maintenance_fraction
+    activation_maintenance = a * maintenance * (stable + (1.0 - stable) * f_iso) * scale
+    shortening_lengthening = a * f_iso * shortening_heat * scale
+    work = mechanical_work_rate(active_fibre_force, velocity, c.include_negative_mechanical_work)
+    total = activation_maintenance + shortening_lengthening + work
+    return activation_maintenance, shortening_lengthening, work, total
+
+
 def lichtwark2005(state: MuscleState, constants: LichtwarkConstants, *,
                   force_length_multiplier, force_velocity_multiplier,
                   stimulation_duration) -> HeatRates:
@@ -58,31 +102,17 @@ def lichtwark2005(state: MuscleState, constants: LichtwarkConstants, *,
     umberger.force_length_multiplier_from_state and :func:`force_velocity_multiplier_from_state`
     give them from the state), ``stimulation_duration`` t (s; 0 gives the unfatigued gamma
     0.975). ``basal`` is 0."""
-    c = constants
-    a = np.asarray(state.activation, dtype=float)
-    l0 = np.asarray(state.optimal_fibre_length, dtype=float)
-    f0 = np.asarray(state.max_isometric_force, dtype=float)
-    velocity = np.asarray(state.fibre_velocity, dtype=float)
-    shortening_velocity = -velocity / l0
-    f_iso = np.asarray(force_length_multiplier, dtype=float)
     g = np.asarray(force_velocity_multiplier, dtype=float)
-    vmax = c.max_contraction_velocity
-    curvature = c.force_velocity_curvature
-    shortening = shortening_velocity > 0.0
-
-    isometric_maintenance = maintenance_decay(stimulation_duration, c) * vmax / curvature ** 2
-    floor = c.lengthening_maintenance_floor
-    maintenance = np.where(shortening, isometric_maintenance, isometric_maintenance * (
-        floor + (1.0 - floor) * np.exp(-c.lengthening_maintenance_decay * vmax * (g - 1.0))))
-    shortening_heat = np.where(shortening, shortening_velocity / curvature,
-                               -c.lengthening_heat_coefficient * g * shortening_velocity)
-    scale = f0 * l0
-    stable = c.stable_maintenance_fraction
-    activation_maintenance = a * maintenance * (stable + (1.0 - stable) * f_iso) * scale
-    shortening_lengthening = a * f_iso * shortening_heat * scale
-    work = mechanical_work_rate(np.asarray(state.active_fibre_force, dtype=float), velocity,
-                                c.include_negative_mechanical_work)
-    total = activation_maintenance + shortening_lengthening + work
+    isometric_maintenance, lengthening_decay = lichtwark2005_transcendentals(
+        constants, stimulation_duration, g)
+    activation_maintenance, shortening_lengthening, work, total = lichtwark2005_rates(
+        constants, np.asarray(state.activation, dtype=float),
+        np.asarray(state.optimal_fibre_length, dtype=float),
+        np.asarray(state.max_isometric_force, dtype=float),
+        np.asarray(state.fibre_velocity, dtype=float),
+        np.asarray(state.active_fibre_force, dtype=float),
+        np.asarray(force_length_multiplier, dtype=float), g, isometric_maintenance,
+        lengthening_decay)
     return HeatRates(
         activation_maintenance=activation_maintenance,
         shortening_lengthening=shortening_lengthening,

@@ -22,18 +22,27 @@ import numpy as np
 
 from vm_ros.model.energetics_models.constants import MargariaConstants
 from vm_ros.model.energetics_models.state import HeatRates, MuscleState
+from vm_ros.model.jit import jitable, where
+
+
+@jitable
+def margaria1968_rates(c, active_fibre_force, velocity):
+    """(mechanical power, total) (W) of :func:`margaria1968`: NumPy arrays, or scalars in a
+    compiled loop. ``c``: MargariaConstants or its compiled form."""
+    power = -active_fibre_force * velocity
+    negative = power < 0.0
+    power = where(negative & (not c.include_negative_mechanical_work), 0.0, power)
+    total = where(negative, power / c.negative_work_efficiency,
+                  power / c.positive_work_efficiency)
+    return power, total
 
 
 def margaria1968(state: MuscleState, constants: MargariaConstants) -> HeatRates:
     """Metabolic rate (W per muscle) of Margaria 1968 (equations in the module docstring).
     ``basal`` is 0; the heat components are NaN."""
-    c = constants
-    velocity = np.asarray(state.fibre_velocity, dtype=float)
-    power = -np.asarray(state.active_fibre_force, dtype=float) * velocity
-    negative = power < 0.0
-    power = np.where(negative & (not c.include_negative_mechanical_work), 0.0, power)
-    total = np.where(negative, power / c.negative_work_efficiency,
-                     power / c.positive_work_efficiency)
+    power, total = margaria1968_rates(constants,
+                                      np.asarray(state.active_fibre_force, dtype=float),
+                                      np.asarray(state.fibre_velocity, dtype=float))
     missing = np.full(np.shape(total), np.nan)
     return HeatRates(
         activation_maintenance=missing,

@@ -22,24 +22,44 @@ import numpy as np
 
 from vm_ros.model.energetics_models.constants import MinettiConstants
 from vm_ros.model.energetics_models.state import HeatRates, MuscleState
+from vm_ros.model.jit import jitable
 
 
+@jitable
+def polynomial_value(x, coefficients):
+    """sum_i coefficients[i] x^i by Horner's rule, as numpy.polynomial.polynomial.polyval
+    computes it (c[-1] + 0 x, then c[-i] + previous x), operation for operation: the same
+    values to the bit, and callable from a compiled loop, which polyval is not."""
+    value = coefficients[-1] + x * 0
+    for i in range(2, len(coefficients) + 1):
+        value = coefficients[-i] + value * x
+    return value
+
+
+@jitable
 def phi(normalised_shortening_velocity, constants: MinettiConstants):
     """Minetti & Alexander 1997's phi(v) (1), v the shortening velocity over Vmax."""
-    v = np.asarray(normalised_shortening_velocity, dtype=float)
-    numerator = np.polynomial.polynomial.polyval(v, constants.phi_numerator)
-    denominator = np.polynomial.polynomial.polyval(v, constants.phi_denominator)
-    return numerator / denominator
+    v = normalised_shortening_velocity
+    return (polynomial_value(v, constants.phi_numerator)
+            / polynomial_value(v, constants.phi_denominator))
+
+
+@jitable
+def minetti1997_rates(c, activation, max_isometric_force, optimal_fibre_length, velocity):
+    """The total rate (W) of :func:`minetti1997`: NumPy arrays, or scalars in a compiled loop.
+    ``c``: MinettiConstants or its compiled form."""
+    vmax = c.max_contraction_velocity * optimal_fibre_length
+    v = -velocity / vmax
+    return activation * max_isometric_force * vmax * phi(v, c)
 
 
 def minetti1997(state: MuscleState, constants: MinettiConstants) -> HeatRates:
     """Metabolic rate (W per muscle) of Minetti & Alexander 1997 (equations in the module
     docstring). ``basal`` is 0; the other components are NaN."""
-    vmax = constants.max_contraction_velocity * np.asarray(state.optimal_fibre_length,
-                                                           dtype=float)
-    v = -np.asarray(state.fibre_velocity, dtype=float) / vmax
-    total = (np.asarray(state.activation, dtype=float) * state.max_isometric_force * vmax
-             * phi(v, constants))
+    total = minetti1997_rates(constants, np.asarray(state.activation, dtype=float),
+                              state.max_isometric_force,
+                              np.asarray(state.optimal_fibre_length, dtype=float),
+                              np.asarray(state.fibre_velocity, dtype=float))
     missing = np.full(np.shape(total), np.nan)
     return HeatRates(
         activation_maintenance=missing,

@@ -26,6 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vm_ros.model.jit import jitable, where
+
 
 @dataclass(frozen=True)
 class MuscleState:
@@ -50,13 +52,15 @@ class HeatRates:
     total: np.ndarray
 
 
+@jitable
 def mechanical_work_rate(force, velocity, include_negative_mechanical_work: bool):
     """-F V (W; positive while shortening, V < 0), and 0 while lengthening (V > 0) unless
     ``include_negative_mechanical_work``: the models' shared work term and its option."""
-    return np.where(include_negative_mechanical_work | (velocity <= 0.0), -force * velocity, 0.0)
+    return where(include_negative_mechanical_work | (velocity <= 0.0), -force * velocity, 0.0)
 
 
+@jitable
 def shortening_heat_for_nonnegative_total(shortening_heat, total):
     """The models' ``forbid_negative_total_power`` (OpenSim's name): where ``total`` is below 0
     the shortening heat is raised by the deficit, so the total becomes 0."""
-    return np.where(total < 0.0, shortening_heat - total, shortening_heat)
+    return where(total < 0.0, shortening_heat - total, shortening_heat)

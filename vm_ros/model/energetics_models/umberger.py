@@ -37,7 +37,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from vm_ros.model.energetics_models.bhargava import recruited_excitations
+from vm_ros.model.energetics_models.bhargava import (
+    recruited_excitations_from_angle,
+    recruitment_sin_cos,
+)
 from vm_ros.model.energetics_models.constants import UmbergerConstants
 from vm_ros.model.energetics_models.state import (
     HeatRates,
@@ -45,6 +48,7 @@ from vm_ros.model.energetics_models.state import (
     mechanical_work_rate,
     shortening_heat_for_nonnegative_total,
 )
+from vm_ros.model.jit import divide_where, jitable, maximum, minimum, where
 
 
 def force_length_multiplier_from_state(state: MuscleState):
@@ -59,13 +63,105 @@ def force_length_multiplier_from_state(state: MuscleState):
                      denominator).shape), where=denominator > 0.0)
 
 
+@jitable
+def recruited_slow_share(excitation, u_slow, u_fast):
+    """u_slow / (u_slow + u_fast), 1 at zero excitation: the slow fraction of the recruited
+    fibres."""
+    both = u_slow + u_fast
+    return divide_where(u_slow, both, (excitation != 0.0) & (both != 0.0), 1.0)
+
+
 def recruited_slow_fraction(excitation, slow_fraction):
     """Bhargava 2004's recruitment as OpenSim's Umberger probe uses it: the slow fraction of the
     recruited fibres, u_slow / (u_slow + u_fast), 1 at zero excitation."""
-    u_slow, u_fast = recruited_excitations(excitation, slow_fraction)
-    both = u_slow + u_fast
-    return np.divide(u_slow, both, out=np.ones(np.shape(both)),
-                     where=(np.asarray(excitation) != 0.0) & (both != 0.0))
+    u_slow, u_fast = recruited_excitations_from_angle(slow_fraction,
+                                                      *recruitment_sin_cos(excitation))
+    return recruited_slow_share(excitation, u_slow, u_fast)
+
+
+@jitable
+def effective_excitation(u, a):
+    """A_eff: u where u > a, (u + a) / 2 elsewhere (scaled excitation u and activation a)."""
+    return where(u > a, u, (u + a) / 2.0)
+
+
+def umberger2003_powers(constants: UmbergerConstants, excitation, activation):
+    """(A_eff, A_eff^0.6, A_eff^2) over arrays, by NumPy on either path (u and a scaled by
+    the muscle_effort_scaling_factor)."""
+    c = constants
+    k = c.muscle_effort_scaling_factor
+    a = k * np.asarray(activation, dtype=float)
+    u = k * np.asarray(excitation, dtype=float)
+    effective = effective_excitation(u, a)
+    return (effective, effective ** c.activation_maintenance_exponent,
+            effective ** c.shortening_exponent)
+
+
+def umberger2003_transcendentals(constants: UmbergerConstants, excitation, activation):
+    """The powers and the recruitment's sine and cosine the heat rates take, over arrays
+    (computed by NumPy on either path, so that both give its values to the bit): (A_eff,
+    A_eff^0.6, A_eff^2, sin(pi u / 2), cos(pi u / 2)); the last two None without Bhargava's
+    recruitment."""
+    c = constants
+    powers = umberger2003_powers(c, excitation, activation)
+    if not c.use_Bhargava_recruitment_model:
+        return (*powers, None, None)
+    return (*powers, *recruitment_sin_cos(c.muscle_effort_scaling_factor
+                                          * np.asarray(excitation, dtype=float)))
+
+
+@jitable
+def umberger2003_rates(c, excitation, mass, velocity, optimal_fibre_length, fibre_length,
+                       active_fibre_force, slow_fraction, force_length_multiplier, effective,
+                       maintenance_power, shortening_power, sin_angle, cos_angle):
+    """(activation maintenance, shortening, work, total) rates (W) of :func:`umberger2003`
+    from its transcendental parts (:func:`umberger2003_transcendentals`): NumPy arrays, or
+    scalars in a compiled loop. ``c``: UmbergerConstants, or its compiled form (a named tuple
+    of the same fields)."""
+    k = c.muscle_effort_scaling_factor
+    u = k * excitation
+    velocity_norm = velocity / optimal_fibre_length
+    length_norm = fibre_length / optimal_fibre_length
+    f_active = maximum(k * active_fibre_force, 0.0)
+    f_iso = force_length_multiplier
+    slow = slow_fraction
+    if c.use_Bhargava_recruitment_model:
+        u_slow, u_fast = recruited_excitations_from_angle(slow_fraction, sin_angle, cos_angle)
+        slow = recruited_slow_share(u, u_slow, u_fast)
+    lengthened = length_norm > 1.0
+
+    h = c.activation_maintenance_fast_rate * (1.0 - slow) + c.activation_maintenance_base_rate
+    fraction = c.lengthened_activation_maintenance_fraction
+    activation_maintenance = c.aerobic_factor * maintenance_power * (
+        where(lengthened, fraction * h + (1.0 - fraction) * h * f_iso, h))
+
+    alpha_fast = c.shortening_heat_fast_at_vmax / c.max_contraction_velocity
+    alpha_slow = c.shortening_heat_slow_at_vmax / (c.max_contraction_velocity
+                                                   / c.fast_to_slow_vmax_ratio)
+    slow_term = minimum(-alpha_slow * velocity_norm, c.max_slow_shortening_heat_rate)
+    fast_term = alpha_fast * velocity_norm * (1.0 - slow)
+    shortening_rate = c.aerobic_factor * shortening_power * (slow_term * slow - fast_term)
+    coefficient = (c.lengthening_coefficient_with_negative_work
+                   if c.include_negative_mechanical_work else c.lengthening_coefficient)
+    lengthening_rate = c.aerobic_factor * effective * (coefficient * alpha_slow * velocity_norm)
+    shortening = where(velocity_norm <= 0.0, shortening_rate, lengthening_rate)
+    shortening = where(lengthened, shortening * f_iso, shortening)
+
+    work = mechanical_work_rate(f_active, velocity, c.include_negative_mechanical_work) / mass
+
+    if c.forbid_negative_total_power:
+        shortening = shortening_heat_for_nonnegative_total(
+            shortening, activation_maintenance + shortening + work)
+
+    if c.activation_maintenance_rate_on and c.shortening_rate_on:
+        heat = activation_maintenance + shortening
+        if c.enforce_minimum_heat_rate_per_muscle:
+            heat = where(heat < c.minimum_heat_rate, c.minimum_heat_rate, heat)
+    else:
+        heat = (c.activation_maintenance_rate_on * activation_maintenance
+                + c.shortening_rate_on * shortening)
+    total = (heat + c.mechanical_work_rate_on * work) * mass
+    return activation_maintenance * mass, shortening * mass, work * mass, total
 
 
 def umberger2003(state: MuscleState, constants: UmbergerConstants, *,
@@ -77,59 +173,19 @@ def umberger2003(state: MuscleState, constants: UmbergerConstants, *,
     Virtual Muscle, whose active force is not proportional to activation, it gave 1.43x
     OpenSim's activation heat at 1.3 L0). ``basal`` is 0: the basal rate is whole-body
     (constants.basal_rate, probe_total)."""
-    c = constants
-    k = c.muscle_effort_scaling_factor
-    a = k * np.asarray(state.activation, dtype=float)
-    u = k * np.asarray(state.excitation, dtype=float)
-    mass = np.asarray(state.mass, dtype=float)
-    velocity = np.asarray(state.fibre_velocity, dtype=float)
-    velocity_norm = velocity / state.optimal_fibre_length
-    length_norm = np.asarray(state.fibre_length, dtype=float) / state.optimal_fibre_length
-    f_active = np.maximum(k * np.asarray(state.active_fibre_force, dtype=float), 0.0)
-    f_iso = np.asarray(force_length_multiplier, dtype=float)
-    effective = np.where(u > a, u, (u + a) / 2.0)
-    slow = np.asarray(state.slow_fraction, dtype=float)
-    if c.use_Bhargava_recruitment_model:
-        slow = recruited_slow_fraction(u, slow)
-    lengthened = length_norm > 1.0
-
-    h = c.activation_maintenance_fast_rate * (1.0 - slow) + c.activation_maintenance_base_rate
-    fraction = c.lengthened_activation_maintenance_fraction
-    activation_maintenance = c.aerobic_factor * effective ** c.activation_maintenance_exponent * (
-        np.where(lengthened, fraction * h + (1.0 - fraction) * h * f_iso, h))
-
-    alpha_fast = c.shortening_heat_fast_at_vmax / c.max_contraction_velocity
-    alpha_slow = c.shortening_heat_slow_at_vmax / (c.max_contraction_velocity
-                                                   / c.fast_to_slow_vmax_ratio)
-    slow_term = np.minimum(-alpha_slow * velocity_norm, c.max_slow_shortening_heat_rate)
-    fast_term = alpha_fast * velocity_norm * (1.0 - slow)
-    shortening_rate = c.aerobic_factor * effective ** c.shortening_exponent * (
-        slow_term * slow - fast_term)
-    coefficient = (c.lengthening_coefficient_with_negative_work
-                   if c.include_negative_mechanical_work else c.lengthening_coefficient)
-    lengthening_rate = c.aerobic_factor * effective * (coefficient * alpha_slow * velocity_norm)
-    shortening = np.where(velocity_norm <= 0.0, shortening_rate, lengthening_rate)
-    shortening = np.where(lengthened, shortening * f_iso, shortening)
-
-    work = mechanical_work_rate(f_active, velocity, c.include_negative_mechanical_work) / mass
-
-    if c.forbid_negative_total_power:
-        shortening = shortening_heat_for_nonnegative_total(
-            shortening, activation_maintenance + shortening + work)
-
-    both_heat_on = c.activation_maintenance_rate_on and c.shortening_rate_on
-    if both_heat_on:
-        heat = activation_maintenance + shortening
-        if c.enforce_minimum_heat_rate_per_muscle:
-            heat = np.where(heat < c.minimum_heat_rate, c.minimum_heat_rate, heat)
-    else:
-        heat = (c.activation_maintenance_rate_on * activation_maintenance
-                + c.shortening_rate_on * shortening)
-    total = (heat + c.mechanical_work_rate_on * work) * mass
+    excitation = np.asarray(state.excitation, dtype=float)
+    parts = umberger2003_transcendentals(constants, excitation, state.activation)
+    activation_maintenance, shortening, work, total = umberger2003_rates(
+        constants, excitation, np.asarray(state.mass, dtype=float),
+        np.asarray(state.fibre_velocity, dtype=float), state.optimal_fibre_length,
+        np.asarray(state.fibre_length, dtype=float),
+        np.asarray(state.active_fibre_force, dtype=float),
+        np.asarray(state.slow_fraction, dtype=float),
+        np.asarray(force_length_multiplier, dtype=float), *parts)
     return HeatRates(
-        activation_maintenance=activation_maintenance * mass,
-        shortening_lengthening=shortening * mass,
+        activation_maintenance=activation_maintenance,
+        shortening_lengthening=shortening,
         basal=np.zeros_like(total),
-        mechanical_work=work * mass,
+        mechanical_work=work,
         total=total,
     )

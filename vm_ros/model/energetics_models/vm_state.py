@@ -52,6 +52,7 @@ from vm_ros.model.energetics_models.margaria import margaria1968
 from vm_ros.model.energetics_models.minetti import minetti1997
 from vm_ros.model.energetics_models.state import HeatRates, MuscleState
 from vm_ros.model.energetics_models.umberger import umberger2003
+from vm_ros.model.jit import divide_where, jitable, maximum
 from vm_ros.model.layout import type_columns
 from vm_ros.model.params import FibreTypeParams, GenericParams
 
@@ -136,6 +137,39 @@ def time_since_onset(time_s, excitation):
     return np.where(on, t[:, None] - t[last_onset], 0.0)
 
 
+def passive_curves(length_l0, velocity_l0_per_s, constants: VmMuscleConstants):
+    """FPE1 and FPE2 (F0) at fascicle length L (L0) and velocity V (L0/s): the bank's
+    parallel elastic elements (vm_ros.model.curves)."""
+    g = constants.generic
+    return (curves.passive_parallel_elastic_cheng2000(length_l0, velocity_l0_per_s,
+                                                      constants.lmax, g.c1, g.k1, g.lr1, g.eta),
+            curves.thick_filament_compression_cheng2000(length_l0, g.c2, g.k2, g.lr2))
+
+
+@jitable
+def inputs_from_curves(a_slow, a_fast, fl_slow, fl_fast, fv_slow, fv_fast, pe1, pe2, f0,
+                       fpcsa_slow, fpcsa_fast):
+    """(activation (1), active fibre force (N), isometric force (N), passive fibre force (N),
+    force-length multiplier (1), force-velocity multiplier (1)) from the effective activation
+    and the curves per fibre type (module docstring): NumPy arrays, or scalars in a compiled
+    loop. Sums over the two types are a_slow + a_fast, as sum(axis=-1) adds two terms."""
+    flv_slow, flv_fast = fl_slow * fv_slow, fl_fast * fv_fast
+    activation = a_slow + a_fast
+    isometric_norm = a_slow * fl_slow + a_fast * fl_fast
+    active_norm = a_slow * flv_slow + a_fast * flv_fast
+    contractile_norm = maximum(0.0, pe1 + (a_slow * (flv_slow + pe2) + a_fast * (flv_fast + pe2)))
+    passive_norm = contractile_norm - active_norm
+    at_rest_fl = fpcsa_slow * fl_slow + fpcsa_fast * fl_fast
+    at_rest_fv = divide_where(fpcsa_slow * flv_slow + fpcsa_fast * flv_fast, at_rest_fl,
+                              at_rest_fl > 0.0, 1.0)
+    on = activation > 0.0
+    fl_multiplier = divide_where(isometric_norm, activation, on, at_rest_fl)
+    fv_multiplier = divide_where(active_norm, isometric_norm, on & (isometric_norm > 0.0),
+                                 at_rest_fv)
+    return (activation, f0 * active_norm, f0 * isometric_norm, f0 * passive_norm, fl_multiplier,
+            fv_multiplier)
+
+
 def vm_model_inputs(constants: VmMuscleConstants, excitation, effective_activation,
                     fascicle_length_m, fascicle_velocity_m_per_s,
                     stimulation_duration=None) -> VmModelInputs:
@@ -149,44 +183,28 @@ def vm_model_inputs(constants: VmMuscleConstants, excitation, effective_activati
     xdot = np.asarray(fascicle_velocity_m_per_s, dtype=float)
     shape = x.shape
     l, v = x / c.l0, xdot / c.l0
-    # per fibre type (slow, fast) first: (2, ...); sums over the types are a_slow + a_fast,
-    # as sum(axis=-1) adds two terms
+    # per fibre type (slow, fast) first: (2, ...)
     fl, fv = fibre_curves_by_type(l, v, c.fibre, c.generic)
-    g = c.generic
-    pe1 = curves.passive_parallel_elastic_cheng2000(l, v, c.lmax, g.c1, g.k1, g.lr1, g.eta)
-    pe2 = curves.thick_filament_compression_cheng2000(l, g.c2, g.k2, g.lr2)
+    pe1, pe2 = passive_curves(l, v, c)
     f0 = np.broadcast_to(c.f0, shape)
-    flv = fl * fv
-    a_slow, a_fast = activity[..., 0], activity[..., 1]
-    activation = a_slow + a_fast
-    isometric_norm = a_slow * fl[0] + a_fast * fl[1]
-    active_norm = a_slow * flv[0] + a_fast * flv[1]
-    contractile_norm = np.maximum(0.0, pe1 + (a_slow * (flv[0] + pe2)
-                                              + a_fast * (flv[1] + pe2)))
-    passive_norm = contractile_norm - active_norm
-    p_slow, p_fast = c.fpcsa[:, 0], c.fpcsa[:, 1]
-    at_rest_fl = p_slow * fl[0] + p_fast * fl[1]
-    at_rest_fv = np.divide(p_slow * flv[0] + p_fast * flv[1], at_rest_fl,
-                           out=np.ones(shape), where=at_rest_fl > 0.0)
-    on = activation > 0.0
-    fl_multiplier = np.divide(isometric_norm, activation, out=at_rest_fl.copy(), where=on)
-    fv_multiplier = np.divide(active_norm, isometric_norm, out=at_rest_fv.copy(),
-                              where=on & (isometric_norm > 0.0))
+    activation, active, isometric, passive, fl_multiplier, fv_multiplier = inputs_from_curves(
+        activity[..., 0], activity[..., 1], fl[0], fl[1], fv[0], fv[1], pe1, pe2, f0,
+        c.fpcsa[:, 0], c.fpcsa[:, 1])
     state = MuscleState(
         excitation=u,
         activation=activation,
         fibre_length=x,
         optimal_fibre_length=np.broadcast_to(c.l0, shape),
         fibre_velocity=xdot,
-        active_fibre_force=f0 * active_norm,
-        isometric_force=f0 * isometric_norm,
+        active_fibre_force=active,
+        isometric_force=isometric,
         max_isometric_force=f0,
         mass=np.broadcast_to(c.mass, shape),
         slow_fraction=np.broadcast_to(c.fpcsa[:, 0], shape),
     )
     duration = (np.zeros(shape) if stimulation_duration is None
                 else np.broadcast_to(np.asarray(stimulation_duration, dtype=float), shape))
-    return VmModelInputs(state, fl_multiplier, fv_multiplier, f0 * passive_norm, duration)
+    return VmModelInputs(state, fl_multiplier, fv_multiplier, passive, duration)
 
 
 def vm_model_inputs_from_outputs(bank, outputs) -> VmModelInputs:

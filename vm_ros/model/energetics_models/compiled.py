@@ -1,0 +1,419 @@
+"""The published models over a block of steps, their arithmetic compiled with Numba, to the bit
+the values of the NumPy path (in_bank.BankModels without Numba).
+
+Each model is written once (umberger, bhargava, lichtwark, houdijk, margaria, minetti): a
+``*_transcendentals`` function over arrays (its powers, exponentials, sines and cosines, and the
+piecewise-linear curve of Bhargava) and a ``@jitable`` ``*_rates`` function of everything else.
+The NumPy path calls both over arrays; here the first runs over the block's arrays and the second
+in a compiled loop over the block's muscle-steps, as does the mapping from Virtual Muscle's state
+(vm_state.inputs_from_curves; its FL, FPE1 and FPE2 by NumPy, FV in the loop). The two paths
+give the same bits because:
+
+- NumPy's exp, expm1, log1p and power (SIMD code chosen for the machine: on AVX-512, Intel's
+  SVML, 1 ulp from libm's in about 5 % of arguments) are computed by NumPy on both paths; only
+  +, -, *, /, comparisons and selections are compiled, and those are IEEE operations;
+- the loops are compiled without fast-math flags: no a * b + c is fused into one rounding
+  (LLVM fuses only under the ``contract`` flag, which the model step's kernel sets and these
+  loops do not), nothing is reassociated;
+- jit.maximum and jit.minimum give NumPy's result where the two arguments are equal (its second:
+  max(-0.0, 0.0) is 0.0) and NaN where either is NaN;
+- the one equation these loops share with the kernel, curves.force_velocity_cheng2000, is
+  compiled for them as a copy of its own: Numba keeps one compile of a jitable function per
+  argument types, made with the flags of whichever caller compiled it first, so that the kernel
+  (with ``contract``) and these loops (without) would otherwise each get the other's in a
+  process that compiles both, and their numbers would depend on the order. For the same
+  reason the equations these loops compile raise nothing to a power: Numba compiles ``x ** 2``
+  once per process for every caller (Lichtwark's G^2 is computed in Python).
+
+test_energetics_compiled.py holds the two paths to the bit.
+"""
+
+from __future__ import annotations
+
+import collections
+import dataclasses
+
+import numpy as np
+
+from vm_ros.model import curves
+from vm_ros.model.energetics_models import constants as model_constants
+from vm_ros.model.energetics_models.bhargava import (
+    bhargava2004,
+    bhargava2004_rates,
+    recruitment_sin_cos,
+)
+from vm_ros.model.energetics_models.houdijk import (
+    houdijk2006,
+    houdijk2006_exponents,
+    houdijk2006_rates,
+)
+from vm_ros.model.energetics_models.lichtwark import (
+    lichtwark2005,
+    lichtwark2005_rates,
+    lichtwark2005_transcendentals,
+)
+from vm_ros.model.energetics_models.margaria import margaria1968, margaria1968_rates
+from vm_ros.model.energetics_models.minetti import minetti1997, minetti1997_rates
+from vm_ros.model.energetics_models.umberger import (
+    umberger2003,
+    umberger2003_powers,
+    umberger2003_rates,
+)
+from vm_ros.model.energetics_models.vm_state import inputs_from_curves, passive_curves
+from vm_ros.model.jit import (
+    COMPILE_OPTIONS,
+    HAVE_NUMBA,
+    compile_interruptibly,
+    in_disk_cache,
+    jitable,
+    model_cache_directory,
+    numba,
+)
+from vm_ros.model.kernel import renamed
+from vm_ros.model.layout import T, type_columns
+
+# the components of in_bank.COMPONENTS, in its order
+ACTIVATION_MAINTENANCE, SHORTENING_LENGTHENING, BASAL, MECHANICAL_WORK, TOTAL = range(5)
+
+
+def _named_tuple(cls):
+    """A named tuple of the fields of the constants class ``cls``, named ``<cls>Compiled`` in
+    this module (where Numba's disk cache finds it again in the next process)."""
+    return collections.namedtuple(f"{cls.__name__}Compiled",
+                                  [f.name for f in dataclasses.fields(cls)], module=__name__)
+
+
+UmbergerConstantsCompiled = _named_tuple(model_constants.UmbergerConstants)
+BhargavaConstantsCompiled = _named_tuple(model_constants.BhargavaConstants)
+LichtwarkConstantsCompiled = _named_tuple(model_constants.LichtwarkConstants)
+HoudijkConstantsCompiled = _named_tuple(model_constants.HoudijkConstants)
+MargariaConstantsCompiled = _named_tuple(model_constants.MargariaConstants)
+MinettiConstantsCompiled = _named_tuple(model_constants.MinettiConstants)
+TUPLE_TYPES = {getattr(model_constants, cls.__name__.removesuffix("Compiled")): cls
+               for cls in (UmbergerConstantsCompiled, BhargavaConstantsCompiled,
+                           LichtwarkConstantsCompiled, HoudijkConstantsCompiled,
+                           MargariaConstantsCompiled, MinettiConstantsCompiled)}
+
+
+def compiled_constants(constants):
+    """A model's constants (a frozen dataclass) as a named tuple of the same fields, which
+    compiled code reads by name (tuples of numbers stay tuples, of floats)."""
+    def value(v):
+        return tuple(float(x) for x in v) if isinstance(v, tuple) else v
+
+    return TUPLE_TYPES[type(constants)](**{f.name: value(getattr(constants, f.name))
+                                           for f in dataclasses.fields(constants)})
+
+
+# FV for these loops alone (module docstring)
+_force_velocity = jitable(renamed(curves.force_velocity_cheng2000,
+                                  "force_velocity_cheng2000_without_contraction"))
+
+
+# --- the compiled loops: one per model, over a block's muscle-steps as flat arrays --------------
+#
+# Every array is one value per muscle-step of the block (the per-muscle constants repeated per
+# step), flat and contiguous, so that each loop is a plain loop over elements; ``out``: the
+# model's component rows (in_bank.COMPONENTS), flat.
+
+
+def _inputs_loop(a_slow, a_fast, length, velocity, fl, pe1, pe2, f0, fpcsa_slow, fpcsa_fast,
+                 fv_columns, denominator_min, out):
+    """vm_state.inputs_from_curves at every muscle-step, FV of each type computed here; ``out``:
+    activation, active, isometric and passive force, FL and FV multipliers."""
+    slow, fast = fv_columns
+    for j in range(length.size):
+        fv_slow = _force_velocity(velocity[j], length[j], *slow, denominator_min)
+        fv_fast = _force_velocity(velocity[j], length[j], *fast, denominator_min)
+        (out[0][j], out[1][j], out[2][j], out[3][j], out[4][j], out[5][j]) = inputs_from_curves(
+            a_slow[j], a_fast[j], fl[0, j], fl[1, j], fv_slow, fv_fast, pe1[j], pe2[j], f0[j],
+            fpcsa_slow[j], fpcsa_fast[j])
+
+
+def _umberger_loop(c, excitation, mass, velocity, l0, length, active, slow, fl_multiplier,
+                   effective, maintenance_power, shortening_power, sin_angle, cos_angle, out):
+    for j in range(length.size):
+        out[0][j], out[1][j], out[3][j], out[4][j] = umberger2003_rates(
+            c, excitation[j], mass[j], velocity[j], l0[j], length[j], active[j], slow[j],
+            fl_multiplier[j], effective[j], maintenance_power[j], shortening_power[j],
+            sin_angle[j], cos_angle[j])
+
+
+def _bhargava_loop(c, mass, velocity, active, passive, isometric, length, l0, slow, sin_angle,
+                   cos_angle, out):
+    for j in range(length.size):
+        out[0][j], out[1][j], out[3][j], out[4][j] = bhargava2004_rates(
+            c, mass[j], velocity[j], active[j], passive[j], isometric[j], length[j] / l0[j],
+            slow[j], sin_angle[j], cos_angle[j])
+
+
+def _lichtwark_loop(c, activation, l0, f0, velocity, active, fl_multiplier, fv_multiplier,
+                    isometric_maintenance, lengthening_decay, out):
+    for j in range(velocity.size):
+        out[0][j], out[1][j], out[3][j], out[4][j] = lichtwark2005_rates(
+            c, activation[j], l0[j], f0[j], velocity[j], active[j], fl_multiplier[j],
+            fv_multiplier[j], isometric_maintenance[j], lengthening_decay[j])
+
+
+def _houdijk_exponents_loop(c, activation, slow, out):
+    for j in range(activation.size):
+        out[0, j], out[1, j] = houdijk2006_exponents(c, activation[j], slow[j])
+
+
+def _houdijk_loop(c, activation, mass, velocity, slow, f0, active, fl_multiplier, recruited_exp,
+                  at_max_exp, out):
+    for j in range(velocity.size):
+        out[0][j], out[1][j], out[3][j], out[4][j] = houdijk2006_rates(
+            c, activation[j], mass[j], velocity[j], slow[j], f0[j], active[j],
+            fl_multiplier[j], recruited_exp[j], at_max_exp[j])
+
+
+def _margaria_loop(c, active, velocity, out):
+    for j in range(velocity.size):
+        out[3][j], out[4][j] = margaria1968_rates(c, active[j], velocity[j])
+
+
+def _minetti_loop(c, activation, f0, l0, velocity, out):
+    for j in range(velocity.size):
+        out[4][j] = minetti1997_rates(c, activation[j], f0[j], l0[j], velocity[j])
+
+
+def _integrate_loop(energy, totals, dt, out):
+    """out[m, j, i] = energy[i, m] + the sum of totals[m, j', i] dt[j'] over j' <= j, added
+    step after step (E += rate dt), as step-by-step integration adds them."""
+    steps, n = out.shape[1], out.shape[2]
+    for m in range(out.shape[0]):
+        rates, energies = totals[m], out[m]
+        for i in range(n):
+            energies[0, i] = energy[i, m] + rates[0, i] * dt[0]
+        for j in range(1, steps):
+            for i in range(n):
+                energies[j, i] = energies[j - 1, i] + rates[j, i] * dt[j]
+
+
+def _stimulation_duration_loop(time_s, excitation, onset_s, out):
+    """in_bank.BankModels.stimulation_duration in one pass: out[j, i] = time since the drive
+    last rose above 0 (0 where it is 0), ``onset_s`` (n,) advanced in place."""
+    steps, n = excitation.shape
+    drive_on = np.empty(n, dtype=np.bool_)
+    for i in range(n):
+        drive_on[i] = not np.isnan(onset_s[i])
+    for j in range(steps):
+        t = time_s[j]
+        for i in range(n):
+            on = excitation[j, i] > 0.0
+            if on and not drive_on[i]:
+                onset_s[i] = t
+            out[j, i] = t - onset_s[i] if on else 0.0
+            drive_on[i] = on
+    for i in range(n):
+        if not drive_on[i]:
+            onset_s[i] = np.nan
+
+
+# no fast-math flags (module docstring); divisions by zero give inf or NaN, as NumPy's
+OPTIONS = {"cache": True, "nogil": True, "error_model": "numpy", "fastmath": False,
+           **COMPILE_OPTIONS}
+LOOPS = (_inputs_loop, _umberger_loop, _bhargava_loop, _lichtwark_loop,
+         _houdijk_exponents_loop, _houdijk_loop, _margaria_loop, _minetti_loop, _integrate_loop,
+         _stimulation_duration_loop)
+AVAILABLE = HAVE_NUMBA
+if HAVE_NUMBA:
+    with model_cache_directory():
+        (_inputs_loop, _umberger_loop, _bhargava_loop, _lichtwark_loop, _houdijk_exponents_loop,
+         _houdijk_loop, _margaria_loop, _minetti_loop, _integrate_loop,
+         _stimulation_duration_loop) = LOOPS = tuple(
+            numba.njit(**OPTIONS)(loop) for loop in LOOPS)
+
+
+# --- one model over a block: its transcendentals by NumPy, then its loop -------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class Block:
+    """A block's arrays, flat (one value per muscle-step): its outputs, the mapped inputs and
+    the bank's per-muscle constants repeated per step; ``memo``: transcendentals computed for
+    it (:func:`_memo`)."""
+
+    excitation: np.ndarray
+    length: np.ndarray
+    velocity: np.ndarray
+    duration: np.ndarray
+    activation: np.ndarray
+    active: np.ndarray
+    isometric: np.ndarray
+    passive: np.ndarray
+    fl_multiplier: np.ndarray
+    fv_multiplier: np.ndarray
+    l0: np.ndarray
+    f0: np.ndarray
+    mass: np.ndarray
+    slow: np.ndarray
+    memo: dict
+
+
+def _memo(b: Block, key, compute):
+    """compute(), or its value for the same key earlier in this block (models of the same
+    constants share their transcendentals: the three Umberger variants their powers, Uchida and
+    Bhargava the recruitment's sine and cosine)."""
+    if key not in b.memo:
+        b.memo[key] = compute()
+    return b.memo[key]
+
+
+def _recruitment_sin_cos(b: Block, scaling):
+    return _memo(b, ("recruitment", scaling), lambda: recruitment_sin_cos(scaling * b.excitation))
+
+
+def _umberger(c, b: Block, constants, out):
+    key = ("umberger powers", constants.muscle_effort_scaling_factor,
+           constants.activation_maintenance_exponent, constants.shortening_exponent)
+    effective, maintenance, shortening = _memo(
+        b, key, lambda: umberger2003_powers(constants, b.excitation, b.activation))
+    sin_angle = cos_angle = effective  # not used without Bhargava's recruitment
+    if constants.use_Bhargava_recruitment_model:
+        sin_angle, cos_angle = _recruitment_sin_cos(b, constants.muscle_effort_scaling_factor)
+    _umberger_loop(c, b.excitation, b.mass, b.velocity, b.l0, b.length, b.active, b.slow,
+                   b.fl_multiplier, effective, maintenance, shortening, sin_angle, cos_angle, out)
+
+
+def _bhargava(c, b: Block, constants, out):
+    sin_angle, cos_angle = _recruitment_sin_cos(b, constants.muscle_effort_scaling_factor)
+    _bhargava_loop(c, b.mass, b.velocity, b.active, b.passive, b.isometric, b.length, b.l0,
+                   b.slow, sin_angle, cos_angle, out)
+
+
+def _lichtwark(c, b: Block, constants, out):
+    isometric_maintenance, lengthening_decay = lichtwark2005_transcendentals(
+        constants, b.duration, b.fv_multiplier)
+    _lichtwark_loop(c, b.activation, b.l0, b.f0, b.velocity, b.active, b.fl_multiplier,
+                    b.fv_multiplier, isometric_maintenance, lengthening_decay, out)
+
+
+def _houdijk(c, b: Block, constants, out):
+    exponents = np.empty((2, b.activation.size))
+    _houdijk_exponents_loop(c, b.activation, b.slow, exponents)
+    recruited_exp, at_max_exp = np.exp(exponents)
+    _houdijk_loop(c, b.activation, b.mass, b.velocity, b.slow, b.f0, b.active, b.fl_multiplier,
+                  recruited_exp, at_max_exp, out)
+
+
+def _margaria(c, b: Block, constants, out):
+    for component in (ACTIVATION_MAINTENANCE, SHORTENING_LENGTHENING):
+        out[component][...] = np.nan
+    _margaria_loop(c, b.active, b.velocity, out)
+
+
+def _minetti(c, b: Block, constants, out):
+    for component in (ACTIVATION_MAINTENANCE, SHORTENING_LENGTHENING, MECHANICAL_WORK):
+        out[component][...] = np.nan
+    _minetti_loop(c, b.activation, b.f0, b.l0, b.velocity, out)
+
+
+# each published model's function (vm_state.PUBLISHED_MODELS) -> its run over a block
+BLOCK_RUNS = {umberger2003: _umberger, bhargava2004: _bhargava, lichtwark2005: _lichtwark,
+              houdijk2006: _houdijk, margaria1968: _margaria, minetti1997: _minetti}
+
+
+def integrate_energies(energy_j, totals, dt):
+    """Cumulative energies (k, n, M) J after k steps from ``energy_j`` (n, M), the totals (M, k,
+    n) W over steps of dt (k,) s: E += rate dt step after step (in_bank.BankModels.advance)."""
+    out = np.empty(totals.shape)  # (M, k, n), handed out as the (k, n, M) view
+    _integrate_loop(np.ascontiguousarray(energy_j), totals, np.ascontiguousarray(dt), out)
+    return np.moveaxis(out, 0, -1)
+
+
+def stimulation_duration(time_s, excitation, onset_s):
+    """(time since the drive last rose above 0 (k, n) s, the onsets after) of k steps ending at
+    ``time_s`` (k,) with drive (k, n), from the onsets ``onset_s`` (n,) (NaN: drive off)."""
+    onset = np.array(onset_s, dtype=float)
+    drive = np.ascontiguousarray(excitation, dtype=float)
+    out = np.empty(drive.shape)
+    _stimulation_duration_loop(np.ascontiguousarray(time_s, dtype=float), drive, onset, out)
+    return out, onset
+
+
+class CompiledModels:
+    """The selected models (vm_state.PublishedModel entries and their loaded constants) of a
+    bank (vm_state.VmMuscleConstants), run over blocks of its outputs."""
+
+    def __init__(self, models, constants, muscle):
+        self._runs = [BLOCK_RUNS[model.function] for model in models]
+        self._constants = list(constants)
+        self._compiled = [compiled_constants(c) for c in constants]
+        self.muscle = muscle
+        n = len(np.atleast_1d(muscle.f0))
+        # per muscle: l0, f0, mass, slow and fast PCSA fractions, lmax
+        self._per_muscle = np.stack([np.broadcast_to(np.asarray(a, dtype=float), (n,)) for a in (
+            muscle.l0, muscle.f0, muscle.mass, muscle.fpcsa[:, 0], muscle.fpcsa[:, 1],
+            muscle.lmax)])
+        self._fl_columns = type_columns(muscle.fibre, (2, 1))
+        # FPE1 and FPE2 enter the passive force alone, which Bhargava's model alone takes (the
+        # registry's extras): without it they are left at 0 (the other models never read it)
+        self._passive = any("passive_fibre_force" in model.extras for model in models)
+        self._repeated = {}  # rows -> the per-muscle constants repeated over that many steps
+        columns = type_columns(muscle.fibre)
+        self._fv_columns = tuple(tuple(float(np.asarray(columns[name])[t]) for name in (
+            T.vmax, T.cv0, T.cv1, T.av0, T.av1, T.av2, T.bv)) for t in range(2))
+
+    def fill(self, out, excitation, effective_activation, length_m, velocity_m_per_s,
+             stimulation_duration) -> None:
+        """out[m, c] (M, C, rows, n) = component c of model m at a block's outputs (rows, n)
+        (effective activation (rows, n, 2); stimulation duration (s) or None for 0)."""
+        shape = np.shape(length_m)
+        u, x, xdot = (np.ascontiguousarray(a, dtype=float).reshape(-1)
+                      for a in (excitation, length_m, velocity_m_per_s))
+        activity = np.asarray(effective_activation, dtype=float).reshape(-1, 2)
+        duration = (np.zeros(x.shape) if stimulation_duration is None
+                    else np.ascontiguousarray(stimulation_duration, dtype=float).reshape(-1))
+        if shape[0] not in self._repeated:
+            self._repeated[shape[0]] = np.broadcast_to(
+                self._per_muscle[:, None], (len(self._per_muscle), *shape)).reshape(
+                len(self._per_muscle), -1)
+        l0, f0, mass, fpcsa_slow, fpcsa_fast, lmax = self._repeated[shape[0]]
+        l, v = x / l0, xdot / l0
+        ft = self._fl_columns
+        fl = curves.force_length_cheng2000(l[None], ft[T.omega], ft[T.beta], ft[T.rho])
+        if self._passive:
+            pe1, pe2 = passive_curves(l, v, dataclasses.replace(self.muscle, lmax=lmax))
+        else:
+            pe1 = pe2 = np.zeros(x.size)
+        inputs = np.empty((6, x.size))
+        _inputs_loop(np.ascontiguousarray(activity[:, 0]), np.ascontiguousarray(activity[:, 1]),
+                     l, v, fl, pe1, pe2, f0, fpcsa_slow, fpcsa_fast, self._fv_columns,
+                     float(self.muscle.generic.fv_denominator_min), tuple(inputs))
+        block = Block(u, x, xdot, duration, *inputs, l0, f0, mass, fpcsa_slow, {})
+        for m, (run, c, constants) in enumerate(zip(self._runs, self._compiled, self._constants,
+                                                    strict=True)):
+            out[m, BASAL] = 0.0
+            run(c, block, constants, tuple(np.reshape(row, -1, copy=False) for row in out[m]))
+
+
+# The loops' first compile, for the line warm_up prints (docs/performance.md)
+COMPILE_TIME = "about 5-15 s"
+
+
+def warm_up(compiled_models: CompiledModels) -> None:
+    """Compile the loops ``compiled_models`` runs (or load them from Numba's disk cache) now,
+    on a block of one step, rather than in its first block; a compile says so on stderr first
+    (jit.compile_interruptibly)."""
+    n = compiled_models._per_muscle.shape[1]
+    models = len(compiled_models._runs)
+
+    def compile_now():
+        zeros = np.zeros((1, n))
+        compiled_models.fill(np.empty((models, 5, 1, n)), zeros, np.zeros((1, n, 2)),
+                             np.ones((1, n)), zeros, zeros)
+        integrate_energies(np.zeros((n, models)), np.zeros((models, 2, 1, n))[:, 0],
+                           np.ones(1))
+        stimulation_duration(np.zeros(1), zeros, np.full(n, np.nan))
+
+    loops = [loop for loop in LOOPS if not loop.signatures]
+    if all(in_disk_cache(loop) for loop in loops):
+        compile_now()
+    else:
+        compile_interruptibly(compile_now, "the published energetics models", COMPILE_TIME)
+
+
+__all__ = ["AVAILABLE", "BLOCK_RUNS", "COMPILE_TIME", "CompiledModels", "compiled_constants",
+           "integrate_energies", "stimulation_duration", "warm_up"]
