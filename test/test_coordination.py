@@ -119,6 +119,39 @@ def test_two_identical_muscles_share_the_moment_equally(tmp_path, cost):
     assert np.allclose(result.drives[:, 0], result.drives[:, 1], atol=1e-6)
 
 
+def test_drive_squared_split_of_identical_muscles_is_unequal_where_force_is_convex(tmp_path):
+    """Why the equal split of identical muscles (test above) is a rule, not the drive^2 optimum:
+    with VM's static-equilibrium force F(U) (MuscleBank.reset, 101 drives), two soleus copies
+    carrying 600 N together, min Ua^2 + Ub^2 subject to F(Ua) + F(Ub) = 600 N over a grid of Ua
+    (Ub from the interpolated inverse of F) has its minimum away from Ua = Ub, more than 1 %
+    below the equal split's cost: F grows convexly with the drive. At 400 N the equal split is
+    the minimum (within the grid's step)."""
+    drives = np.linspace(0.0, 1.0, 101)
+    force = np.array([steady_force(tmp_path, {}, "a", u) for u in drives])
+    drives, force = drives[1:], force[1:]  # no unit below U1 = 0.01: F(0) = F(0.01)
+    assert np.all(np.diff(force) > 0)
+
+    def costs(total):
+        ua = np.linspace(0.01, 1.0, 991)
+        fa = np.interp(ua, drives, force)
+        ok = (fa <= total) & (total - fa <= force[-1])
+        ub = np.interp(total - fa[ok], force, drives)
+        return ua[ok], ub, ua[ok] ** 2 + ub ** 2
+
+    found = {}
+    for total in (400.0, 600.0, 800.0):
+        ua, ub, cost = costs(total)
+        best = np.argmin(cost)
+        equal = np.interp(total / 2, force, drives)
+        found[total] = ua[best], ub[best], cost[best], 2 * equal ** 2
+        print(f"\n{total:.0f} N: least drive^2 at {ua[best]:.3f} / {ub[best]:.3f} "
+              f"({cost[best]:.4f}); split equally {equal:.3f} each ({2 * equal ** 2:.4f})")
+    ua, ub, cost, equal = found[600.0]
+    assert cost < 0.99 * equal and abs(ua - ub) > 0.2
+    ua, ub, _, _ = found[400.0]
+    assert abs(ua - ub) < 0.03
+
+
 def test_drive_squared_static_case_is_the_static_optimisation_solution(tmp_path):
     """Constant pose and moment, arms 0.02 and 0.04 m: min Ua^2 + Ub^2 subject to
     0.02 F(Ua) + 0.04 F(Ub) = 30 N m, F the static-equilibrium force of the drive (reset),
