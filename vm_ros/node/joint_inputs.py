@@ -342,20 +342,10 @@ class JointInputs:
                 return None
         moving = self.inputs.limits.extrapolation_max_ns > 0
         out = self._geometry_at(q_now, qdot if moving else np.zeros(q.size), now_ns)
-        issues = []
-        if out.clamped.any():
-            issues.append(self._clamped_issue(q_now, out, every.index))
-        if every.update.size:
-            more, accepted = self.inputs.set_path_kinematics(
-                TOPIC, every.update, out.length_m[every.rows], out.velocity_m_per_s[every.rows],
-                now_ns)
-            issues += more
-            if not accepted:
-                return issues
-        self.sample = JointSample(int(now_ns), out.q, out.qdot,
-                                  out.moment_arm[self.space.rows])
-        for array in (out.q, out.qdot, self.sample.moment_arm):
-            array.flags.writeable = False
+        sample, issues = self._stored(out, q_now, every.index, every.update, every.rows, now_ns)
+        if sample is None:  # NodeInputs rejected the paths: nothing is stored
+            return issues
+        self.sample = sample
         self.q, self.qdot = q, qdot
         self.seen = np.ones(q.size, dtype=bool)
         self.q_time_ns = np.full(q.size, now_ns, dtype=np.int64)
@@ -492,21 +482,29 @@ class JointInputs:
         """Evaluate the geometry at q, q'; hand the paths of the joint-driven muscles that cross
         a coordinate in ``index`` (all at the first sample) to NodeInputs. Returns (the sample, or
         None when NodeInputs rejected the paths; issues)."""
-        space, issues = self.space, []
+        space = self.space
         out = self._geometry_at(*self._pose(q, qdot, seen), now_ns)
-        if out.clamped[index].any():
-            issues.append(self._clamped_issue(q, out, index))
         update = (np.ones(len(space.driven), dtype=bool) if self.sample is None
                   else space.crosses[:, index].any(axis=1))
-        if np.any(update):
-            rows = space.rows[update]
+        return self._stored(out, q, index, space.driven_index[update], space.rows[update],
+                            now_ns)
+
+    def _stored(self, out, q, index, driven, rows, now_ns) -> tuple[JointSample | None,
+                                                                    list[Issue]]:
+        """The geometry's output ``out`` at the pose ``q`` (before clamping) handed on: the
+        clamping of the coordinates ``index`` counted, the paths of the joint-driven muscles
+        ``driven`` (node indices; their geometry ``rows``) to NodeInputs. Returns (the sample,
+        or None when NodeInputs rejected the paths; issues)."""
+        issues = []
+        if out.clamped[index].any():
+            issues.append(self._clamped_issue(q, out, index))
+        if driven.size:
             more, accepted = self.inputs.set_path_kinematics(
-                TOPIC, space.driven_index[update], out.length_m[rows],
-                out.velocity_m_per_s[rows], now_ns)
+                TOPIC, driven, out.length_m[rows], out.velocity_m_per_s[rows], now_ns)
             issues += more
             if not accepted:
                 return None, issues
-        sample = JointSample(int(now_ns), out.q, out.qdot, out.moment_arm[space.rows])
+        sample = JointSample(int(now_ns), out.q, out.qdot, out.moment_arm[self.space.rows])
         for array in (sample.q, sample.qdot, sample.moment_arm):
             array.flags.writeable = False
         return sample, issues
