@@ -73,7 +73,7 @@ host-tools:
 # $(VENV)/bin/pytest, not `python -m pytest`: -m would put the source tree first on sys.path, and
 # the suite is meant to exercise the installed package (data_files included).
 test: venv colcon-venv
-	scripts/netns-run $(VENV)/bin/pytest -q test
+	scripts/netns-run $(VENV)/bin/pytest -q --durations=25 test
 
 demo: venv
 	scripts/netns-run $(VENV)/bin/vm-ros demo
