@@ -18,6 +18,7 @@ from test_coordination import geometry, library
 
 from vm_ros.cli import main
 from vm_ros.cli.study import offline_verbs
+from vm_ros.coordination.solver import SolverOptions
 from vm_ros.geometry import write_geometry
 from vm_ros.recording.run_log import read_run
 from vm_ros.report.tables import run_summary
@@ -92,7 +93,10 @@ def test_a_grid_of_costs_gives_the_logs_numbers_the_same_with_one_and_two_worker
         assert row["all.total_energy_J"] == pytest.approx(summary.energy[-1, -1], rel=1e-12)
         assert row["slow.recovery_energy_J"] == pytest.approx(summary.energy[0, 2], rel=1e-12)
         assert row["peak_force_N"] == pytest.approx(summary.peak_force, rel=1e-12)
-        assert row["duration_s"] == pytest.approx(0.5)
+        # the run log starts the solve's lead-in before the 0.5 s motion (first pose held)
+        lead_s = [float(e["lead_in_s"]) for e in log.metadata.values() if "lead_in_s" in e]
+        assert lead_s == [pytest.approx(SolverOptions().lead_in_s, abs=1e-9)]
+        assert row["duration_s"] == pytest.approx(0.5 + lead_s[0])
         # the grid's cost reached the solve; the solve's outputs travel in the log
         assert any(entries.get("coordination_cost") == row["cost"]
                    for entries in log.metadata.values())

@@ -59,11 +59,25 @@ def test_window_means_of_a_ramp_over_the_cycle():
 
 
 def test_high_frequency_share_of_two_equal_sines():
-    t = np.arange(0, 2.0, 0.001)
+    """Sampled like the walk's drives, first and last frame included (the content above the
+    cutoff is taken about the line between them: 0 here)."""
+    t = np.linspace(0.0, 2.0, 2001)
     values = np.column_stack([np.sin(2 * np.pi * t) + np.sin(2 * np.pi * 20 * t),
                               np.sin(2 * np.pi * 3 * t), np.full_like(t, 0.4)])
     share = w.high_frequency_share(t, values, 6.0)
-    np.testing.assert_allclose(share, [0.5, 0.0, 0.0], atol=1e-9)
+    np.testing.assert_allclose(share, [0.5, 0.0, 0.0], atol=1e-4)
+
+
+def test_high_frequency_share_of_ramps_is_not_the_wrap_from_last_to_first():
+    """A straight fall from 0.11 to 0 has nothing above 6 Hz (the FFT's periodic extension
+    would count its jump back to 0.11 as a sawtooth's harmonics: about 0.05 above 6 Hz over
+    2 s); a 20 Hz ripple of amplitude 0.05 on a ramp of 0.3 /s over 2 s holds the ripple's
+    variance over the whole: 0.05^2 / 2 / (0.3^2 2^2 / 12 + 0.05^2 / 2) = 0.04."""
+    t = np.linspace(0.0, 2.0, 2001)
+    values = np.column_stack([0.11 * (1 - t / 2), 0.3 * t + 0.05 * np.sin(2 * np.pi * 20 * t)])
+    share = w.high_frequency_share(t, values, 6.0)
+    assert share[0] < 1e-12
+    assert share[1] == pytest.approx(0.00125 / (0.03 + 0.00125), rel=0.01)
 
 
 def test_net_metabolic_references_at_one_metre_per_second():

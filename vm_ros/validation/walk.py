@@ -180,13 +180,18 @@ def window_means(times_s, values, strikes, windows: dict) -> dict[str, float]:
 
 def high_frequency_share(times_s, values, cutoff_hz: float) -> np.ndarray:
     """Per column of ``values`` (T, k) sampled uniformly at ``times_s``: the share of the
-    variance (mean removed) in frequencies above ``cutoff_hz`` (0 for a constant column)."""
+    variance (mean removed) in frequencies above ``cutoff_hz`` (0 for a constant column). The
+    content above the cutoff is taken about the straight line from the first to the last
+    sample: the FFT treats a column as periodic, and without the line the jump from its last
+    sample back to its first counts as content above the cutoff (a drive going from 0.11 to 0
+    over the walk would count as rough)."""
     values = np.asarray(values, dtype=float).reshape(len(times_s), -1)
     step = float(np.median(np.diff(times_s)))
-    spectrum = np.abs(np.fft.rfft(values - values.mean(axis=0), axis=0)) ** 2
     frequency = np.fft.rfftfreq(len(times_s), step)
-    total = spectrum[1:].sum(axis=0)
-    above = spectrum[frequency > cutoff_hz].sum(axis=0)
+    along = np.linspace(0.0, 1.0, len(times_s))[:, None]
+    about_line = values - (values[:1] + (values[-1:] - values[:1]) * along)
+    total = (np.abs(np.fft.rfft(values - values.mean(axis=0), axis=0)) ** 2)[1:].sum(axis=0)
+    above = (np.abs(np.fft.rfft(about_line, axis=0)) ** 2)[frequency > cutoff_hz].sum(axis=0)
     # a constant column's residue after removing the mean is rounding, not variance
     moving = values.std(axis=0) > 1e-12 * np.abs(values).max(axis=0)
     return np.divide(above, total, out=np.zeros_like(total), where=moving & (total > 0))
