@@ -186,7 +186,9 @@ class JointInputs:
         self.q = np.full(n, np.nan)  # model convention, as received (before clamping)
         self.qdot = np.zeros(n)
         self.q_time_ns = np.zeros(n, dtype=np.int64)  # when each coordinate was received
-        self.seen = np.zeros(n, dtype=bool)
+        self.seen = np.zeros(n, dtype=bool)  # replaced, never written in place
+        self._all_seen = np.ones(n, dtype=bool)  # seen after a message naming every coordinate
+        self._all_seen.flags.writeable = False
         self.sample: JointSample | None = None
         self.last_message_ns: int | None = None
         geometry = space.geometry
@@ -353,8 +355,9 @@ class JointInputs:
             return issues
         self.sample = sample
         self.q, self.qdot = q, qdot
-        self.seen = np.ones(q.size, dtype=bool)
-        self.q_time_ns = np.full(q.size, now_ns, dtype=np.int64)
+        self.seen = self._all_seen
+        self.q_time_ns = np.empty(q.size, dtype=np.int64)  # rebase writes into it
+        self.q_time_ns.fill(now_ns)
         self.last_message_ns = now_ns
         return issues
 
@@ -381,8 +384,9 @@ class JointInputs:
             array.flags.writeable = False
         self.sample = sample
         self.q, self.qdot = q, qdot
-        self.seen = np.ones(q.size, dtype=bool)
-        self.q_time_ns = np.full(q.size, now_ns, dtype=np.int64)
+        self.seen = self._all_seen
+        self.q_time_ns = np.empty(q.size, dtype=np.int64)  # rebase writes into it
+        self.q_time_ns.fill(now_ns)
         self.last_message_ns = now_ns
         return []
 
