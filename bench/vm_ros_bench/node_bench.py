@@ -52,6 +52,8 @@ Definitions (keys of the returned dict; times are the benchmark's steady clock u
   [seconds into the window, MiB] |
 | rss_slope_second_half_mib_per_hour | the same over the samples of the window's second half |
 | latency_p50_ms, _p99_ms, _max_ms | excitation-to-force latency, below (latency_samples) |
+| latency_publish_wait_p50_ms, _p99_ms | of that latency, the wait for the publish step: the
+  answering muscle_force's stamp - the excitation's stamp (ROS time), below |
 | excitation_not_in_node_log | window excitations the node never logged: dropped from its
   subscription queue (depth qos_depth) while it was busy (MCAP only) |
 | latency_no_response | window excitations without a muscle_force response here |
@@ -79,6 +81,11 @@ the force then comes from a step that started after the excitation was sent, so 
 upper bound (too high by up to one publish period plus the model's lag behind ROS time). The
 latency includes waiting for the next publish (outputs go out every
 round(model_rate_hz/publish_rate_hz) steps), DDS delivery both ways and both executors.
+The wait for the publish step (latency_publish_wait_*) is set by the phase of the driver's
+excitation timer against the node's publish steps: both run at their own fixed rate, so the
+phase stays as it fell at the start, from a step (about one model step) to a publish period plus
+a step for every excitation of a run. The rest of the latency is about model_lag (the node's
+tick after the publish step, its outputs' delivery).
 
 Model time vs wall time: the node's /diagnostics report, at one instant, its model time and the
 skipped and paused model time so far (vm_ros.node.timing). Between the first and last report in
@@ -541,15 +548,16 @@ def _lookup(keys: np.ndarray, values: np.ndarray, key: int, tolerance: int) -> i
 
 
 def _latencies(driver: BenchDriver, start_mono_ns: int, end_mono_ns: int, step_ns: int,
-               effective: tuple[np.ndarray, np.ndarray] | None) -> tuple[list[int], int, int]:
-    """(latencies in ns, number not in the node's log, number without a response) of the
-    window's excitation messages (module docstring). ``effective`` None: the publish time
-    stands for the model time."""
+               effective: tuple[np.ndarray, np.ndarray] | None
+               ) -> tuple[list[int], int, int, list[int]]:
+    """(latencies in ns, number not in the node's log, number without a response, the waits
+    for the publish step in ns) of the window's excitation messages (module docstring).
+    ``effective`` None: the publish time stands for the model time."""
     stamps = np.asarray(driver.force_stamp_ns, dtype=np.int64)
     arrivals = np.asarray(driver.force_mono_ns, dtype=np.int64)
     order = np.argsort(stamps, kind="stable")  # arrival order already, unless time went back
     stamps, arrivals = stamps[order], arrivals[order]
-    latencies, lost, missing = [], 0, 0
+    latencies, lost, missing, waits = [], 0, 0, []
     for sent_ns, stamp_ns in zip(driver.excitation_mono_ns, driver.excitation_stamp_ns,
                                  strict=True):
         if not start_mono_ns <= sent_ns < end_mono_ns:
@@ -564,7 +572,8 @@ def _latencies(driver: BenchDriver, start_mono_ns: int, end_mono_ns: int, step_n
             missing += 1
             continue
         latencies.append(int(arrivals[k]) - sent_ns)
-    return latencies, lost, missing
+        waits.append(int(stamps[k]) - stamp_ns)
+    return latencies, lost, missing, waits
 
 
 def run_node_benchmark(n_muscles: int, model_rate_hz: float = 1000.0,
@@ -753,11 +762,13 @@ def _run(setup, model_rate_hz, publish_rate_hz, duration_s, mcap, workdir, progr
         finally:
             exit_code, stop_s = _stop_process(process)
         effective = _effective_times(mcap_path) if mcap_path is not None else None
-        latencies, lost, missing = _latencies(driver, *window, step_ns, effective)
+        latencies, lost, missing, waits = _latencies(driver, *window, step_ns, effective)
         p50, p99, pmax = _percentiles_ms(latencies)
+        wait_p50, wait_p99, _ = _percentiles_ms(waits)
         last = driver.last_force_message()
         result.update(
             latency_p50_ms=p50, latency_p99_ms=p99, latency_max_ms=pmax,
+            latency_publish_wait_p50_ms=wait_p50, latency_publish_wait_p99_ms=wait_p99,
             latency_samples=len(latencies), latency_no_response=missing,
             excitation_not_in_node_log=lost if effective is not None else math.nan,
             latency_from_node_log=effective is not None,

@@ -250,7 +250,34 @@ def _compile():
                 q, slot_coordinate, slot_offset, slot_scale, first_term, factor_index,
                 slope_index, exponent, coefficient, max_degree)
             return True, length, gradient, -gradient, q.copy(), qdot.copy()
-    _evaluate = evaluate, evaluate_many, evaluate_inside, evaluate_wide
+
+        @numba.njit(cache=True, fastmath=False, error_model="numpy")
+        def evaluate_mapped(values, speeds, entries, sign, offset, moving, rows, lower, upper,
+                            slot_coordinate, slot_offset, slot_scale, first_term, factor_index,
+                            slope_index, exponent, coefficient, max_degree):
+            """compiled_mapped_evaluator's function (its docstring), with the packed arrays."""
+            n_q = sign.shape[0]
+            q, qdot, q_used = np.empty(n_q), np.empty(n_q), np.empty(n_q)
+            qdot_used = np.zeros(n_q)
+            for j in range(n_q):
+                q[j] = sign[j] * values[entries[j]] + offset[j]
+                qdot[j] = sign[j] * speeds[entries[j]]
+                q_used[j] = q[j] + qdot[j] * 0.0  # received now, moved on for 0 s
+                if moving:
+                    qdot_used[j] = qdot[j]
+            for j in range(n_q):
+                if not (lower[j] < q_used[j] < upper[j] and np.isfinite(qdot[j])):
+                    return (False, q, qdot, q_used, qdot_used, q[:0], np.empty((0, 0)),
+                            np.empty((0, 0)))
+            length, gradient = _evaluate_pose(
+                q_used, slot_coordinate, slot_offset, slot_scale, first_term, factor_index,
+                slope_index, exponent, coefficient, max_degree)
+            arm = np.empty((rows.shape[0], n_q))
+            for i in range(rows.shape[0]):
+                for j in range(n_q):
+                    arm[i, j] = -gradient[rows[i], j]
+            return True, q, qdot, q_used, qdot_used, length, gradient, arm
+    _evaluate = evaluate, evaluate_many, evaluate_inside, evaluate_wide, evaluate_mapped
     return _evaluate
 
 
@@ -294,7 +321,7 @@ def compiled_evaluator(packed, many: bool = False):
     """A function q -> (L, dL/dq) over ``packed`` (terms must be grouped by muscle, as
     PackedPolynomials.pack makes them); with ``many``, poses (k, n_q) -> (L (k, n), dL/dq
     (k, n, n_q)), each pose's the same numbers as one call."""
-    evaluate, evaluate_many, _, evaluate_wide = _compile()
+    evaluate, evaluate_many, _, evaluate_wide, _ = _compile()
     degree = packed.max_degree
     if packed.slot_coordinate.shape[1] > SLOTS:
         arrays = _wide_arrays(packed)
@@ -341,4 +368,29 @@ def compiled_inside_evaluator(packed, lower, upper):
     return run
 
 
-__all__ = ["SLOTS", "available", "compiled_evaluator", "compiled_inside_evaluator"]
+def compiled_mapped_evaluator(packed, lower, upper):
+    """A function (values, speeds, entries, sign, offset, moving, rows) -> (inside, q, q',
+    q_used, q'_used, L, dL/dq, r of ``rows``) for a message's values (n,) and speeds (n,):
+    q = sign * values[entries] + offset and q' = sign * speeds[entries] (each (n_q,), as
+    vm_ros.joint_space.JointMap.to_model computes them), the pose q_used = q + q' * 0.0 (moved
+    on for 0 s) and q'_used = q' (``moving``) or 0; ``inside`` is False (L, dL/dq and r empty)
+    unless every q_used lies strictly inside (lower, upper) and every q' is finite, where
+    clamping changes nothing. L and dL/dq are ``compiled_evaluator``'s numbers at q_used, r of
+    ``rows`` is -dL/dq of those rows; the velocities, dL/dq @ q'_used, are left to NumPy (BLAS
+    sums in its own order). One call for all of it. None for a geometry wider than SLOTS."""
+    if packed.slot_coordinate.shape[1] > SLOTS:
+        return None
+    evaluate = _compile()[4]
+    arrays = _slot_arrays(packed)
+    box = (np.array(lower, dtype=np.float64), np.array(upper, dtype=np.float64))
+    degree = packed.max_degree
+
+    def run(values, speeds, entries, sign, offset, moving, rows):
+        return evaluate(values, speeds, entries, sign, offset, moving, rows, *box, *arrays,
+                        degree)
+
+    return run
+
+
+__all__ = ["SLOTS", "available", "compiled_evaluator", "compiled_inside_evaluator",
+           "compiled_mapped_evaluator"]

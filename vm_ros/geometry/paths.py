@@ -210,6 +210,9 @@ class JointGeometry:
     coordinates: tuple[Coordinate, ...] = ()
     coupled: tuple[CoupledCoordinate, ...] = ()
     muscle_names: tuple[str, ...] = ()
+    # a back end's compiled conditioning and evaluation of a message in one call
+    # (vm_ros.geometry.kernel.compiled_mapped_evaluator), or None
+    mapped_evaluator = None
 
     @property
     def coordinate_names(self) -> tuple[str, ...]:
@@ -304,6 +307,8 @@ class PolynomialGeometry(JointGeometry):
                 self._compiled = kernel.compiled_evaluator(self.packed)
                 self._compiled_many = kernel.compiled_evaluator(self.packed, many=True)
                 self._compiled_inside = kernel.compiled_inside_evaluator(
+                    self.packed, self._lower, self._upper)
+                self.mapped_evaluator = kernel.compiled_mapped_evaluator(
                     self.packed, self._lower, self._upper)
             elif backend == "compiled":
                 raise ValueError("backend 'compiled' needs Numba (pip install '.[fast]')")

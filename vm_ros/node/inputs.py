@@ -33,6 +33,7 @@ import numpy as np
 
 from vm_ros import topics as tp
 from vm_ros.geometry.checks import MIN_PATH_LENGTH_M
+from vm_ros.model.jit import HAVE_NUMBA, model_cache_directory, numba
 from vm_ros.node.health import Issue
 from vm_ros.node.params import NodeConfig
 from vm_ros.recording.run_log import stamp_on_clock
@@ -366,6 +367,20 @@ class NodeInputs:
         self.length_time_ns[where] = now_ns
         return [], True
 
+    def set_path_rows(self, topic: str, muscles: np.ndarray, lengths: np.ndarray,
+                      velocities: np.ndarray, rows: np.ndarray,
+                      now_ns: int) -> tuple[list[Issue], bool]:
+        """set_path_kinematics(topic, muscles, lengths[rows], velocities[rows], now_ns): the
+        checks and stores in one compiled call where Numba is available (the same comparisons
+        and values); a path it would refuse goes through set_path_kinematics, which says why."""
+        store = _compiled_store()
+        if store is not None and store(
+                lengths, velocities, rows, muscles, *self._bounds,
+                float(self.limits.path_speed_max_m_per_s), self.length_m, self.velocity_m_per_s,
+                self.length_seen, self.length_time_ns, int(now_ns)):
+            return [], True
+        return self.set_path_kinematics(topic, muscles, lengths[rows], velocities[rows], now_ns)
+
     def _rejected(self, topic: str, muscles, lp, vp, lo, hi) -> list[Issue]:
         """What set_path_kinematics found wrong with path kinematics it did not store."""
         if not (np.all(np.isfinite(lp)) and np.all(np.isfinite(vp))):
@@ -537,6 +552,38 @@ class NodeInputs:
             return [n for n, s in zip(self.names, mask, strict=True) if s]
 
         return {"excitation": names(self.drive_stale), "kinematics": names(self.length_stale)}
+
+
+_store = None
+
+
+def _compiled_store():
+    """The compiled checks and stores of NodeInputs.set_path_rows (None without Numba):
+    store(lengths, velocities, rows, muscles, lo, hi, speed_max, length_m, velocity_m_per_s,
+    length_seen, length_time_ns, now_ns) -> stored: nothing is stored unless every muscle's
+    path length lengths[rows[i]] lies in [lo, hi] of muscles[i] and |velocities[rows[i]]| <=
+    speed_max (a NaN fails both, as in set_path_kinematics)."""
+    global _store
+    if _store is None and HAVE_NUMBA:
+        with model_cache_directory():
+
+            @numba.njit(cache=True, fastmath=False, error_model="numpy")
+            def store(lengths, velocities, rows, muscles, lo, hi, speed_max, length_m,
+                      velocity_m_per_s, length_seen, length_time_ns, now_ns):
+                for i in range(rows.shape[0]):
+                    lp, vp, m = lengths[rows[i]], velocities[rows[i]], muscles[i]
+                    if not (lp >= lo[m] and lp <= hi[m] and abs(vp) <= speed_max):
+                        return False
+                for i in range(rows.shape[0]):
+                    m = muscles[i]
+                    length_m[m] = lengths[rows[i]]
+                    velocity_m_per_s[m] = velocities[rows[i]]
+                    length_seen[m] = True
+                    length_time_ns[m] = now_ns
+                return True
+
+        _store = store
+    return _store
 
 
 def node_receivers(inputs: NodeInputs, on_joint_states) -> dict:

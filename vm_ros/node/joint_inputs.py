@@ -136,12 +136,13 @@ class JointBlock:
 class EveryCoordinate(NamedTuple):
     """A stream's selection that names every coordinate once (JointInputs.on_joint_states'
     shorter way), in coordinate order: ``entries`` the message entry of each coordinate (None
-    when entry j is coordinate j), its joint_map ``sign`` and ``offset``, ``index`` the
-    coordinates in message order (for the clamping issue's text), and the joint-driven muscles
-    such a message updates once a joint sample exists: ``update`` (node indices) and ``rows``
-    (geometry rows)."""
+    when entry j is coordinate j; ``entry_of`` the same as an array either way), its joint_map
+    ``sign`` and ``offset``, ``index`` the coordinates in message order (for the clamping
+    issue's text), and the joint-driven muscles such a message updates once a joint sample
+    exists: ``update`` (node indices) and ``rows`` (geometry rows)."""
 
     entries: np.ndarray | None
+    entry_of: np.ndarray
     sign: np.ndarray
     offset: np.ndarray
     index: np.ndarray
@@ -185,7 +186,9 @@ class JointInputs:
         self.q = np.full(n, np.nan)  # model convention, as received (before clamping)
         self.qdot = np.zeros(n)
         self.q_time_ns = np.zeros(n, dtype=np.int64)  # when each coordinate was received
-        self.seen = np.zeros(n, dtype=bool)
+        self.seen = np.zeros(n, dtype=bool)  # replaced, never written in place
+        self._all_seen = np.ones(n, dtype=bool)  # seen after a message naming every coordinate
+        self._all_seen.flags.writeable = False
         self.sample: JointSample | None = None
         self.last_message_ns: int | None = None
         geometry = space.geometry
@@ -195,6 +198,7 @@ class JointInputs:
         self._expected: dict = {}  # time_ns -> (pose q, pose qdot, GeometryOutput): expect()
         self._selected = None  # ((names, size), issues, index, entries) of the last _select
         self._every: EveryCoordinate | None = None  # of the last _select, when it names all
+        self._mapped = geometry.mapped_evaluator  # the compiled shorter way, or None
 
     @property
     def ready(self) -> bool:
@@ -276,7 +280,7 @@ class JointInputs:
         update = space.crosses[:, index].any(axis=1)
         arrays = EveryCoordinate(
             None if np.array_equal(by_coordinate, np.arange(n)) else by_coordinate,
-            space.map.sign[np.arange(n)], space.map.offset[np.arange(n)], index,
+            by_coordinate, space.map.sign[np.arange(n)], space.map.offset[np.arange(n)], index,
             space.driven_index[update], space.rows[update])
         for array in arrays:
             if array is not None:
@@ -332,6 +336,11 @@ class JointInputs:
         computed by the same operations as there (every coordinate received now, so none is
         moved on: q + q' * 0.0, and the pose is q itself), so the same bits. None (nothing
         stored) when a value is not finite, which on_joint_states then reports."""
+        moving = self.inputs.limits.extrapolation_max_ns > 0
+        if self._mapped is not None and not self._expected:
+            done = self._on_every_coordinate_compiled(every, position, velocity, moving, now_ns)
+            if done is not None:
+                return done
         robot_q, robot_qdot = ((position, velocity) if every.entries is None else
                                (position[every.entries], velocity[every.entries]))
         with np.errstate(over="ignore", invalid="ignore"):  # not finite: on_joint_states
@@ -340,17 +349,46 @@ class JointInputs:
             q_now = q + qdot * 0.0  # _extrapolated: received now, moved on for 0 s
             if not math.isfinite(q_now.sum() + qdot.sum()):
                 return None
-        moving = self.inputs.limits.extrapolation_max_ns > 0
         out = self._geometry_at(q_now, qdot if moving else np.zeros(q.size), now_ns)
         sample, issues = self._stored(out, q_now, every.index, every.update, every.rows, now_ns)
         if sample is None:  # NodeInputs rejected the paths: nothing is stored
             return issues
         self.sample = sample
         self.q, self.qdot = q, qdot
-        self.seen = np.ones(q.size, dtype=bool)
-        self.q_time_ns = np.full(q.size, now_ns, dtype=np.int64)
+        self.seen = self._all_seen
+        self.q_time_ns = np.empty(q.size, dtype=np.int64)  # rebase writes into it
+        self.q_time_ns.fill(now_ns)
         self.last_message_ns = now_ns
         return issues
+
+    def _on_every_coordinate_compiled(self, every: EveryCoordinate, position, velocity,
+                                      moving: bool, now_ns: int) -> list[Issue] | None:
+        """_on_every_coordinate of a pose strictly inside the box, the geometry's
+        mapped_evaluator doing the joint_map, the pose, the polynomials and the moment arms in
+        one compiled call and NodeInputs.set_path_rows the paths' checks and stores in another,
+        with the same operations per value (vm_ros.geometry.kernel.compiled_mapped_evaluator);
+        the velocities dL/dq @ q' stay NumPy's, as in evaluate. None when the pose is not
+        inside or a value not finite: the NumPy way then."""
+        inside, q, qdot, q_used, qdot_used, length, gradient, arm = self._mapped(
+            position, velocity, every.entry_of, every.sign, every.offset, moving,
+            self.space.rows)
+        if not inside:
+            return None
+        if every.update.size:
+            issues, accepted = self.inputs.set_path_rows(
+                TOPIC, every.update, length, gradient @ qdot_used, every.rows, now_ns)
+            if not accepted:  # nothing is stored
+                return issues
+        sample = JointSample(int(now_ns), q_used, qdot_used, arm)
+        for array in (q_used, qdot_used, arm):
+            array.flags.writeable = False
+        self.sample = sample
+        self.q, self.qdot = q, qdot
+        self.seen = self._all_seen
+        self.q_time_ns = np.empty(q.size, dtype=np.int64)  # rebase writes into it
+        self.q_time_ns.fill(now_ns)
+        self.last_message_ns = now_ns
+        return []
 
     def on_joint_states_many(self, names: tuple, positions, velocities,
                              times_ns) -> JointBlock | None:
