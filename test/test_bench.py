@@ -117,6 +117,7 @@ def test_the_rclpy_floor_row_stands_beside_the_node_row_without_a_target():
     rows = bench._csv_rows({"node": [node, floor]})
     floor_rows = [r for r in rows if r["case"].startswith("rclpy floor")]
     assert {r["metric"] for r in floor_rows} == set(bench.FLOOR_KEYS)
+    assert "floor_level" not in {r["metric"] for r in rows}
     assert all(not r["target"] for r in floor_rows)
     above = [r for r in rows if r["metric"] == "cpu above the rclpy floor"]
     assert [r["value"] for r in above] == [18.5 - 9.25]

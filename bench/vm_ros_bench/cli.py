@@ -450,7 +450,7 @@ def _csv_rows(results: dict) -> list[dict]:
     floors = {r["muscles"]: r["cpu_percent_one_core"] for r in results.get("node", [])
               if r.get("floor_level") and "error" not in r}
     for r in results.get("node", []):
-        case = (f"{'rclpy floor, same traffic: ' if r.get('floor_level') else ''}"
+        case = (f"{'rclpy floor, ' if r.get('floor_level') else ''}"
                 f"{r['muscles']} muscles, publish {r['publish_rate_hz']:g} Hz"
                 f"{', MCAP' if r['mcap'] else ''}")
         if "error" in r:
@@ -466,7 +466,7 @@ def _csv_rows(results: dict) -> list[dict]:
                 - floors[r["muscles"]], "points of a core")
         cpu_target = NODE_CPU_TARGETS.get(r["muscles"]) if main else None
         for key, value in r.items():
-            if key in ("muscles", "model_rate_hz", "publish_rate_hz", "mcap") or \
+            if key in ("muscles", "model_rate_hz", "publish_rate_hz", "mcap", "floor_level") or \
                     isinstance(value, (list, dict)):
                 continue
             target = met = None
