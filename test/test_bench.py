@@ -104,6 +104,27 @@ def test_kernel_and_node_rows_carry_the_speed_targets():
     assert targets[("1000", "model_time_skipped_s")] == ("0 s", False)
 
 
+def test_the_rclpy_floor_row_stands_beside_the_node_row_without_a_target():
+    """A floor row (floor_level set) carries no target; the node row of the same muscles gets
+    its CPU above the floor, node minus floor (synthetic results)."""
+    from vm_ros_bench import cli as bench
+
+    node = {"muscles": 1, "model_rate_hz": 1000.0, "publish_rate_hz": 100.0, "mcap": True,
+            "cpu_percent_one_core": 18.5, "model_wall_drift_percent": 0.0,
+            "model_time_skipped_s": 0.0}
+    floor = {**node, "floor_level": "mcap", "cpu_percent_one_core": 9.25,
+             **{key: 1.0 for key in bench.FLOOR_KEYS if key != "cpu_percent_one_core"}}
+    rows = bench._csv_rows({"node": [node, floor]})
+    floor_rows = [r for r in rows if r["case"].startswith("rclpy floor")]
+    assert {r["metric"] for r in floor_rows} == set(bench.FLOOR_KEYS)
+    assert "floor_level" not in {r["metric"] for r in rows}
+    assert all(not r["target"] for r in floor_rows)
+    above = [r for r in rows if r["metric"] == "cpu above the rclpy floor"]
+    assert [r["value"] for r in above] == [18.5 - 9.25]
+    assert [r["met"] for r in rows if r["metric"] == "cpu_percent_one_core"
+            and r["target"]] == [False]  # the node's 18.5 % against 7 %, the floor's not held
+
+
 def test_the_benchmarks_are_not_installed_with_vm_ros():
     """The benchmarks live in the repository's bench/ folder: the installed vm_ros has neither
     a bench subpackage nor vm_ros_bench beside it."""

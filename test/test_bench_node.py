@@ -82,3 +82,58 @@ def test_rss_growth_of_known_traces():
 def test_splitting_needs_a_bag():
     with pytest.raises(ValueError, match="needs bag"):
         run_node_benchmark(3, duration_s=1.0, max_bag_duration_s=1.0)
+
+
+def test_the_rclpy_floor_publishes_the_node_s_bytes_sizes():
+    """The floor's outputs have the sizes of rclpy's own serialisation of muscle_node's messages
+    for the same muscles (JointState with a name and position, velocity, effort per muscle;
+    Float64; Float64MultiArray of 3 fibre labels x 4 components per muscle and its layout)."""
+    require_ros()
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64
+
+    from vm_ros_bench.rclpy_floor import output_bytes
+
+    names = ["soleus_0", "gastrocnemius_medial_1", "tibialis_anterior_2"]
+    zeros = [0.0] * len(names)
+    expected = {"muscle_force": serialize_message(JointState(
+                    name=names, position=zeros, velocity=zeros, effort=zeros)),
+                "energy_rate_total": serialize_message(Float64()),
+                "energy_total": serialize_message(Float64())}
+    steps = output_bytes(names, steps=4)
+    assert len(steps) == 4
+    for step in steps:
+        data = dict(step)
+        assert list(data) == ["muscle_force", "energy_rate", "energy_rate_total", "energy_total"]
+        for topic, serialised in expected.items():
+            assert len(data[topic]) == len(serialised), topic
+        assert len(data["energy_rate"]) > 8 * 3 * 4 * len(names)
+    forces = [dict(step)["muscle_force"] for step in steps]
+    assert len(set(forces)) == 4  # different values in each step
+
+
+def test_the_rclpy_floor_runs_in_place_of_the_node(tmp_path):
+    """The floor at its last level publishes the four outputs at the publish rate and logs
+    inputs and outputs; at its first level it only subscribes, and the run still starts (on
+    the driver's publishers being matched) and measures its CPU."""
+    require_ros()
+    from mcap.reader import make_reader
+
+    full = run_node_benchmark(3, duration_s=3.0, warmup_s=1.0, workdir=tmp_path / "mcap",
+                              floor_level="mcap")
+    assert full["floor_level"] == "mcap" and full["mcap"] and full["node_exit_code"] == 0
+    assert full["cpu_percent_one_core"] > 0 and math.isnan(full["model_lag_p50_ms"])
+    for topic in ("muscle_force", "energy_rate", "energy_rate_total", "energy_total"):
+        assert 80 < full[f"rate_{topic}_hz"] < 120, topic
+    with open(tmp_path / "mcap" / "node_bench.mcap", "rb") as stream:
+        stats = make_reader(stream).get_summary().statistics
+    assert stats.message_count > 6 * 100 * 3  # 2 inputs and 4 outputs at 100 Hz, 3 s and more
+
+    bare = run_node_benchmark(3, duration_s=2.0, warmup_s=0.5, workdir=tmp_path / "subs",
+                              floor_level="subscriptions")
+    assert bare["floor_level"] == "subscriptions" and not bare["mcap"]
+    assert bare["rate_muscle_force_hz"] == 0 and bare["cpu_percent_one_core"] > 0
+    assert not (tmp_path / "subs" / "node_bench.mcap").exists()
+    with pytest.raises(ValueError, match="floor_level"):
+        run_node_benchmark(3, duration_s=1.0, floor_level="model")

@@ -18,7 +18,11 @@ by default; --only picks some):
             interleaved rounds, the load quoted (vm_ros_bench.decode_bench)
   node      muscle_node as a separate process: 1, 100 and 1000 muscles at 1 kHz publishing at
             100 Hz with MCAP (default batch: a tick per publish period), and 10 muscles
-            publishing at 1 kHz; CPU, memory, model-time drift, time skipped, latency.
+            publishing at 1 kHz; CPU, memory, model-time drift, time skipped, latency. After the
+            1- and 100-muscle rows, the rclpy floor of the same traffic (vm_ros_bench.rclpy_floor:
+            a bare rclpy node with muscle_node's subscriptions, timers, publishers of bytes of
+            the same sizes, executor and MCAP writer, no model), measured the same way, and
+            the node's CPU above it.
             rclpy runs in a loopback-only network namespace: inside scripts/netns-run it runs
             directly, otherwise this command starts one (unshare -n; needs root).
   joint     joint space (extra mujoco, with myo-sim; skipped with the reason without it), on
@@ -184,24 +188,37 @@ def _say(message: str) -> None:
 # node at 1 kHz, publish 100 Hz, MCAP on: muscles -> most CPU (% of one core)
 JOINT_NODE_CPU_TARGET = 35.0  # myolegs from joint_states at 1 kHz, publish 100 Hz, MCAP
 NODE_CPU_TARGETS = {1: 7.0, 100: 14.0, 1000: 100.0}  # issue 33: margin for any 2-core machine
+FLOOR_MUSCLES = (1, 100)  # the rclpy floor of the same traffic, run after these node rows
+FLOOR_LEVEL = "mcap"  # the floor's whole traffic (vm_ros_bench.rclpy_floor)
+FLOOR_KEYS = ("cpu_percent_one_core", "driver_cpu_percent_one_core", "load_average_1min_start",
+              "load_average_1min_end", "rss_final_mib", "rate_muscle_force_hz",
+              "rate_excitation_sent_hz", "mcap_file_mib")  # its CSV rows
 
 
 def _node_rows(duration_s: float, workdir: Path) -> list[dict]:
-    configs = [
-        {"muscles": n, "model_rate_hz": 1000.0, "publish_rate_hz": 100.0, "mcap": True}
-        for n in NODE_CPU_TARGETS
-    ] + [{"muscles": 10, "model_rate_hz": 1000.0, "publish_rate_hz": 1000.0, "mcap": False}]
+    configs = []
+    for n in NODE_CPU_TARGETS:
+        main = {"muscles": n, "model_rate_hz": 1000.0, "publish_rate_hz": 100.0, "mcap": True}
+        configs.append(main)
+        if n in FLOOR_MUSCLES:
+            configs.append({**main, "floor_level": FLOOR_LEVEL})
+    configs.append({"muscles": 10, "model_rate_hz": 1000.0, "publish_rate_hz": 1000.0,
+                    "mcap": False})
     rows = []
     for config in configs:
-        _say(f"node {config['muscles']} muscles, publish {config['publish_rate_hz']:g} Hz, "
-             f"MCAP {'on' if config['mcap'] else 'off'}, {duration_s:g} s ...")
+        floor = config.get("floor_level")
+        _say(f"{'rclpy floor of ' if floor else ''}node {config['muscles']} muscles, publish "
+             f"{config['publish_rate_hz']:g} Hz, MCAP {'on' if config['mcap'] else 'off'}, "
+             f"{duration_s:g} s ...")
         rows.append(_node_process(
             config, ["--muscles", str(config["muscles"]),
                      "--model-rate", str(config["model_rate_hz"]),
                      "--publish-rate", str(config["publish_rate_hz"]),
                      "--duration", str(duration_s),
-                     "--workdir", str(workdir / f"node-{config['muscles']}"),
-                     *([] if config["mcap"] else ["--no-mcap"])], duration_s))
+                     "--workdir", str(workdir / f"{'floor' if floor else 'node'}-"
+                                                f"{config['muscles']}"),
+                     *([] if config["mcap"] else ["--no-mcap"]),
+                     *(["--floor", floor] if floor else [])], duration_s))
     return rows
 
 
@@ -430,16 +447,26 @@ def _csv_rows(results: dict) -> list[dict]:
         _decode_csv_rows(results["decode"], add)
     if "compare" in results:
         _compare_csv_rows(results["compare"], add)
+    floors = {r["muscles"]: r["cpu_percent_one_core"] for r in results.get("node", [])
+              if r.get("floor_level") and "error" not in r}
     for r in results.get("node", []):
-        case = (f"{r['muscles']} muscles, publish {r['publish_rate_hz']:g} Hz"
+        case = (f"{'rclpy floor, ' if r.get('floor_level') else ''}"
+                f"{r['muscles']} muscles, publish {r['publish_rate_hz']:g} Hz"
                 f"{', MCAP' if r['mcap'] else ''}")
         if "error" in r:
             add("node", case, "error", r["error"], "")
             continue
+        if r.get("floor_level"):
+            for key in FLOOR_KEYS:
+                add("node", case, key, r[key], "")
+            continue
         main = r["publish_rate_hz"] == 100.0 and r["mcap"]
+        if main and r["muscles"] in floors:
+            add("node", case, "cpu above the rclpy floor", r["cpu_percent_one_core"]
+                - floors[r["muscles"]], "points of a core")
         cpu_target = NODE_CPU_TARGETS.get(r["muscles"]) if main else None
         for key, value in r.items():
-            if key in ("muscles", "model_rate_hz", "publish_rate_hz", "mcap") or \
+            if key in ("muscles", "model_rate_hz", "publish_rate_hz", "mcap", "floor_level") or \
                     isinstance(value, (list, dict)):
                 continue
             target = met = None

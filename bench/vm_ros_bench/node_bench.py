@@ -28,6 +28,14 @@ with its velocity) at ``joint_rate_hz`` from its own timer, and ``excitation`` a
 ``drive_rate_hz``; it also counts joint_efforts and joint_effort_commands. Keys as below, with
 rate_joint_states_sent_hz in place of rate_kinematics_sent_hz.
 
+The rclpy floor (``floor_level``, ``--floor LEVEL``): vm_ros_bench.rclpy_floor in place of
+muscle_node, started from the same params file and driven and measured the same way: a bare
+rclpy node with muscle_node's subscriptions, timers, publishers (bytes of the same sizes),
+executor, main and MCAP writer, up to LEVEL (subscriptions, timer, publishers, mcap), and no
+model. Its run waits for the driver's two publishers to be matched instead of a muscle_force;
+its result has the CPU, thread, memory and rate keys below (latency, drift and the log's
+read-back are muscle_node's only).
+
 Definitions (keys of the returned dict; times are the benchmark's steady clock unless stated):
 
 | key | meaning |
@@ -139,6 +147,9 @@ STAMP_MATCH_NS = 1000  # an excitation's stamp read back from the log (float64) 
 RSS_SAMPLE_PERIOD_S = 5.0  # node VmRSS sampled this often during the window
 SECONDS_PER_HOUR = 3600.0
 LOG_NAME = "node_bench"  # workdir/node_bench.mcap, or the bag directory workdir/node_bench/
+# the rclpy floor's levels (vm_ros_bench.rclpy_floor), each with the ones before
+FLOOR_LEVELS = ("subscriptions", "timer", "publishers", "mcap")
+FLOOR_NODE_PARAMETERS = ("executor", "qos_depth")  # the node parameters the floor takes
 
 _SIOCGIFFLAGS = 0x8913  # linux/sockios.h
 _IFF_UP = 0x1
@@ -215,9 +226,17 @@ def write_params(path: Path, names: list[str], library: Path, model_rate_hz: flo
                     encoding="utf-8")
 
 
-def _node_command(params_path: Path) -> list[str]:
-    """muscle_node of the vm_ros this process runs (not a source tree in the working folder)."""
-    return module_command("vm_ros.node", "--ros-args", "--params-file", str(params_path))
+def _node_command(params_path: Path, floor_level: str | None = None) -> tuple[list[str], dict]:
+    """(command, environment) of muscle_node of the vm_ros this process runs (not a source tree
+    in the working folder), or with ``floor_level`` of the rclpy floor
+    (vm_ros_bench.rclpy_floor) reading the same params file."""
+    if floor_level is None:
+        return (module_command("vm_ros.node", "--ros-args", "--params-file", str(params_path)),
+                module_environment())
+    from vm_ros_bench import child_environment
+
+    return (module_command("vm_ros_bench.rclpy_floor", "--params", str(params_path),
+                           "--level", floor_level), child_environment())
 
 
 # --- /proc -------------------------------------------------------------------------------------
@@ -363,6 +382,11 @@ class BenchDriver:
         self._sweep_with_drive = sweep_rate_hz is None
         if not self._sweep_with_drive:
             self._timers.append(self.node.create_timer(1.0 / sweep_rate_hz, self._sweep_tick))
+
+    def matched(self) -> bool:
+        """Both inputs' publishers have a subscriber (a node that takes them is there)."""
+        return (self._excitation.get_subscription_count() > 0
+                and self._kinematics.get_subscription_count() > 0)
 
     def stop_driving(self) -> None:
         for timer in self._timers:
@@ -583,11 +607,15 @@ def run_node_benchmark(n_muscles: int, model_rate_hz: float = 1000.0,
                        warmup_s: float = 5.0, drive_rate_hz: float = 100.0,
                        node_parameters: dict | None = None, bag: bool = False,
                        max_bag_size: int = 0, max_bag_duration_s: float = 0.0,
-                       rss_sample_period_s: float = RSS_SAMPLE_PERIOD_S) -> dict:
+                       rss_sample_period_s: float = RSS_SAMPLE_PERIOD_S,
+                       floor_level: str | None = None) -> dict:
     """Run muscle_node with ``n_muscles`` as a process and measure it (module docstring);
     ``node_parameters`` are added to its params file. ``bag``: log to a rosbag2 bag directory,
     split at ``max_bag_size`` bytes / ``max_bag_duration_s`` seconds (0: no split; splitting
-    needs ``bag``). ValueError for inconsistent options.
+    needs ``bag``). ValueError for inconsistent options. ``floor_level`` (one of
+    vm_ros_bench.rclpy_floor.LEVELS): the rclpy floor of the same traffic in place of
+    muscle_node (its MCAP log with ``mcap`` at level mcap); the result says ``floor_level``
+    (None for muscle_node).
 
     Call inside a loopback-only network namespace (scripts/netns-run); raises RuntimeError when
     another interface is up, and when the node does not start or dies. ``workdir`` receives the
@@ -604,11 +632,20 @@ def run_node_benchmark(n_muscles: int, model_rate_hz: float = 1000.0,
                                                   LENGTH_SWING)
 
     log = _log_options(mcap, bag, max_bag_size, max_bag_duration_s)
+    if floor_level is not None and (floor_level not in FLOOR_LEVELS or bag or set(
+            node_parameters or {}) - set(FLOOR_NODE_PARAMETERS)):
+        raise ValueError(f"floor_level must be one of {', '.join(FLOOR_LEVELS)} (got "
+                         f"{floor_level!r}), without bag, with node_parameters among "
+                         f"{', '.join(FLOOR_NODE_PARAMETERS)}")
+    if floor_level is not None:  # the floor logs at its last level only
+        mcap = mcap and floor_level == FLOOR_LEVELS[-1]
+        log = _log_options(mcap, bag, max_bag_size, max_bag_duration_s)
     result = _run(setup, model_rate_hz, publish_rate_hz, duration_s, mcap, workdir, progress,
                   warmup_s, drive_rate_hz, None, node_parameters, log=log,
-                  rss_sample_period_s=rss_sample_period_s)
+                  rss_sample_period_s=rss_sample_period_s, floor_level=floor_level)
     return {"n_muscles": n_muscles, "model_rate_hz": float(model_rate_hz),
             "publish_rate_hz": float(publish_rate_hz), "mcap": bool(mcap),
+            "floor_level": floor_level,
             "node_parameters": dict(node_parameters or {}), **log, **result}
 
 
@@ -699,11 +736,14 @@ def log_summary(path: Path) -> dict:
 
 def _run(setup, model_rate_hz, publish_rate_hz, duration_s, mcap, workdir, progress, warmup_s,
          drive_rate_hz, sweep_rate_hz, node_parameters=None, *, log: dict | None = None,
-         rss_sample_period_s: float = RSS_SAMPLE_PERIOD_S, pin: bool = True) -> dict:
+         rss_sample_period_s: float = RSS_SAMPLE_PERIOD_S, pin: bool = True,
+         floor_level: str | None = None) -> dict:
     """The benchmark of either input: ``setup(workdir)`` gives (muscle names, library path,
     geometry path or None, Sweep); ``sweep_rate_hz`` None publishes the sweep with the drive;
     ``log`` from _log_options; ``pin``: the node on one CPU, the driver on the others
-    (pin_cpus)."""
+    (pin_cpus); ``floor_level``: the rclpy floor (vm_ros_bench.rclpy_floor) at that level in
+    place of muscle_node, measured the same way (its outputs answer nothing: no latency, no
+    drift, its log not read back)."""
     import rclpy
 
     check_loopback_only()
@@ -745,22 +785,29 @@ def _run(setup, model_rate_hz, publish_rate_hz, duration_s, mcap, workdir, progr
         stack.callback(executor.shutdown)  # unwound first: executor, node, context
         executor.add_node(driver.node)
 
+        command, environment = _node_command(params_path, floor_level)
         with open(log_path, "wb") as log:
-            process = subprocess.Popen(_node_command(params_path), env=module_environment(),
-                                       cwd=workdir, stdout=log, stderr=subprocess.STDOUT,
-                                       stdin=subprocess.DEVNULL)
+            process = subprocess.Popen(command, env=environment, cwd=workdir, stdout=log,
+                                       stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
         try:
             if pinned is not None:
                 set_process_affinity(process.pid, pinned[0])
             result = _measure(process, driver, executor, duration_s, warmup_s, progress,
                               log_path, rss_sample_period_s,
-                              None if pinned is None else pinned[0])
+                              None if pinned is None else pinned[0],
+                              started=None if floor_level is None else driver.matched)
             result.update(node_cpus=sorted(pinned[0]) if pinned else None,
                           driver_cpus=sorted(pinned[1]) if pinned else None)
             driver.stop_driving()
             window = result.pop("_window")
         finally:
             exit_code, stop_s = _stop_process(process)
+        if floor_level is not None:  # its outputs' stamps are 0: no lag either
+            result.update({f"model_lag_{p}_ms": math.nan for p in ("p50", "p99", "max")})
+            result.update(node_exit_code=exit_code, node_stop_s=stop_s, mcap_file_mib=(
+                mcap_path.stat().st_size / MIB if mcap_path is not None and mcap_path.is_file()
+                else math.nan))
+            return result
         effective = _effective_times(mcap_path) if mcap_path is not None else None
         latencies, lost, missing, waits = _latencies(driver, *window, step_ns, effective)
         p50, p99, pmax = _percentiles_ms(latencies)
@@ -794,8 +841,10 @@ def _finite(message, size: int) -> bool:
 
 def _measure(process, driver: BenchDriver, executor, duration_s: float, warmup_s: float,
              progress, log_path: Path, rss_sample_period_s: float = RSS_SAMPLE_PERIOD_S,
-             node_cpus: set[int] | None = None) -> dict:
-    """Wait for the model start, warm up, measure the window; the numbers known then."""
+             node_cpus: set[int] | None = None,
+             started: Callable[[], bool] | None = None) -> dict:
+    """Wait for the model start (the first muscle_force; or until ``started()``), warm up,
+    measure the window; the numbers known then."""
 
     def spin_until(end_mono: float, tick: Callable[[float], None] | None = None) -> None:
         next_report = time.monotonic()
@@ -809,9 +858,11 @@ def _measure(process, driver: BenchDriver, executor, duration_s: float, warmup_s
             executor.spin_once(timeout_sec=min(0.01, max(end_mono - now, 0.0)))
 
     deadline = time.monotonic() + START_TIMEOUT_S
-    while not driver.force_mono_ns:
+    what = "published no muscle_force" if started is None else "subscribed to no input"
+    started = started or (lambda: bool(driver.force_mono_ns))
+    while not started():
         if time.monotonic() > deadline:
-            raise RuntimeError(f"muscle_node published no muscle_force within "
+            raise RuntimeError(f"the node {what} within "
                                f"{START_TIMEOUT_S:g} s; its log ({log_path}):\n{_tail(log_path)}")
         spin_until(time.monotonic() + 0.05)
 
@@ -949,6 +1000,11 @@ def main(argv=None) -> int:
     parser.add_argument("--node-param", action="append", default=[], metavar="NAME=VALUE",
                         help="a muscle_node parameter for the run (VALUE read as YAML), e.g. "
                              "executor=single_threaded; repeatable")
+    parser.add_argument("--floor", choices=FLOOR_LEVELS,
+                        default=None, metavar="LEVEL",
+                        help="run the rclpy floor of the same traffic (vm_ros_bench.rclpy_floor: "
+                             "subscriptions, timer, publishers or mcap, each with the ones "
+                             "before) in place of muscle_node; its MCAP log at level mcap")
     parser.add_argument("--workdir", type=Path, default=None,
                         help="keep library, params, node log and MCAP here (default: temporary)")
     args = parser.parse_args(argv)
@@ -958,6 +1014,8 @@ def main(argv=None) -> int:
         parser.error("--max-bag-duration and --max-bag-size need --bag")
     if args.bag and args.no_mcap:
         parser.error("--bag and --no-mcap exclude each other")
+    if args.floor and (args.geometry or args.bag):
+        parser.error("--floor goes without --geometry and --bag")
     if args.max_bag_duration < 0 or args.max_bag_size < 0 or args.rss_period <= 0:
         parser.error("--max-bag-duration and --max-bag-size must be >= 0, --rss-period > 0")
 
@@ -987,7 +1045,7 @@ def main(argv=None) -> int:
                 joint_rate_hz=args.joint_rate, **common)
         else:
             result = run_node_benchmark(args.muscles, args.model_rate, args.publish_rate,
-                                        args.duration, **common)
+                                        args.duration, floor_level=args.floor, **common)
     except RuntimeError as exc:
         print(f"node_bench: error: {exc}", file=sys.stderr)
         return 1
