@@ -12,6 +12,9 @@ give the same bits because:
 - NumPy's exp, expm1, log1p and power (SIMD code chosen for the machine: on AVX-512, Intel's
   SVML, 1 ulp from libm's in about 5 % of arguments) are computed by NumPy on both paths; only
   +, -, *, /, comparisons and selections are compiled, and those are IEEE operations;
+- the recruitment's sine and cosine are libm's on both paths: NumPy's float64 sin and cos call
+  libm's (on this AVX-512 machine too), and the compiled loop calls it (LLVM joins the two
+  calls into one sincos, which gives the same two values);
 - the loops are compiled without fast-math flags: no a * b + c is fused into one rounding
   (LLVM fuses only under the ``contract`` flag, which the model step's kernel sets and these
   loops do not), nothing is reassociated;
@@ -40,7 +43,7 @@ from vm_ros.model.energetics_models import constants as model_constants
 from vm_ros.model.energetics_models.bhargava import (
     bhargava2004,
     bhargava2004_rates,
-    recruitment_sin_cos,
+    half_pi_sin_cos,
 )
 from vm_ros.model.energetics_models.houdijk import (
     houdijk2006,
@@ -130,6 +133,13 @@ def _inputs_loop(a_slow, a_fast, length, velocity, fl, pe1, pe2, f0, fpcsa_slow,
             fpcsa_slow[j], fpcsa_fast[j])
 
 
+def _sin_cos_loop(scaling, excitation, out):
+    """out[0], out[1] = bhargava.half_pi_sin_cos(scaling * excitation): libm's sine and
+    cosine, which NumPy calls (module docstring), one sincos per element."""
+    for j in range(excitation.size):
+        out[0, j], out[1, j] = half_pi_sin_cos(scaling * excitation[j])
+
+
 def _umberger_loop(c, excitation, mass, velocity, l0, length, active, slow, fl_multiplier,
                    effective, maintenance_power, shortening_power, sin_angle, cos_angle, out):
     for j in range(length.size):
@@ -214,14 +224,14 @@ def _stimulation_duration_loop(time_s, excitation, onset_s, out):
 # no fast-math flags (module docstring); divisions by zero give inf or NaN, as NumPy's
 OPTIONS = {"cache": True, "nogil": True, "error_model": "numpy", "fastmath": False,
            **COMPILE_OPTIONS}
-LOOPS = (_inputs_loop, _umberger_loop, _bhargava_loop, _lichtwark_loop,
+LOOPS = (_inputs_loop, _sin_cos_loop, _umberger_loop, _bhargava_loop, _lichtwark_loop,
          _houdijk_exponents_loop, _houdijk_loop, _margaria_loop, _minetti_loop, _integrate_loop,
          _stimulation_duration_loop)
 AVAILABLE = HAVE_NUMBA
 if HAVE_NUMBA:
     with model_cache_directory():
-        (_inputs_loop, _umberger_loop, _bhargava_loop, _lichtwark_loop, _houdijk_exponents_loop,
-         _houdijk_loop, _margaria_loop, _minetti_loop, _integrate_loop,
+        (_inputs_loop, _sin_cos_loop, _umberger_loop, _bhargava_loop, _lichtwark_loop,
+         _houdijk_exponents_loop, _houdijk_loop, _margaria_loop, _minetti_loop, _integrate_loop,
          _stimulation_duration_loop) = LOOPS = tuple(
             numba.njit(**OPTIONS)(loop) for loop in LOOPS)
 
@@ -262,7 +272,12 @@ def _memo(b: Block, key, compute):
 
 
 def _recruitment_sin_cos(b: Block, scaling):
-    return _memo(b, ("recruitment", scaling), lambda: recruitment_sin_cos(scaling * b.excitation))
+    def compute():
+        out = np.empty((2, b.excitation.size))
+        _sin_cos_loop(scaling, b.excitation, out)
+        return out
+
+    return _memo(b, ("recruitment", scaling), compute)
 
 
 def _umberger(c, b: Block, constants, out):
@@ -383,10 +398,11 @@ class CompiledModels:
                      l, v, fl, pe1, pe2, f0, fpcsa_slow, fpcsa_fast, self._fv_columns,
                      float(self.muscle.generic.fv_denominator_min), tuple(inputs))
         block = Block(u, x, xdot, duration, *inputs, l0, f0, mass, fpcsa_slow, {})
-        for m, (run, c, constants) in enumerate(zip(self._runs, self._compiled, self._constants,
-                                                    strict=True)):
-            out[m, BASAL] = 0.0
-            run(c, block, constants, tuple(np.reshape(row, -1, copy=False) for row in out[m]))
+        rows = np.reshape(out, (*out.shape[:2], -1), copy=False)  # (M, C, muscle-steps) view
+        rows[:, BASAL] = 0.0
+        for run, c, constants, model_rows in zip(self._runs, self._compiled, self._constants,
+                                                 rows, strict=True):
+            run(c, block, constants, tuple(model_rows))
 
 
 # The loops' first compile, for the line warm_up prints (docs/performance.md)
