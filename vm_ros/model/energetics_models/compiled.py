@@ -58,8 +58,9 @@ from vm_ros.model.energetics_models.lichtwark import (
 from vm_ros.model.energetics_models.margaria import margaria1968, margaria1968_rates
 from vm_ros.model.energetics_models.minetti import minetti1997, minetti1997_rates
 from vm_ros.model.energetics_models.umberger import (
+    effective_excitation_powers,
+    scaled_effective_excitation,
     umberger2003,
-    umberger2003_powers,
     umberger2003_rates,
 )
 from vm_ros.model.energetics_models.vm_state import inputs_from_curves, passive_curves
@@ -138,6 +139,11 @@ def _sin_cos_loop(scaling, excitation, out):
     cosine, which NumPy calls (module docstring), one sincos per element."""
     for j in range(excitation.size):
         out[0, j], out[1, j] = half_pi_sin_cos(scaling * excitation[j])
+
+
+def _effective_excitation_loop(scaling, excitation, activation, out):
+    for j in range(excitation.size):
+        out[j] = scaled_effective_excitation(scaling, excitation[j], activation[j])
 
 
 def _umberger_loop(c, excitation, mass, velocity, l0, length, active, slow, fl_multiplier,
@@ -224,15 +230,15 @@ def _stimulation_duration_loop(time_s, excitation, onset_s, out):
 # no fast-math flags (module docstring); divisions by zero give inf or NaN, as NumPy's
 OPTIONS = {"cache": True, "nogil": True, "error_model": "numpy", "fastmath": False,
            **COMPILE_OPTIONS}
-LOOPS = (_inputs_loop, _sin_cos_loop, _umberger_loop, _bhargava_loop, _lichtwark_loop,
-         _houdijk_exponents_loop, _houdijk_loop, _margaria_loop, _minetti_loop, _integrate_loop,
-         _stimulation_duration_loop)
+LOOPS = (_inputs_loop, _sin_cos_loop, _effective_excitation_loop, _umberger_loop,
+         _bhargava_loop, _lichtwark_loop, _houdijk_exponents_loop, _houdijk_loop, _margaria_loop,
+         _minetti_loop, _integrate_loop, _stimulation_duration_loop)
 AVAILABLE = HAVE_NUMBA
 if HAVE_NUMBA:
     with model_cache_directory():
-        (_inputs_loop, _sin_cos_loop, _umberger_loop, _bhargava_loop, _lichtwark_loop,
-         _houdijk_exponents_loop, _houdijk_loop, _margaria_loop, _minetti_loop, _integrate_loop,
-         _stimulation_duration_loop) = LOOPS = tuple(
+        (_inputs_loop, _sin_cos_loop, _effective_excitation_loop, _umberger_loop,
+         _bhargava_loop, _lichtwark_loop, _houdijk_exponents_loop, _houdijk_loop, _margaria_loop,
+         _minetti_loop, _integrate_loop, _stimulation_duration_loop) = LOOPS = tuple(
             numba.njit(**OPTIONS)(loop) for loop in LOOPS)
 
 
@@ -241,14 +247,14 @@ if HAVE_NUMBA:
 
 @dataclasses.dataclass(frozen=True)
 class Block:
-    """A block's arrays, flat (one value per muscle-step): its outputs, the mapped inputs and
-    the bank's per-muscle constants repeated per step; ``memo``: transcendentals computed for
-    it (:func:`_memo`)."""
+    """A block's arrays, flat (one value per muscle-step): its outputs (``duration`` None: 0 s,
+    as no selected model takes it), the mapped inputs and the bank's per-muscle constants
+    repeated per step; ``memo``: transcendentals computed for it (:func:`_memo`)."""
 
     excitation: np.ndarray
     length: np.ndarray
     velocity: np.ndarray
-    duration: np.ndarray
+    duration: np.ndarray | None
     activation: np.ndarray
     active: np.ndarray
     isometric: np.ndarray
@@ -283,8 +289,13 @@ def _recruitment_sin_cos(b: Block, scaling):
 def _umberger(c, b: Block, constants, out):
     key = ("umberger powers", constants.muscle_effort_scaling_factor,
            constants.activation_maintenance_exponent, constants.shortening_exponent)
-    effective, maintenance, shortening = _memo(
-        b, key, lambda: umberger2003_powers(constants, b.excitation, b.activation))
+    def compute():
+        effective = np.empty(b.excitation.size)
+        _effective_excitation_loop(constants.muscle_effort_scaling_factor, b.excitation,
+                                   b.activation, effective)
+        return effective_excitation_powers(constants, effective)
+
+    effective, maintenance, shortening = _memo(b, key, compute)
     sin_angle = cos_angle = effective  # not used without Bhargava's recruitment
     if constants.use_Bhargava_recruitment_model:
         sin_angle, cos_angle = _recruitment_sin_cos(b, constants.muscle_effort_scaling_factor)
@@ -299,8 +310,9 @@ def _bhargava(c, b: Block, constants, out):
 
 
 def _lichtwark(c, b: Block, constants, out):
+    duration = np.zeros(b.length.size) if b.duration is None else b.duration
     isometric_maintenance, lengthening_decay = lichtwark2005_transcendentals(
-        constants, b.duration, b.fv_multiplier)
+        constants, duration, b.fv_multiplier)
     _lichtwark_loop(c, b.activation, b.l0, b.f0, b.velocity, b.active, b.fl_multiplier,
                     b.fv_multiplier, isometric_maintenance, lengthening_decay, out)
 
@@ -379,7 +391,7 @@ class CompiledModels:
         u, x, xdot = (np.ascontiguousarray(a, dtype=float).reshape(-1)
                       for a in (excitation, length_m, velocity_m_per_s))
         activity = np.asarray(effective_activation, dtype=float).reshape(-1, 2)
-        duration = (np.zeros(x.shape) if stimulation_duration is None
+        duration = (None if stimulation_duration is None
                     else np.ascontiguousarray(stimulation_duration, dtype=float).reshape(-1))
         if shape[0] not in self._repeated:
             self._repeated[shape[0]] = np.broadcast_to(
