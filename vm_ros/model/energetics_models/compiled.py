@@ -51,9 +51,10 @@ from vm_ros.model.energetics_models.houdijk import (
     houdijk2006_rates,
 )
 from vm_ros.model.energetics_models.lichtwark import (
+    isometric_maintenance,
     lichtwark2005,
+    lichtwark2005_exponents,
     lichtwark2005_rates,
-    lichtwark2005_transcendentals,
 )
 from vm_ros.model.energetics_models.margaria import margaria1968, margaria1968_rates
 from vm_ros.model.energetics_models.minetti import minetti1997, minetti1997_rates
@@ -163,12 +164,21 @@ def _bhargava_loop(c, mass, velocity, active, passive, isometric, length, l0, sl
             slow[j], sin_angle[j], cos_angle[j])
 
 
+def _lichtwark_exponents_loop(c, duration, fv_multiplier, out):
+    for j in range(fv_multiplier.size):
+        out[0, j], out[1, j], out[2, j] = lichtwark2005_exponents(c, duration[j],
+                                                                  fv_multiplier[j])
+
+
 def _lichtwark_loop(c, activation, l0, f0, velocity, active, fl_multiplier, fv_multiplier,
-                    isometric_maintenance, lengthening_decay, out):
+                    exponentials, curvature_squared, out):
+    """``exponentials``: those of lichtwark2005_exponents' arguments, (3, muscle-steps)."""
     for j in range(velocity.size):
+        maintenance = isometric_maintenance(c, exponentials[0, j], exponentials[1, j],
+                                            curvature_squared)
         out[0][j], out[1][j], out[3][j], out[4][j] = lichtwark2005_rates(
             c, activation[j], l0[j], f0[j], velocity[j], active[j], fl_multiplier[j],
-            fv_multiplier[j], isometric_maintenance[j], lengthening_decay[j])
+            fv_multiplier[j], maintenance, exponentials[2, j])
 
 
 def _houdijk_exponents_loop(c, activation, slow, out):
@@ -231,14 +241,16 @@ def _stimulation_duration_loop(time_s, excitation, onset_s, out):
 OPTIONS = {"cache": True, "nogil": True, "error_model": "numpy", "fastmath": False,
            **COMPILE_OPTIONS}
 LOOPS = (_inputs_loop, _sin_cos_loop, _effective_excitation_loop, _umberger_loop,
-         _bhargava_loop, _lichtwark_loop, _houdijk_exponents_loop, _houdijk_loop, _margaria_loop,
-         _minetti_loop, _integrate_loop, _stimulation_duration_loop)
+         _bhargava_loop, _lichtwark_exponents_loop, _lichtwark_loop, _houdijk_exponents_loop,
+         _houdijk_loop, _margaria_loop, _minetti_loop, _integrate_loop,
+         _stimulation_duration_loop)
 AVAILABLE = HAVE_NUMBA
 if HAVE_NUMBA:
     with model_cache_directory():
         (_inputs_loop, _sin_cos_loop, _effective_excitation_loop, _umberger_loop,
-         _bhargava_loop, _lichtwark_loop, _houdijk_exponents_loop, _houdijk_loop, _margaria_loop,
-         _minetti_loop, _integrate_loop, _stimulation_duration_loop) = LOOPS = tuple(
+         _bhargava_loop, _lichtwark_exponents_loop, _lichtwark_loop, _houdijk_exponents_loop,
+         _houdijk_loop, _margaria_loop, _minetti_loop, _integrate_loop,
+         _stimulation_duration_loop) = LOOPS = tuple(
             numba.njit(**OPTIONS)(loop) for loop in LOOPS)
 
 
@@ -311,10 +323,11 @@ def _bhargava(c, b: Block, constants, out):
 
 def _lichtwark(c, b: Block, constants, out):
     duration = np.zeros(b.length.size) if b.duration is None else b.duration
-    isometric_maintenance, lengthening_decay = lichtwark2005_transcendentals(
-        constants, duration, b.fv_multiplier)
+    exponentials = np.empty((3, b.length.size))
+    _lichtwark_exponents_loop(c, duration, b.fv_multiplier, exponentials)
+    np.exp(exponentials, out=exponentials)
     _lichtwark_loop(c, b.activation, b.l0, b.f0, b.velocity, b.active, b.fl_multiplier,
-                    b.fv_multiplier, isometric_maintenance, lengthening_decay, out)
+                    b.fv_multiplier, exponentials, constants.force_velocity_curvature ** 2, out)
 
 
 def _houdijk(c, b: Block, constants, out):
