@@ -193,3 +193,19 @@ def test_numbers_do_not_depend_on_which_compiles_first(tmp_path, models_first):
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                             env=env, timeout=600)
     assert result.returncode == 0, result.stderr[-2000:]
+
+
+def test_the_compiled_sine_and_cosine_are_numpys():
+    """The recruitment's sin and cos of pi u / 2 in a compiled loop are NumPy's, bit for bit,
+    over a dense grid of the scaled excitation and beyond it (NumPy's float64 sin and cos call
+    libm, which the loop calls; a machine where NumPy's are its own SIMD code fails here)."""
+    from vm_ros.model.energetics_models.bhargava import recruitment_sin_cos
+
+    u = np.concatenate([np.linspace(0.0, 1.0, 200_001), np.linspace(-3.0, 3.0, 100_001),
+                        [-0.0, 1e-300, np.inf, np.nan]])
+    out = np.empty((2, u.size))
+    compiled._sin_cos_loop(1.0, u, out)
+    with np.errstate(invalid="ignore"):  # sin and cos of infinity: NaN
+        numpy_values = recruitment_sin_cos(u)
+    for got, expected in zip(out, numpy_values, strict=True):
+        np.testing.assert_array_equal(_bits(got), _bits(expected))

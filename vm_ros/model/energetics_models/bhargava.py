@@ -72,15 +72,24 @@ def piecewise_linear(x, xp, fp):
                                                             / (xp[last] - xp[last - 1])), value)
 
 
-def recruitment_sin_cos(excitation):
-    """sin and cos of pi u / 2 (u: the scaled excitation), by NumPy on either path."""
-    half_pi_u = 0.5 * np.pi * np.asarray(excitation, dtype=float)
+@jitable
+def half_pi_sin_cos(excitation):
+    """sin and cos of pi u / 2 (u: the scaled excitation): NumPy's over arrays, libm's for a
+    scalar in a compiled loop. The two agree to the bit where NumPy's float64 sine and cosine
+    are libm's (they are on x86-64 with AVX-512, where its exp and power are not;
+    test_energetics_compiled.py checks it on the machine)."""
+    half_pi_u = 0.5 * np.pi * excitation
     return np.sin(half_pi_u), np.cos(half_pi_u)
 
 
+def recruitment_sin_cos(excitation):
+    """:func:`half_pi_sin_cos` over an array."""
+    return half_pi_sin_cos(np.asarray(excitation, dtype=float))
+
+
 def bhargava2004_transcendentals(constants: BhargavaConstants, excitation):
-    """The parts of the heat rates computed by NumPy on either path, over arrays: sin and cos
-    of pi u / 2 (u the scaled excitation; :func:`recruitment_sin_cos`)."""
+    """The transcendental parts of the heat rates, over arrays: sin and cos of pi u / 2 (u the
+    scaled excitation; :func:`recruitment_sin_cos`)."""
     return recruitment_sin_cos(constants.muscle_effort_scaling_factor
                                * np.asarray(excitation, dtype=float))
 

@@ -12,6 +12,9 @@ give the same bits because:
 - NumPy's exp, expm1, log1p and power (SIMD code chosen for the machine: on AVX-512, Intel's
   SVML, 1 ulp from libm's in about 5 % of arguments) are computed by NumPy on both paths; only
   +, -, *, /, comparisons and selections are compiled, and those are IEEE operations;
+- the recruitment's sine and cosine are libm's on both paths: NumPy's float64 sin and cos call
+  libm's (on this AVX-512 machine too), and the compiled loop calls it (LLVM joins the two
+  calls into one sincos, which gives the same two values);
 - the loops are compiled without fast-math flags: no a * b + c is fused into one rounding
   (LLVM fuses only under the ``contract`` flag, which the model step's kernel sets and these
   loops do not), nothing is reassociated;
@@ -40,7 +43,7 @@ from vm_ros.model.energetics_models import constants as model_constants
 from vm_ros.model.energetics_models.bhargava import (
     bhargava2004,
     bhargava2004_rates,
-    recruitment_sin_cos,
+    half_pi_sin_cos,
 )
 from vm_ros.model.energetics_models.houdijk import (
     houdijk2006,
@@ -48,15 +51,17 @@ from vm_ros.model.energetics_models.houdijk import (
     houdijk2006_rates,
 )
 from vm_ros.model.energetics_models.lichtwark import (
+    isometric_maintenance,
     lichtwark2005,
+    lichtwark2005_exponents,
     lichtwark2005_rates,
-    lichtwark2005_transcendentals,
 )
 from vm_ros.model.energetics_models.margaria import margaria1968, margaria1968_rates
 from vm_ros.model.energetics_models.minetti import minetti1997, minetti1997_rates
 from vm_ros.model.energetics_models.umberger import (
+    effective_excitation_powers,
+    scaled_effective_excitation,
     umberger2003,
-    umberger2003_powers,
     umberger2003_rates,
 )
 from vm_ros.model.energetics_models.vm_state import inputs_from_curves, passive_curves
@@ -130,6 +135,18 @@ def _inputs_loop(a_slow, a_fast, length, velocity, fl, pe1, pe2, f0, fpcsa_slow,
             fpcsa_slow[j], fpcsa_fast[j])
 
 
+def _sin_cos_loop(scaling, excitation, out):
+    """out[0], out[1] = bhargava.half_pi_sin_cos(scaling * excitation): libm's sine and
+    cosine, which NumPy calls (module docstring), one sincos per element."""
+    for j in range(excitation.size):
+        out[0, j], out[1, j] = half_pi_sin_cos(scaling * excitation[j])
+
+
+def _effective_excitation_loop(scaling, excitation, activation, out):
+    for j in range(excitation.size):
+        out[j] = scaled_effective_excitation(scaling, excitation[j], activation[j])
+
+
 def _umberger_loop(c, excitation, mass, velocity, l0, length, active, slow, fl_multiplier,
                    effective, maintenance_power, shortening_power, sin_angle, cos_angle, out):
     for j in range(length.size):
@@ -147,12 +164,21 @@ def _bhargava_loop(c, mass, velocity, active, passive, isometric, length, l0, sl
             slow[j], sin_angle[j], cos_angle[j])
 
 
+def _lichtwark_exponents_loop(c, duration, fv_multiplier, out):
+    for j in range(fv_multiplier.size):
+        out[0, j], out[1, j], out[2, j] = lichtwark2005_exponents(c, duration[j],
+                                                                  fv_multiplier[j])
+
+
 def _lichtwark_loop(c, activation, l0, f0, velocity, active, fl_multiplier, fv_multiplier,
-                    isometric_maintenance, lengthening_decay, out):
+                    exponentials, curvature_squared, out):
+    """``exponentials``: those of lichtwark2005_exponents' arguments, (3, muscle-steps)."""
     for j in range(velocity.size):
+        maintenance = isometric_maintenance(c, exponentials[0, j], exponentials[1, j],
+                                            curvature_squared)
         out[0][j], out[1][j], out[3][j], out[4][j] = lichtwark2005_rates(
             c, activation[j], l0[j], f0[j], velocity[j], active[j], fl_multiplier[j],
-            fv_multiplier[j], isometric_maintenance[j], lengthening_decay[j])
+            fv_multiplier[j], maintenance, exponentials[2, j])
 
 
 def _houdijk_exponents_loop(c, activation, slow, out):
@@ -214,13 +240,15 @@ def _stimulation_duration_loop(time_s, excitation, onset_s, out):
 # no fast-math flags (module docstring); divisions by zero give inf or NaN, as NumPy's
 OPTIONS = {"cache": True, "nogil": True, "error_model": "numpy", "fastmath": False,
            **COMPILE_OPTIONS}
-LOOPS = (_inputs_loop, _umberger_loop, _bhargava_loop, _lichtwark_loop,
-         _houdijk_exponents_loop, _houdijk_loop, _margaria_loop, _minetti_loop, _integrate_loop,
+LOOPS = (_inputs_loop, _sin_cos_loop, _effective_excitation_loop, _umberger_loop,
+         _bhargava_loop, _lichtwark_exponents_loop, _lichtwark_loop, _houdijk_exponents_loop,
+         _houdijk_loop, _margaria_loop, _minetti_loop, _integrate_loop,
          _stimulation_duration_loop)
 AVAILABLE = HAVE_NUMBA
 if HAVE_NUMBA:
     with model_cache_directory():
-        (_inputs_loop, _umberger_loop, _bhargava_loop, _lichtwark_loop, _houdijk_exponents_loop,
+        (_inputs_loop, _sin_cos_loop, _effective_excitation_loop, _umberger_loop,
+         _bhargava_loop, _lichtwark_exponents_loop, _lichtwark_loop, _houdijk_exponents_loop,
          _houdijk_loop, _margaria_loop, _minetti_loop, _integrate_loop,
          _stimulation_duration_loop) = LOOPS = tuple(
             numba.njit(**OPTIONS)(loop) for loop in LOOPS)
@@ -231,14 +259,14 @@ if HAVE_NUMBA:
 
 @dataclasses.dataclass(frozen=True)
 class Block:
-    """A block's arrays, flat (one value per muscle-step): its outputs, the mapped inputs and
-    the bank's per-muscle constants repeated per step; ``memo``: transcendentals computed for
-    it (:func:`_memo`)."""
+    """A block's arrays, flat (one value per muscle-step): its outputs (``duration`` None: 0 s,
+    as no selected model takes it), the mapped inputs and the bank's per-muscle constants
+    repeated per step; ``memo``: transcendentals computed for it (:func:`_memo`)."""
 
     excitation: np.ndarray
     length: np.ndarray
     velocity: np.ndarray
-    duration: np.ndarray
+    duration: np.ndarray | None
     activation: np.ndarray
     active: np.ndarray
     isometric: np.ndarray
@@ -262,14 +290,24 @@ def _memo(b: Block, key, compute):
 
 
 def _recruitment_sin_cos(b: Block, scaling):
-    return _memo(b, ("recruitment", scaling), lambda: recruitment_sin_cos(scaling * b.excitation))
+    def compute():
+        out = np.empty((2, b.excitation.size))
+        _sin_cos_loop(scaling, b.excitation, out)
+        return out
+
+    return _memo(b, ("recruitment", scaling), compute)
 
 
 def _umberger(c, b: Block, constants, out):
     key = ("umberger powers", constants.muscle_effort_scaling_factor,
            constants.activation_maintenance_exponent, constants.shortening_exponent)
-    effective, maintenance, shortening = _memo(
-        b, key, lambda: umberger2003_powers(constants, b.excitation, b.activation))
+    def compute():
+        effective = np.empty(b.excitation.size)
+        _effective_excitation_loop(constants.muscle_effort_scaling_factor, b.excitation,
+                                   b.activation, effective)
+        return effective_excitation_powers(constants, effective)
+
+    effective, maintenance, shortening = _memo(b, key, compute)
     sin_angle = cos_angle = effective  # not used without Bhargava's recruitment
     if constants.use_Bhargava_recruitment_model:
         sin_angle, cos_angle = _recruitment_sin_cos(b, constants.muscle_effort_scaling_factor)
@@ -284,10 +322,12 @@ def _bhargava(c, b: Block, constants, out):
 
 
 def _lichtwark(c, b: Block, constants, out):
-    isometric_maintenance, lengthening_decay = lichtwark2005_transcendentals(
-        constants, b.duration, b.fv_multiplier)
+    duration = np.zeros(b.length.size) if b.duration is None else b.duration
+    exponentials = np.empty((3, b.length.size))
+    _lichtwark_exponents_loop(c, duration, b.fv_multiplier, exponentials)
+    np.exp(exponentials, out=exponentials)
     _lichtwark_loop(c, b.activation, b.l0, b.f0, b.velocity, b.active, b.fl_multiplier,
-                    b.fv_multiplier, isometric_maintenance, lengthening_decay, out)
+                    b.fv_multiplier, exponentials, constants.force_velocity_curvature ** 2, out)
 
 
 def _houdijk(c, b: Block, constants, out):
@@ -364,7 +404,7 @@ class CompiledModels:
         u, x, xdot = (np.ascontiguousarray(a, dtype=float).reshape(-1)
                       for a in (excitation, length_m, velocity_m_per_s))
         activity = np.asarray(effective_activation, dtype=float).reshape(-1, 2)
-        duration = (np.zeros(x.shape) if stimulation_duration is None
+        duration = (None if stimulation_duration is None
                     else np.ascontiguousarray(stimulation_duration, dtype=float).reshape(-1))
         if shape[0] not in self._repeated:
             self._repeated[shape[0]] = np.broadcast_to(
@@ -383,10 +423,11 @@ class CompiledModels:
                      l, v, fl, pe1, pe2, f0, fpcsa_slow, fpcsa_fast, self._fv_columns,
                      float(self.muscle.generic.fv_denominator_min), tuple(inputs))
         block = Block(u, x, xdot, duration, *inputs, l0, f0, mass, fpcsa_slow, {})
-        for m, (run, c, constants) in enumerate(zip(self._runs, self._compiled, self._constants,
-                                                    strict=True)):
-            out[m, BASAL] = 0.0
-            run(c, block, constants, tuple(np.reshape(row, -1, copy=False) for row in out[m]))
+        rows = np.reshape(out, (*out.shape[:2], -1), copy=False)  # (M, C, muscle-steps) view
+        rows[:, BASAL] = 0.0
+        for run, c, constants, model_rows in zip(self._runs, self._compiled, self._constants,
+                                                 rows, strict=True):
+            run(c, block, constants, tuple(model_rows))
 
 
 # The loops' first compile, for the line warm_up prints (docs/performance.md)

@@ -12,7 +12,8 @@ and then through each model, in NumPy. The state the models need is kept here, p
 - ``onset_s`` (n,): model time (s) at the end of the first step of the current stretch of
   drive U > 0 (NaN while U = 0), so that Lichtwark & Wilson's stimulation duration is the same
   whether the steps come one by one or in runs (vm_state.time_since_onset counts it the same
-  way over one series);
+  way over one series); kept only where a selected model takes the stimulation duration (the
+  registry's extras), NaN otherwise;
 - ``energy_j`` (n, M): each model's total integrated step by step, E += rate(end of step) dt,
   the rate at the state at the end of the step as the bank's own energetics are.
 
@@ -73,6 +74,8 @@ class BankModels:
         self.muscle = muscle
         self._models = [published_model(name) for name in self.names]
         self._constants = [model.load_constants() for model in self._models]
+        # the stimulation duration, counted only for a model that takes it (Lichtwark's)
+        self._duration = any("stimulation_duration" in model.extras for model in self._models)
         self._compiled = None
         if compile_models and compiled.AVAILABLE and self.names:
             self._compiled = compiled.CompiledModels(self._models, self._constants, muscle)
@@ -145,7 +148,7 @@ class BankModels:
         (k, n) (effective activation (k, n, 2)): (rates (k, n, M, C) W, cumulative energies
         (k, n, M) J), the state advanced past them."""
         dt = np.broadcast_to(np.asarray(dt, dtype=float), np.shape(time_s))
-        duration = self.stimulation_duration(time_s, excitation)
+        duration = self.stimulation_duration(time_s, excitation) if self._duration else None
         rates = self.rates(excitation, effective_activation, length_m, velocity_m_per_s,
                            duration)
         totals = rates.base[:, TOTAL] if rates.base is not None else rates[..., TOTAL]

@@ -40,28 +40,53 @@ def force_velocity_multiplier_from_state(state: MuscleState):
                      where=isometric > 0.0)
 
 
+@jitable
+def lichtwark2005_exponents(c, stimulation_duration, force_velocity_multiplier):
+    """The arguments of the three exponentials (1): -0.72 t and -0.022 t of gamma, and
+    -7 Vmax (g - 1) of the lengthening maintenance; t in s. NumPy arrays, or scalars in a
+    compiled loop."""
+    t = stimulation_duration
+    return (-c.maintenance_decay_fast_rate * t, -c.maintenance_decay_slow_rate * t,
+            -c.lengthening_maintenance_decay * c.max_contraction_velocity
+            * (force_velocity_multiplier - 1.0))
+
+
+@jitable
+def maintenance_decay_from_exponentials(c, fast_exp, slow_exp):
+    """gamma (1) = C + 0.8 fast_exp + 0.175 slow_exp, the exponentials of
+    :func:`lichtwark2005_exponents`."""
+    return (c.maintenance_decay_constant + c.maintenance_decay_fast_amplitude * fast_exp
+            + c.maintenance_decay_slow_amplitude * slow_exp)
+
+
 def maintenance_decay(stimulation_duration, constants: LichtwarkConstants):
     """gamma (1): C + 0.8 exp(-0.72 t) + 0.175 exp(-0.022 t), t in s; Lichtwark & Wilson 2005's
     decay with C = 0 (the default), a constant gamma with both amplitudes 0."""
-    c = constants
     t = np.asarray(stimulation_duration, dtype=float)
-    return (c.maintenance_decay_constant
-            + c.maintenance_decay_fast_amplitude * np.exp(-c.maintenance_decay_fast_rate * t)
-            + c.maintenance_decay_slow_amplitude * np.exp(-c.maintenance_decay_slow_rate * t))
+    fast, slow, _ = lichtwark2005_exponents(constants, t, 1.0)
+    return maintenance_decay_from_exponentials(constants, np.exp(fast), np.exp(slow))
+
+
+@jitable
+def isometric_maintenance(c, fast_exp, slow_exp, curvature_squared):
+    """gamma Vmax / G^2 (L0/s), from the exponentials of gamma
+    (:func:`maintenance_decay_from_exponentials`) and G^2 (computed in Python: the power of a
+    float would be compiled once for the model step's kernel and these loops alike)."""
+    return (maintenance_decay_from_exponentials(c, fast_exp, slow_exp)
+            * c.max_contraction_velocity / curvature_squared)
 
 
 def lichtwark2005_transcendentals(constants: LichtwarkConstants, stimulation_duration,
                                   force_velocity_multiplier):
     """The parts of the heat rates computed by NumPy on either path, over arrays: the isometric
-    maintenance gamma Vmax / G^2 (gamma: :func:`maintenance_decay`; G^2 a Python float's
-    power, kept out of compiled code, where the power of a float would be compiled once for the
-    model step's kernel and these loops alike) and the lengthening maintenance's
-    exp(-7 Vmax (g - 1))."""
+    maintenance gamma Vmax / G^2 (:func:`isometric_maintenance`) and the lengthening
+    maintenance's exp(-7 Vmax (g - 1)); the exponentials' arguments are
+    :func:`lichtwark2005_exponents`."""
     c = constants
-    g = np.asarray(force_velocity_multiplier, dtype=float)
-    vmax = c.max_contraction_velocity
-    return (maintenance_decay(stimulation_duration, c) * vmax / c.force_velocity_curvature ** 2,
-            np.exp(-c.lengthening_maintenance_decay * vmax * (g - 1.0)))
+    fast, slow, lengthening = (np.exp(x) for x in lichtwark2005_exponents(
+        c, np.asarray(stimulation_duration, dtype=float),
+        np.asarray(force_velocity_multiplier, dtype=float)))
+    return isometric_maintenance(c, fast, slow, c.force_velocity_curvature ** 2), lengthening
 
 
 @jitable

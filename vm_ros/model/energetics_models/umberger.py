@@ -85,16 +85,25 @@ def effective_excitation(u, a):
     return where(u > a, u, (u + a) / 2.0)
 
 
-def umberger2003_powers(constants: UmbergerConstants, excitation, activation):
-    """(A_eff, A_eff^0.6, A_eff^2) over arrays, by NumPy on either path (u and a scaled by
-    the muscle_effort_scaling_factor)."""
+@jitable
+def scaled_effective_excitation(scaling, excitation, activation):
+    """A_eff of the excitation and activation scaled by the muscle_effort_scaling_factor."""
+    return effective_excitation(scaling * excitation, scaling * activation)
+
+
+def effective_excitation_powers(constants: UmbergerConstants, effective):
+    """(A_eff, A_eff^0.6, A_eff^2) from A_eff, by NumPy on either path."""
     c = constants
-    k = c.muscle_effort_scaling_factor
-    a = k * np.asarray(activation, dtype=float)
-    u = k * np.asarray(excitation, dtype=float)
-    effective = effective_excitation(u, a)
     return (effective, effective ** c.activation_maintenance_exponent,
             effective ** c.shortening_exponent)
+
+
+def umberger2003_powers(constants: UmbergerConstants, excitation, activation):
+    """(A_eff, A_eff^0.6, A_eff^2) over arrays (:func:`scaled_effective_excitation`,
+    :func:`effective_excitation_powers`)."""
+    return effective_excitation_powers(constants, scaled_effective_excitation(
+        constants.muscle_effort_scaling_factor, np.asarray(excitation, dtype=float),
+        np.asarray(activation, dtype=float)))
 
 
 def umberger2003_transcendentals(constants: UmbergerConstants, excitation, activation):
