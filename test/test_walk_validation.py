@@ -31,6 +31,47 @@ def test_spike_frames_flag_only_the_jump():
     assert np.flatnonzero(spikes[:, 0]).tolist() == [20]
 
 
+def test_spike_frames_flag_an_end_frame_that_stands_alone():
+    """A half cosine of peak 100, flat at both ends, with its first frame lowered and its last
+    raised by 30: both ends are 30 from their neighbours (the window's median is a neighbour's
+    value, about 98.8 below the raised end), and no other frame is flagged. With the end frame
+    repeated past the end it was its own median and could not be."""
+    t = np.linspace(0, 1, 61)
+    targets = 100 * np.cos(np.pi * t)[:, None]
+    targets[0, 0] -= 30.0
+    targets[-1, 0] += 30.0
+    assert np.flatnonzero(w.spike_frames(targets, 0.10)[:, 0]).tolist() == [0, 60]
+
+
+def test_spike_frames_leave_the_ends_of_steep_straight_stretches():
+    """Ramps of 15 % of peak per frame at both ends around a flat top of 100: every frame of a
+    straight stretch is its own 5-frame median in the interior, and the ends are judged alike
+    (a mirror image past the end would make each end a turning point 15 from its median)."""
+    targets = np.array([0, 15, 30, 45, 60, 75, 90, 100, 100, 100, 100, 100, 90, 75, 60, 45],
+                       dtype=float)[:, None]
+    assert not w.spike_frames(targets, 0.10).any()
+
+
+def test_spike_frames_between_the_ends_are_the_running_median_rule():
+    """Every frame but the first and last is flagged exactly as the plain rule says: |x_i -
+    median(x_{i-2} .. x_{i+2})| > 0.1 peak, the indices past the ends taken as the end frame
+    (a loop over the frames); random walks with spikes, so that frames next to the ends are
+    flagged too."""
+    rng = np.random.default_rng(3)
+    targets = np.cumsum(rng.normal(size=(40, 8)), axis=0)
+    targets[rng.random(targets.shape) < 0.15] += 20.0
+    targets[1, :4] -= 25.0
+    targets[-2, 4:] += 25.0
+    peak = np.abs(targets).max(axis=0)
+    n = len(targets)
+    plain = np.array([[abs(targets[i, j] - np.median(targets[np.clip(np.arange(i - 2, i + 3), 0,
+                                                                      n - 1), j]))
+                       > 0.1 * peak[j] for j in range(targets.shape[1])] for i in range(n)])
+    spikes = w.spike_frames(targets, 0.10)
+    assert plain[1].any() and plain[-2].any()
+    np.testing.assert_array_equal(spikes[1:-1], plain[1:-1])
+
+
 def test_tracking_errors_of_a_constant_offset():
     """Muscle moments 2 N m above targets of peak 100 N m: 2 % RMS and max; a 50 N m spike in
     the targets is counted and left out of the max."""

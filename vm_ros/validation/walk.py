@@ -95,10 +95,22 @@ def load_walk_config(path=None) -> tuple[dict, Path]:
 
 def spike_frames(targets, fraction: float) -> np.ndarray:
     """(T, C) bool: |target - its running median over SPIKE_WINDOW frames| > fraction x the
-    coordinate's peak |target|."""
+    coordinate's peak |target|; T >= 3.
+
+    The window runs past the ends over two slots per end. The slot next to the end holds a
+    copy of the end frame (it is also in the second frame's window, which is thus the same as
+    with the end frame repeated); the outer slot, which only the end frame's own window holds,
+    continues the straight line through the two frames before the end frame. A copy there (the
+    end frame three times in its own window of five) made the end frame its own median, so it
+    could never be flagged; the line makes an end frame on a straight stretch its own median
+    (as a monotone stretch is in the interior) and flags an end frame that turns back from its
+    neighbours or stands alone (changed on 2026-12-03 after the walk's results were seen:
+    docs/coordination.md, "The hips' max on this walk")."""
     targets = np.asarray(targets, dtype=float)
     half = SPIKE_WINDOW // 2
     padded = np.pad(targets, ((half, half), (0, 0)), mode="edge")
+    padded[0] = targets[1] + (half + 1) * (targets[1] - targets[2])
+    padded[-1] = targets[-2] + (half + 1) * (targets[-2] - targets[-3])
     windows = np.lib.stride_tricks.sliding_window_view(padded, SPIKE_WINDOW, axis=0)
     median = np.median(windows, axis=-1)
     return np.abs(targets - median) > fraction * np.abs(targets).max(axis=0)
