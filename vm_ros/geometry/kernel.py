@@ -349,21 +349,28 @@ def compiled_evaluator(packed, many: bool = False):
     return run
 
 
+def _box_and_tables(packed, lower, upper) -> tuple | None:
+    """The arguments the box-checking evaluators take after their own: the box (lower,
+    upper), the slot tables and the degree; None for a geometry wider than SLOTS."""
+    if packed.slot_coordinate.shape[1] > SLOTS:
+        return None
+    return (np.array(lower, dtype=np.float64), np.array(upper, dtype=np.float64),
+            *_slot_arrays(packed), packed.max_degree)
+
+
 def compiled_inside_evaluator(packed, lower, upper):
     """A function (q, qdot) -> (inside, L, dL/dq, -dL/dq, copies of q and qdot) for float
     arrays of shape (n_q,): ``inside`` is False (and the rest placeholders) unless every
     coordinate lies strictly inside (lower, upper) and every velocity is finite, where clamping
     changes nothing; the numbers of ``compiled_evaluator``'s function, with the checks in one
     call. None for a geometry wider than SLOTS."""
-    if packed.slot_coordinate.shape[1] > SLOTS:
+    tail = _box_and_tables(packed, lower, upper)
+    if tail is None:
         return None
     evaluate = _compile()[2]
-    arrays = _slot_arrays(packed)
-    box = (np.array(lower, dtype=np.float64), np.array(upper, dtype=np.float64))
-    degree = packed.max_degree
 
     def run(q, qdot):
-        return evaluate(q, qdot, *box, *arrays, degree)
+        return evaluate(q, qdot, *tail)
 
     return run
 
@@ -378,16 +385,13 @@ def compiled_mapped_evaluator(packed, lower, upper):
     clamping changes nothing. L and dL/dq are ``compiled_evaluator``'s numbers at q_used, r of
     ``rows`` is -dL/dq of those rows; the velocities, dL/dq @ q'_used, are left to NumPy (BLAS
     sums in its own order). One call for all of it. None for a geometry wider than SLOTS."""
-    if packed.slot_coordinate.shape[1] > SLOTS:
+    tail = _box_and_tables(packed, lower, upper)
+    if tail is None:
         return None
     evaluate = _compile()[4]
-    arrays = _slot_arrays(packed)
-    box = (np.array(lower, dtype=np.float64), np.array(upper, dtype=np.float64))
-    degree = packed.max_degree
 
     def run(values, speeds, entries, sign, offset, moving, rows):
-        return evaluate(values, speeds, entries, sign, offset, moving, rows, *box, *arrays,
-                        degree)
+        return evaluate(values, speeds, entries, sign, offset, moving, rows, *tail)
 
     return run
 

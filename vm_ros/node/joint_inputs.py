@@ -353,12 +353,7 @@ class JointInputs:
         sample, issues = self._stored(out, q_now, every.index, every.update, every.rows, now_ns)
         if sample is None:  # NodeInputs rejected the paths: nothing is stored
             return issues
-        self.sample = sample
-        self.q, self.qdot = q, qdot
-        self.seen = self._all_seen
-        self.q_time_ns = np.empty(q.size, dtype=np.int64)  # rebase writes into it
-        self.q_time_ns.fill(now_ns)
-        self.last_message_ns = now_ns
+        self._keep_every(sample, q, qdot, now_ns)
         return issues
 
     def _on_every_coordinate_compiled(self, every: EveryCoordinate, position, velocity,
@@ -382,13 +377,18 @@ class JointInputs:
         sample = JointSample(int(now_ns), q_used, qdot_used, arm)
         for array in (q_used, qdot_used, arm):
             array.flags.writeable = False
+        self._keep_every(sample, q, qdot, now_ns)
+        return []
+
+    def _keep_every(self, sample: JointSample, q, qdot, now_ns: int) -> None:
+        """The state after an accepted message naming every coordinate: its sample, q and q'
+        received now, every coordinate seen."""
         self.sample = sample
         self.q, self.qdot = q, qdot
         self.seen = self._all_seen
         self.q_time_ns = np.empty(q.size, dtype=np.int64)  # rebase writes into it
         self.q_time_ns.fill(now_ns)
         self.last_message_ns = now_ns
-        return []
 
     def on_joint_states_many(self, names: tuple, positions, velocities,
                              times_ns) -> JointBlock | None:
