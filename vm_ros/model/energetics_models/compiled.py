@@ -64,13 +64,14 @@ from vm_ros.model.energetics_models.umberger import (
     umberger2003,
     umberger2003_rates,
 )
-from vm_ros.model.energetics_models.vm_state import inputs_from_curves, passive_curves
+from vm_ros.model.energetics_models.vm_state import inputs_from_curves
 from vm_ros.model.jit import (
     COMPILE_OPTIONS,
     HAVE_NUMBA,
     compile_interruptibly,
     in_disk_cache,
     jitable,
+    maximum,
     model_cache_directory,
     numba,
 )
@@ -110,9 +111,14 @@ def compiled_constants(constants):
                                            for f in dataclasses.fields(constants)})
 
 
-# FV for these loops alone (module docstring)
+# the curves' equations these loops share with the kernel, compiled for them alone (module
+# docstring)
 _force_velocity = jitable(renamed(curves.force_velocity_cheng2000,
                                   "force_velocity_cheng2000_without_contraction"))
+_force_length_base = jitable(renamed(curves.force_length_base,
+                                     "force_length_base_without_contraction"))
+_passive_argument = jitable(renamed(curves.passive_parallel_elastic_argument,
+                                    "passive_parallel_elastic_argument_without_contraction"))
 
 
 # --- the compiled loops: one per model, over a block's muscle-steps as flat arrays --------------
@@ -122,17 +128,51 @@ _force_velocity = jitable(renamed(curves.force_velocity_cheng2000,
 # model's component rows (in_bank.COMPONENTS), flat.
 
 
-def _inputs_loop(a_slow, a_fast, length, velocity, fl, pe1, pe2, f0, fpcsa_slow, fpcsa_fast,
-                 fv_columns, denominator_min, out):
-    """vm_state.inputs_from_curves at every muscle-step, FV of each type computed here; ``out``:
-    activation, active, isometric and passive force, FL and FV multipliers."""
+def _lengths_loop(x, xdot, l0, lmax, passive_constants, with_passive, lengths, passive):
+    """``lengths``: L = x / L0, V = xdot / L0 and max(L, 0) (FL's base); with ``with_passive``,
+    ``passive``: FPE1's argument x, -|x| (the argument of its exp) and FPE2's expm1 argument
+    (curves.passive_parallel_elastic_cheng2000, thick_filament_compression_cheng2000);
+    ``passive_constants``: k1, Lr1, k2, Lr2."""
+    k1, lr1, k2, lr2 = passive_constants
+    for j in range(x.size):
+        length = x[j] / l0[j]
+        lengths[0, j] = length
+        lengths[1, j] = xdot[j] / l0[j]
+        lengths[2, j] = maximum(length, 0.0)
+        if with_passive:
+            argument = _passive_argument(length, lmax[j], k1, lr1)
+            passive[0, j], passive[1, j] = argument, -np.abs(argument)
+            passive[2, j] = curves.thick_filament_compression_exponent(length, k2, lr2)
+
+
+def _force_length_base_loop(omega, powers):
+    """powers[t] = |z| = |(L^beta_t - 1) / omega_t| in place, from L^beta_t (curves'
+    _force_length_parts)."""
+    for t in range(powers.shape[0]):
+        for j in range(powers.shape[1]):
+            powers[t, j] = np.abs(_force_length_base(powers[t, j], omega[t]))
+
+
+def _inputs_loop(activity, lengths, fl, passive, with_passive, passive_constants, f0,
+                 fpcsa_slow, fpcsa_fast, fv_columns, denominator_min, out):
+    """vm_state.inputs_from_curves at every muscle-step, FV of each type and FPE1 and FPE2 (from
+    the values in ``passive``: x, ln(1 + exp(-|x|)) and FPE2's expm1; 0 without
+    ``with_passive``) computed here; ``out``: activation, active, isometric and passive force,
+    FL and FV multipliers."""
     slow, fast = fv_columns
-    for j in range(length.size):
-        fv_slow = _force_velocity(velocity[j], length[j], *slow, denominator_min)
-        fv_fast = _force_velocity(velocity[j], length[j], *fast, denominator_min)
+    c1, k1, eta, c2 = passive_constants
+    for j in range(f0.size):
+        length, velocity = lengths[0, j], lengths[1, j]
+        fv_slow = _force_velocity(velocity, length, *slow, denominator_min)
+        fv_fast = _force_velocity(velocity, length, *fast, denominator_min)
+        pe1 = pe2 = 0.0
+        if with_passive:
+            pe1 = curves.passive_parallel_elastic_from_log(passive[0, j], passive[1, j],
+                                                           velocity, c1, k1, eta)
+            pe2 = curves.thick_filament_compression_from_expm1(passive[2, j], c2)
         (out[0][j], out[1][j], out[2][j], out[3][j], out[4][j], out[5][j]) = inputs_from_curves(
-            a_slow[j], a_fast[j], fl[0, j], fl[1, j], fv_slow, fv_fast, pe1[j], pe2[j], f0[j],
-            fpcsa_slow[j], fpcsa_fast[j])
+            activity[j, 0], activity[j, 1], fl[0, j], fl[1, j], fv_slow, fv_fast, pe1, pe2,
+            f0[j], fpcsa_slow[j], fpcsa_fast[j])
 
 
 def _sin_cos_loop(scaling, excitation, out):
@@ -240,17 +280,17 @@ def _stimulation_duration_loop(time_s, excitation, onset_s, out):
 # no fast-math flags (module docstring); divisions by zero give inf or NaN, as NumPy's
 OPTIONS = {"cache": True, "nogil": True, "error_model": "numpy", "fastmath": False,
            **COMPILE_OPTIONS}
-LOOPS = (_inputs_loop, _sin_cos_loop, _effective_excitation_loop, _umberger_loop,
-         _bhargava_loop, _lichtwark_exponents_loop, _lichtwark_loop, _houdijk_exponents_loop,
-         _houdijk_loop, _margaria_loop, _minetti_loop, _integrate_loop,
-         _stimulation_duration_loop)
+LOOPS = (_lengths_loop, _force_length_base_loop, _inputs_loop, _sin_cos_loop,
+         _effective_excitation_loop, _umberger_loop, _bhargava_loop, _lichtwark_exponents_loop,
+         _lichtwark_loop, _houdijk_exponents_loop, _houdijk_loop, _margaria_loop, _minetti_loop,
+         _integrate_loop, _stimulation_duration_loop)
 AVAILABLE = HAVE_NUMBA
 if HAVE_NUMBA:
     with model_cache_directory():
-        (_inputs_loop, _sin_cos_loop, _effective_excitation_loop, _umberger_loop,
-         _bhargava_loop, _lichtwark_exponents_loop, _lichtwark_loop, _houdijk_exponents_loop,
-         _houdijk_loop, _margaria_loop, _minetti_loop, _integrate_loop,
-         _stimulation_duration_loop) = LOOPS = tuple(
+        (_lengths_loop, _force_length_base_loop, _inputs_loop, _sin_cos_loop,
+         _effective_excitation_loop, _umberger_loop, _bhargava_loop, _lichtwark_exponents_loop,
+         _lichtwark_loop, _houdijk_exponents_loop, _houdijk_loop, _margaria_loop, _minetti_loop,
+         _integrate_loop, _stimulation_duration_loop) = LOOPS = tuple(
             numba.njit(**OPTIONS)(loop) for loop in LOOPS)
 
 
@@ -395,6 +435,10 @@ class CompiledModels:
         columns = type_columns(muscle.fibre)
         self._fv_columns = tuple(tuple(float(np.asarray(columns[name])[t]) for name in (
             T.vmax, T.cv0, T.cv1, T.av0, T.av1, T.av2, T.bv)) for t in range(2))
+        self._omega = np.ascontiguousarray(np.asarray(columns[T.omega], dtype=float).reshape(2))
+        g = muscle.generic
+        self._passive_arguments = tuple(float(a) for a in (g.k1, g.lr1, g.k2, g.lr2))
+        self._passive_factors = tuple(float(a) for a in (g.c1, g.k1, g.eta, g.c2))
 
     def fill(self, out, excitation, effective_activation, length_m, velocity_m_per_s,
              stimulation_duration) -> None:
@@ -403,7 +447,7 @@ class CompiledModels:
         shape = np.shape(length_m)
         u, x, xdot = (np.ascontiguousarray(a, dtype=float).reshape(-1)
                       for a in (excitation, length_m, velocity_m_per_s))
-        activity = np.asarray(effective_activation, dtype=float).reshape(-1, 2)
+        activity = np.ascontiguousarray(effective_activation, dtype=float).reshape(-1, 2)
         duration = (None if stimulation_duration is None
                     else np.ascontiguousarray(stimulation_duration, dtype=float).reshape(-1))
         if shape[0] not in self._repeated:
@@ -411,16 +455,22 @@ class CompiledModels:
                 self._per_muscle[:, None], (len(self._per_muscle), *shape)).reshape(
                 len(self._per_muscle), -1)
         l0, f0, mass, fpcsa_slow, fpcsa_fast, lmax = self._repeated[shape[0]]
-        l, v = x / l0, xdot / l0
+        size = x.size
+        lengths, passive = np.empty((3, size)), np.empty((3, size) if self._passive else (3, 0))
+        _lengths_loop(x, xdot, l0, lmax, self._passive_arguments, self._passive, lengths,
+                      passive)
+        # FL of each type (curves.force_length_cheng2000: its powers and exp by NumPy)
         ft = self._fl_columns
-        fl = curves.force_length_cheng2000(l[None], ft[T.omega], ft[T.beta], ft[T.rho])
-        if self._passive:
-            pe1, pe2 = passive_curves(l, v, dataclasses.replace(self.muscle, lmax=lmax))
-        else:
-            pe1 = pe2 = np.zeros(x.size)
-        inputs = np.empty((6, x.size))
-        _inputs_loop(np.ascontiguousarray(activity[:, 0]), np.ascontiguousarray(activity[:, 1]),
-                     l, v, fl, pe1, pe2, f0, fpcsa_slow, fpcsa_fast, self._fv_columns,
+        fl = np.power(lengths[2:], ft[T.beta])
+        _force_length_base_loop(self._omega, fl)
+        np.power(fl, ft[T.rho], out=fl)
+        np.exp(np.negative(fl, out=fl), out=fl)
+        if self._passive:  # ln(1 + exp(-|x|)) and expm1 of FPE1 and FPE2, by NumPy
+            np.log1p(np.exp(passive[1], out=passive[1]), out=passive[1])
+            np.expm1(passive[2], out=passive[2])
+        inputs = np.empty((6, size))
+        _inputs_loop(activity, lengths, fl, passive, self._passive, self._passive_factors, f0,
+                     fpcsa_slow, fpcsa_fast, self._fv_columns,
                      float(self.muscle.generic.fv_denominator_min), tuple(inputs))
         block = Block(u, x, xdot, duration, *inputs, l0, f0, mass, fpcsa_slow, {})
         rows = np.reshape(out, (*out.shape[:2], -1), copy=False)  # (M, C, muscle-steps) view
