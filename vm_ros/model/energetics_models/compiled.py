@@ -202,22 +202,24 @@ def _effective_excitation_loop(scaling, excitation, activation, out):
         out[j] = scaled_effective_excitation(scaling, excitation[j], activation[j])
 
 
-def _umberger_loop(c, excitation, mass, velocity, l0, length, active, slow, fl_multiplier,
+def _umberger_loop(c, excitation, mass, velocity, lengths, active, slow, fl_multiplier,
                    effective, maintenance_power, shortening_power, sin_angle, cos_angle, out):
+    """``lengths``: L and V (:func:`_lengths_loop`)."""
     c = UmbergerConstantsCompiled(*c)
-    for j in range(length.size):
+    for j in range(velocity.size):
         out[0][j], out[1][j], out[3][j], out[4][j] = umberger2003_rates(
-            c, excitation[j], mass[j], velocity[j], l0[j], length[j], active[j], slow[j],
-            fl_multiplier[j], effective[j], maintenance_power[j], shortening_power[j],
+            c, excitation[j], mass[j], velocity[j], lengths[1, j], lengths[0, j], active[j],
+            slow[j], fl_multiplier[j], effective[j], maintenance_power[j], shortening_power[j],
             sin_angle[j], cos_angle[j])
 
 
-def _bhargava_loop(c, mass, velocity, active, passive, isometric, length, l0, slow, sin_angle,
+def _bhargava_loop(c, mass, velocity, active, passive, isometric, lengths, slow, sin_angle,
                    cos_angle, out):
+    """``lengths``: L (row 0, :func:`_lengths_loop`)."""
     c = BhargavaConstantsCompiled(*c)
-    for j in range(length.size):
+    for j in range(velocity.size):
         out[0][j], out[1][j], out[3][j], out[4][j] = bhargava2004_rates(
-            c, mass[j], velocity[j], active[j], passive[j], isometric[j], length[j] / l0[j],
+            c, mass[j], velocity[j], active[j], passive[j], isometric[j], lengths[0, j],
             slow[j], sin_angle[j], cos_angle[j])
 
 
@@ -325,12 +327,14 @@ if HAVE_NUMBA:
 @dataclasses.dataclass(frozen=True)
 class Block:
     """A block's arrays, flat (one value per muscle-step): its outputs (``duration`` None: 0 s,
-    as no selected model takes it), the mapped inputs and the bank's per-muscle constants
-    repeated per step; ``memo``: transcendentals computed for it (:func:`_memo`)."""
+    as no selected model takes it), L and V as rows of ``lengths`` (:func:`_lengths_loop`), the
+    mapped inputs and the bank's per-muscle constants repeated per step; ``memo``:
+    transcendentals computed for it (:func:`_memo`)."""
 
     excitation: np.ndarray
     length: np.ndarray
     velocity: np.ndarray
+    lengths: np.ndarray
     duration: np.ndarray | None
     activation: np.ndarray
     active: np.ndarray
@@ -376,14 +380,14 @@ def _umberger(c, b: Block, constants, out):
     sin_angle = cos_angle = effective  # not used without Bhargava's recruitment
     if constants.use_Bhargava_recruitment_model:
         sin_angle, cos_angle = _recruitment_sin_cos(b, constants.muscle_effort_scaling_factor)
-    _umberger_loop(c, b.excitation, b.mass, b.velocity, b.l0, b.length, b.active, b.slow,
+    _umberger_loop(c, b.excitation, b.mass, b.velocity, b.lengths, b.active, b.slow,
                    b.fl_multiplier, effective, maintenance, shortening, sin_angle, cos_angle, out)
 
 
 def _bhargava(c, b: Block, constants, out):
     sin_angle, cos_angle = _recruitment_sin_cos(b, constants.muscle_effort_scaling_factor)
-    _bhargava_loop(c, b.mass, b.velocity, b.active, b.passive, b.isometric, b.length, b.l0,
-                   b.slow, sin_angle, cos_angle, out)
+    _bhargava_loop(c, b.mass, b.velocity, b.active, b.passive, b.isometric, b.lengths, b.slow,
+                   sin_angle, cos_angle, out)
 
 
 def _lichtwark(c, b: Block, constants, out):
@@ -496,7 +500,7 @@ class CompiledModels:
         _inputs_loop(lengths, fl, passive, self._passive, self._passive_factors, f0,
                      fpcsa_slow, fpcsa_fast, self._fv_columns,
                      float(self.muscle.generic.fv_denominator_min), tuple(inputs))
-        block = Block(u, x, xdot, duration, *inputs, l0, f0, mass, fpcsa_slow, {})
+        block = Block(u, x, xdot, lengths, duration, *inputs, l0, f0, mass, fpcsa_slow, {})
         rows = np.reshape(out, (*out.shape[:2], -1), copy=False)  # (M, C, muscle-steps) view
         rows[:, BASAL] = 0.0
         for run, c, constants, model_rows in zip(self._runs, self._compiled, self._constants,
