@@ -6,7 +6,8 @@ Each model is written once (umberger, bhargava, lichtwark, houdijk, margaria, mi
 piecewise-linear curve of Bhargava) and a ``@jitable`` ``*_rates`` function of everything else.
 The NumPy path calls both over arrays; here the first runs over the block's arrays and the second
 in a compiled loop over the block's muscle-steps, as does the mapping from Virtual Muscle's state
-(vm_state.inputs_from_curves; its FL, FPE1 and FPE2 by NumPy, FV in the loop). The two paths
+(vm_state.inputs_from_curves; the powers and exponentials of FL, FPE1 and FPE2 by NumPy,
+their arithmetic and FV in loops). The two paths
 give the same bits because:
 
 - NumPy's exp, expm1, log1p and power (SIMD code chosen for the machine: on AVX-512, Intel's
@@ -20,8 +21,9 @@ give the same bits because:
   loops do not), nothing is reassociated;
 - jit.maximum and jit.minimum give NumPy's result where the two arguments are equal (its second:
   max(-0.0, 0.0) is 0.0) and NaN where either is NaN;
-- the one equation these loops share with the kernel, curves.force_velocity_cheng2000, is
-  compiled for them as a copy of its own: Numba keeps one compile of a jitable function per
+- the equations these loops share with the kernel (curves.force_velocity_cheng2000,
+  force_length_base, passive_parallel_elastic_argument) are compiled for them as copies of
+  their own: Numba keeps one compile of a jitable function per
   argument types, made with the flags of whichever caller compiled it first, so that the kernel
   (with ``contract``) and these loops (without) would otherwise each get the other's in a
   process that compiles both, and their numbers would depend on the order. For the same
