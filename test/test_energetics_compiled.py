@@ -209,3 +209,18 @@ def test_the_compiled_sine_and_cosine_are_numpys():
         numpy_values = recruitment_sin_cos(u)
     for got, expected in zip(out, numpy_values, strict=True):
         np.testing.assert_array_equal(_bits(got), _bits(expected))
+
+
+def test_the_loops_warm_up_compiles_are_the_ones_a_series_calls():
+    """warm_up compiles the loops on a one-step block; a series of several steps (blocks of
+    many rows, one row, and the energies summed chunk by chunk) must call those same
+    compiles, not compile others in its first block (read-only or differently laid out
+    arrays would type otherwise)."""
+    bank = _bank()
+    models = BankModels("all", VmMuscleConstants.from_bank(bank))
+    compiled_before = {loop.__name__: len(loop.signatures) for loop in compiled.LOOPS}
+    time_s, drive, activity, length, velocity = _states(bank, steps=30)
+    for part in (slice(0, 29), slice(29, 30)):
+        models.advance(1e-3, time_s[part], drive[part], activity[part], length[part],
+                       velocity[part])
+    assert {loop.__name__: len(loop.signatures) for loop in compiled.LOOPS} == compiled_before

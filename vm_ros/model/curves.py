@@ -13,8 +13,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from vm_ros.model.jit import exp, expm1, jitable, log1p, power, where
+from vm_ros.model.jit import exp, expm1, jitable, log1p, maximum, minimum, power, where
 from vm_ros.model.layout import T
+
+
+@jitable
+def force_length_base(l_beta, omega):
+    """z = (L^beta - 1) / omega of :func:`force_length_cheng2000`, from L^beta."""
+    return (l_beta - 1.0) / omega
 
 
 @jitable
@@ -22,7 +28,7 @@ def _force_length_parts(l, omega, beta, rho):
     """(L clipped at 0, L^beta, z, |z|^rho, FL) of :func:`force_length_cheng2000`."""
     l = np.maximum(l, 0.0)
     l_beta = power(l, beta)
-    z = (l_beta - 1.0) / omega
+    z = force_length_base(l_beta, omega)
     z_rho = power(np.abs(z), rho)
     return l, l_beta, z, z_rho, exp(-z_rho)
 
@@ -140,8 +146,16 @@ def softplus_from_exp(x, e):
 
 
 @jitable
-def _passive_parallel_elastic_argument(l, lmax, k1, lr1):
+def passive_parallel_elastic_argument(l, lmax, k1, lr1):
+    """x = (L/Lmax - Lr1) / k1, the argument of FPE1's softplus."""
     return (l / lmax - lr1) / k1
+
+
+@jitable
+def passive_parallel_elastic_from_log(x, log_term, v, c1, k1, eta):
+    """FPE1 (:func:`passive_parallel_elastic_cheng2000`) from its argument x and
+    log_term = ln(1 + exp(-|x|)): c1 k1 (max(x, 0) + log_term) + eta V."""
+    return c1 * k1 * (maximum(x, 0.0) + log_term) + eta * v
 
 
 @jitable
@@ -152,15 +166,15 @@ def passive_parallel_elastic_cheng2000(l, v, lmax, c1, k1, lr1, eta):
 
     Lmax: fascicle length (L0) at the maximum anatomical path length.
     """
-    x = _passive_parallel_elastic_argument(l, lmax, k1, lr1)
-    return c1 * k1 * softplus_from_exp(x, exp(-np.abs(x))) + eta * v
+    x = passive_parallel_elastic_argument(l, lmax, k1, lr1)
+    return passive_parallel_elastic_from_log(x, log1p(exp(-np.abs(x))), v, c1, k1, eta)
 
 
 @jitable
 def passive_parallel_elastic_and_slope_cheng2000(l, v, lmax, c1, k1, lr1, eta):
     """(FPE1, dFPE1/dL) of :func:`passive_parallel_elastic_cheng2000`, sharing one exp:
     dFPE1/dL = c1 logistic((L/Lmax - Lr1)/k1) / Lmax (dFPE1/dV is eta)."""
-    x = _passive_parallel_elastic_argument(l, lmax, k1, lr1)
+    x = passive_parallel_elastic_argument(l, lmax, k1, lr1)
     e = exp(-np.abs(x))
     return c1 * k1 * softplus_from_exp(x, e) + eta * v, c1 * logistic_from_exp(x, e) / lmax
 
@@ -173,8 +187,21 @@ def thick_filament_compression_cheng2000(l, c2, k2, lr2):
 
     Human rescaling k2 = -21, Lr2 = 0.70 (Tsianos 2012); VM's cat set is -18.7, 0.79.
     """
-    exponent = np.minimum(k2 * (l - lr2), 50.0)
-    return np.minimum(0.0, c2 * expm1(exponent))
+    return thick_filament_compression_from_expm1(
+        expm1(thick_filament_compression_exponent(l, k2, lr2)), c2)
+
+
+@jitable
+def thick_filament_compression_exponent(l, k2, lr2):
+    """k2 (L - Lr2), capped at 50: the argument of FPE2's expm1."""
+    return minimum(k2 * (l - lr2), 50.0)
+
+
+@jitable
+def thick_filament_compression_from_expm1(excess, c2):
+    """FPE2 (:func:`thick_filament_compression_cheng2000`) from excess = expm1(k2 (L - Lr2))
+    (capped): min(0, c2 excess)."""
+    return minimum(0.0, c2 * excess)
 
 
 @jitable

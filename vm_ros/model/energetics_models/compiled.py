@@ -6,7 +6,8 @@ Each model is written once (umberger, bhargava, lichtwark, houdijk, margaria, mi
 piecewise-linear curve of Bhargava) and a ``@jitable`` ``*_rates`` function of everything else.
 The NumPy path calls both over arrays; here the first runs over the block's arrays and the second
 in a compiled loop over the block's muscle-steps, as does the mapping from Virtual Muscle's state
-(vm_state.inputs_from_curves; its FL, FPE1 and FPE2 by NumPy, FV in the loop). The two paths
+(vm_state.inputs_from_curves; the powers and exponentials of FL, FPE1 and FPE2 by NumPy,
+their arithmetic and FV in loops). The two paths
 give the same bits because:
 
 - NumPy's exp, expm1, log1p and power (SIMD code chosen for the machine: on AVX-512, Intel's
@@ -20,8 +21,9 @@ give the same bits because:
   loops do not), nothing is reassociated;
 - jit.maximum and jit.minimum give NumPy's result where the two arguments are equal (its second:
   max(-0.0, 0.0) is 0.0) and NaN where either is NaN;
-- the one equation these loops share with the kernel, curves.force_velocity_cheng2000, is
-  compiled for them as a copy of its own: Numba keeps one compile of a jitable function per
+- the equations these loops share with the kernel (curves.force_velocity_cheng2000,
+  force_length_base, passive_parallel_elastic_argument) are compiled for them as copies of
+  their own: Numba keeps one compile of a jitable function per
   argument types, made with the flags of whichever caller compiled it first, so that the kernel
   (with ``contract``) and these loops (without) would otherwise each get the other's in a
   process that compiles both, and their numbers would depend on the order. For the same
@@ -64,13 +66,14 @@ from vm_ros.model.energetics_models.umberger import (
     umberger2003,
     umberger2003_rates,
 )
-from vm_ros.model.energetics_models.vm_state import inputs_from_curves, passive_curves
+from vm_ros.model.energetics_models.vm_state import inputs_from_curves
 from vm_ros.model.jit import (
     COMPILE_OPTIONS,
     HAVE_NUMBA,
     compile_interruptibly,
     in_disk_cache,
     jitable,
+    maximum,
     model_cache_directory,
     numba,
 )
@@ -110,29 +113,83 @@ def compiled_constants(constants):
                                            for f in dataclasses.fields(constants)})
 
 
-# FV for these loops alone (module docstring)
+def loop_constants(constants) -> tuple:
+    """:func:`compiled_constants` as a plain tuple, as the loops take them (and make the named
+    tuple again inside): Numba types a plain tuple in its fast C path when a loop is called,
+    a named tuple field by field in Python (about 3 us per call with Umberger's 27 fields)."""
+    return tuple(compiled_constants(constants))
+
+
+# the curves' equations these loops share with the kernel, compiled for them alone (module
+# docstring)
 _force_velocity = jitable(renamed(curves.force_velocity_cheng2000,
                                   "force_velocity_cheng2000_without_contraction"))
+_force_length_base = jitable(renamed(curves.force_length_base,
+                                     "force_length_base_without_contraction"))
+_passive_argument = jitable(renamed(curves.passive_parallel_elastic_argument,
+                                    "passive_parallel_elastic_argument_without_contraction"))
 
 
 # --- the compiled loops: one per model, over a block's muscle-steps as flat arrays --------------
 #
 # Every array is one value per muscle-step of the block (the per-muscle constants repeated per
 # step), flat and contiguous, so that each loop is a plain loop over elements; ``out``: the
-# model's component rows (in_bank.COMPONENTS), flat.
+# model's component rows (in_bank.COMPONENTS), flat; ``c``: the model's constants as a plain
+# tuple (loop_constants), made the named tuple again as the loop starts.
 
 
-def _inputs_loop(a_slow, a_fast, length, velocity, fl, pe1, pe2, f0, fpcsa_slow, fpcsa_fast,
-                 fv_columns, denominator_min, out):
-    """vm_state.inputs_from_curves at every muscle-step, FV of each type computed here; ``out``:
-    activation, active, isometric and passive force, FL and FV multipliers."""
+def _lengths_loop(x, xdot, activity, l0, lmax, passive_constants, with_passive, lengths,
+                  passive):
+    """``lengths``: L = x / L0, V = xdot / L0, max(L, 0) (FL's base) and the effective
+    activation of each type (``activity`` (muscle-steps, 2) as rows); with ``with_passive``,
+    ``passive``: FPE1's argument x, -|x| (the argument of its exp) and FPE2's expm1 argument
+    (curves.passive_parallel_elastic_cheng2000, thick_filament_compression_cheng2000);
+    ``passive_constants``: k1, Lr1, k2, Lr2."""
+    k1, lr1, k2, lr2 = passive_constants
+    # one loop per kind of row, without branches, so that each is vectorised
+    for j in range(x.size):
+        length = x[j] / l0[j]
+        lengths[0, j] = length
+        lengths[1, j] = xdot[j] / l0[j]
+        lengths[2, j] = maximum(length, 0.0)
+    for t in range(2):
+        for j in range(x.size):
+            lengths[3 + t, j] = activity[j, t]
+    if with_passive:
+        for j in range(x.size):
+            argument = _passive_argument(lengths[0, j], lmax[j], k1, lr1)
+            passive[0, j], passive[1, j] = argument, -np.abs(argument)
+            passive[2, j] = curves.thick_filament_compression_exponent(lengths[0, j], k2, lr2)
+
+
+def _force_length_base_loop(omega, powers):
+    """powers[t] = |z| = |(L^beta_t - 1) / omega_t| in place, from L^beta_t (curves'
+    _force_length_parts)."""
+    for t in range(powers.shape[0]):
+        for j in range(powers.shape[1]):
+            powers[t, j] = np.abs(_force_length_base(powers[t, j], omega[t]))
+
+
+def _inputs_loop(lengths, fl, passive, with_passive, passive_constants, f0,
+                 fpcsa_slow, fpcsa_fast, fv_columns, denominator_min, out):
+    """vm_state.inputs_from_curves at every muscle-step, FV of each type and FPE1 and FPE2 (from
+    the values in ``passive``: x, ln(1 + exp(-|x|)) and FPE2's expm1; 0 without
+    ``with_passive``) computed here; ``out``: activation, active, isometric and passive force,
+    FL and FV multipliers."""
     slow, fast = fv_columns
-    for j in range(length.size):
-        fv_slow = _force_velocity(velocity[j], length[j], *slow, denominator_min)
-        fv_fast = _force_velocity(velocity[j], length[j], *fast, denominator_min)
+    c1, k1, eta, c2 = passive_constants
+    for j in range(f0.size):
+        length, velocity = lengths[0, j], lengths[1, j]
+        fv_slow = _force_velocity(velocity, length, *slow, denominator_min)
+        fv_fast = _force_velocity(velocity, length, *fast, denominator_min)
+        pe1 = pe2 = 0.0
+        if with_passive:
+            pe1 = curves.passive_parallel_elastic_from_log(passive[0, j], passive[1, j],
+                                                           velocity, c1, k1, eta)
+            pe2 = curves.thick_filament_compression_from_expm1(passive[2, j], c2)
         (out[0][j], out[1][j], out[2][j], out[3][j], out[4][j], out[5][j]) = inputs_from_curves(
-            a_slow[j], a_fast[j], fl[0, j], fl[1, j], fv_slow, fv_fast, pe1[j], pe2[j], f0[j],
-            fpcsa_slow[j], fpcsa_fast[j])
+            lengths[3, j], lengths[4, j], fl[0, j], fl[1, j], fv_slow, fv_fast, pe1, pe2,
+            f0[j], fpcsa_slow[j], fpcsa_fast[j])
 
 
 def _sin_cos_loop(scaling, excitation, out):
@@ -147,24 +204,29 @@ def _effective_excitation_loop(scaling, excitation, activation, out):
         out[j] = scaled_effective_excitation(scaling, excitation[j], activation[j])
 
 
-def _umberger_loop(c, excitation, mass, velocity, l0, length, active, slow, fl_multiplier,
+def _umberger_loop(c, excitation, mass, velocity, lengths, active, slow, fl_multiplier,
                    effective, maintenance_power, shortening_power, sin_angle, cos_angle, out):
-    for j in range(length.size):
+    """``lengths``: L and V (:func:`_lengths_loop`)."""
+    c = UmbergerConstantsCompiled(*c)
+    for j in range(velocity.size):
         out[0][j], out[1][j], out[3][j], out[4][j] = umberger2003_rates(
-            c, excitation[j], mass[j], velocity[j], l0[j], length[j], active[j], slow[j],
-            fl_multiplier[j], effective[j], maintenance_power[j], shortening_power[j],
+            c, excitation[j], mass[j], velocity[j], lengths[1, j], lengths[0, j], active[j],
+            slow[j], fl_multiplier[j], effective[j], maintenance_power[j], shortening_power[j],
             sin_angle[j], cos_angle[j])
 
 
-def _bhargava_loop(c, mass, velocity, active, passive, isometric, length, l0, slow, sin_angle,
+def _bhargava_loop(c, mass, velocity, active, passive, isometric, lengths, slow, sin_angle,
                    cos_angle, out):
-    for j in range(length.size):
+    """``lengths``: L (row 0, :func:`_lengths_loop`)."""
+    c = BhargavaConstantsCompiled(*c)
+    for j in range(velocity.size):
         out[0][j], out[1][j], out[3][j], out[4][j] = bhargava2004_rates(
-            c, mass[j], velocity[j], active[j], passive[j], isometric[j], length[j] / l0[j],
+            c, mass[j], velocity[j], active[j], passive[j], isometric[j], lengths[0, j],
             slow[j], sin_angle[j], cos_angle[j])
 
 
 def _lichtwark_exponents_loop(c, duration, fv_multiplier, out):
+    c = LichtwarkConstantsCompiled(*c)
     for j in range(fv_multiplier.size):
         out[0, j], out[1, j], out[2, j] = lichtwark2005_exponents(c, duration[j],
                                                                   fv_multiplier[j])
@@ -173,6 +235,7 @@ def _lichtwark_exponents_loop(c, duration, fv_multiplier, out):
 def _lichtwark_loop(c, activation, l0, f0, velocity, active, fl_multiplier, fv_multiplier,
                     exponentials, curvature_squared, out):
     """``exponentials``: those of lichtwark2005_exponents' arguments, (3, muscle-steps)."""
+    c = LichtwarkConstantsCompiled(*c)
     for j in range(velocity.size):
         maintenance = isometric_maintenance(c, exponentials[0, j], exponentials[1, j],
                                             curvature_squared)
@@ -182,12 +245,14 @@ def _lichtwark_loop(c, activation, l0, f0, velocity, active, fl_multiplier, fv_m
 
 
 def _houdijk_exponents_loop(c, activation, slow, out):
+    c = HoudijkConstantsCompiled(*c)
     for j in range(activation.size):
         out[0, j], out[1, j] = houdijk2006_exponents(c, activation[j], slow[j])
 
 
 def _houdijk_loop(c, activation, mass, velocity, slow, f0, active, fl_multiplier, recruited_exp,
                   at_max_exp, out):
+    c = HoudijkConstantsCompiled(*c)
     for j in range(velocity.size):
         out[0][j], out[1][j], out[3][j], out[4][j] = houdijk2006_rates(
             c, activation[j], mass[j], velocity[j], slow[j], f0[j], active[j],
@@ -195,24 +260,28 @@ def _houdijk_loop(c, activation, mass, velocity, slow, f0, active, fl_multiplier
 
 
 def _margaria_loop(c, active, velocity, out):
+    c = MargariaConstantsCompiled(*c)
     for j in range(velocity.size):
         out[3][j], out[4][j] = margaria1968_rates(c, active[j], velocity[j])
 
 
 def _minetti_loop(c, activation, f0, l0, velocity, out):
+    c = MinettiConstantsCompiled(*c)
     for j in range(velocity.size):
         out[4][j] = minetti1997_rates(c, activation[j], f0[j], l0[j], velocity[j])
 
 
-def _integrate_loop(energy, totals, dt, out):
-    """out[m, j, i] = energy[i, m] + the sum of totals[m, j', i] dt[j'] over j' <= j, added
-    step after step (E += rate dt), as step-by-step integration adds them."""
-    steps, n = out.shape[1], out.shape[2]
+def _integrate_loop(energy, totals, dt, start, stop, out):
+    """out[m, j, i] for start <= j < stop = the energy after step j - 1 (out[m, j - 1, i], or
+    energy[m, i] for j = 0) + totals[m, j, i] dt[j], added step after step (E += rate dt), as
+    step-by-step integration adds them."""
+    n = out.shape[2]
     for m in range(out.shape[0]):
         rates, energies = totals[m], out[m]
         for i in range(n):
-            energies[0, i] = energy[i, m] + rates[0, i] * dt[0]
-        for j in range(1, steps):
+            previous = energy[m, i] if start == 0 else energies[start - 1, i]
+            energies[start, i] = previous + rates[start, i] * dt[start]
+        for j in range(start + 1, stop):
             for i in range(n):
                 energies[j, i] = energies[j - 1, i] + rates[j, i] * dt[j]
 
@@ -240,17 +309,17 @@ def _stimulation_duration_loop(time_s, excitation, onset_s, out):
 # no fast-math flags (module docstring); divisions by zero give inf or NaN, as NumPy's
 OPTIONS = {"cache": True, "nogil": True, "error_model": "numpy", "fastmath": False,
            **COMPILE_OPTIONS}
-LOOPS = (_inputs_loop, _sin_cos_loop, _effective_excitation_loop, _umberger_loop,
-         _bhargava_loop, _lichtwark_exponents_loop, _lichtwark_loop, _houdijk_exponents_loop,
-         _houdijk_loop, _margaria_loop, _minetti_loop, _integrate_loop,
-         _stimulation_duration_loop)
+LOOPS = (_lengths_loop, _force_length_base_loop, _inputs_loop, _sin_cos_loop,
+         _effective_excitation_loop, _umberger_loop, _bhargava_loop, _lichtwark_exponents_loop,
+         _lichtwark_loop, _houdijk_exponents_loop, _houdijk_loop, _margaria_loop, _minetti_loop,
+         _integrate_loop, _stimulation_duration_loop)
 AVAILABLE = HAVE_NUMBA
 if HAVE_NUMBA:
     with model_cache_directory():
-        (_inputs_loop, _sin_cos_loop, _effective_excitation_loop, _umberger_loop,
-         _bhargava_loop, _lichtwark_exponents_loop, _lichtwark_loop, _houdijk_exponents_loop,
-         _houdijk_loop, _margaria_loop, _minetti_loop, _integrate_loop,
-         _stimulation_duration_loop) = LOOPS = tuple(
+        (_lengths_loop, _force_length_base_loop, _inputs_loop, _sin_cos_loop,
+         _effective_excitation_loop, _umberger_loop, _bhargava_loop, _lichtwark_exponents_loop,
+         _lichtwark_loop, _houdijk_exponents_loop, _houdijk_loop, _margaria_loop, _minetti_loop,
+         _integrate_loop, _stimulation_duration_loop) = LOOPS = tuple(
             numba.njit(**OPTIONS)(loop) for loop in LOOPS)
 
 
@@ -260,12 +329,14 @@ if HAVE_NUMBA:
 @dataclasses.dataclass(frozen=True)
 class Block:
     """A block's arrays, flat (one value per muscle-step): its outputs (``duration`` None: 0 s,
-    as no selected model takes it), the mapped inputs and the bank's per-muscle constants
-    repeated per step; ``memo``: transcendentals computed for it (:func:`_memo`)."""
+    as no selected model takes it), L and V as rows of ``lengths`` (:func:`_lengths_loop`), the
+    mapped inputs and the bank's per-muscle constants repeated per step; ``memo``:
+    transcendentals computed for it (:func:`_memo`)."""
 
     excitation: np.ndarray
     length: np.ndarray
     velocity: np.ndarray
+    lengths: np.ndarray
     duration: np.ndarray | None
     activation: np.ndarray
     active: np.ndarray
@@ -311,14 +382,14 @@ def _umberger(c, b: Block, constants, out):
     sin_angle = cos_angle = effective  # not used without Bhargava's recruitment
     if constants.use_Bhargava_recruitment_model:
         sin_angle, cos_angle = _recruitment_sin_cos(b, constants.muscle_effort_scaling_factor)
-    _umberger_loop(c, b.excitation, b.mass, b.velocity, b.l0, b.length, b.active, b.slow,
+    _umberger_loop(c, b.excitation, b.mass, b.velocity, b.lengths, b.active, b.slow,
                    b.fl_multiplier, effective, maintenance, shortening, sin_angle, cos_angle, out)
 
 
 def _bhargava(c, b: Block, constants, out):
     sin_angle, cos_angle = _recruitment_sin_cos(b, constants.muscle_effort_scaling_factor)
-    _bhargava_loop(c, b.mass, b.velocity, b.active, b.passive, b.isometric, b.length, b.l0,
-                   b.slow, sin_angle, cos_angle, out)
+    _bhargava_loop(c, b.mass, b.velocity, b.active, b.passive, b.isometric, b.lengths, b.slow,
+                   sin_angle, cos_angle, out)
 
 
 def _lichtwark(c, b: Block, constants, out):
@@ -355,12 +426,12 @@ BLOCK_RUNS = {umberger2003: _umberger, bhargava2004: _bhargava, lichtwark2005: _
               houdijk2006: _houdijk, margaria1968: _margaria, minetti1997: _minetti}
 
 
-def integrate_energies(energy_j, totals, dt):
-    """Cumulative energies (k, n, M) J after k steps from ``energy_j`` (n, M), the totals (M, k,
-    n) W over steps of dt (k,) s: E += rate dt step after step (in_bank.BankModels.advance)."""
-    out = np.empty(totals.shape)  # (M, k, n), handed out as the (k, n, M) view
-    _integrate_loop(np.ascontiguousarray(energy_j), totals, np.ascontiguousarray(dt), out)
-    return np.moveaxis(out, 0, -1)
+def integrate_energies(energy_j, totals, dt, rows, out) -> None:
+    """out[:, rows] (M, k, n) = cumulative energies (J) after the steps ``rows`` (a slice) of k,
+    from ``energy_j`` (M, n) before step 0 and out[:, rows.start - 1] after it, the totals
+    (M, k, n) W over steps of dt (k,) s: E += rate dt step after step
+    (in_bank.BankModels.advance)."""
+    _integrate_loop(energy_j, totals, dt, rows.start, rows.stop, out)
 
 
 def stimulation_duration(time_s, excitation, onset_s):
@@ -380,7 +451,7 @@ class CompiledModels:
     def __init__(self, models, constants, muscle):
         self._runs = [BLOCK_RUNS[model.function] for model in models]
         self._constants = list(constants)
-        self._compiled = [compiled_constants(c) for c in constants]
+        self._compiled = [loop_constants(c) for c in constants]
         self.muscle = muscle
         n = len(np.atleast_1d(muscle.f0))
         # per muscle: l0, f0, mass, slow and fast PCSA fractions, lmax
@@ -395,6 +466,10 @@ class CompiledModels:
         columns = type_columns(muscle.fibre)
         self._fv_columns = tuple(tuple(float(np.asarray(columns[name])[t]) for name in (
             T.vmax, T.cv0, T.cv1, T.av0, T.av1, T.av2, T.bv)) for t in range(2))
+        self._omega = np.ascontiguousarray(np.asarray(columns[T.omega], dtype=float).reshape(2))
+        g = muscle.generic
+        self._passive_arguments = tuple(float(a) for a in (g.k1, g.lr1, g.k2, g.lr2))
+        self._passive_factors = tuple(float(a) for a in (g.c1, g.k1, g.eta, g.c2))
 
     def fill(self, out, excitation, effective_activation, length_m, velocity_m_per_s,
              stimulation_duration) -> None:
@@ -403,26 +478,31 @@ class CompiledModels:
         shape = np.shape(length_m)
         u, x, xdot = (np.ascontiguousarray(a, dtype=float).reshape(-1)
                       for a in (excitation, length_m, velocity_m_per_s))
-        activity = np.asarray(effective_activation, dtype=float).reshape(-1, 2)
+        activity = np.ascontiguousarray(effective_activation, dtype=float).reshape(-1, 2)
         duration = (None if stimulation_duration is None
                     else np.ascontiguousarray(stimulation_duration, dtype=float).reshape(-1))
-        if shape[0] not in self._repeated:
-            self._repeated[shape[0]] = np.broadcast_to(
-                self._per_muscle[:, None], (len(self._per_muscle), *shape)).reshape(
-                len(self._per_muscle), -1)
+        if shape[0] not in self._repeated:  # a new (writable) array for any number of rows, so
+            # that the loops warm_up compiles are the ones a block calls
+            self._repeated[shape[0]] = np.tile(self._per_muscle, (1, shape[0]))
         l0, f0, mass, fpcsa_slow, fpcsa_fast, lmax = self._repeated[shape[0]]
-        l, v = x / l0, xdot / l0
+        size = x.size
+        lengths, passive = np.empty((5, size)), np.empty((3, size) if self._passive else (3, 0))
+        _lengths_loop(x, xdot, activity, l0, lmax, self._passive_arguments, self._passive,
+                      lengths, passive)
+        # FL of each type (curves.force_length_cheng2000: its powers and exp by NumPy)
         ft = self._fl_columns
-        fl = curves.force_length_cheng2000(l[None], ft[T.omega], ft[T.beta], ft[T.rho])
-        if self._passive:
-            pe1, pe2 = passive_curves(l, v, dataclasses.replace(self.muscle, lmax=lmax))
-        else:
-            pe1 = pe2 = np.zeros(x.size)
-        inputs = np.empty((6, x.size))
-        _inputs_loop(np.ascontiguousarray(activity[:, 0]), np.ascontiguousarray(activity[:, 1]),
-                     l, v, fl, pe1, pe2, f0, fpcsa_slow, fpcsa_fast, self._fv_columns,
+        fl = np.power(lengths[2:3], ft[T.beta])
+        _force_length_base_loop(self._omega, fl)
+        np.power(fl, ft[T.rho], out=fl)
+        np.exp(np.negative(fl, out=fl), out=fl)
+        if self._passive:  # ln(1 + exp(-|x|)) and expm1 of FPE1 and FPE2, by NumPy
+            np.log1p(np.exp(passive[1], out=passive[1]), out=passive[1])
+            np.expm1(passive[2], out=passive[2])
+        inputs = np.empty((6, size))
+        _inputs_loop(lengths, fl, passive, self._passive, self._passive_factors, f0,
+                     fpcsa_slow, fpcsa_fast, self._fv_columns,
                      float(self.muscle.generic.fv_denominator_min), tuple(inputs))
-        block = Block(u, x, xdot, duration, *inputs, l0, f0, mass, fpcsa_slow, {})
+        block = Block(u, x, xdot, lengths, duration, *inputs, l0, f0, mass, fpcsa_slow, {})
         rows = np.reshape(out, (*out.shape[:2], -1), copy=False)  # (M, C, muscle-steps) view
         rows[:, BASAL] = 0.0
         for run, c, constants, model_rows in zip(self._runs, self._compiled, self._constants,
@@ -445,8 +525,9 @@ def warm_up(compiled_models: CompiledModels) -> None:
         zeros = np.zeros((1, n))
         compiled_models.fill(np.empty((models, 5, 1, n)), zeros, np.zeros((1, n, 2)),
                              np.ones((1, n)), zeros, zeros)
-        integrate_energies(np.zeros((n, models)), np.zeros((models, 2, 1, n))[:, 0],
-                           np.ones(1))
+        rates = np.zeros((models, 5, 2, n))
+        integrate_energies(np.zeros((models, n)), rates[:, 4], np.ones(2), slice(0, 2),
+                           np.empty((models, 2, n)))
         stimulation_duration(np.zeros(1), zeros, np.full(n, np.nan))
 
     loops = [loop for loop in LOOPS if not loop.signatures]
@@ -457,4 +538,4 @@ def warm_up(compiled_models: CompiledModels) -> None:
 
 
 __all__ = ["AVAILABLE", "BLOCK_RUNS", "COMPILE_TIME", "CompiledModels", "compiled_constants",
-           "integrate_energies", "stimulation_duration", "warm_up"]
+           "integrate_energies", "loop_constants", "stimulation_duration", "warm_up"]

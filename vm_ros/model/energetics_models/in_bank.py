@@ -116,13 +116,23 @@ class BankModels:
             self._fill(out, excitation, effective_activation, length_m, velocity_m_per_s,
                        stimulation_duration)
         else:
-            rows = max(1, CHUNK_MUSCLE_STEPS // max(1, shape[1]))
-            for start in range(0, shape[0], rows):
-                part = slice(start, start + rows)
-                self._fill(out[:, :, part], excitation[part], effective_activation[part],
-                           length_m[part], velocity_m_per_s[part],
-                           None if stimulation_duration is None else stimulation_duration[part])
+            for _ in self._fill_parts(out, excitation, effective_activation, length_m,
+                                      velocity_m_per_s, stimulation_duration):
+                pass
         return np.moveaxis(out, (0, 1), (-2, -1))
+
+    def _fill_parts(self, out, excitation, effective_activation, length_m, velocity_m_per_s,
+                    stimulation_duration):
+        """Fills out (M, C, k, n) with the rates of a series (k, n), chunk after chunk of at most
+        CHUNK_MUSCLE_STEPS muscle-steps, yielding the rows (a slice) of each when filled."""
+        k, n = np.shape(length_m)
+        rows = max(1, CHUNK_MUSCLE_STEPS // max(1, n))
+        for start in range(0, k, rows):
+            part = slice(start, min(k, start + rows))
+            self._fill(out[:, :, part], excitation[part], effective_activation[part],
+                       length_m[part], velocity_m_per_s[part],
+                       None if stimulation_duration is None else stimulation_duration[part])
+            yield part
 
     def _fill(self, out, excitation, effective_activation, length_m, velocity_m_per_s,
               stimulation_duration) -> None:
@@ -149,16 +159,26 @@ class BankModels:
         (k, n, M) J), the state advanced past them."""
         dt = np.broadcast_to(np.asarray(dt, dtype=float), np.shape(time_s))
         duration = self.stimulation_duration(time_s, excitation) if self._duration else None
+        if self._compiled is not None and np.shape(time_s)[0] > 1:
+            # each chunk's energies summed while its rates are in the cache, in a compiled loop
+            # (the same sums)
+            shape = np.shape(length_m)
+            out = np.empty((len(self.names), len(COMPONENTS), *shape))
+            energies = np.empty((len(self.names), *shape))  # (M, k, n)
+            before = np.ascontiguousarray(self.energy_j.T)
+            steps = np.ascontiguousarray(dt)
+            for part in self._fill_parts(out, excitation, effective_activation, length_m,
+                                         velocity_m_per_s, duration):
+                compiled.integrate_energies(before, out[:, TOTAL], steps, part, energies)
+            energies = np.moveaxis(energies, 0, -1)  # (k, n, M) view
+            self.energy_j = energies[-1].copy()
+            return np.moveaxis(out, (0, 1), (-2, -1)), energies
         rates = self.rates(excitation, effective_activation, length_m, velocity_m_per_s,
                            duration)
         totals = rates.base[:, TOTAL] if rates.base is not None else rates[..., TOTAL]
         if totals.shape[-2] == 1:  # one step: E + rate dt, the same sum without the stacking
             self.energy_j = self.energy_j + totals[:, 0].T * dt[0]
             return rates, self.energy_j[None].copy()
-        if self._compiled is not None:  # the same sums, in a compiled loop
-            energies = compiled.integrate_energies(self.energy_j, totals, dt)
-            self.energy_j = energies[-1].copy()
-            return rates, energies
         steps = np.empty((len(self.names), totals.shape[-2] + 1, self.n))  # (M, 1 + k, n)
         steps[:, 0] = self.energy_j.T
         np.multiply(totals, dt[None, :, None], out=steps[:, 1:])

@@ -120,17 +120,16 @@ def umberger2003_transcendentals(constants: UmbergerConstants, excitation, activ
 
 
 @jitable
-def umberger2003_rates(c, excitation, mass, velocity, optimal_fibre_length, fibre_length,
+def umberger2003_rates(c, excitation, mass, velocity, velocity_norm, length_norm,
                        active_fibre_force, slow_fraction, force_length_multiplier, effective,
                        maintenance_power, shortening_power, sin_angle, cos_angle):
     """(activation maintenance, shortening, work, total) rates (W) of :func:`umberger2003`
-    from its transcendental parts (:func:`umberger2003_transcendentals`): NumPy arrays, or
-    scalars in a compiled loop. ``c``: UmbergerConstants, or its compiled form (a named tuple
-    of the same fields)."""
+    from its transcendental parts (:func:`umberger2003_transcendentals`) and the fibre's
+    velocity (m/s) and its velocity and length over L0 (L0/s, L0): NumPy arrays, or scalars in
+    a compiled loop. ``c``: UmbergerConstants, or its compiled form (a named tuple of the same
+    fields)."""
     k = c.muscle_effort_scaling_factor
     u = k * excitation
-    velocity_norm = velocity / optimal_fibre_length
-    length_norm = fibre_length / optimal_fibre_length
     f_active = maximum(k * active_fibre_force, 0.0)
     f_iso = force_length_multiplier
     slow = slow_fraction
@@ -184,10 +183,11 @@ def umberger2003(state: MuscleState, constants: UmbergerConstants, *,
     (constants.basal_rate, probe_total)."""
     excitation = np.asarray(state.excitation, dtype=float)
     parts = umberger2003_transcendentals(constants, excitation, state.activation)
+    velocity = np.asarray(state.fibre_velocity, dtype=float)
     activation_maintenance, shortening, work, total = umberger2003_rates(
-        constants, excitation, np.asarray(state.mass, dtype=float),
-        np.asarray(state.fibre_velocity, dtype=float), state.optimal_fibre_length,
-        np.asarray(state.fibre_length, dtype=float),
+        constants, excitation, np.asarray(state.mass, dtype=float), velocity,
+        velocity / state.optimal_fibre_length,
+        np.asarray(state.fibre_length, dtype=float) / state.optimal_fibre_length,
         np.asarray(state.active_fibre_force, dtype=float),
         np.asarray(state.slow_fraction, dtype=float),
         np.asarray(force_length_multiplier, dtype=float), *parts)
