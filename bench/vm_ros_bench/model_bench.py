@@ -92,6 +92,7 @@ def bench_model_step(counts=(1, 10, 100, 1000), backends=("numba", "numpy"), rep
         for selection in ENERGETICS_TARGETS:
             rows += bench_energetics_models(1000, repeats=repeats, progress=progress,
                                             selection=selection)
+        rows.append(bench_umberger_numpy_floor(1000, repeats=repeats, progress=progress))
     for backend in backends:
         if backend == "numba" and not kernel.AVAILABLE:
             rows.append({"backend": backend, "skipped": "numba not importable"})
@@ -124,7 +125,9 @@ def bench_energetics_models(n: int = 1000, batch: int = 100, repeats: int = 7,
     force and the total energy rate every step and the models' rates every 10th step (as
     muscle_node publishes at 100 Hz from 1 kHz) or every step; medians of ``repeats``
     interleaved repeats (none, all, none, all, ...) so that a change in the machine's load hits
-    both alike."""
+    both alike. Each repeat is timed by the wall clock (``models_over_none``) and by the
+    calling thread's CPU time (``models_over_none_thread_cpu``: the bank runs in this thread,
+    so that on a shared machine other processes' work does not enter it)."""
     plain = library_bank(n, backend="numba")
     models = MuscleBank(list(plain.specs), plain.params, backend="numba",
                         energetics_models=selection)
@@ -135,19 +138,19 @@ def bench_energetics_models(n: int = 1000, batch: int = 100, repeats: int = 7,
         bank.step(DT, u[0], lp[0], vp[0])
 
     def run_once(bank):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.thread_time()
         bank.run(DT, u, lp, vp)
-        return (time.perf_counter() - t0) / batch
+        return (time.perf_counter() - t0) / batch, (time.thread_time() - c0) / batch
 
     def stepping(read_every: int):
         def step_once(bank):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.thread_time()
             for j in range(batch):
                 out = bank.step(DT, u[j], lp[j], vp[j])
                 _ = out.force, out.energy_rate.total
                 if (j + 1) % read_every == 0:
                     _ = out.energy_rate_models
-            return (time.perf_counter() - t0) / batch
+            return (time.perf_counter() - t0) / batch, (time.thread_time() - c0) / batch
         return step_once
 
     rows = []
@@ -158,19 +161,81 @@ def bench_energetics_models(n: int = 1000, batch: int = 100, repeats: int = 7,
         for _ in range(repeats):
             none.append(timer(plain))
             every.append(timer(models))
-        base, cost = statistics.median(none), statistics.median(every)
+        base, cost = (statistics.median(t[0] for t in x) for x in (none, every))
+        base_cpu, cost_cpu = (statistics.median(t[1] for t in x) for x in (none, every))
         rows.append({"backend": "numba", "muscles": n, "call": call, "batch_steps": batch,
                      "energetics_models": len(models.energetics_models),
                      "selection": selection,
                      "none_step_us": 1e6 * base, "models_step_us": 1e6 * cost,
                      "models_over_none": cost / base,
+                     "none_step_thread_cpu_us": 1e6 * base_cpu,
+                     "models_step_thread_cpu_us": 1e6 * cost_cpu,
+                     "models_over_none_thread_cpu": cost_cpu / base_cpu,
                      "target_ratio": ENERGETICS_TARGETS.get(selection, ENERGETICS_TARGET),
                      "repeats": repeats})
         if progress:
             progress(f"energetics models {selection} {call} {n} muscles: {1e6 * base:.0f} -> "
-                     f"{1e6 * cost:.0f} us per step ({cost / base:.2f}x)")
+                     f"{1e6 * cost:.0f} us per step ({cost / base:.2f}x; thread CPU "
+                     f"{cost_cpu / base_cpu:.2f}x)")
     return rows
 
+
+
+def bench_umberger_numpy_floor(n: int = 1000, batch: int = 100, repeats: int = 7,
+                               progress=None) -> dict:
+    """What NumPy's transcendentals in Umberger 2010's path cost alone, over the compiled run
+    without models (thread CPU, medians of ``repeats`` interleaved repeats): the calls
+    CompiledModels.fill (vm_ros.model.energetics_models.compiled) makes by NumPy to keep the
+    NumPy path's bits, FL's two powers and exp over both fibre types, and Umberger's
+    effective_excitation_powers (of A_eff, which the models' path computes compiled), on a
+    ``batch``-step run's own lengths, excitation and activation in chunks of
+    in_bank.CHUNK_MUSCLE_STEPS. 1 + this is the least ratio the one-model
+    row can reach while NumPy computes them."""
+    from vm_ros.model.energetics_models.constants import load_umberger_constants
+    from vm_ros.model.energetics_models.in_bank import CHUNK_MUSCLE_STEPS
+    from vm_ros.model.energetics_models.umberger import (
+        effective_excitation_powers,
+        scaled_effective_excitation,
+    )
+    from vm_ros.model.layout import T, type_columns
+
+    plain = library_bank(n, backend="numba")
+    u, lp, vp = _inputs(plain, batch)
+    plain.reset(lp[0], excitation=u[0])
+    run = plain.run(DT, u, lp, vp)
+    ft = type_columns(plain.params.fibre, (2, 1))
+    constants = load_umberger_constants("umberger2010")
+    chunks = max(1, run.fascicle_length.size // CHUNK_MUSCLE_STEPS)
+    lengths = np.array_split((run.fascicle_length / plain.l0_m).reshape(1, -1), chunks, axis=1)
+    # A_eff (compiled in the models' path) computed beforehand: only its powers are NumPy's
+    effective = np.array_split(scaled_effective_excitation(
+        constants.muscle_effort_scaling_factor, np.asarray(run.excitation, dtype=float).ravel(),
+        np.asarray(run.effective_activation, dtype=float)[..., 0].ravel()), chunks)
+
+    def numpy_part():
+        for x, a_eff in zip(lengths, effective, strict=True):
+            fl = np.power(x, ft[T.beta])   # as CompiledModels.fill, around its compiled loop
+            np.power(fl, ft[T.rho], out=fl)
+            np.exp(np.negative(fl, out=fl), out=fl)
+            effective_excitation_powers(constants, a_eff)
+
+    def timed(call):
+        c0 = time.thread_time()
+        call()
+        return (time.thread_time() - c0) / batch
+
+    runs, parts = [], []
+    for _ in range(repeats):
+        runs.append(timed(lambda: plain.run(DT, u, lp, vp)))
+        parts.append(timed(numpy_part))
+    base, part = statistics.median(runs), statistics.median(parts)
+    if progress:
+        progress(f"umberger2010's NumPy transcendentals alone: {1e6 * part:.0f} us per step over "
+                 f"the run's {1e6 * base:.0f} us ({part / base:.3f}x)")
+    return {"muscles": n, "batch_steps": batch, "none_step_thread_cpu_us": 1e6 * base,
+            "numpy_part_step_thread_cpu_us": 1e6 * part, "numpy_part_over_none": part / base,
+            "least_ratio": 1.0 + part / base, "target_ratio": ENERGETICS_TARGETS["umberger2010"],
+            "repeats": repeats}
 
 def bench_natural_ratio(units_per_type: int = 20, counts=(1, 10), backends=("numba", "numpy"),
                         repeats=7, min_seconds=0.2, progress=None) -> list[dict]:
