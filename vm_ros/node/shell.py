@@ -29,13 +29,7 @@ joint_states; each published step's tendon forces go back through the moment arm
 sample that step used, as generalized forces in the robot's convention.
 
 Outgoing messages are serialised once; the same bytes are published and logged. Inputs are
-subscribed raw, logged as received, then deserialised. On the system clock a joint_states
-message is decoded, placed and logged when it arrives and applied (conditioned through the
-geometry, held, kept in the input timeline) with the others that arrived since, in arrival
-order, at the next model tick, or earlier when another input, a diagnostics report or a
-parameter change comes first (MuscleNode.apply_pending): the steps see the same inputs at the same
-model times, and ten messages in a row cost less than ten wake-ups each
-(docs/performance.md).
+subscribed raw, logged as received, then deserialised.
 """
 
 from __future__ import annotations
@@ -263,11 +257,6 @@ class MuscleNode(Node):
         self._energy_offset_j = 0.0
         self._last_output = None
         self._reset_pending = False  # started, state not yet set (_reset_at_start)
-        # joint_states messages received and not yet applied (receive, apply_pending): on the
-        # system clock only, where a tick follows within a publish period
-        self._pending: list[tuple] = []
-        self._defer_joints = not self.get_parameter("use_sim_time").value
-        self._receivers = node_receivers(self.inputs, self._on_joint_states)
 
         self._create_endpoints(c.qos_depth)
         self._check_no_unknown_parameters()
@@ -383,7 +372,6 @@ class MuscleNode(Node):
         changes = {p.name: p.value for p in parameters if p.name in runtime}
         if not changes:
             return SetParametersResult(successful=True)
-        self.apply_pending()  # the messages before the change under the limits they came with
         try:
             config = self.config.with_values(changes)
         except ConfigError as exc:
@@ -423,7 +411,7 @@ class MuscleNode(Node):
 
     def _receiver(self, topic: str, msg_type):
         row = tp.input_topic(topic)
-        defer = row.role == tp.JOINTS and self._defer_joints
+        receivers = node_receivers(self.inputs, self._on_joint_states)
         gaps = self._gaps[topic] = SequenceGaps()
         # the decoder a recompute uses (vm_ros.recording.cdr.input_decoder), so that the node
         # and its replay agree on what is undecodable; rclpy's deserialiser printed a stderr line
@@ -449,19 +437,17 @@ class MuscleNode(Node):
             # (vm_ros.node.input_timeline); logged there (vm_ros.node.recording)
             stamp_ns = tp.header_stamp_ns(msg) if msg is not None else 0
             started = self.scheduler.started
-            placed_ns = (self._place(input_time_ns(stamp_ns, now_ns, timeout_ns))
+            placed_ns = (self.timeline.place(input_time_ns(stamp_ns, now_ns, timeout_ns),
+                                             self.scheduler.model_time_ns)
                          if started else now_ns)
             if self.run_log is not None:
                 self.run_log.write(topic, data, placed_ns, now_ns)
             if msg is None:
                 return
-            applied = (row, msg, input_time_ns(stamp_ns, placed_ns, timeout_ns),
-                       placed_ns if started else None)
-            if defer:
-                self._pending.append(applied)
-                return
-            self.apply_pending()
-            self._apply(*applied)
+            self._report(tp.apply_input(row, msg, receivers,
+                                        input_time_ns(stamp_ns, placed_ns, timeout_ns)))
+            if started:
+                self.timeline.record(placed_ns)
 
         # rclpy passes the message info (its publication sequence number) to a callback whose
         # signature takes two arguments: SingleThreadedExecutor as receive(data, info), rclpy
@@ -470,28 +456,6 @@ class MuscleNode(Node):
         # pass the info.
         receive.__signature__ = _WITH_MESSAGE_INFO
         return receive
-
-    def _place(self, time_ns: int) -> int:
-        """The model time a message of ``time_ns`` goes to (InputTimeline.place), not before a
-        message received before it and not yet applied (the rows stay in arrival order)."""
-        placed_ns = self.timeline.place(time_ns, self.scheduler.model_time_ns)
-        last = self._pending[-1][3] if self._pending else None
-        return placed_ns if last is None else max(placed_ns, last)
-
-    def _apply(self, row, msg, time_ns: int, placed_ns: int | None) -> None:
-        """A decoded input applied at ``time_ns`` (its receiver, vm_ros.topics.apply_input) and,
-        once the model runs, kept in the input timeline from ``placed_ns``."""
-        self._report(tp.apply_input(row, msg, self._receivers, time_ns))
-        if placed_ns is not None:
-            self.timeline.record(placed_ns)
-
-    def apply_pending(self) -> None:
-        """Apply the joint_states messages received and not yet applied, in arrival order (the
-        module docstring): at each tick, before another input, a diagnostics report or a
-        parameter change."""
-        pending, self._pending = self._pending, []
-        for applied in pending:
-            self._apply(*applied)
 
     def _on_joint_states(self, names, position, velocity, now_ns: int):
         return self.joint_inputs.on_joint_states(names, position, velocity, now_ns)
@@ -572,7 +536,6 @@ class MuscleNode(Node):
             return
         tick_start_ns = time.perf_counter_ns()
         now_ns = self.get_clock().now().nanoseconds
-        self.apply_pending()  # they all came before the tick: the clock read first, as before
         self.ticks += 1  # timer callbacks so far
         self._window_ticks += 1
         if self.scheduler.went_backwards(now_ns):
@@ -760,7 +723,6 @@ class MuscleNode(Node):
 
     def health(self) -> tuple[int, str, list]:
         """(level, message, [(key, value)]) of the node's state since the last report."""
-        self.apply_pending()
         now_ns = self.get_clock().now().nanoseconds
         wall_s = max(time.monotonic() - self._window_start_s, 1e-9)
         s, c = self.scheduler, self.config
