@@ -26,6 +26,12 @@ def test_short_run_gives_sane_numbers(tmp_path):
     for key in ("latency_p50_ms", "latency_p99_ms"):
         assert math.isfinite(result[key]) and result[key] > 0, key
     assert result["latency_p50_ms"] <= result["latency_p99_ms"]
+    # each excitation's wait for the publish step is at least a model step, so the latency
+    # without it is positive (delivery both ways) and below the latency, percentile by percentile
+    after = result["latency_after_publish_step_p50_ms"]
+    assert result["latency_publish_wait_p50_ms"] >= 1.0
+    assert 0 < after < result["latency_p50_ms"]
+    assert after <= result["latency_after_publish_step_p99_ms"] < result["latency_p99_ms"]
     assert math.isfinite(result["model_wall_drift_percent"])
     assert result["rate_muscle_force_hz"] > 10 and result["rate_excitation_sent_hz"] > 10
     assert result["mcap_file_mib"] > 0 and (tmp_path / "node_bench.mcap").is_file()

@@ -196,7 +196,8 @@ FLOOR_MUSCLES = (1, 100)  # the rclpy floor of the same traffic, run after these
 JOINT_FLOOR_PAIRS = 2  # the joint node and its rclpy floor, run alternately (--quick: 1 pair)
 JOINT_PAIR_KEYS = ("cpu_percent_one_core", "driver_cpu_percent_one_core",
                    "load_average_1min_start", "load_average_1min_end", "latency_p99_ms",
-                   "latency_publish_wait_p99_ms")  # CSV rows of the node's later runs
+                   "latency_publish_wait_p99_ms",
+                   "latency_after_publish_step_p99_ms")  # CSV rows of the node's later runs
 FLOOR_LEVEL = "mcap"  # the floor's whole traffic (vm_ros_bench.rclpy_floor)
 FLOOR_KEYS = ("cpu_percent_one_core", "driver_cpu_percent_one_core", "load_average_1min_start",
               "load_average_1min_end", "rss_final_mib", "rate_muscle_force_hz",

@@ -63,6 +63,9 @@ Definitions (keys of the returned dict; times are the benchmark's steady clock u
 | latency_p50_ms, _p99_ms, _max_ms | excitation-to-force latency, below (latency_samples) |
 | latency_publish_wait_p50_ms, _p99_ms | of that latency, the wait for the publish step: the
   answering muscle_force's stamp - the excitation's stamp (ROS time), below |
+| latency_after_publish_step_p50_ms, _p99_ms | the latency minus that wait, per excitation: the
+  node's answer after the publish step that carries the excitation (its tick's lag, the run of
+  the steps, the publication and delivery), whatever the timers' phase, below |
 | excitation_not_in_node_log | window excitations the node never logged: dropped from its
   subscription queue (depth qos_depth) while it was busy (MCAP only) |
 | latency_no_response | window excitations without a muscle_force response here |
@@ -93,8 +96,12 @@ round(model_rate_hz/publish_rate_hz) steps), DDS delivery both ways and both exe
 The wait for the publish step (latency_publish_wait_*) is set by the phase of the driver's
 excitation timer against the node's publish steps: both run at their own fixed rate, so the
 phase stays as it fell at the start, from a step (about one model step) to a publish period plus
-a step for every excitation of a run. The rest of the latency is about model_lag (the node's
-tick after the publish step, its outputs' delivery).
+a step for every excitation of a run. The rest of the latency (latency_after_publish_step_*)
+is about model_lag (the node's tick after the publish step, its outputs' delivery). So the
+latency's p99 under one publish period holds for some phases only: an excitation stamped within
+the last model step before a publish step is first used by the step that starts at that publish
+step (a step takes the inputs held at its start), and its answer is the next publish step's, a
+publish period plus up to a step after its stamp (docs/performance.md, the joint-space node).
 
 Model time vs wall time: the node's /diagnostics report, at one instant, its model time and the
 skipped and paused model time so far (vm_ros.node.timing). Between the first and last report in
@@ -826,10 +833,13 @@ def _run(setup, model_rate_hz, publish_rate_hz, duration_s, mcap, workdir, progr
         latencies, lost, missing, waits = _latencies(driver, *window, step_ns, effective)
         p50, p99, pmax = _percentiles_ms(latencies)
         wait_p50, wait_p99, _ = _percentiles_ms(waits)
+        after_p50, after_p99, _ = _percentiles_ms(np.subtract(latencies, waits))
         last = driver.last_force_message()
         result.update(
             latency_p50_ms=p50, latency_p99_ms=p99, latency_max_ms=pmax,
             latency_publish_wait_p50_ms=wait_p50, latency_publish_wait_p99_ms=wait_p99,
+            latency_after_publish_step_p50_ms=after_p50,
+            latency_after_publish_step_p99_ms=after_p99,
             latency_samples=len(latencies), latency_no_response=missing,
             excitation_not_in_node_log=lost if effective is not None else math.nan,
             latency_from_node_log=effective is not None,
