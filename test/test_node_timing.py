@@ -95,6 +95,10 @@ def test_time_skipped_after_a_stall_keeps_the_publish_steps_in_phase_with_the_ti
     plain = StepScheduler(MS, max_catch_up_steps=50)  # without the option: the rest exactly
     plain.start(0)
     assert run(plain, 73 * MS + MS // 2) == 50 and plain.skipped_ns == 23 * MS
+    short = StepScheduler(MS, max_catch_up_steps=5)  # a catch-up shorter than a period: no
+    short.start(0)                                   # whole period fits, the rest exactly
+    assert run(short, 7 * MS, end_on_multiple_of=10) == 5 and short.skipped_ns == 2 * MS
+    assert run(short, 30 * MS, end_on_multiple_of=10) == 3 and short.skipped_ns == 22 * MS
 
 
 def test_time_going_backwards_reanchors():

@@ -8,8 +8,8 @@ nanoseconds, so it never drifts.
 - time advances by k steps: k steps due (at most ``max_catch_up_steps``);
 - more than ``max_catch_up_steps`` due: that many run; the rest of the elapsed time is skipped by
   moving the anchor forward (counted in ``skipped_ns`` and ``stalls``); with ``end_on_multiple_of``
-  k, by whole multiples of k steps (at most k - 1 steps more than the rest), so that the multiples
-  (muscle_node's publish steps) keep their phase against the clock;
+  k, by whole multiples of k steps (at most k - 1 steps more than the rest, never more than is
+  due), so that the multiples (muscle_node's publish steps) keep their phase against the clock;
 - time goes backwards: nothing due; the anchor is re-set at the new time, so model time restarts
   there (counted in ``backward_jumps``);
 - ``hold(now)`` (pause policy): nothing due; the anchor follows ``now`` so that no catch-up
@@ -81,8 +81,9 @@ class StepScheduler:
             return 0
         if behind > self.max_catch_up_steps:
             skipped = behind - self.max_catch_up_steps
-            if end_on_multiple_of > 0:
-                skipped += -skipped % end_on_multiple_of
+            whole = skipped + (-skipped % end_on_multiple_of if end_on_multiple_of > 0 else 0)
+            if whole <= behind:  # else (a catch-up shorter than a period) the rest exactly
+                skipped = whole
             self.anchor_ns += skipped * self.step_ns
             self.skipped_ns += skipped * self.step_ns
             self.stalls += 1
