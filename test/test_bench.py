@@ -125,6 +125,38 @@ def test_the_rclpy_floor_row_stands_beside_the_node_row_without_a_target():
             and r["target"]] == [False]  # the node's 18.5 % against 7 %, the floor's not held
 
 
+def test_the_joint_node_s_rclpy_floor_rows_give_the_median_of_the_pairs():
+    """The joint section's node and floor runs alternate in pairs: each floor run is a row
+    without a target, the node's later runs are rows of their own, and the node's CPU above the
+    floor is the median of node minus floor over the pairs, their range beside it (synthetic
+    results)."""
+    from vm_ros_bench import cli as bench
+
+    def run(cpu, **more):
+        return {"model": "myolegs", "n_muscles": 78, "joint_rate_hz": 1000.0,
+                "publish_rate_hz": 100.0, "mcap": True, "cpu_percent_one_core": cpu,
+                "latency_p99_ms": 12.0,
+                **{key: 1.0 for key in (*bench.JOINT_PAIR_KEYS, *bench.FLOOR_KEYS)
+                   if key not in ("cpu_percent_one_core", "latency_p99_ms")}, **more}
+
+    nodes = [run(46.0), run(41.0), run(48.0)]
+    floors = [run(15.5, floor_level="mcap"), run(15.0, floor_level="mcap"),
+              run(13.0, floor_level="mcap")]
+    rows = bench._csv_rows({"joint": {"geometry": {"rows": []}, "node": nodes[0],
+                                      "node_repeats": nodes[1:], "floor": floors,
+                                      "closed_loop": []}})
+    floor_rows = [r for r in rows if r["case"].startswith("rclpy floor")]
+    assert {r["case"][-8:] for r in floor_rows} == {"(pair 1)", "(pair 2)", "(pair 3)"}
+    assert {r["metric"] for r in floor_rows} == set(bench.FLOOR_KEYS)
+    assert all(not r["target"] for r in floor_rows)
+    above = [r for r in rows if r["metric"] == "cpu above the rclpy floor"]
+    assert [(r["value"], r["min"], r["max"]) for r in above] == [(30.5, 26.0, 35.0)]
+    cpu = [(r["case"][-8:], r["value"]) for r in rows if r["metric"] == "cpu_percent_one_core"
+           and not r["case"].startswith("rclpy floor")]
+    assert cpu == [("Hz, MCAP", 46.0), ("(pair 2)", 41.0), ("(pair 3)", 48.0)]
+    assert "floor_level" not in {r["metric"] for r in rows}
+
+
 def test_the_benchmarks_are_not_installed_with_vm_ros():
     """The benchmarks live in the repository's bench/ folder: the installed vm_ros has neither
     a bench subpackage nor vm_ros_bench beside it."""

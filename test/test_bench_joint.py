@@ -56,6 +56,12 @@ def test_joint_section_quickest_writes_every_item(tmp_path, capsys):
     for key in ("cpu_percent_one_core", "rss_final_mib", "model_wall_drift_percent",
                 "model_time_skipped_s", "rate_joint_states_sent_hz", "rate_joint_efforts_hz"):
         assert key in node, key
+    assert joint["node_repeats"] == []  # --quick: one pair
+    floor = joint["floor"][0]
+    assert "error" not in floor, floor.get("error")
+    assert floor["floor_level"] == "mcap" and floor["input"] == "joint_states"
+    assert floor["rate_joint_efforts_hz"] > 0 and floor["rate_joint_effort_commands_hz"] > 0
+    assert floor["node_exit_code"] == 0 and floor["cpu_percent_one_core"] > 0
 
     motion = joint["motion"]
     assert motion["muscles"] == imported["library_muscles"] and motion["motion_s"] == 1.0
@@ -74,7 +80,8 @@ def test_joint_section_quickest_writes_every_item(tmp_path, capsys):
 
     rows = [r for r in _csv(out) if r["section"] == "joint"]
     metrics = {r["metric"] for r in rows}
-    assert {"per call median", "cpu_percent_one_core", "wall per simulated s"} <= metrics
+    assert {"per call median", "cpu_percent_one_core", "wall per simulated s",
+            "cpu above the rclpy floor"} <= metrics
     assert all(r["min"] and r["max"] for r in rows if r["metric"] == "per call median")
     assert "wall per simulated s" in capsys.readouterr().out
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 from conftest import require_ros
 
@@ -25,6 +26,12 @@ def test_short_run_gives_sane_numbers(tmp_path):
     for key in ("latency_p50_ms", "latency_p99_ms"):
         assert math.isfinite(result[key]) and result[key] > 0, key
     assert result["latency_p50_ms"] <= result["latency_p99_ms"]
+    # each excitation's wait for the publish step is at least a model step, so the latency
+    # without it is positive (delivery both ways) and below the latency, percentile by percentile
+    after = result["latency_after_publish_step_p50_ms"]
+    assert result["latency_publish_wait_p50_ms"] >= 1.0
+    assert 0 < after < result["latency_p50_ms"]
+    assert after <= result["latency_after_publish_step_p99_ms"] < result["latency_p99_ms"]
     assert math.isfinite(result["model_wall_drift_percent"])
     assert result["rate_muscle_force_hz"] > 10 and result["rate_excitation_sent_hz"] > 10
     assert result["mcap_file_mib"] > 0 and (tmp_path / "node_bench.mcap").is_file()
@@ -111,6 +118,41 @@ def test_the_rclpy_floor_publishes_the_node_s_bytes_sizes():
         assert len(data["energy_rate"]) > 8 * 3 * 4 * len(names)
     forces = [dict(step)["muscle_force"] for step in steps]
     assert len(set(forces)) == 4  # different values in each step
+
+
+def test_the_joint_node_s_rclpy_floor_publishes_the_joint_topics_bytes_sizes():
+    """With output joints the floor's steps also carry joint_efforts and joint_effort_commands
+    of the sizes of rclpy's own serialisation of the node's messages for those joints
+    (vm_ros.telemetry's fields: a JointState with a name, position, velocity and effort per
+    joint; a Float64MultiArray of one value per joint with its layout)."""
+    require_ros()
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64MultiArray
+
+    from vm_ros import telemetry as tm
+    from vm_ros.joint_space import JointEfforts
+    from vm_ros.node.shell import fill_message
+    from vm_ros_bench.rclpy_floor import output_bytes
+
+    joints = ("hip_flexion_r", "knee_angle_r", "ankle_angle_r")
+    zeros = np.zeros(len(joints))
+    efforts = JointEfforts(joints, zeros, zeros, zeros)
+    expected = {
+        "joint_efforts": serialize_message(fill_message(
+            JointState(), tm.joint_efforts_fields(efforts, 0))),
+        "joint_effort_commands": serialize_message(fill_message(
+            Float64MultiArray(), tm.joint_effort_commands_fields(efforts)))}
+    steps = output_bytes(["soleus_0", "tibialis_anterior_1"], steps=3, joints=joints)
+    for step in steps:
+        data = dict(step)
+        assert list(data) == ["muscle_force", "energy_rate", "energy_rate_total", "energy_total",
+                              "joint_efforts", "joint_effort_commands"]
+        for topic, serialised in expected.items():
+            assert len(data[topic]) == len(serialised), topic
+    assert len({dict(step)["joint_efforts"] for step in steps}) == 3
+    assert [topic for topic, _ in output_bytes(["soleus_0"], steps=1)[0]] == [
+        "muscle_force", "energy_rate", "energy_rate_total", "energy_total"]
 
 
 def test_the_rclpy_floor_runs_in_place_of_the_node(tmp_path):

@@ -73,6 +73,34 @@ def test_catch_up_is_bounded_and_the_rest_skipped():
     assert run(s, 501 * MS) == 1
 
 
+def test_time_skipped_after_a_stall_keeps_the_publish_steps_in_phase_with_the_ticks():
+    """Publishing every 10 steps, ticks 0.5 ms after each multiple of 10 ms: a stall of 73.5
+    ms (more than the 50 steps' catch-up) skips 30 steps, whole publish periods, so the tick
+    after it and every later one end at the publish step just behind it, as before the stall.
+    Skipping the 23 steps beyond the catch-up moved the publish steps 3 ms behind the ticks:
+    every tick after ended at the publish step before it, 7.5 ms behind the clock, a catch-up
+    each time."""
+    s = StepScheduler(MS, max_catch_up_steps=50, steps_per_tick=10)
+    s.start(0)
+    for k in range(1, 4):
+        assert run(s, k * 10 * MS + MS // 2, end_on_multiple_of=10) == 10
+    assert run(s, 30 * MS + MS // 2 + 73 * MS, end_on_multiple_of=10) == 40
+    assert s.skipped_ns == 30 * MS and s.stalls == 1 and s.total_steps % 10 == 0
+    catch_up = s.catch_up_ticks
+    for k in range(11, 20):
+        now = k * 10 * MS + MS // 2
+        assert run(s, now, end_on_multiple_of=10) == 10
+        assert now - s.model_time_ns == MS // 2
+    assert s.catch_up_ticks == catch_up
+    plain = StepScheduler(MS, max_catch_up_steps=50)  # without the option: the rest exactly
+    plain.start(0)
+    assert run(plain, 73 * MS + MS // 2) == 50 and plain.skipped_ns == 23 * MS
+    short = StepScheduler(MS, max_catch_up_steps=5)  # a catch-up shorter than a period: no
+    short.start(0)                                   # whole period fits, the rest exactly
+    assert run(short, 7 * MS, end_on_multiple_of=10) == 5 and short.skipped_ns == 2 * MS
+    assert run(short, 30 * MS, end_on_multiple_of=10) == 3 and short.skipped_ns == 22 * MS
+
+
 def test_time_going_backwards_reanchors():
     s = StepScheduler(MS, max_catch_up_steps=50)
     s.start(10_000 * MS)

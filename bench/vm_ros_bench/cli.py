@@ -31,8 +31,11 @@ by default; --only picks some):
             geometry evaluate(q, qdot) per call, compiled, NumPy and MuJoCo's exact tendons,
             and generalized_forces; muscle_node from joint_states at 1 kHz (the imported
             library's muscles, model 1 kHz, publish 100 Hz, MCAP) measured as the node
-            section; the closed loop in one process (myoelbow; myolegs with its root fixed
-            and free), wall time per simulated second at 1 ms steps (vm_ros_bench.joint_bench).
+            section, alternating with the rclpy floor of the same traffic (joint_states of the
+            14 coordinates in, the joint topics out; JOINT_FLOOR_PAIRS pairs, --quick one):
+            the node's CPU above the floor per pair, median; the closed loop in one process
+            (myoelbow; myolegs with its root fixed and free), wall time per simulated second at
+            1 ms steps (vm_ros_bench.joint_bench).
             --quick imports at degree 3 over 100 poses (smaller polynomials: not comparable).
   study     runs only when named (--only study; about 17 minutes on a busy 2-core machine): a
             study on the embedded Dask LocalCluster (the study extra), 64 runs of the 30 s knee
@@ -103,6 +106,7 @@ import csv
 import json
 import os
 import platform
+import statistics
 import subprocess
 import sys
 import time
@@ -189,6 +193,11 @@ def _say(message: str) -> None:
 JOINT_NODE_CPU_TARGET = 35.0  # myolegs from joint_states at 1 kHz, publish 100 Hz, MCAP
 NODE_CPU_TARGETS = {1: 7.0, 100: 14.0, 1000: 100.0}  # issue 33: margin for any 2-core machine
 FLOOR_MUSCLES = (1, 100)  # the rclpy floor of the same traffic, run after these node rows
+JOINT_FLOOR_PAIRS = 2  # the joint node and its rclpy floor, run alternately (--quick: 1 pair)
+JOINT_PAIR_KEYS = ("cpu_percent_one_core", "driver_cpu_percent_one_core",
+                   "load_average_1min_start", "load_average_1min_end", "latency_p99_ms",
+                   "latency_publish_wait_p99_ms",
+                   "latency_after_publish_step_p99_ms")  # CSV rows of the node's later runs
 FLOOR_LEVEL = "mcap"  # the floor's whole traffic (vm_ros_bench.rclpy_floor)
 FLOOR_KEYS = ("cpu_percent_one_core", "driver_cpu_percent_one_core", "load_average_1min_start",
               "load_average_1min_end", "rss_final_mib", "rate_muscle_force_hz",
@@ -277,12 +286,18 @@ def _joint_section(out: Path, quick: bool, repeats: int, min_seconds: float,
                                           progress=_say)
     config = {"model": joint_bench.MODEL, "joint_rate_hz": 1000.0, "model_rate_hz": 1000.0,
               "publish_rate_hz": 100.0, "mcap": True}
-    _say(f"joint: muscle_node from joint_states at 1 kHz, {node_duration_s:g} s ...")
-    node = _node_process(config, [
-        "--geometry", imported["geometry"], "--library", imported["library"],
-        "--joint-rate", "1000", "--model-rate", "1000", "--publish-rate", "100",
-        "--duration", str(node_duration_s), "--warmup", "2" if quick else "5",
-        "--workdir", str(out / "node-joint")], node_duration_s)
+    arguments = ["--geometry", imported["geometry"], "--library", imported["library"],
+                 "--joint-rate", "1000", "--model-rate", "1000", "--publish-rate", "100",
+                 "--duration", str(node_duration_s), "--warmup", "2" if quick else "5"]
+    runs = {"node": [], "floor": []}
+    for pair in range(1 if quick else JOINT_FLOOR_PAIRS):  # node, floor, node, floor, ...
+        for kind in runs:
+            floor = ["--floor", FLOOR_LEVEL] if kind == "floor" else []
+            _say(f"joint: {'rclpy floor of ' if floor else ''}muscle_node from joint_states at "
+                 f"1 kHz, {node_duration_s:g} s (pair {pair + 1}) ...")
+            runs[kind].append(_node_process(
+                {**config, **({"floor_level": FLOOR_LEVEL} if floor else {})},
+                [*arguments, "--workdir", str(out / f"{kind}-joint"), *floor], node_duration_s))
     _say(f"joint: simulate --motion, {joint_bench.MOTION_S:g} s of {joint_bench.MODEL} ...")
     motion = joint_bench.bench_motion(imported, repeats=max(1, repeats // 2),
                                       duration_s=1.0 if quick else joint_bench.MOTION_S,
@@ -291,7 +306,8 @@ def _joint_section(out: Path, quick: bool, repeats: int, min_seconds: float,
     loops = joint_bench.bench_closed_loop(
         joint_bench.closed_loop_cases(imported["library"], cache),
         duration_s=0.2 if quick else 2.0, repeats=repeats, progress=_say)
-    return {"model_used": used, "import": imported, "geometry": geometry, "node": node,
+    return {"model_used": used, "import": imported, "geometry": geometry,
+            "node": runs["node"][0], "node_repeats": runs["node"][1:], "floor": runs["floor"],
             "motion": motion, "closed_loop": loops}
 
 
@@ -621,6 +637,28 @@ def _memory_csv_rows(r: dict, add) -> None:
     add("node-memory", case, "model time vs wall time", r["model_wall_drift_percent"], "%")
 
 
+def _joint_floor_rows(case: str, nodes: list[dict], floors: list[dict], add) -> None:
+    """The joint node's later runs (JOINT_PAIR_KEYS), its rclpy floor's runs (FLOOR_KEYS) and
+    the node's CPU above the floor: node minus floor of each pair, the median over pairs."""
+    for k, node in enumerate(nodes[1:], start=2):
+        if "error" not in node:
+            for key in JOINT_PAIR_KEYS:
+                add("joint", f"{case} (pair {k})", key, node[key], "")
+    above = []
+    for k, (node, floor) in enumerate(zip(nodes, floors, strict=False), start=1):
+        where = f"rclpy floor, {case} (pair {k})"
+        if "error" in floor:
+            add("joint", where, "error", floor["error"], "")
+            continue
+        for key in FLOOR_KEYS:
+            add("joint", where, key, floor[key], "")
+        if "error" not in node:
+            above.append(node["cpu_percent_one_core"] - floor["cpu_percent_one_core"])
+    if above:
+        add("joint", case, "cpu above the rclpy floor", statistics.median(above),
+            "points of a core", low=min(above), high=max(above))
+
+
 def _joint_csv_rows(joint: dict, add) -> None:
     if "model_used" in joint:
         add("joint", "model", "used", joint["model_used"], "")
@@ -653,7 +691,7 @@ def _joint_csv_rows(joint: dict, add) -> None:
     else:
         for key, value in node.items():
             if key not in ("model", "n_muscles", "joint_rate_hz", "model_rate_hz",
-                           "publish_rate_hz", "mcap", "input") and \
+                           "publish_rate_hz", "mcap", "input", "floor_level") and \
                     not isinstance(value, (list, dict)):
                 target = met = None  # issue 33: 35 % of a core, p99 under a publish period
                 if key == "cpu_percent_one_core":
@@ -662,6 +700,8 @@ def _joint_csv_rows(joint: dict, add) -> None:
                     period_ms = 1e3 / node.get("publish_rate_hz", 100.0)
                     target, met = f"< {period_ms:g} ms", value < period_ms
                 add("joint", case, key, value, "", target, met)
+        _joint_floor_rows(case, [node, *joint.get("node_repeats", [])], joint.get("floor", []),
+                          add)
     motion = joint.get("motion")
     if motion and "skipped" in motion:
         add("joint", "simulate --motion", "skipped", motion["skipped"], "")

@@ -32,9 +32,10 @@ The rclpy floor (``floor_level``, ``--floor LEVEL``): vm_ros_bench.rclpy_floor i
 muscle_node, started from the same params file and driven and measured the same way: a bare
 rclpy node with muscle_node's subscriptions, timers, publishers (bytes of the same sizes),
 executor, main and MCAP writer, up to LEVEL (subscriptions, timer, publishers, mcap), and no
-model. Its run waits for the driver's two publishers to be matched instead of a muscle_force;
-its result has the CPU, thread, memory and rate keys below (latency, drift and the log's
-read-back are muscle_node's only).
+model; with --geometry the joint-space node's (joint_states in, joint_efforts and
+joint_effort_commands out for its output joints). Its run waits for the driver's two
+publishers to be matched instead of a muscle_force; its result has the CPU, thread, memory and
+rate keys below (latency, drift and the log's read-back are muscle_node's only).
 
 Definitions (keys of the returned dict; times are the benchmark's steady clock unless stated):
 
@@ -62,6 +63,9 @@ Definitions (keys of the returned dict; times are the benchmark's steady clock u
 | latency_p50_ms, _p99_ms, _max_ms | excitation-to-force latency, below (latency_samples) |
 | latency_publish_wait_p50_ms, _p99_ms | of that latency, the wait for the publish step: the
   answering muscle_force's stamp - the excitation's stamp (ROS time), below |
+| latency_after_publish_step_p50_ms, _p99_ms | the latency minus that wait, per excitation: the
+  node's answer after the publish step that carries the excitation (its tick's lag, the run of
+  the steps, the publication and delivery), whatever the timers' phase, below |
 | excitation_not_in_node_log | window excitations the node never logged: dropped from its
   subscription queue (depth qos_depth) while it was busy (MCAP only) |
 | latency_no_response | window excitations without a muscle_force response here |
@@ -92,8 +96,12 @@ round(model_rate_hz/publish_rate_hz) steps), DDS delivery both ways and both exe
 The wait for the publish step (latency_publish_wait_*) is set by the phase of the driver's
 excitation timer against the node's publish steps: both run at their own fixed rate, so the
 phase stays as it fell at the start, from a step (about one model step) to a publish period plus
-a step for every excitation of a run. The rest of the latency is about model_lag (the node's
-tick after the publish step, its outputs' delivery).
+a step for every excitation of a run. The rest of the latency (latency_after_publish_step_*)
+is about model_lag (the node's tick after the publish step, its outputs' delivery). So the
+latency's p99 under one publish period holds for some phases only: an excitation stamped within
+the last model step before a publish step is first used by the step that starts at that publish
+step (a step takes the inputs held at its start), and its answer is the next publish step's, a
+publish period plus up to a step after its stamp (docs/performance.md, the joint-space node).
 
 Model time vs wall time: the node's /diagnostics report, at one instant, its model time and the
 skipped and paused model time so far (vm_ros.node.timing). Between the first and last report in
@@ -631,15 +639,8 @@ def run_node_benchmark(n_muscles: int, model_rate_hz: float = 1000.0,
         return names, library, None, Sweep.around(tm.TOPIC_KINEMATICS, names, lo, hi,
                                                   LENGTH_SWING)
 
-    log = _log_options(mcap, bag, max_bag_size, max_bag_duration_s)
-    if floor_level is not None and (floor_level not in FLOOR_LEVELS or bag or set(
-            node_parameters or {}) - set(FLOOR_NODE_PARAMETERS)):
-        raise ValueError(f"floor_level must be one of {', '.join(FLOOR_LEVELS)} (got "
-                         f"{floor_level!r}), without bag, with node_parameters among "
-                         f"{', '.join(FLOOR_NODE_PARAMETERS)}")
-    if floor_level is not None:  # the floor logs at its last level only
-        mcap = mcap and floor_level == FLOOR_LEVELS[-1]
-        log = _log_options(mcap, bag, max_bag_size, max_bag_duration_s)
+    mcap, log = _floor_log(floor_level, mcap, bag, max_bag_size, max_bag_duration_s,
+                           node_parameters)
     result = _run(setup, model_rate_hz, publish_rate_hz, duration_s, mcap, workdir, progress,
                   warmup_s, drive_rate_hz, None, node_parameters, log=log,
                   rss_sample_period_s=rss_sample_period_s, floor_level=floor_level)
@@ -647,6 +648,21 @@ def run_node_benchmark(n_muscles: int, model_rate_hz: float = 1000.0,
             "publish_rate_hz": float(publish_rate_hz), "mcap": bool(mcap),
             "floor_level": floor_level,
             "node_parameters": dict(node_parameters or {}), **log, **result}
+
+
+def _floor_log(floor_level: str | None, mcap: bool, bag: bool, max_bag_size: int,
+               max_bag_duration_s: float, node_parameters: dict | None) -> tuple[bool, dict]:
+    """(mcap, the log's result keys) of a run of muscle_node (``floor_level`` None) or of the
+    rclpy floor at ``floor_level``, which logs at its last level only; ValueError for a level
+    not in FLOOR_LEVELS, a bag, or node_parameters the floor does not take."""
+    if floor_level is not None and (floor_level not in FLOOR_LEVELS or bag or set(
+            node_parameters or {}) - set(FLOOR_NODE_PARAMETERS)):
+        raise ValueError(f"floor_level must be one of {', '.join(FLOOR_LEVELS)} (got "
+                         f"{floor_level!r}), without bag, with node_parameters among "
+                         f"{', '.join(FLOOR_NODE_PARAMETERS)}")
+    if floor_level is not None:
+        mcap = mcap and floor_level == FLOOR_LEVELS[-1]
+    return mcap, _log_options(mcap, bag, max_bag_size, max_bag_duration_s)
 
 
 def run_joint_node_benchmark(geometry: Path | str, library: Path | str,
@@ -658,10 +674,13 @@ def run_joint_node_benchmark(geometry: Path | str, library: Path | str,
                              joint_rate_hz: float = 1000.0,
                              node_parameters: dict | None = None, bag: bool = False,
                              max_bag_size: int = 0, max_bag_duration_s: float = 0.0,
-                             rss_sample_period_s: float = RSS_SAMPLE_PERIOD_S) -> dict:
+                             rss_sample_period_s: float = RSS_SAMPLE_PERIOD_S,
+                             floor_level: str | None = None) -> dict:
     """Run muscle_node from joint space (module docstring) and measure it as
     :func:`run_node_benchmark` does: the ``geometry`` file, the ``library`` muscles it covers
-    (all joint-driven), joint_states for every coordinate at ``joint_rate_hz``."""
+    (all joint-driven), joint_states for every coordinate at ``joint_rate_hz``;
+    ``floor_level``: the rclpy floor of this traffic (joint_states in, the joint topics out)
+    in place of muscle_node, as for :func:`run_node_benchmark`."""
     from vm_ros.geometry import load_geometry
 
     geometry, library = Path(geometry).resolve(), Path(library).resolve()
@@ -672,15 +691,17 @@ def run_joint_node_benchmark(geometry: Path | str, library: Path | str,
         raise RuntimeError(f"no muscle of {geometry} is in the library {library}")
     sweep = Sweep.around(tm.TOPIC_JOINT_STATES, paths.coordinate_names, paths.lower,
                          paths.upper, JOINT_SWING)
-    log = _log_options(mcap, bag, max_bag_size, max_bag_duration_s)
+    mcap, log = _floor_log(floor_level, mcap, bag, max_bag_size, max_bag_duration_s,
+                           node_parameters)
     result = _run(lambda _workdir: (names, library, geometry, sweep), model_rate_hz,
                   publish_rate_hz, duration_s, mcap, workdir, progress, warmup_s,
                   drive_rate_hz, joint_rate_hz, node_parameters, log=log,
-                  rss_sample_period_s=rss_sample_period_s)
+                  rss_sample_period_s=rss_sample_period_s, floor_level=floor_level)
     return {"n_muscles": len(names), "n_geometry_muscles": len(paths.muscle_names),
             "n_coordinates": len(paths.coordinates), "input": tm.TOPIC_JOINT_STATES,
             "joint_rate_hz": float(joint_rate_hz), "model_rate_hz": float(model_rate_hz),
             "publish_rate_hz": float(publish_rate_hz), "mcap": bool(mcap),
+            "floor_level": floor_level,
             "node_parameters": dict(node_parameters or {}), **log, **result}
 
 
@@ -812,10 +833,13 @@ def _run(setup, model_rate_hz, publish_rate_hz, duration_s, mcap, workdir, progr
         latencies, lost, missing, waits = _latencies(driver, *window, step_ns, effective)
         p50, p99, pmax = _percentiles_ms(latencies)
         wait_p50, wait_p99, _ = _percentiles_ms(waits)
+        after_p50, after_p99, _ = _percentiles_ms(np.subtract(latencies, waits))
         last = driver.last_force_message()
         result.update(
             latency_p50_ms=p50, latency_p99_ms=p99, latency_max_ms=pmax,
             latency_publish_wait_p50_ms=wait_p50, latency_publish_wait_p99_ms=wait_p99,
+            latency_after_publish_step_p50_ms=after_p50,
+            latency_after_publish_step_p99_ms=after_p99,
             latency_samples=len(latencies), latency_no_response=missing,
             excitation_not_in_node_log=lost if effective is not None else math.nan,
             latency_from_node_log=effective is not None,
@@ -1014,8 +1038,8 @@ def main(argv=None) -> int:
         parser.error("--max-bag-duration and --max-bag-size need --bag")
     if args.bag and args.no_mcap:
         parser.error("--bag and --no-mcap exclude each other")
-    if args.floor and (args.geometry or args.bag):
-        parser.error("--floor goes without --geometry and --bag")
+    if args.floor and args.bag:
+        parser.error("--floor goes without --bag")
     if args.max_bag_duration < 0 or args.max_bag_size < 0 or args.rss_period <= 0:
         parser.error("--max-bag-duration and --max-bag-size must be >= 0, --rss-period > 0")
 
@@ -1042,7 +1066,7 @@ def main(argv=None) -> int:
         if args.geometry is not None:
             result = run_joint_node_benchmark(
                 args.geometry, args.library, args.model_rate, args.publish_rate, args.duration,
-                joint_rate_hz=args.joint_rate, **common)
+                joint_rate_hz=args.joint_rate, floor_level=args.floor, **common)
         else:
             result = run_node_benchmark(args.muscles, args.model_rate, args.publish_rate,
                                         args.duration, floor_level=args.floor, **common)

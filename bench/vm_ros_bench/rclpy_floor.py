@@ -4,16 +4,22 @@ endpoints, timers, executor and main, and nothing of the model.
     python -P -m vm_ros_bench.rclpy_floor --params node_bench_params.yaml --level mcap
     # measured as muscle_node is (inside scripts/netns-run):
     PYTHONPATH=bench python -m vm_ros_bench.node_bench --muscles 1 --floor mcap --duration 20
+    PYTHONPATH=bench python -m vm_ros_bench.node_bench --geometry geometry.yaml \
+        --library muscles.yaml --floor mcap --duration 20  # the joint-space node's traffic
 
 It reads the params file that vm_ros_bench.node_bench writes for muscle_node (muscles,
-publish_rate_hz, diagnostics_period_s, mcap.enabled, mcap.path, and if given executor and
-qos_depth, else muscle_node's defaults: vm_ros.node.params) and builds what muscle_node builds
-from it (vm_ros.node.shell), up to ``level``, each level adding to the one before:
+publish_rate_hz, diagnostics_period_s, mcap.enabled, mcap.path, geometry, and if given
+executor, qos_depth, joint_map and joints, else muscle_node's defaults: vm_ros.node.params) and
+builds what muscle_node builds from it (vm_ros.node.shell), up to ``level``, each level adding
+to the one before. With a ``geometry`` (the joint-space node) the input topics include
+joint_states and the outputs joint_efforts and joint_effort_commands for the node's output
+joints (vm_ros.joint_space.JointSpace of the same parameters: its output_names):
 
 | level | what the node has |
 | subscriptions | the input subscriptions (vm_ros.node.interface.input_topics: excitation,
   excitation_array, muscle_kinematics) as muscle_node makes them: raw, the message info asked
-  for, QoS shell.stream_qos(qos_depth); the callback takes the bytes and does nothing else |
+  for, QoS shell.stream_qos(qos_depth); with a geometry also joint_states; the callback takes
+  the bytes and does nothing else |
 | timer | the model timer (ROS clock, a tick per publish period: 1 / publish_rate_hz, muscle_node's
   default batching), the diagnostics timer and the publisher-type check timer (steady clock,
   diagnostics_period_s and shell.GRAPH_CHECK_PERIOD_S; the check asks the graph for the input
@@ -21,7 +27,8 @@ from it (vm_ros.node.shell), up to ``level``, each level adding to the one befor
 | publishers | the output publishers (interface.OUTPUT_TOPICS); each tick publishes muscle_force,
   energy_rate, energy_rate_total and energy_total, bytes serialised at start-up with
   muscle_node's layouts for its muscles (vm_ros.recording.bulk.OutputLayouts: the same sizes),
-  OUTPUT_STEPS different steps in turn (output_bytes), and the diagnostics timer a
+  with a geometry also joint_efforts and joint_effort_commands (bulk.JointLayouts of the output
+  joints), OUTPUT_STEPS different steps in turn (output_bytes), and the diagnostics timer a
   DiagnosticArray of DIAGNOSTICS_KEYS key-value pairs |
 | mcap | with mcap.enabled: a McapRecorder (vm_ros.recording.writer, muscle_node's writer with its
   defaults) at mcap.path writing every input message's bytes as they arrive and every published
@@ -52,6 +59,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray
 
 from vm_ros import telemetry as tm
+from vm_ros.joint_space import JointEfforts, JointSpace
 from vm_ros.node import interface
 from vm_ros.node.params import PARAMS
 from vm_ros.node.shell import (
@@ -77,9 +85,21 @@ MESSAGE_CLASSES = {tm.TYPE_JOINT_STATE: JointState, tm.TYPE_FLOAT64_MULTI_ARRAY:
                    tm.TYPE_FLOAT64: Float64, tm.TYPE_DIAGNOSTIC_ARRAY: DiagnosticArray}
 
 
-def output_bytes(names, steps: int = 1) -> list[list[tuple[str, bytes]]]:
+def output_joints(params: dict) -> tuple[str, ...]:
+    """The joints muscle_node publishes efforts for with the params YAML's ``ros__parameters``
+    dict ``params`` (JointSpace.output_names of its geometry, joint_map, muscles and joints;
+    the geometry read with the NumPy back end): () without a geometry."""
+    if not params.get("geometry"):
+        return ()
+    return JointSpace.load(params["geometry"], params.get("joint_map", DEFAULTS["joint_map"]),
+                           params["muscles"], params.get("joints", DEFAULTS["joints"]),
+                           NODE_NAME, backend="numpy").output_names
+
+
+def output_bytes(names, steps: int = 1, joints=()) -> list[list[tuple[str, bytes]]]:
     """[[(topic, bytes)] per step] of ``steps`` published steps of muscle_node for the muscles
-    ``names``: its layouts (vm_ros.recording.bulk.OutputLayouts), so the sizes are the node's.
+    ``names`` (and with ``joints``, its output joints, the joint topics for them): its layouts
+    (vm_ros.recording.bulk.OutputLayouts and JointLayouts), so the sizes are the node's.
     The values are sines of the step, of the muscle's kind and of the value's place in the
     muscle's block: muscles named ``<kind>_<k>`` (vm_ros_bench.node_bench's copies of the
     shipped muscles, which the bench drives alike) get the same values, as they do from the
@@ -99,7 +119,14 @@ def output_bytes(names, steps: int = 1) -> list[list[tuple[str, bytes]]]:
     total = np.sin(phase)
     encoded = layouts.encode_many(np.zeros(steps, np.int64), values(), values(), values(),
                                   rates, total, total)
-    return [[(topic, data[k]) for topic, data in encoded] for k in range(steps)]
+    out = [[(topic, data[k]) for topic, data in encoded] for k in range(steps)]
+    if joints:
+        joint_layouts = bulk.JointLayouts(joints)
+        angle = np.sin(phase[:, None] + np.arange(len(joints))[None, :])
+        for k, step in enumerate(out):
+            step += joint_layouts.encode(JointEfforts(tuple(joints), angle[k], angle[k],
+                                                      angle[k]), 0)
+    return out
 
 
 def diagnostics_bytes(keys: int = DIAGNOSTICS_KEYS) -> bytes:
@@ -119,15 +146,16 @@ class FloorNode(Node):
         parts = LEVELS[:LEVELS.index(level) + 1]
         qos = stream_qos(int(params.get("qos_depth", DEFAULTS["qos_depth"])))
         mcap = params.get("mcap", {})
+        joints = output_joints(params)
+        inputs = interface.input_topics(geometry=bool(joints))
+        outputs = interface.OUTPUT_TOPICS + (interface.JOINT_OUTPUT_TOPICS if joints else ())
         self.recorder = None
         if "mcap" in parts and mcap.get("enabled"):
             self.recorder = McapRecorder(Path(mcap["path"]))
-            for topic, type_name, _ in (*interface.input_topics(geometry=False),
-                                        *interface.OUTPUT_TOPICS):
+            for topic, type_name, _ in (*inputs, *outputs):
                 self.recorder.add_channel(resolve_topic(topic), type_name,
                                           offered_qos_profiles_yaml(qos))
-        self._inputs = [(topic, MESSAGE_CLASSES[type_name])
-                        for topic, type_name, _ in interface.input_topics(geometry=False)]
+        self._inputs = [(topic, MESSAGE_CLASSES[type_name]) for topic, type_name, _ in inputs]
         self._subscriptions = [
             self.create_subscription(msg_type, topic, self._receiver(topic), qos, raw=True)
             for topic, msg_type in self._inputs]
@@ -142,10 +170,10 @@ class FloorNode(Node):
         self._outputs, self._diagnostics, self._ticks = [[]], None, 0
         if "publishers" in parts:
             publishers = {topic: self.create_publisher(MESSAGE_CLASSES[type_name], topic, qos)
-                          for topic, type_name, _ in interface.OUTPUT_TOPICS}
+                          for topic, type_name, _ in outputs}
             self._outputs = [[(publishers[topic], resolve_topic(topic), data)
                               for topic, data in step]
-                             for step in output_bytes(params["muscles"], OUTPUT_STEPS)]
+                             for step in output_bytes(params["muscles"], OUTPUT_STEPS, joints)]
             self._diagnostics = (publishers[tm.TOPIC_DIAGNOSTICS],
                                  resolve_topic(tm.TOPIC_DIAGNOSTICS), diagnostics_bytes())
 

@@ -7,7 +7,9 @@ nanoseconds, so it never drifts.
 
 - time advances by k steps: k steps due (at most ``max_catch_up_steps``);
 - more than ``max_catch_up_steps`` due: that many run; the rest of the elapsed time is skipped by
-  moving the anchor forward (counted in ``skipped_ns`` and ``stalls``);
+  moving the anchor forward (counted in ``skipped_ns`` and ``stalls``); with ``end_on_multiple_of``
+  k, by whole multiples of k steps (at most k - 1 steps more than the rest, never more than is
+  due), so that the multiples (muscle_node's publish steps) keep their phase against the clock;
 - time goes backwards: nothing due; the anchor is re-set at the new time, so model time restarts
   there (counted in ``backward_jumps``);
 - ``hold(now)`` (pause policy): nothing due; the anchor follows ``now`` so that no catch-up
@@ -70,16 +72,22 @@ class StepScheduler:
         ``end_on_multiple_of`` (k > 0): when more than the steps up to the next multiple of k
         (counted in total_steps) are due, the ones past the last multiple reached wait for the
         next call, so that a late tick's steps end on a publish step and run in one call
-        (muscle_node on the system clock, docs/performance.md)."""
+        (muscle_node on the system clock, docs/performance.md); time skipped after a stall is
+        then skipped in whole multiples of k steps: any other count moved the publish steps
+        against the node's timer, whose ticks then ended at the publish step before them and
+        published up to a period late for the rest of the run."""
         behind = (now_ns - self.model_time_ns) // self.step_ns
         if behind <= 0:
             return 0
         if behind > self.max_catch_up_steps:
             skipped = behind - self.max_catch_up_steps
+            whole = skipped + (-skipped % end_on_multiple_of if end_on_multiple_of > 0 else 0)
+            if whole <= behind:  # else (a catch-up shorter than a period) the rest exactly
+                skipped = whole
             self.anchor_ns += skipped * self.step_ns
             self.skipped_ns += skipped * self.step_ns
             self.stalls += 1
-            behind = self.max_catch_up_steps
+            behind -= skipped
         if behind > self.steps_per_tick:
             self.catch_up_ticks += 1
         if end_on_multiple_of > 0:
