@@ -80,9 +80,6 @@ from vm_ros.model.jit import (
 from vm_ros.model.kernel import renamed
 from vm_ros.model.layout import T, type_columns
 
-# the components of in_bank.COMPONENTS, in its order
-ACTIVATION_MAINTENANCE, SHORTENING_LENGTHENING, BASAL, MECHANICAL_WORK, TOTAL = range(5)
-
 
 def _named_tuple(cls):
     """A named tuple of the fields of the constants class ``cls``, named ``<cls>Compiled`` in
@@ -134,7 +131,9 @@ _passive_argument = jitable(renamed(curves.passive_parallel_elastic_argument,
 #
 # Every array is one value per muscle-step of the block (the per-muscle constants repeated per
 # step), flat and contiguous, so that each loop is a plain loop over elements; ``out``: the
-# model's component rows (in_bank.COMPONENTS), flat; ``c``: the model's constants as a plain
+# model's component rows (in_bank.COMPONENTS: activation and maintenance, shortening and
+# lengthening, basal (0), mechanical work, total), flat, each written by the loop (NaN where
+# the model has no such component); ``c``: the model's constants as a plain
 # tuple (loop_constants), made the named tuple again as the loop starts.
 
 
@@ -209,6 +208,7 @@ def _umberger_loop(c, excitation, mass, velocity, lengths, active, slow, fl_mult
     """``lengths``: L and V (:func:`_lengths_loop`)."""
     c = UmbergerConstantsCompiled(*c)
     for j in range(velocity.size):
+        out[2][j] = 0.0
         out[0][j], out[1][j], out[3][j], out[4][j] = umberger2003_rates(
             c, excitation[j], mass[j], velocity[j], lengths[1, j], lengths[0, j], active[j],
             slow[j], fl_multiplier[j], effective[j], maintenance_power[j], shortening_power[j],
@@ -220,6 +220,7 @@ def _bhargava_loop(c, mass, velocity, active, passive, isometric, lengths, slow,
     """``lengths``: L (row 0, :func:`_lengths_loop`)."""
     c = BhargavaConstantsCompiled(*c)
     for j in range(velocity.size):
+        out[2][j] = 0.0
         out[0][j], out[1][j], out[3][j], out[4][j] = bhargava2004_rates(
             c, mass[j], velocity[j], active[j], passive[j], isometric[j], lengths[0, j],
             slow[j], sin_angle[j], cos_angle[j])
@@ -239,6 +240,7 @@ def _lichtwark_loop(c, activation, l0, f0, velocity, active, fl_multiplier, fv_m
     for j in range(velocity.size):
         maintenance = isometric_maintenance(c, exponentials[0, j], exponentials[1, j],
                                             curvature_squared)
+        out[2][j] = 0.0
         out[0][j], out[1][j], out[3][j], out[4][j] = lichtwark2005_rates(
             c, activation[j], l0[j], f0[j], velocity[j], active[j], fl_multiplier[j],
             fv_multiplier[j], maintenance, exponentials[2, j])
@@ -254,6 +256,7 @@ def _houdijk_loop(c, activation, mass, velocity, slow, f0, active, fl_multiplier
                   at_max_exp, out):
     c = HoudijkConstantsCompiled(*c)
     for j in range(velocity.size):
+        out[2][j] = 0.0
         out[0][j], out[1][j], out[3][j], out[4][j] = houdijk2006_rates(
             c, activation[j], mass[j], velocity[j], slow[j], f0[j], active[j],
             fl_multiplier[j], recruited_exp[j], at_max_exp[j])
@@ -262,12 +265,16 @@ def _houdijk_loop(c, activation, mass, velocity, slow, f0, active, fl_multiplier
 def _margaria_loop(c, active, velocity, out):
     c = MargariaConstantsCompiled(*c)
     for j in range(velocity.size):
+        out[0][j] = out[1][j] = np.nan
+        out[2][j] = 0.0
         out[3][j], out[4][j] = margaria1968_rates(c, active[j], velocity[j])
 
 
 def _minetti_loop(c, activation, f0, l0, velocity, out):
     c = MinettiConstantsCompiled(*c)
     for j in range(velocity.size):
+        out[0][j] = out[1][j] = out[3][j] = np.nan
+        out[2][j] = 0.0
         out[4][j] = minetti1997_rates(c, activation[j], f0[j], l0[j], velocity[j])
 
 
@@ -410,14 +417,10 @@ def _houdijk(c, b: Block, constants, out):
 
 
 def _margaria(c, b: Block, constants, out):
-    for component in (ACTIVATION_MAINTENANCE, SHORTENING_LENGTHENING):
-        out[component][...] = np.nan
     _margaria_loop(c, b.active, b.velocity, out)
 
 
 def _minetti(c, b: Block, constants, out):
-    for component in (ACTIVATION_MAINTENANCE, SHORTENING_LENGTHENING, MECHANICAL_WORK):
-        out[component][...] = np.nan
     _minetti_loop(c, b.activation, b.f0, b.l0, b.velocity, out)
 
 
@@ -462,7 +465,7 @@ class CompiledModels:
         # FPE1 and FPE2 enter the passive force alone, which Bhargava's model alone takes (the
         # registry's extras): without it they are left at 0 (the other models never read it)
         self._passive = any("passive_fibre_force" in model.extras for model in models)
-        self._repeated = {}  # rows -> the per-muscle constants repeated over that many steps
+        self._repeated = {}  # rows -> per-muscle constants repeated over them, block buffers
         columns = type_columns(muscle.fibre)
         self._fv_columns = tuple(tuple(float(np.asarray(columns[name])[t]) for name in (
             T.vmax, T.cv0, T.cv1, T.av0, T.av1, T.av2, T.bv)) for t in range(2))
@@ -482,29 +485,31 @@ class CompiledModels:
         duration = (None if stimulation_duration is None
                     else np.ascontiguousarray(stimulation_duration, dtype=float).reshape(-1))
         if shape[0] not in self._repeated:  # a new (writable) array for any number of rows, so
-            # that the loops warm_up compiles are the ones a block calls
-            self._repeated[shape[0]] = np.tile(self._per_muscle, (1, shape[0]))
-        l0, f0, mass, fpcsa_slow, fpcsa_fast, lmax = self._repeated[shape[0]]
-        size = x.size
-        lengths, passive = np.empty((5, size)), np.empty((3, size) if self._passive else (3, 0))
+            # that the loops warm_up compiles are the ones a block calls, and the block's
+            # buffers for that many rows (nothing outlives the block's fill)
+            size = x.size
+            self._repeated[shape[0]] = (
+                np.tile(self._per_muscle, (1, shape[0])), np.empty((5, size)),
+                np.empty((3, size) if self._passive else (3, 0)), np.empty((2, size)),
+                np.empty((6, size)))
+        per_muscle, lengths, passive, fl, inputs = self._repeated[shape[0]]
+        l0, f0, mass, fpcsa_slow, fpcsa_fast, lmax = per_muscle
         _lengths_loop(x, xdot, activity, l0, lmax, self._passive_arguments, self._passive,
                       lengths, passive)
         # FL of each type (curves.force_length_cheng2000: its powers and exp by NumPy)
         ft = self._fl_columns
-        fl = np.power(lengths[2:3], ft[T.beta])
+        np.power(lengths[2:3], ft[T.beta], out=fl)
         _force_length_base_loop(self._omega, fl)
         np.power(fl, ft[T.rho], out=fl)
         np.exp(np.negative(fl, out=fl), out=fl)
         if self._passive:  # ln(1 + exp(-|x|)) and expm1 of FPE1 and FPE2, by NumPy
             np.log1p(np.exp(passive[1], out=passive[1]), out=passive[1])
             np.expm1(passive[2], out=passive[2])
-        inputs = np.empty((6, size))
         _inputs_loop(lengths, fl, passive, self._passive, self._passive_factors, f0,
                      fpcsa_slow, fpcsa_fast, self._fv_columns,
                      float(self.muscle.generic.fv_denominator_min), tuple(inputs))
         block = Block(u, x, xdot, lengths, duration, *inputs, l0, f0, mass, fpcsa_slow, {})
         rows = np.reshape(out, (*out.shape[:2], -1), copy=False)  # (M, C, muscle-steps) view
-        rows[:, BASAL] = 0.0
         for run, c, constants, model_rows in zip(self._runs, self._compiled, self._constants,
                                                  rows, strict=True):
             run(c, block, constants, tuple(model_rows))
