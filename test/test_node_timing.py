@@ -121,6 +121,30 @@ def test_hold_pauses_without_catch_up():
     assert run(s, 111 * MS) == 1 and s.stalls == 0
 
 
+
+def test_a_pause_keeps_the_publish_steps_in_phase_with_the_ticks():
+    """Publishing every 10 steps, ticks 0.5 ms after each multiple of 10 ms; paused from the
+    tick at 40.5 ms to the one at 60.5 ms, whose wake-up comes 2.2 ms late (62.7 ms): the time
+    held is whole periods (30 steps), the 2 steps beyond stay due, and every tick after the
+    pause runs its 10 steps to the publish step just behind it. Holding all 32 steps moved the
+    publish steps 2 ms behind the ticks: every later tick ran 2 steps, left 8 waiting and ended
+    8 ms behind the clock."""
+    s = StepScheduler(MS, max_catch_up_steps=50, steps_per_tick=10)
+    s.start(0)
+    for k in range(1, 4):
+        assert run(s, k * 10 * MS + MS // 2, end_on_multiple_of=10) == 10
+    for now in (40 * MS + MS // 2, 50 * MS + MS // 2, 62 * MS + 7 * MS // 10):
+        s.hold(now, whole_multiple_of=10)
+    assert s.paused_ns == 30 * MS and s.model_time_ns == 60 * MS
+    for k in range(7, 12):
+        now = k * 10 * MS + MS // 2
+        assert run(s, now, end_on_multiple_of=10) == 10
+        assert now - s.model_time_ns == MS // 2 and s.total_steps % 10 == 0
+    plain = StepScheduler(MS, max_catch_up_steps=50)  # without a multiple: every step held
+    plain.start(0)
+    plain.hold(62 * MS + 7 * MS // 10)
+    assert plain.paused_ns == 62 * MS
+
 def test_scheduler_rejects_nonsense():
     with pytest.raises(ValueError):
         StepScheduler(0, 10)

@@ -551,7 +551,7 @@ class MuscleNode(Node):
             if self.inputs.ready:
                 self._start(now_ns)
         elif self.config.stale_input_policy == "pause" and self.inputs.any_stale:
-            self.scheduler.hold(now_ns)
+            self.scheduler.hold(now_ns, self._steps_end_on)
             self.timeline.consume(self.scheduler.model_time_ns)
         else:
             self._run_steps(now_ns)

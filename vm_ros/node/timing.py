@@ -13,7 +13,8 @@ nanoseconds, so it never drifts.
 - time goes backwards: nothing due; the anchor is re-set at the new time, so model time restarts
   there (counted in ``backward_jumps``);
 - ``hold(now)`` (pause policy): nothing due; the anchor follows ``now`` so that no catch-up
-  follows (counted in ``paused_ns``).
+  follows (counted in ``paused_ns``); with a multiple k, in whole multiples of k steps (the rest,
+  fewer than k steps, stays due), for the same reason as after a stall.
 """
 
 from __future__ import annotations
@@ -100,9 +101,16 @@ class StepScheduler:
         self.steps += 1
         self.total_steps += 1
 
-    def hold(self, now_ns: int) -> None:
-        """Pause: no steps due at ``now_ns``; the elapsed time is counted as paused."""
+    def hold(self, now_ns: int, whole_multiple_of: int = 0) -> None:
+        """Pause: no steps due at ``now_ns``; the elapsed time is counted as paused. With
+        ``whole_multiple_of`` k > 0 (the ``end_on_multiple_of`` of :meth:`due`) the time held is
+        whole multiples of k steps and the rest (fewer than k steps) stays due, so that the
+        multiples (muscle_node's publish steps) keep their phase against the clock: holding
+        every step behind moved them by a late last pause tick's lateness, and every tick after
+        the pause then ended at the publish step before its own, up to a period late."""
         behind = (now_ns - self.model_time_ns) // self.step_ns
+        if whole_multiple_of > 0:
+            behind -= behind % whole_multiple_of
         if behind > 0:
             self.anchor_ns += behind * self.step_ns
             self.paused_ns += behind * self.step_ns
