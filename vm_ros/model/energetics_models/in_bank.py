@@ -104,10 +104,12 @@ class BankModels:
         return np.where(on, t[:, None] - onset, 0.0)
 
     def rates(self, excitation, effective_activation, length_m, velocity_m_per_s,
-              stimulation_duration) -> np.ndarray:
+              stimulation_duration, each_chunk=None) -> np.ndarray:
         """Rates (W), (..., n, M, C), of every model at outputs of shape (..., n) (effective
         activation (..., n, 2)); no state is changed. A series (k, n) goes through in chunks
-        of at most CHUNK_MUSCLE_STEPS muscle-steps, whose temporaries stay in the cache."""
+        of at most CHUNK_MUSCLE_STEPS muscle-steps, whose temporaries stay in the cache;
+        ``each_chunk(out, rows)`` (optional) is called as each chunk's rows (a slice of the k)
+        of out (M, C, k, n) are filled, while they are in the cache."""
         shape = np.shape(length_m)
         # filled model by model in contiguous (M, C, ...) rows, handed out as the (..., M, C)
         # view: no strided writes, no copy
@@ -115,24 +117,17 @@ class BankModels:
         if len(shape) == 1:
             self._fill(out, excitation, effective_activation, length_m, velocity_m_per_s,
                        stimulation_duration)
-        else:
-            for _ in self._fill_parts(out, excitation, effective_activation, length_m,
-                                      velocity_m_per_s, stimulation_duration):
-                pass
-        return np.moveaxis(out, (0, 1), (-2, -1))
-
-    def _fill_parts(self, out, excitation, effective_activation, length_m, velocity_m_per_s,
-                    stimulation_duration):
-        """Fills out (M, C, k, n) with the rates of a series (k, n), chunk after chunk of at most
-        CHUNK_MUSCLE_STEPS muscle-steps, yielding the rows (a slice) of each when filled."""
-        k, n = np.shape(length_m)
+            return np.moveaxis(out, (0, 1), (-2, -1))
+        k, n = shape
         rows = max(1, CHUNK_MUSCLE_STEPS // max(1, n))
         for start in range(0, k, rows):
             part = slice(start, min(k, start + rows))
             self._fill(out[:, :, part], excitation[part], effective_activation[part],
                        length_m[part], velocity_m_per_s[part],
                        None if stimulation_duration is None else stimulation_duration[part])
-            yield part
+            if each_chunk is not None:
+                each_chunk(out, part)
+        return np.moveaxis(out, (0, 1), (-2, -1))
 
     def _fill(self, out, excitation, effective_activation, length_m, velocity_m_per_s,
               stimulation_duration) -> None:
@@ -162,17 +157,15 @@ class BankModels:
         if self._compiled is not None and np.shape(time_s)[0] > 1:
             # each chunk's energies summed while its rates are in the cache, in a compiled loop
             # (the same sums)
-            shape = np.shape(length_m)
-            out = np.empty((len(self.names), len(COMPONENTS), *shape))
-            energies = np.empty((len(self.names), *shape))  # (M, k, n)
+            energies = np.empty((len(self.names), *np.shape(length_m)))  # (M, k, n)
             before = np.ascontiguousarray(self.energy_j.T)
             steps = np.ascontiguousarray(dt)
-            for part in self._fill_parts(out, excitation, effective_activation, length_m,
-                                         velocity_m_per_s, duration):
-                compiled.integrate_energies(before, out[:, TOTAL], steps, part, energies)
+            rates = self.rates(excitation, effective_activation, length_m, velocity_m_per_s,
+                               duration, lambda out, part: compiled.integrate_energies(
+                                   before, out[:, TOTAL], steps, part, energies))
             energies = np.moveaxis(energies, 0, -1)  # (k, n, M) view
             self.energy_j = energies[-1].copy()
-            return np.moveaxis(out, (0, 1), (-2, -1)), energies
+            return rates, energies
         rates = self.rates(excitation, effective_activation, length_m, velocity_m_per_s,
                            duration)
         totals = rates.base[:, TOTAL] if rates.base is not None else rates[..., TOTAL]
