@@ -437,8 +437,7 @@ def _csv_rows(results: dict) -> list[dict]:
                         f"{clock}: {r['energetics_models']} models "
                         f"({r.get('selection', 'all')}) / none", r[key],
                         "ratio", f"<= {r['target_ratio']:g}", r[key] <= r["target_ratio"])
-    for r in results.get("model", []):
-        if "least_ratio" in r:  # the one-model row's least ratio with NumPy's transcendentals
+        elif "least_ratio" in r:  # the one-model row's least ratio with NumPy's transcendentals
             add("model", f"numba {r['muscles']} muscles, run",
                 "thread CPU: umberger2010's NumPy part / none + 1", r["least_ratio"], "ratio")
     for r in results.get("natural", []):

@@ -33,8 +33,18 @@ from vm_ros_bench.model_bench import DT, _inputs, library_bank
 _IMPORT = re.compile(r"^(\s*)(from|import) vm_ros\b", re.MULTILINE)
 
 
+def resolved_commit(commit: str) -> str | None:
+    """``commit`` (any name git takes: a hash, a branch, HEAD~1) as its full hash in the
+    checkout vm_ros is imported from; None when git cannot name it there."""
+    done = subprocess.run(["git", "rev-parse", "--verify", "--quiet", f"{commit}^{{commit}}"],
+                          capture_output=True, text=True,
+                          cwd=Path(vm_ros.__file__).resolve().parents[1])
+    return done.stdout.strip() if done.returncode == 0 and done.stdout.strip() else None
+
+
 def package_at(commit: str) -> str:
-    """The name of ``commit``'s vm_ros, importable (made under cache_home()/against/)."""
+    """The name of the vm_ros of ``commit`` (a full hash: :func:`resolved_commit`), importable
+    (made under cache_home()/against/)."""
     name = f"vm_ros_at_{commit}"
     root = cache_home() / "against" / commit
     if not (root / name).is_dir():
@@ -83,7 +93,11 @@ def main(argv=None) -> None:
     parser.add_argument("--selection", default="all")
     parser.add_argument("--against", metavar="COMMIT", help="time this commit's vm_ros too")
     args = parser.parse_args(argv)
-    packages = ["vm_ros"] + ([package_at(args.against)] if args.against else [])
+    against = resolved_commit(args.against) if args.against else None
+    if args.against and against is None:
+        parser.error(f"--against {args.against}: not a commit of the checkout vm_ros is "
+                     f"imported from ({Path(vm_ros.__file__).resolve().parents[1]})")
+    packages = ["vm_ros"] + ([package_at(against)] if against else [])
     timers = [advance_timers(p, args.muscles, args.batch, args.selection) for p in packages]
     times = [[] for _ in timers]
     for _ in range(args.repeats):
