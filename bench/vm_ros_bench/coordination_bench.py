@@ -138,13 +138,9 @@ def bench_walk(progress=print) -> list[dict]:
     when the walk's files are not fetched (scripts/fetch-gait-data)."""
     import tempfile
 
-    from vm_ros.coordination.problem import build_problem
     from vm_ros.coordination.solver import SolverOptions, solve
-    from vm_ros.coordination.targets import load_targets
-    from vm_ros.importers.motion import read_motion
-    from vm_ros.model.params import load_model_params, resolve_muscles
-    from vm_ros.node.motion_inputs import JointMotion
-    from vm_ros.validation.walk import STRENGTHS, import_walk
+    from vm_ros.model.params import load_model_params
+    from vm_ros.validation.walk import STRENGTHS, walk_problem
     from vm_ros.validation.walk_data import WalkDataError, walk_files
 
     try:
@@ -154,13 +150,8 @@ def bench_walk(progress=print) -> list[dict]:
     params = load_model_params()
     rows = []
     with tempfile.TemporaryDirectory(prefix="vm_ros_bench_walk_") as out:
-        geometry, library = import_walk(files, STRENGTHS["model F0"], out)
-        motion = JointMotion.from_motion(read_motion(files["motion"]), geometry,
-                                         geometry.coordinate_names, {})
-        targets = load_targets(str(files["inverse_dynamics"]), geometry=geometry, motion=motion)
-        muscles = geometry.muscle_names
-        specs = resolve_muscles(muscles, library, None, params.generic.ur_default)
-        problem = build_problem(geometry, motion, targets, muscles)
+        w = walk_problem(files, STRENGTHS["model F0"], out, params)
+        specs, problem = w.specs, w.problem
         for case, changes in WALK_CASES.items():
             load = os.getloadavg()[0]
             started = time.perf_counter()

@@ -405,6 +405,38 @@ def import_walk(files, strength: tuple[str, str], out_dir):
     return done.geometry, Path(out_dir) / "muscles.yaml"
 
 
+
+@dataclasses.dataclass(frozen=True)
+class WalkProblem:
+    """The walk imported at one strength: its geometry, motion (JointMotion), the ID's target
+    moments as given, the muscles' specs and the coordination problem on those targets."""
+
+    geometry: object
+    motion: object
+    targets: object
+    specs: list
+    problem: object
+
+
+def walk_problem(files, strength: tuple[str, str], out_dir, params) -> WalkProblem:
+    """The walk's coordination problem at ``strength`` (:func:`import_walk` into ``out_dir``),
+    as the item solves it: every muscle of the geometry, the ID's hip, knee and ankle moments
+    as given."""
+    from vm_ros.coordination.problem import build_problem
+    from vm_ros.coordination.targets import load_targets
+    from vm_ros.importers.motion import read_motion
+    from vm_ros.model.params import resolve_muscles
+    from vm_ros.node.motion_inputs import JointMotion
+
+    geometry, library = import_walk(files, strength, out_dir)
+    motion = JointMotion.from_motion(read_motion(files["motion"]), geometry,
+                                     geometry.coordinate_names, {})
+    targets = load_targets(str(files["inverse_dynamics"]), geometry=geometry, motion=motion)
+    muscles = geometry.muscle_names
+    specs = resolve_muscles(muscles, library, None, params.generic.ur_default)
+    return WalkProblem(geometry, motion, targets, specs,
+                       build_problem(geometry, motion, targets, muscles))
+
 def cocontraction_share(moment_arm, forces) -> np.ndarray:
     """(C,): per coordinate, sum over frames of the moment muscles spend against each other,
     (sum_i |r_i F_i| - |sum_i r_i F_i|) / 2, over the sum of sum_i |r_i F_i| (0: no muscle
@@ -460,38 +492,30 @@ def solve_walk(files, config, params) -> tuple[list[WalkSolution], WalkSolution]
     except ImportError as exc:
         raise CheckSkippedError("vm_ros.coordination has no solver in this build: the walk "
                                 f"item needs one ({exc})") from exc
-    from vm_ros.coordination.targets import load_targets, lowpass_targets
-    from vm_ros.importers.motion import read_motion
+    from vm_ros.coordination.targets import lowpass_targets
     from vm_ros.model.bank import MuscleBank
-    from vm_ros.model.params import load_model_params, resolve_muscles
-    from vm_ros.node.motion_inputs import JointMotion
+    from vm_ros.model.params import load_model_params
 
     params = params or load_model_params()
     solutions, variant = [], None
     for strength_label, strength in STRENGTHS.items():
         with tempfile.TemporaryDirectory(prefix="vm_ros_walk_") as out:
-            geometry, library = import_walk(files, strength, out)
-            motion = JointMotion.from_motion(read_motion(files["motion"]), geometry,
-                                             geometry.coordinate_names, {})
-            targets = load_targets(str(files["inverse_dynamics"]), geometry=geometry,
-                                   motion=motion)
-            muscles = geometry.muscle_names
-            specs = resolve_muscles(muscles, library, None, params.generic.ur_default)
-            problem = build_problem(geometry, motion, targets, muscles)
+            w = walk_problem(files, strength, out, params)
             for cost in COSTS:
-                bank = MuscleBank(specs, params, "lumped")
-                result = solve(bank, problem, SolverOptions(cost=cost))
+                result = solve(MuscleBank(w.specs, params, "lumped"), w.problem,
+                               SolverOptions(cost=cost))
                 solutions.append(solution_from_result(f"{cost}, {strength_label}", result,
-                                                      motion, specs, params))
+                                                      w.motion, w.specs, params))
             if variant is None:
                 cutoff = config["lowpassed_targets"]["cutoff_hz"]["value"]
-                smooth = lowpass_targets(targets, cutoff)
+                smooth = lowpass_targets(w.targets, cutoff)
                 lead_in = config["lowpassed_targets"]["lead_in_s"]["value"]
-                result = solve(MuscleBank(specs, params, "lumped"),
-                               build_problem(geometry, motion, smooth, muscles),
+                result = solve(MuscleBank(w.specs, params, "lumped"),
+                               build_problem(w.geometry, w.motion, smooth,
+                                             w.geometry.muscle_names),
                                SolverOptions(cost=VARIANT_COST, lead_in_s=lead_in))
                 variant = solution_from_result(f"ID at {cutoff:g} Hz, lead-in {lead_in:g} s",
-                                               result, motion, specs, params)
+                                               result, w.motion, w.specs, params)
     return solutions, variant
 
 
