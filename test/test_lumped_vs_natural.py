@@ -105,7 +105,9 @@ def test_drive_filter_fit_recovers_known_constants_from_lumped_units_made_with_t
     got = fit.params.lumped
     print(f"\nstatus {fit.status}, {fit.evaluations} evaluations, RMS {fit.rms_start_percent} -> "
           f"{fit.rms_fitted_percent}; " + ", ".join(f"{k} {getattr(got, k)}" for k in KNOWN))
-    assert np.all(fit.rms_start_percent > 0.5)  # the start really is off (10x the bound below)
+    # the start really is off: 6x the bound below (measured 0.90 and 0.45 % with a filtered drive
+    # per fibre type, 2026-12-03; the bound was 0.5 % while both types shared one)
+    assert np.all(fit.rms_start_percent > 0.3)
     assert np.all(fit.rms_fitted_percent < 0.05)
     # T_r and T_f at the two muscles' U2 (the polynomials' values, which the data determine)
     for name in ("relative_rise_poly", "relative_fall_poly"):

@@ -39,7 +39,10 @@ def test_lumped_drive_filter_is_one_ms_for_full_step_and_t_rise_for_small():
     r = _lumped(0.4, params=dataclasses.replace(LP, drive_law="tsianos2012"))  # U2 = 0.32
 
     def tau(u, ueff):
-        return r.drive_tau(np.array([u]), np.array([ueff]), np.array([1.0]))[0]
+        slow, fast = r.drive_tau(np.array([u]), np.array([ueff]), np.ones((1, 2)),
+                                 np.ones((1, 2)))[0]
+        assert slow == fast  # one law of (U, Ueff): both types' Ueff alike
+        return slow
 
     assert tau(1.0, 0.0) == pytest.approx(0.001, rel=1e-9)
     assert tau(0.5, 0.5) == pytest.approx(t_rise, rel=1e-12)
@@ -55,7 +58,10 @@ def test_relative_drive_law_at_its_limits():
     r = _lumped(0.4, params=lumped)
 
     def tau(u, ueff, active=1.0):
-        return r.drive_tau(np.array([u]), np.array([ueff]), np.array([active]))[0]
+        m = np.array([[active, active]])
+        slow, fast = r.drive_tau(np.array([u]), np.array([[ueff, ueff]]), m, m)[0]
+        assert slow == fast  # both types by the same law
+        return slow
 
     assert tau(0.5, 0.0) == 1e-4  # Ueff at rest: no lag beyond the floor
     assert tau(0.6, 0.3, active=0.0) == 1e-4  # units no longer firing: as from rest
@@ -68,6 +74,19 @@ def test_relative_drive_law_at_its_limits():
     assert tau(0.3, 0.6, active=0.5) == pytest.approx(0.05 + 0.6 * 0.5**4)
     assert tau(0.3, 0.6) == pytest.approx(0.05)  # firing rate down at its target: T_f0
     assert tau(0.59, 0.6, active=0.9) == pytest.approx(0.05 + 0.6 * 0.1**4)
+    # each type's m on a fall: the slow unit's firing match while U is at or above the type's
+    # threshold, 0 below it. A fall from 0.6 to 0.2 with U2 = 0.32: the slow unit near its target
+    # (m 0.9), every fast unit released (W_F held as on a release to rest: T_f0 + T_f)
+    f_env = np.where(r.thresholds <= 0.2, 1.0, 0.0)  # the slow type driven at 0.2, the fast not
+    fall = rc.type_match(np.array([[0.9]]), f_env)
+    assert fall.tolist() == [[0.9, 0.0]]
+    taus = r.drive_tau(np.array([0.2]), np.array([[0.6, 0.6]]), np.ones((1, 2)), fall)[0]
+    assert taus == pytest.approx([0.05 + 0.6 * 0.1**4, 0.05 + 0.6])
+    # on a rise each type's own unit: from 0.3 to 0.6 across U2, the slow unit firing at its
+    # target (m 1: T_r (Ueff / U)^q), the fast unit not yet firing (m 0: from rest, no lag)
+    rise = np.array([[1.0, 0.0]])
+    taus = r.drive_tau(np.array([0.6]), np.array([[0.3, 0.3]]), rise, np.ones((1, 2)))[0]
+    assert taus == pytest.approx([0.1 * 0.5**2, 1e-4])
 
 
 def test_firing_match():
@@ -131,5 +150,7 @@ def test_continuous_weights_follow_song2008():
     w = r.pool_weights(np.array([0.6]))[0]
     d = (0.6 - 0.001) + (0.6 - 0.4)
     assert w == pytest.approx([0.6 * (0.599 / d), 0.6 * (0.2 / d)])
-    assert r.drive_tau(np.array([1.0]), np.array([0.0]), np.ones(1))[0] == 0.03
-    assert math.isclose(float(r.drive_tau(np.array([0.0]), np.array([1.0]), np.ones(1))[0]), 0.15)
+    m = np.ones((1, 2))
+    assert r.drive_tau(np.array([1.0]), np.array([0.0]), m, m)[0].tolist() == [0.03] * 2
+    falling = r.drive_tau(np.array([0.0]), np.array([1.0]), m, m)[0]
+    assert all(math.isclose(float(t), 0.15) for t in falling)

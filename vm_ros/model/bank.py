@@ -310,7 +310,8 @@ class MuscleBank:
             lp, self.geometry, activity_at, self.params.fibre, g, g.l_activation_min
         )
         self._state = proto
-        u = proto.effective_drive if excitation is not None else np.zeros(self.n)
+        # the drive as used (clipped): the steady Ueff, equal for both fibre types
+        u = proto.effective_drive[:, 0] if excitation is not None else np.zeros(self.n)
         out = StepOutput(eq, proto, eq.evaluate(proto, u.copy(), lp)[0])
         if self._models is not None:
             self._models.reset()

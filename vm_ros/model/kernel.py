@@ -148,16 +148,17 @@ def _tendon_force_and_slope(x, path_length, f0, l0t, s):
 
 
 @jitable
-def _type_weights(lumped, ueff, threshold_s, threshold_f, fpcsa_s, fpcsa_f, lower_s, lower_f,
-                  upper_s, upper_f, u2, ur, w_slow_at_u2, w_slow_amplitude, w_fast_b, w_fast_c,
-                  w_fast_tau, w_slow_poly, s):
-    """Weights of the slow and fast pools at drive Ueff (lumped: rF W; continuous: Ueff W; both
-    evaluated, one selected)."""
+def _type_weights(lumped, ueff, ueff_f, threshold_s, threshold_f, fpcsa_s, fpcsa_f, lower_s,
+                  lower_f, upper_s, upper_f, u2, ur, w_slow_at_u2, w_slow_amplitude, w_fast_b,
+                  w_fast_c, w_fast_tau, w_slow_poly, s):
+    """Weights of the slow and fast pools at each type's drive Ueff (``ueff`` slow, ``ueff_f``
+    fast; lumped: rF W; continuous: Ueff W, from the slow type's Ueff, equal to the fast type's
+    under its one filter; both evaluated, one selected)."""
     lumped_slow = rc.linear_recruited_fraction(ueff, fpcsa_s, lower_s, upper_s)
     lumped_slow *= rc.lumped_weight_slow(ueff, s[S.u1], u2, w_slow_poly, w_slow_at_u2,
                                          w_slow_amplitude, s[S.w_slow_tau])
-    lumped_fast = rc.linear_recruited_fraction(ueff, fpcsa_f, lower_f, upper_f)
-    lumped_fast *= rc.lumped_weight_fast(ueff, u2, ur, w_fast_b, w_fast_c, w_fast_tau,
+    lumped_fast = rc.linear_recruited_fraction(ueff_f, fpcsa_f, lower_f, upper_f)
+    lumped_fast *= rc.lumped_weight_fast(ueff_f, u2, ur, w_fast_b, w_fast_c, w_fast_tau,
                                          s[S.w_fast_offset], s[S.w_fast_rise])
     excess_s = rc.continuous_excess_song2008(ueff, threshold_s, fpcsa_s > 0.0)
     excess_f = rc.continuous_excess_song2008(ueff, threshold_f, fpcsa_f > 0.0)
@@ -192,7 +193,7 @@ def _row_starts(*sizes):
     ROW_U_IN, ROW_LP, ROW_VP, ROW_DRIVE, ROW_X, ROW_XDOT, ROW_WORK, ROW_RECOVERY, ROW_ENERGY,
     ROW_TERMS, ROW_XV, ROW_OUT_U, ROW_OUT_FSE, ROW_OUT_FCE, ROW_OUT_POWER, ROW_ACTIVITY,
     ROW_STIMULATION, ROW_COMPONENTS, ROW_RATES, ROW_WEIGHT, ROW_POOLS,
-) = _row_starts(1, 1, 1, 1, 1, 1, 1, 4, 6, N_TERMS, 2, 1, 1, 1, 1, 2, 2, 6, 4, 2)
+) = _row_starts(1, 1, 1, 2, 1, 1, 1, 4, 6, N_TERMS, 2, 1, 1, 1, 1, 2, 2, 6, 4, 2)
 # per pool, after ROW_POOLS: f_int, f_eff, sag, yield (the pool's row is ROW_POOLS + q * P + j)
 POOL_F_INT, POOL_F_EFF, POOL_SAG, POOL_YIELD, POOL_VARIABLE_ROWS = range(5)
 # constant rows: the muscle table's columns, then each pool's threshold and PCSA fraction
@@ -285,42 +286,60 @@ def _store_outputs(block, i0, count, out_excitation, out_f_se, out_f_ce, out_act
 
 
 @jitable
-def _drive_loop(dt, count, lumped, natural, relative_drive, u_in, out_u, drive, f_eff_slow,
-                weight_s, weight_f, constant, s, w_slow_poly):
-    """Phase 1 over a block's muscles."""
+def _type_drive(dt, lumped, natural, relative_drive, u, ueff_old, f_eff, slow_match, threshold,
+                relative_rise, relative_fall, t_rise, t_fall, t_rise_rate, s):
+    """One fibre type's filtered drive Ueff after the step, the same for both types (the lumped
+    relative-drive law: on a rise the firing match of the type's own unit, of firing rate
+    ``f_eff``; on a fall the slow unit's, ``slow_match``, while U is at or above the type's
+    ``threshold``)."""
+    f_env = act.firing_envelope(u, threshold, s[S.fmin], s[S.fmax])
+    tau_relative = rc.relative_drive_tau(
+        u, ueff_old, rc.firing_match(f_eff, f_env), rc.type_match(slow_match, f_env),
+        relative_rise, s[S.relative_rise_power], relative_fall, s[S.relative_fall_floor],
+        s[S.relative_fall_power], s[S.drive_tau_min],
+    )
+    tau_rate = rc.lumped_drive_tau_from_rate(u, ueff_old, t_rise, t_fall, t_rise_rate)
+    tau_continuous = rc.continuous_drive_tau_song2008(
+        u, ueff_old, s[S.continuous_tau_rise], s[S.continuous_tau_fall]
+    )
+    tau = (tau_relative if relative_drive else tau_rate) if lumped else tau_continuous
+    return u if natural else act.lag_step(ueff_old, u, tau, dt)
+
+
+@jitable
+def _drive_loop(dt, count, lumped, natural, relative_drive, u_in, out_u, drive_s, drive_f,
+                f_eff_slow, f_eff_fast, weight_s, weight_f, constant, s, w_slow_poly):
+    """Phase 1 over a block's muscles (``drive_s``, ``drive_f``: each fibre type's Ueff;
+    ``f_eff_slow``, ``f_eff_fast``: pools 0 and 1, a lumped muscle's slow and fast units)."""
     c = constant
     for i in range(count):
         u = min(max(u_in[i], 0.0), 1.0)
         out_u[i] = u
-        # Phase 1, DRIVE: filtered drive Ueff and the pool weights it sets. The candidates of
-        # every scheme are computed and one is selected: branches on the scheme inside the loop
-        # would stop its vectorisation (the other schemes' constants are NaN, never selected).
-        ueff_old = drive[i]
+        # Phase 1, DRIVE: filtered drive Ueff of each type and the pool weights it sets. The
+        # candidates of every scheme are computed and one is selected: branches on the scheme
+        # inside the loop would stop its vectorisation (the other schemes' constants are NaN,
+        # never selected).
         # lumped, relative-drive law: the slow pool (pool 0) says how active the units already are
-        active = rc.firing_match(
+        slow_match = rc.firing_match(
             f_eff_slow[i],
             act.firing_envelope(u, c[ROW_C_THRESHOLD, i], s[S.fmin], s[S.fmax]),
         )
-        tau_relative = rc.relative_drive_tau(
-            u, ueff_old, active, c[M.relative_rise, i], s[S.relative_rise_power],
-            c[M.relative_fall, i], s[S.relative_fall_floor], s[S.relative_fall_power],
-            s[S.drive_tau_min],
+        drive_s[i] = _type_drive(
+            dt, lumped, natural, relative_drive, u, drive_s[i], f_eff_slow[i], slow_match,
+            c[ROW_C_THRESHOLD, i], c[M.relative_rise, i], c[M.relative_fall, i], c[M.t_rise, i],
+            c[M.t_fall, i], c[M.t_rise_rate, i], s,
         )
-        tau_rate = rc.lumped_drive_tau_from_rate(
-            u, ueff_old, c[M.t_rise, i], c[M.t_fall, i], c[M.t_rise_rate, i]
+        drive_f[i] = _type_drive(
+            dt, lumped, natural, relative_drive, u, drive_f[i], f_eff_fast[i], slow_match,
+            c[ROW_C_THRESHOLD + 1, i], c[M.relative_rise, i], c[M.relative_fall, i],
+            c[M.t_rise, i], c[M.t_fall, i], c[M.t_rise_rate, i], s,
         )
-        tau_continuous = rc.continuous_drive_tau_song2008(
-            u, ueff_old, s[S.continuous_tau_rise], s[S.continuous_tau_fall]
-        )
-        tau = (tau_relative if relative_drive else tau_rate) if lumped else tau_continuous
-        ueff = u if natural else act.lag_step(ueff_old, u, tau, dt)
-        drive[i] = ueff
         weight_s[i], weight_f[i] = _type_weights(
-            lumped, ueff, c[ROW_C_THRESHOLD, i], c[ROW_C_THRESHOLD + 1, i], c[M.fpcsa_s, i],
-            c[M.fpcsa_f, i], c[M.rec_lower_s, i], c[M.rec_lower_f, i], c[M.rec_upper_s, i],
-            c[M.rec_upper_f, i], c[M.u2, i], c[M.ur, i], c[M.w_slow_at_u2, i],
-            c[M.w_slow_amplitude, i], c[M.w_fast_b, i], c[M.w_fast_c, i], c[M.w_fast_tau, i],
-            w_slow_poly, s,
+            lumped, drive_s[i], drive_f[i], c[ROW_C_THRESHOLD, i], c[ROW_C_THRESHOLD + 1, i],
+            c[M.fpcsa_s, i], c[M.fpcsa_f, i], c[M.rec_lower_s, i], c[M.rec_lower_f, i],
+            c[M.rec_upper_s, i], c[M.rec_upper_f, i], c[M.u2, i], c[M.ur, i],
+            c[M.w_slow_at_u2, i], c[M.w_slow_amplitude, i], c[M.w_fast_b, i], c[M.w_fast_c, i],
+            c[M.w_fast_tau, i], w_slow_poly, s,
         )
 
 
@@ -572,8 +591,9 @@ def _advance_series(
                 break
             # one step of the block; its inputs are in the rows ROW_U_IN, ROW_LP, ROW_VP
             _drive_loop(dt, count, lumped, natural, relative_drive, v[ROW_U_IN], v[ROW_OUT_U],
-                        v[ROW_DRIVE], v[_pool_row(POOL_F_EFF, 0, n_pools)], v[ROW_WEIGHT],
-                        v[ROW_WEIGHT + 1], c, s, w_slow)
+                        v[ROW_DRIVE], v[ROW_DRIVE + 1], v[_pool_row(POOL_F_EFF, 0, n_pools)],
+                        v[_pool_row(POOL_F_EFF, 1, n_pools)], v[ROW_WEIGHT], v[ROW_WEIGHT + 1],
+                        c, s, w_slow)
             for t in range(2):
                 for i in range(count):
                     v[ROW_ACTIVITY + t, i] = 0.0

@@ -60,7 +60,8 @@ def table_rows(arrays) -> str:
 TIME = Array("time_s", "", (), "s", "model time")
 # In the kernel's argument order. Every state here is integrated by the reference ODE.
 STATE = (
-    Array("effective_drive", "effective_drive", ("n",), "1", "filtered drive Ueff (U: natural)"),
+    Array("effective_drive", "effective_drive", ("n", 2), "1",
+          "filtered drive Ueff per fibre type (slow, fast; U: natural)"),
     Array("firing_rate_intermediate", "f_int", ("n", "P"), "f0.5", "f_int of each pool"),
     Array("firing_rate_effective", "f_eff", ("n", "P"), "f0.5", "f_eff of each pool"),
     Array("sag", "sag", ("n", "P"), "1", "sag S of each pool (1 for slow)"),

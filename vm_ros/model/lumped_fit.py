@@ -37,10 +37,11 @@ FILTER_FIELDS = {
 # Bounds of the fitted values (each coefficient of a polynomial), where the fit needs them: without
 # them the relative_drive fit can trade a smaller error for a law that holds Ueff for minutes after
 # a release (T_f ~ 1000 s with p ~ 150), where Ueff no longer means an effective drive. A time
-# constant coefficient stays within 2 s, p and q in 1-4 (p 1: linear in the fall's size; 4: only
-# large falls hold W), T_f0 within 0-0.5 s.
+# constant coefficient stays within 2 s, p in 1-4 (1: T_U linear in the firing mismatch; 4: only a
+# large mismatch holds W), q in 0-4 (0: the rise's T_U does not depend on its size), T_f0 within
+# 0-0.5 s.
 FILTER_BOUNDS = {
-    "relative_rise_poly": (-2.0, 2.0), "relative_rise_power": (1.0, 4.0),
+    "relative_rise_poly": (-2.0, 2.0), "relative_rise_power": (0.0, 4.0),
     "relative_fall_poly": (-2.0, 2.0),
     "relative_fall_power": (1.0, 4.0), "relative_fall_floor": (0.0, 0.5),
 }

@@ -41,7 +41,7 @@ class LagTargets:
 
     l: np.ndarray  # (n,) L0
     v: np.ndarray  # (n,) L0/s
-    drive_tau: np.ndarray | None  # (n,) s; None: no drive filter (natural units)
+    drive_tau: np.ndarray | None  # (n, 2) s, per fibre type; None: no drive filter (natural)
     f_env: np.ndarray  # (n, P) f0.5
     tf: np.ndarray  # (n, P) s
     sag_target: np.ndarray  # (n, P)
@@ -119,10 +119,16 @@ class NumpyStep:
         return LagTargets(
             l=l,
             v=v,
-            # pool 0: the slow unit of a lumped muscle, whose firing says how active it already is
+            # pools 0 and 1, a lumped muscle's slow and fast units: on a rise each type's own unit
+            # says how active it already is, on a fall the slow unit (recruited first, firing
+            # whenever any unit does) while U is above the type's threshold
             drive_tau=self.recruitment.drive_tau(
                 u, state.effective_drive,
-                rc.firing_match(state.firing_rate_effective[:, 0], f_env[:, 0]),
+                rc.firing_match(state.firing_rate_effective[:, :2], f_env[:, :2]),
+                rc.type_match(
+                    rc.firing_match(state.firing_rate_effective[:, :1], f_env[:, :1]),
+                    f_env[:, :2],
+                ),
             ),
             f_env=f_env,
             tf=tf,
@@ -189,8 +195,8 @@ class NumpyStep:
         r = self.lag_targets(state, u)
         record, initial = self.evaluate(state, u, lp)
         n = self.n
-        d_drive = (np.zeros(n) if r.drive_tau is None
-                   else act.lag_derivative(state.effective_drive, u, r.drive_tau))
+        d_drive = (np.zeros((n, 2)) if r.drive_tau is None
+                   else act.lag_derivative(state.effective_drive, u[:, None], r.drive_tau))
         return BankState(
             time_s=1.0,
             effective_drive=d_drive,
@@ -218,12 +224,12 @@ class NumpyStep:
 
     def steady_activation(self, u) -> dict:
         """Activation states at steady state for constant drive ``u`` (clipped; V = 0):
-        f_int = f_eff = f_env, Ueff = U, sag at its target, yield = 1."""
+        f_int = f_eff = f_env, Ueff = U (each type's), sag at its target, yield = 1."""
         p, g = self.pool_fibre, self.params.generic
         f_env = act.firing_envelope(u[:, None], self.recruitment.thresholds, g.fmin, g.fmax)
         sag = act.sag_target(f_env, p.as1, p.as2, p.sag_rate_threshold) * np.ones_like(f_env)
         return {
-            "effective_drive": u,
+            "effective_drive": rc.drive_per_type(u),
             "firing_rate_intermediate": f_env.copy(),
             "firing_rate_effective": f_env.copy(),
             "sag": sag,
@@ -239,11 +245,11 @@ class NumpyStep:
         r = self.lag_targets(old, u)
         p = self.pool_fibre
         new = old.copy()
-        # Phase 1, DRIVE: filtered drive Ueff and the pool weights it sets
+        # Phase 1, DRIVE: filtered drive Ueff of each fibre type and the pool weights it sets
         if r.drive_tau is None:
-            new.effective_drive = u.copy()
+            new.effective_drive = rc.drive_per_type(u)
         else:
-            new.effective_drive = act.lag_step(old.effective_drive, u, r.drive_tau, dt)
+            new.effective_drive = act.lag_step(old.effective_drive, u[:, None], r.drive_tau, dt)
         weights = self.recruitment.pool_weights(new.effective_drive)
         # Phase 2, FIRING: rise/fall cascade, sag and yield of every pool
         new.firing_rate_intermediate, new.firing_rate_effective = act.cascade_step(

@@ -99,7 +99,8 @@ class StepOutput:
     | length_l0 | (n,) | L0 | normalised fascicle length |
     | velocity_l0_per_s | (n,) | L0/s | normalised fascicle velocity |
     | excitation | (n,) | 1 | drive U as used (clipped to [0, 1]) |
-    | effective_drive | (n,) | 1 | filtered drive Ueff (U for natural units) |
+    | effective_drive | (n,) | 1 | filtered drive Ueff of the slow type (U for natural units) |
+    | effective_drive_by_fibre | (n, 2) | 1 | filtered drive Ueff per fibre type (slow, fast) |
     | firing_rate_f05 | (n, 2) | f0.5 | f_eff per fibre type (PCSA-weighted mean over units) |
     | recruited_fraction | (n, 2) | 1 | recruited PCSA fraction per fibre type |
     | effective_activation | (n, 2) | 1 | Acteff per fibre type (recruitment x weighting x Af) |
@@ -122,10 +123,10 @@ class StepOutput:
 
     FIELDS = (
         "time_s", "force", "contractile_force", "fascicle_length", "fascicle_velocity",
-        "length_l0", "velocity_l0_per_s", "excitation", "effective_drive", "firing_rate_f05",
-        "recruited_fraction", "effective_activation", "energy_rate", "energy_rate_by_fibre",
-        "energy", "energy_by_fibre", "mechanical_power", "mechanical_work", "total_energy_rate",
-        "total_energy",
+        "length_l0", "velocity_l0_per_s", "excitation", "effective_drive",
+        "effective_drive_by_fibre", "firing_rate_f05", "recruited_fraction",
+        "effective_activation", "energy_rate", "energy_rate_by_fibre", "energy", "energy_by_fibre",
+        "mechanical_power", "mechanical_work", "total_energy_rate", "total_energy",
     )
 
     def __init__(self, equations, state, record):
@@ -185,6 +186,10 @@ class StepOutput:
 
     @cached_property
     def effective_drive(self) -> np.ndarray:
+        return self._state.effective_drive[:, 0].copy()
+
+    @cached_property
+    def effective_drive_by_fibre(self) -> np.ndarray:
         return self._state.effective_drive.copy()
 
     @cached_property

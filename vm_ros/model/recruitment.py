@@ -8,11 +8,17 @@ from its firing threshold; the scheme supplies, per muscle and pool:
 | ``fibre_index`` | (P,) | fibre type of each pool (0 slow, 1 fast) |
 | ``thresholds`` | (n, P) | drive at which the pool starts firing (raw U) |
 | ``pool_pcsa`` | (n, P) | PCSA fraction of the pool (sums to 1 per muscle) |
-| ``drive_tau(u, ueff, active)`` | (n,) | time constant of the filtered drive Ueff (None: no |
-| | | filter); lumped: by ``params.drive_law`` (DRIVE_LAWS); ``active`` (n,): the slow |
-| | | pool's firing match (:func:`firing_match`) |
+| ``drive_tau(u, ueff, rise, fall)`` | (n, 2) | time constant of the filtered drive Ueff of |
+| | | each fibre type (None: no filter); lumped: by ``params.drive_law`` (DRIVE_LAWS); |
+| | | ``rise``, ``fall`` (n, 2): m of each type on a rise (each lumped unit's |
+| | | :func:`firing_match`) and on a fall (:func:`type_match`) |
 | ``pool_weights(ueff)`` | (n, P) | weight so that effective activation = weight * Af |
 | ``recruited_fraction(u, ueff)`` | (n, P) | recruited PCSA fraction of the pool |
+
+``ueff`` is the filtered drive per fibre type, (n, 2) (slow, fast); :func:`drive_per_type` makes
+it from one drive per muscle (n,). The filter acts on each type's Ueff alike; only the lumped
+scheme's relative_drive law, which reads each type's own unit on a rise and holds a type's W once
+U is below its threshold (:func:`type_match`), moves them apart.
 
 References: Cheng, Brown & Loeb 2000 (natural units); Song et al. 2008 (continuous);
 Tsianos, Rustin & Loeb 2012 Appendix A (lumped units).
@@ -36,6 +42,13 @@ from vm_ros.model.params import (
 )
 
 _TINY = 1e-12
+
+
+def drive_per_type(ueff) -> np.ndarray:
+    """Filtered drive per fibre type (..., n, 2): ``ueff`` as given when it has that form (two
+    axes or more), else one drive per muscle (n,) for both types."""
+    ueff = np.asarray(ueff, dtype=float)
+    return ueff if ueff.ndim >= 2 else np.stack([ueff, ueff], axis=-1)
 
 
 @jitable
@@ -130,26 +143,39 @@ def firing_match(f_eff, f_env):
 
 
 @jitable
-def relative_drive_tau(u, ueff, active, t_rise, rise_power, t_fall, fall_floor, fall_power,
-                       tau_min):
-    """Time constant (s) of the filtered drive Ueff, relative_drive law (docs/model.md section 5d).
+def relative_drive_tau(u, ueff, rise_active, fall_active, t_rise, rise_power, t_fall, fall_floor,
+                       fall_power, tau_min):
+    """Time constant (s) of a fibre type's filtered drive Ueff, relative_drive law (docs/model.md
+    section 5d).
 
-    ``active`` is m, the slow lumped unit's firing match (:func:`firing_match`; the slow unit is
-    recruited first and fires whenever any unit does).
-    U >= Ueff: T_U = T_r (Ueff / U)^q m: 0 from rest, where the lumped unit's own firing-rate rise
-    carries the lag as each natural unit's does; up to T_r when units are recruited on top of
-    active ones, which build up behind them.
-    U < Ueff: T_U = T_f0 + T_f (1 - m)^p: T_f0 + T_f while the unit's firing rate is still far
-    above its new target (on release to rest, m = 0: W held while the firing rate, and with it
-    Af, decays as in natural units); T_f0, the pace at which derecruited units let go, once the
-    firing rate has come down to the target of a partial release (m -> 1).
+    U >= Ueff: T_U = T_r (Ueff / U)^q m_rise, m_rise (``rise_active``) the firing match of the
+    type's own lumped unit (:func:`firing_match`): 0 from rest, where the unit's own firing-rate
+    rise carries the lag as each natural unit's does (the fast unit too, when U crosses U2 on top
+    of active slow units); up to T_r when units are recruited on top of active ones of the type,
+    which build up behind them.
+    U < Ueff: T_U = T_f0 + T_f (1 - m_fall)^p, m_fall (``fall_active``, :func:`type_match`) the
+    slow unit's firing match while U is at or above the type's threshold, 0 below it: T_f0 + T_f
+    while the firing rate is still far above its new target or the type is released (m = 0: W
+    held while the firing rate, and with it Af, decays as in natural units; a fall below U2
+    releases every fast unit while the slow ones stay active); T_f0, the pace at which
+    derecruited units let go, once the firing rate has come down to the target of a partial
+    release (m -> 1).
     Held at or above ``tau_min``.
     """
     up = u >= ueff
     # one power per muscle: the branch's base and exponent chosen first
-    share = power(clip(where(up, safe_ratio(ueff, u), 1.0 - active), 0.0, 1.0),
+    share = power(clip(where(up, safe_ratio(ueff, u), 1.0 - fall_active), 0.0, 1.0),
                   where(up, rise_power, fall_power))
-    return np.maximum(where(up, t_rise * share * active, fall_floor + t_fall * share), tau_min)
+    return np.maximum(where(up, t_rise * share * rise_active, fall_floor + t_fall * share),
+                      tau_min)
+
+
+@jitable
+def type_match(slow_match, f_env):
+    """m of a fibre type's filtered drive on a fall: the slow unit's firing match while the type
+    is driven (its firing target ``f_env`` > 0, U at or above its threshold), 0 once U is below
+    its threshold (every unit of the type released)."""
+    return where(f_env > 0.0, slow_match, 0.0)
 
 
 @jitable
@@ -160,11 +186,12 @@ def linear_recruited_fraction(ueff, fpcsa, lower, upper):
 
 
 def lumped_recruited_fraction_tsianos2012(ueff, fpcsa, lower, upper):
-    """rF_i = Fpcsa_i clip((Ueff - lower_i) / (upper_i - lower_i), 0, 1); 0 for an absent type.
+    """rF_i = Fpcsa_i clip((Ueff_i - lower_i) / (upper_i - lower_i), 0, 1); 0 for an absent type
+    (``ueff`` per type, (n, 2)).
 
     lower = (U1, U2); upper = (U2, Ur) capped (docs/model.md 5b note) or (1, 1) as the paper reads.
     """
-    return linear_recruited_fraction(ueff[..., None], fpcsa, lower, upper)
+    return linear_recruited_fraction(drive_per_type(ueff), fpcsa, lower, upper)
 
 
 @jitable
@@ -225,14 +252,18 @@ class LumpedRecruitment(_OnePoolPerFibreType):
     def w_slow_poly(self) -> np.ndarray:
         return np.asarray(self.params.w_slow_poly, dtype=float)
 
-    def drive_tau(self, u, ueff, active):
+    def drive_tau(self, u, ueff, rise, fall):
+        """T_U of each fibre type's Ueff (n, 2); ``rise``, ``fall`` (n, 2): m of each type on a
+        rise and on a fall (:func:`relative_drive_tau`)."""
         c, p = self.coefficients, self.params
+        u, ueff = np.asarray(u, dtype=float)[:, None], drive_per_type(ueff)
         if p.drive_law == "relative_drive":
-            return relative_drive_tau(u, ueff, active, c.relative_rise, p.relative_rise_power,
-                                      c.relative_fall, p.relative_fall_floor,
-                                      p.relative_fall_power,
+            return relative_drive_tau(u, ueff, rise, fall, c.relative_rise[:, None],
+                                      p.relative_rise_power, c.relative_fall[:, None],
+                                      p.relative_fall_floor, p.relative_fall_power,
                                       p.drive_tau_min)
-        return lumped_drive_tau(u, ueff, c.t_rise, c.t_fall, p.t_rise_step_scale)
+        return lumped_drive_tau(u, ueff, c.t_rise[:, None], c.t_fall[:, None],
+                                p.t_rise_step_scale)
 
     @cached_property
     def recruitment_range(self):
@@ -250,17 +281,19 @@ class LumpedRecruitment(_OnePoolPerFibreType):
         return lumped_recruited_fraction_tsianos2012(ueff, self.fpcsa, lower, upper)
 
     def weighting(self, ueff):
-        """Weighting (W_S, W_F) at filtered drive Ueff (n,), shape (n, 2)."""
+        """Weighting (W_S, W_F) at each type's filtered drive Ueff (n, 2) (or one drive (n,)),
+        shape (n, 2)."""
         c, p, u2 = self.coefficients, self.params, self.u2
+        ueff = drive_per_type(ueff)
         return np.stack(
             [
                 lumped_weight_slow(
-                    ueff, p.u1, u2, self.w_slow_poly, c.w_slow_at_u2, c.w_slow_amplitude,
+                    ueff[..., SLOW], p.u1, u2, self.w_slow_poly, c.w_slow_at_u2, c.w_slow_amplitude,
                     p.w_slow_tau,
                 ),
                 lumped_weight_fast(
-                    ueff, u2, self.ur, c.w_fast_b, c.w_fast_c, c.w_fast_tau, p.w_fast_offset,
-                    p.w_fast_rise,
+                    ueff[..., FAST], u2, self.ur, c.w_fast_b, c.w_fast_c, c.w_fast_tau,
+                    p.w_fast_offset, p.w_fast_rise,
                 ),
             ],
             axis=-1,
@@ -321,7 +354,7 @@ class NaturalRecruitment:
     def thresholds(self):
         return natural_thresholds_cheng2000(self.pool_pcsa, self.ur, self.params.u_threshold_min)
 
-    def drive_tau(self, u, ueff, active):
+    def drive_tau(self, u, ueff, rise, fall):
         return None
 
     def recruited_fraction(self, u, ueff):
@@ -371,8 +404,10 @@ class ContinuousRecruitment(_OnePoolPerFibreType):
         u2 = np.maximum(fast_threshold(self.fpcsa[:, SLOW], self.ur), u_min)
         return np.stack([np.full_like(u2, u_min), u2], axis=-1)
 
-    def drive_tau(self, u, ueff, active):
-        return continuous_drive_tau_song2008(u, ueff, self.params.tau_rise, self.params.tau_fall)
+    def drive_tau(self, u, ueff, rise, fall):
+        return continuous_drive_tau_song2008(np.asarray(u, dtype=float)[:, None],
+                                             drive_per_type(ueff), self.params.tau_rise,
+                                             self.params.tau_fall)
 
     def recruited_fraction(self, u, ueff):
         """Reported as the lumped scheme's linear recruitment (it does not enter the force)."""
@@ -381,6 +416,8 @@ class ContinuousRecruitment(_OnePoolPerFibreType):
         return lumped_recruited_fraction_tsianos2012(ueff, self.fpcsa, lower, upper)
 
     def pool_weights(self, ueff):
+        """Ueff W_i, with the slow type's Ueff (one filter: both types' Ueff are equal)."""
+        ueff = drive_per_type(ueff)[..., SLOW]
         weighting = continuous_weighting_song2008(ueff, self.thresholds, self.fpcsa > 0.0)
         return ueff[:, None] * weighting
 

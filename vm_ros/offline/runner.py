@@ -687,7 +687,7 @@ class _Ticks:
             self.recorded.append({
                 "time": times_ns[recorded], "slot": slots[recorded],
                 "excitation": excitation, "path_length": path_length[at],
-                "path_velocity": path_velocity[at], "effective_drive": effective_drive,
+                "path_velocity": path_velocity[at], "effective_drive": effective_drive[..., 0],
                 "force": record.force[at], "contractile_force": record.contractile_force[at],
                 "fascicle_length": run.fascicle_length[at],
                 "fascicle_velocity": run.fascicle_velocity[at],
