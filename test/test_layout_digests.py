@@ -19,7 +19,8 @@ output (config/model.yaml recruitment.lumped.relative_*, a new one among them, w
 bb0d40a and 8817190 cannot read), DIGESTS and SLOW_LEG_DIGESTS were recomputed by the same
 procedure against the source of that change (commit cf33c05, a clean worktree, this file run
 against it as above; SLOW_LEG_DIGESTS by ``slow_leg_digests``), and again when the drive filter's
-fall came to follow the lumped unit's firing, against commit 1476522.
+fall came to follow the lumped unit's firing, against commit 1476522, and again when each fibre
+type got its own filtered drive (state effective_drive (n, 2)), against commit 7fa3863.
 
 A digest covers every message (channel topic and type, log time, publish time, raw CDR bytes),
 every attachment and the metadata except the library versions and the paths of the files read
@@ -47,12 +48,12 @@ from vm_ros.model import MuscleBank
 START_NS = 1_700_000_000_123_456_789
 COMPUTED_WITH = {"numpy": "2.4.6", "scipy": "1.17.1", "mcap": "1.6.0"}
 DIGESTS = {
-    "bank_numpy": "8ba958b2e9d45d4517f2d9a2395b2e8a7815d465473d0c2bf40d049747536d54",
-    "bank_auto": "6993f04ec446d3a9e8b420897981c5443d3a3733d2ce5459132ab035667daf80",
-    "knee": "5655d5bb56dbc579abfe6fc85eb33fe1fd4a78c6a533519e2315c4cd9ff47f08",
-    "leg": "3f41009b0f221ff1bedd43d15858932bb65a08b45144bc9cc58bd72435ab41e3",
-    "knee_recomputed": "de1b88fb2073519dfae53c1ba6acc73f996d4d4c198469158bc51655cc987a52",
-    "leg_recomputed": "2ccc2e0284d87ab3cfe36fedd6bf168aa5ed634ae75ab528061e7e1c083bd432",
+    "bank_numpy": "407b4fa45e3d97f26892e28419f4c8cce43233ba5946f96d51499bc5ea1acccb",
+    "bank_auto": "71716dbbf46b2474e24b5674ea1f760239a2eb33a0dc8201c424c1714e25b07b",
+    "knee": "fad448b689a01590493d425fed193acb2ec467741590a2e4e8e0dcea54c0c609",
+    "leg": "aed70a83a0a33d90291c86c602e1e42268de12c94daedbde0891ba6aa4916923",
+    "knee_recomputed": "e229fe16930f4d045c70e3b7b83c0ec87db6249b6674aab4cd13d8b222084871",
+    "leg_recomputed": "329c0d09daf8ffd4029b3e646c11ff4fe545c6baa8afe94d6fbccb365d6c4e51",
 }
 
 
@@ -132,8 +133,8 @@ def log_digests(directory: Path) -> dict:
 # recompute read logs as arrays (commit 8817190), as above against that commit's source with
 # today's config/muscles.yaml
 SLOW_LEG_DIGESTS = {
-    "leg_slow": "467ed28524c1e3b8733d13efe995a0ac2c5087122a1fceafe88e280bab8d4bbc",
-    "leg_slow_recomputed": "4f130a928d6d249bd019b1ae3d14832adf63a2600fcc6a4a7c2652983cc79804",
+    "leg_slow": "e6f464f1af12cc31a6940c399d4d9833d72a41222c9e6fc0ee8ba5699686d7fd",
+    "leg_slow_recomputed": "d53c6eb1f41d7b526d2d50ecf47876fb9d2af5becd7f0a9dd874a6876f96c51c",
 }
 
 
