@@ -11,12 +11,15 @@ import numpy as np
 import pytest
 
 from vm_ros.coordination.receding import (
+    DRIVE2_WEIGHT,
     BoxQP,
     HorizonSettings,
+    Probe,
     RecedingHorizon,
     block_edges,
     box_qp,
     shifted_plan,
+    solve_window,
     tracking_hessian,
     tracking_lag,
 )
@@ -181,6 +184,48 @@ def test_box_qp_matches_an_independent_bounded_solver():
     assert active >= 20  # bounds active in the references
     qp.solve(np.eye(3), np.ones(3), np.zeros(3))  # another size: set up again
     assert qp.unsolved == 0
+
+
+def test_damping_holds_the_plan_near_the_linearisation_point():
+    """solve_window with ``damping`` D (drive2, no smoothness) minimises over the box the
+    linearised tracking term (mean over the samples of 1/2 |target - moment|^2), drive2's
+    weight x block share x drive^2 and D/2 |plan - nominal|^2: its plan equals scipy's
+    L-BFGS-B minimiser of that objective written out here, for D = 0 and D = 50; with D = 1e6
+    the plan stays at the nominal one."""
+    from scipy.optimize import minimize
+
+    rng = np.random.default_rng(7)
+    n_blocks, samples, m, c = 2, 6, 3, 2
+    forces0 = rng.uniform(50.0, 200.0, size=(samples, m))                 # N, nominal plan
+    slope = rng.uniform(100.0, 400.0, size=(n_blocks, samples, m))        # N per drive
+    nominal = rng.uniform(0.2, 0.6, size=(n_blocks, m))
+    delta = np.full((n_blocks, m), 0.2)
+    forces = np.concatenate([forces0[None], forces0 + slope * delta[:, None, :]])
+    arm = rng.normal(scale=0.03, size=(samples, m, c))
+    target = rng.normal(scale=5.0, size=(samples, c))
+    share = np.full(n_blocks, 1.0 / n_blocks)
+    probe = Probe(nominal, delta, share, np.zeros(m), np.zeros((n_blocks, m)))
+
+    def objective(x, damping):
+        plan = x.reshape(n_blocks, m)
+        force = forces0 + np.einsum("bsm,bm->sm", slope, plan - nominal)
+        moment = np.einsum("smc,sm->sc", arm, force)
+        return (0.5 * np.sum((target - moment) ** 2) / samples
+                + DRIVE2_WEIGHT * np.sum(share[:, None] * plan ** 2)
+                + 0.5 * damping * np.sum((plan - nominal) ** 2))
+
+    for damping in (0.0, 50.0):
+        settings = HorizonSettings(cost="drive2", smoothness=0.0, damping=damping)
+        plan = solve_window(forces, arm, target, np.ones(c, dtype=bool), probe, settings,
+                            np.zeros(m)).plan
+        reference = minimize(objective, nominal.ravel(), args=(damping,), method="L-BFGS-B",
+                             bounds=[(0.0, 1.0)] * plan.size,
+                             options={"ftol": 1e-15, "gtol": 1e-10})
+        np.testing.assert_allclose(plan.ravel(), reference.x, atol=1e-5)
+    held = solve_window(forces, arm, target, np.ones(c, dtype=bool), probe,
+                        HorizonSettings(cost="drive2", smoothness=0.0, damping=1e6),
+                        np.zeros(m)).plan
+    np.testing.assert_allclose(held, nominal, atol=1e-3)
 
 
 def test_the_tracking_hessian_equals_the_jacobians_product():

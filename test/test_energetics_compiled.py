@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from test_energetics_models import BHARGAVA_OPTIONS, UMBERGER_OPTIONS
-from test_layout_digests import COMPUTED_WITH, _versions
+from test_layout_digests import _skip_reason
 
 from vm_ros.model import MuscleBank
 from vm_ros.model.energetics_models import compiled
@@ -157,7 +157,7 @@ import sys
 import numpy as np
 sys.path.insert(0, {test_dir!r})
 from test_energetics_compiled import _bank, _bits, _states
-from test_layout_digests import DIGESTS, bank_digest
+from test_layout_digests import DIGESTS, bank_digest, simd_level
 from vm_ros.model import kernel
 from vm_ros.model.energetics_models.in_bank import BankModels
 from vm_ros.model.energetics_models.vm_state import VmMuscleConstants
@@ -172,10 +172,12 @@ def models_match_numpy():
 
 if {models_first!r}:
     assert models_match_numpy(), "models compiled first differ from NumPy"
-    assert bank_digest("auto") == DIGESTS["bank_auto"], "kernel compiled after the models differs"
+    assert bank_digest("auto") == DIGESTS[simd_level()]["bank_auto"], \
+        "kernel compiled after the models differs"
 else:
     kernel.warm_up()
-    assert bank_digest("auto") == DIGESTS["bank_auto"], "kernel compiled first differs"
+    assert bank_digest("auto") == DIGESTS[simd_level()]["bank_auto"], \
+        "kernel compiled first differs"
     assert models_match_numpy(), "models compiled after the kernel differ from NumPy"
 """
 
@@ -186,8 +188,8 @@ def test_numbers_do_not_depend_on_which_compiles_first(tmp_path, models_first):
     the kernel (fused multiply-adds allowed) and the models' loops (not) must share none. Each
     order in a fresh process with an empty cache: the kernel's bank digest (test_layout_digests)
     and the models' bits against NumPy."""
-    if _versions() != COMPUTED_WITH:
-        pytest.skip("the digests were computed with other library versions")
+    if _skip_reason():
+        pytest.skip(_skip_reason())
     code = ORDER_CHECK.format(test_dir=str(Path(__file__).parent), models_first=models_first)
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,

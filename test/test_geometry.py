@@ -192,6 +192,39 @@ def test_compiled_slots_written_out_give_the_bits_of_the_loop_over_slots():
                                    b.moment_arm, rtol=0, atol=0)
 
 
+def test_compiled_groups_of_muscles_give_the_bits_of_the_loop_over_slots():
+    """The one-pose evaluator takes muscles with the same exponent rows side by side (at most
+    LANES of them to a group; a polynomial of degree above GROUP_DEGREE goes through
+    evaluate_many): at every pose the bits of the loop over a muscle's slots
+    (kernel.evaluate_wide), for groups of more than LANES muscles, groups split between them,
+    and a degree above GROUP_DEGREE."""
+    if not geometry_kernel.available():
+        pytest.skip("Numba is not available: only the NumPy evaluator exists")
+    lanes, degree = geometry_kernel.LANES, geometry_kernel.GROUP_DEGREE
+    # random_geometry's muscles repeat their width and degree every 20 muscles
+    crowded = random_geometry(seed=11, n_muscles=20 * (lanes + 3), backend="compiled", widest=4)
+    rng = np.random.default_rng(13)
+    names = [c.name for c in crowded.coordinates]
+    high = PolynomialGeometry(crowded.coordinates, [
+        MusclePath(f"high_{i}", tuple(names[:k]), (0.1,) * k, (1.9,) * k,
+                   total_degree_exponents(k, degree + 1),
+                   0.01 * rng.normal(size=len(total_degree_exponents(k, degree + 1))))
+        for i, k in enumerate((1, 3, 3, 4))], backend="compiled")
+    evaluate_wide = geometry_kernel._compile()[3]
+    for geometry in (crowded, high):
+        wide = geometry_kernel._wide_arrays(geometry.packed)
+        poses = np.array([random_pose(geometry, rng) for _ in range(7)])
+        many = geometry.evaluate_many(poses, poses)
+        for i, q in enumerate(poses):
+            length, gradient = evaluate_wide(q, *wide, geometry.packed.max_degree)
+            one = geometry.evaluate(q, q)
+            for a, b in ((one.length_m, length), (one.moment_arm, -gradient),
+                         (many.row(i).moment_arm, -gradient)):
+                assert a.tobytes() == b.tobytes()
+    groups = np.diff(geometry_kernel._slot_arrays(crowded.packed)[4][:, 0])
+    assert groups.max() == lanes and groups.min() == 3
+
+
 def test_outside_the_box_is_clamped_not_extrapolated():
     geometry = random_geometry()
     inside = (geometry.lower + geometry.upper) / 2

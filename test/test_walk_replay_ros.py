@@ -10,13 +10,26 @@ depend on the machine's load; every wait is on a predicate with a generous timeo
 starts from rest: the first pose and the first target are held for HOLD_S before the walk
 plays (a planned profile holds its first point before it starts), and only the walk's own
 2.5 s are measured. Skipped, with the reason, when the walk's files are not fetched
-(scripts/fetch-gait-data) or OpenSim (the import) is missing."""
+(scripts/fetch-gait-data) or OpenSim (the import) is missing.
+
+The result must not hang on the last bits of the arithmetic: the profile at 6 Hz is replayed as
+given and with its moments changed by 1e-9 relative (PERTURBATION_SEEDS), and the bound holds
+for every one of those replays or for none. Measured 2026-12-03 on this 2-core AMD EPYC (AVX2,
+FMA) at commit 01d8dc3, RMS % of peak hip, knee, ankle right, then left: as given 3.73, 3.72,
+4.83, 5.73, 4.27, 2.70; seeds 1-3: 3.80, 3.60, 4.78, 4.25, 4.03, 4.90 / 3.85, 3.90, 5.15, 2.65,
+3.95, 5.84 / 3.53, 4.14, 5.16, 4.52, 4.25, 4.79; the model step compiled for a generic x86-64
+(NUMBA_CPU_NAME=generic), as given: 2.57, 3.78, 5.49, 5.88, 4.17, 4.96. On the machine of
+2026-12-02 the replay as given had 4.86 % at worst (docs/coordination.md, 'Replayed over ROS'):
+one draw of the same spread."""
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
+
 import numpy as np
 import pytest
-from conftest import set_clock, stamp_ns
+from conftest import RosHarness, require_ros, set_clock, stamp_ns
 from test_node_coordination import PERIOD_NS, T0, CoordinationProbe
 
 from vm_ros import telemetry as tm
@@ -25,6 +38,8 @@ pytestmark = pytest.mark.ros
 
 HOLD_S = 1.0            # the first pose and target held before the walk plays
 BOUND_OF_PEAK = 0.05    # issue 30: the walk replayed over ROS within 5 % RMS of each peak
+PERTURBATION = 1e-9     # relative change of the profile's moments (module docstring)
+PERTURBATION_SEEDS = (1, 2, 3)
 
 
 @pytest.fixture(scope="module")
@@ -116,31 +131,68 @@ AS_GIVEN_MISSES = pytest.mark.xfail(raises=BoundMissedError, strict=True, reason
     "issue 30's 5 % RMS of peak is not met on the ID as given, whose own content above 6 Hz is "
     "7.4 % of the left hip's peak (docs/coordination.md, 'Replayed over ROS'); the other "
     "checks hold"))
+AT_6_HZ_MISSES = pytest.mark.xfail(raises=BoundMissedError, strict=True, reason=(
+    "issue 30's 5 % RMS of peak is not met robustly on the ID at 6 Hz: profiles 1e-9 apart "
+    "give 4.8-5.8 % at worst, by which coordinate the receding horizon's closed loop happens "
+    "to miss (module docstring; docs/coordination.md, 'Replayed over ROS'); the other checks "
+    "hold"))
 
 
-@pytest.mark.parametrize("lowpass_hz", [pytest.param(0.0, marks=AS_GIVEN_MISSES), 6.0],
+@contextlib.contextmanager
+def own_context():
+    """A RosHarness in a context of its own, as the ``ros`` fixture makes one."""
+    rclpy = require_ros()
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    harness = RosHarness(rclpy, context)
+    try:
+        yield harness
+    finally:
+        harness.close()
+        rclpy.try_shutdown(context=context)
+
+
+def perturbed(targets, seed: int):
+    """``targets`` with each moment times 1 + PERTURBATION N(0, 1), drawn from ``seed``."""
+    rng = np.random.default_rng(seed)
+    return dataclasses.replace(targets, moments_nm=targets.moments_nm * (
+        1.0 + PERTURBATION * rng.standard_normal(targets.moments_nm.shape)))
+
+
+@pytest.mark.parametrize("lowpass_hz", [pytest.param(0.0, marks=AS_GIVEN_MISSES),
+                                        pytest.param(6.0, marks=AT_6_HZ_MISSES)],
                          ids=["ID as given", "ID at 6 Hz"])
-def test_the_walk_replayed_as_a_planned_profile(ros, walk, lowpass_hz):
+def test_the_walk_replayed_as_a_planned_profile(walk, lowpass_hz):
     """Default coordination settings; the profile is the walk's ID as given, or low-passed at
     6 Hz (vm_ros.coordination.targets.lowpass_targets, as `vm-ros coordinate --targets-lowpass
     6` and the walk item's variant use it: the cutoff of the walk's own coordinates, without the
-    heel-strike transients of its unfiltered ground reaction forces). Drives in [0, 1] for
-    every muscle, no stale input, a joint_efforts message per period of the walk; then each
-    coordinate's RMS error / peak of that profile against 5 % (BoundMissedError when
-    missed)."""
+    heel-strike transients of its unfiltered ground reaction forces), at 6 Hz also perturbed
+    by PERTURBATION from each of PERTURBATION_SEEDS. Each replay: drives in [0, 1] for every
+    muscle, no stale input, a joint_efforts message per period of the walk; then each
+    coordinate's RMS error / peak of its profile against 5 % in every replay
+    (BoundMissedError when missed in any)."""
     from vm_ros.coordination.targets import lowpass_targets
 
-    profile = lowpass_targets(walk[4], lowpass_hz) if lowpass_hz else None
-    done = replay(ros, walk, targets=profile)
-    joints, rms, probe, node = done["joints"], done["rms_of_peak"], done["probe"], done["node"]
-    print(f"\nthe walk over ROS ({'ID at 6 Hz' if lowpass_hz else 'ID as given'}), "
-          f"{len(done['stamps_s'])} published steps, RMS error / peak per coordinate: "
-          + ", ".join(f"{name} {100 * r:.2f} %" for name, r in zip(joints, rms, strict=True)))
-    drives = np.array([m.position for m in probe.drives])
-    assert list(probe.drives[-1].name) == done["muscles"]
-    assert np.all((drives >= 0) & (drives <= 1)) and drives.max() > 0.1
-    assert node.issues.counts["stale_excitation"] == 0
-    if max(rms) >= BOUND_OF_PEAK:
-        raise BoundMissedError(", ".join(f"{name} {100 * r:.2f} %" for name, r in
-                                    zip(joints, rms, strict=True)))
+    profiles = {"as given": lowpass_targets(walk[4], lowpass_hz) if lowpass_hz else None}
+    if lowpass_hz:
+        profiles.update({f"seed {seed}": perturbed(profiles["as given"], seed)
+                         for seed in PERTURBATION_SEEDS})
+    missed = []
+    for label, profile in profiles.items():
+        with own_context() as ros:  # a node of an earlier replay must not hear this one
+            done = replay(ros, walk, targets=profile)
+        joints, rms, probe, node = (done["joints"], done["rms_of_peak"], done["probe"],
+                                    done["node"])
+        line = ", ".join(f"{name} {100 * r:.2f} %" for name, r in zip(joints, rms, strict=True))
+        print(f"\nthe walk over ROS ({'ID at 6 Hz' if lowpass_hz else 'ID as given'}, {label}),"
+              f" {len(done['stamps_s'])} published steps, RMS error / peak per coordinate: "
+              f"{line}")
+        drives = np.array([m.position for m in probe.drives])
+        assert list(probe.drives[-1].name) == done["muscles"]
+        assert np.all((drives >= 0) & (drives <= 1)) and drives.max() > 0.1
+        assert node.issues.counts["stale_excitation"] == 0
+        if max(rms) >= BOUND_OF_PEAK:
+            missed.append(f"{label}: {line}")
+    if missed:
+        raise BoundMissedError("; ".join(missed))
 

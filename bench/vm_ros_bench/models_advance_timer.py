@@ -85,6 +85,34 @@ def advance_timers(package: str, n: int, batch: int, selection: str):
     return timed
 
 
+def packages_timed(parser: argparse.ArgumentParser, against: str | None) -> list[str]:
+    """["vm_ros"], and with ``against`` (a commit's name, --against) that commit's copy
+    (package_at); a parser error when git cannot name it."""
+    if not against:
+        return ["vm_ros"]
+    commit = resolved_commit(against)
+    if commit is None:
+        parser.error(f"--against {against}: not a commit of the checkout vm_ros is "
+                     f"imported from ({Path(vm_ros.__file__).resolve().parents[1]})")
+    return ["vm_ros", package_at(commit)]
+
+
+def paired_medians(timers: list, repeats: int, against: str | None) -> str:
+    """Each timer called ``repeats`` times, the timers alternating call by call: "median X us"
+    of the first, and with ``against`` (the second's commit) "; COMMIT: Y us; paired ratio R"
+    (the median of the repeats' ratios)."""
+    times = [[] for _ in timers]
+    for _ in range(repeats):
+        for timer, series in zip(timers, times, strict=True):
+            series.append(timer())
+    line = f"median {statistics.median(times[0]):.1f} us"
+    if against:
+        ratios = [new / old for new, old in zip(*times, strict=True)]
+        line += (f"; {against}: {statistics.median(times[1]):.1f} us; paired ratio "
+                 f"{statistics.median(ratios):.3f}")
+    return line
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--muscles", type=int, default=1000)
@@ -93,23 +121,10 @@ def main(argv=None) -> None:
     parser.add_argument("--selection", default="all")
     parser.add_argument("--against", metavar="COMMIT", help="time this commit's vm_ros too")
     args = parser.parse_args(argv)
-    against = resolved_commit(args.against) if args.against else None
-    if args.against and against is None:
-        parser.error(f"--against {args.against}: not a commit of the checkout vm_ros is "
-                     f"imported from ({Path(vm_ros.__file__).resolve().parents[1]})")
-    packages = ["vm_ros"] + ([package_at(against)] if against else [])
-    timers = [advance_timers(p, args.muscles, args.batch, args.selection) for p in packages]
-    times = [[] for _ in timers]
-    for _ in range(args.repeats):
-        for timer, series in zip(timers, times, strict=True):
-            series.append(timer())
-    line = (f"models advance, {args.muscles} muscles x {args.batch} steps, thread CPU per step: "
-            f"median {statistics.median(times[0]):.1f} us")
-    if args.against:
-        ratios = [new / old for new, old in zip(*times, strict=True)]
-        line += (f"; {args.against}: {statistics.median(times[1]):.1f} us; paired ratio "
-                 f"{statistics.median(ratios):.3f}")
-    print(f"{line} ({args.repeats} repeats)")
+    timers = [advance_timers(p, args.muscles, args.batch, args.selection)
+              for p in packages_timed(parser, args.against)]
+    print(f"models advance, {args.muscles} muscles x {args.batch} steps, thread CPU per step: "
+          f"{paired_medians(timers, args.repeats, args.against)} ({args.repeats} repeats)")
 
 
 if __name__ == "__main__":

@@ -57,6 +57,8 @@ class HorizonSettings:
     | effort_weight | (N m)^2 per W, per drive^2 for drive2 | weight of the cost (None: RATE_WEIGHT
       or DRIVE2_WEIGHT) |
     | smoothness | (N m)^2 per drive^2 | weight of drive changes between blocks |
+    | damping | (N m)^2 per drive^2 | weight of each drive's step away from the plan linearised
+      about (a trust region: the linearisation holds near it) |
     | eval_step_s | s | spacing of the tracked samples t_s |
     | probe_drive | 1 | drive step of the derivative runs (a secant: from rest, force over
       150 ms grows much faster than linearly with drive) |
@@ -67,6 +69,7 @@ class HorizonSettings:
     cost: str = "tsianos2012"
     effort_weight: float | None = None
     smoothness: float = 1.0
+    damping: float = 0.0
     eval_step_s: float = 0.005
     probe_drive: float = 0.2
 
@@ -218,6 +221,9 @@ def solve_window(forces, moment_arm, target, tracked, probe: Probe, settings: Ho
     if settings.smoothness > 0:
         values[same] += settings.smoothness * smoothness_matrix(n_blocks)[b, d]
         linear[:m] += settings.smoothness * np.asarray(previous_drive, dtype=float)
+    if settings.damping > 0:  # 1/2 damping |x - x0|^2
+        values[rows == cols] += settings.damping
+        linear += settings.damping * x0
     upper = rows <= cols
     solution = (qp or BoxQP()).solve_entries(rows[upper], cols[upper], values[upper], linear, x0)
     plan = solution.reshape(n_blocks, m)

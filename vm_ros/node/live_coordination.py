@@ -36,7 +36,8 @@ def horizon_settings(config) -> receding.HorizonSettings:
                            blocks=config.coordination_blocks, cost=config.coordination_cost,
                            eval_step_s=config.coordination_sample_period_s,
                            effort_weight=config.coordination_effort_weight or None,
-                           smoothness=config.coordination_smoothness)
+                           smoothness=config.coordination_smoothness,
+                           damping=config.coordination_damping)
 
 
 class LiveCoordination:

@@ -170,6 +170,9 @@ PARAMS = (
               "drive^2 for drive2; 0 = the cost's default: 0.001 and 0.1)", low=0.0, high=1e6),
     ParamSpec("coordination.smoothness", 1.0, "double", "(N m)^2 per drive^2",
               "Weight of drive changes from one block to the next", low=0.0, high=1e6),
+    ParamSpec("coordination.damping", 0.0, "double", "(N m)^2 per drive^2",
+              "Weight of each drive's step away from the plan the period is linearised about "
+              "(a trust region)", low=0.0, high=1e6),
     ParamSpec("coordination.lag_window_s", 2.0, "double", "s",
               "Window of published steps over which diagnostics report the tracking lag and "
               "error", low=0.05, high=60.0),
@@ -236,6 +239,7 @@ class NodeConfig:
     coordination_cost: str
     coordination_effort_weight: float
     coordination_smoothness: float
+    coordination_damping: float
     coordination_lag_window_s: float
     qos_depth: int
     diagnostics_period_s: float
