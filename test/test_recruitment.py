@@ -52,7 +52,7 @@ def test_lumped_drive_filter_is_one_ms_for_full_step_and_t_rise_for_small():
 def test_relative_drive_law_at_its_limits():
     # docs/model.md section 5c, with hand-chosen constants
     lumped = dataclasses.replace(LP, drive_law="relative_drive", relative_rise_poly=(0.1,),
-                                 relative_rise_power=2.0, relative_fall_poly=(0.6,),
+                                 relative_fall_poly=(0.6,),
                                  relative_fall_power=4.0, relative_fall_floor=0.05,
                                  drive_tau_min=1e-4)
     r = _lumped(0.4, params=lumped)
@@ -63,11 +63,13 @@ def test_relative_drive_law_at_its_limits():
         assert slow == fast  # both types by the same law
         return slow
 
-    assert tau(0.5, 0.0) == 1e-4  # Ueff at rest: no lag beyond the floor
+    # rises: T_r m, by the firing match m, not by the size of the rise
+    assert tau(0.5, 0.0, active=0.0) == 1e-4  # from rest, no unit firing: no lag beyond the floor
     assert tau(0.6, 0.3, active=0.0) == 1e-4  # units no longer firing: as from rest
-    assert tau(0.0, 0.0) == 1e-4  # at rest: 0/0 held finite
-    assert tau(0.6, 0.3) == pytest.approx(0.1 * 0.5**2)
-    assert tau(0.6, 0.3, active=0.5) == pytest.approx(0.1 * 0.5**2 * 0.5)
+    assert tau(0.0, 0.0, active=0.0) == 1e-4  # at rest
+    assert tau(0.6, 0.3) == pytest.approx(0.1)
+    assert tau(0.9, 0.1) == pytest.approx(0.1)  # a larger rise, the same T_U
+    assert tau(0.6, 0.3, active=0.5) == pytest.approx(0.1 * 0.5)
     assert tau(0.5, 0.5) == pytest.approx(0.1)  # caught up and firing: T_r
     # falls: by the firing match m, not by the size of the fall
     assert tau(0.0, 0.8, active=0.0) == pytest.approx(0.05 + 0.6)  # release, not firing: T_f0 + T_f

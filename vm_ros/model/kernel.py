@@ -295,8 +295,8 @@ def _type_drive(dt, lumped, natural, relative_drive, u, ueff_old, f_eff, slow_ma
     f_env = act.firing_envelope(u, threshold, s[S.fmin], s[S.fmax])
     tau_relative = rc.relative_drive_tau(
         u, ueff_old, rc.firing_match(f_eff, f_env), rc.type_match(slow_match, f_env),
-        relative_rise, s[S.relative_rise_power], relative_fall, s[S.relative_fall_floor],
-        s[S.relative_fall_power], s[S.drive_tau_min],
+        relative_rise, relative_fall, s[S.relative_fall_floor], s[S.relative_fall_power],
+        s[S.drive_tau_min],
     )
     tau_rate = rc.lumped_drive_tau_from_rate(u, ueff_old, t_rise, t_fall, t_rise_rate)
     tau_continuous = rc.continuous_drive_tau_song2008(

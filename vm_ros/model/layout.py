@@ -183,7 +183,7 @@ S, S_UNITS = _columns("SharedColumns", (
     ("activation_fraction", "1"), ("recovery_tau_rise", "s"), ("recovery_tau_decay", "s"),
     ("u1", "1"), ("t_rise_step_scale", "1/s"), ("w_slow_tau", "1"), ("w_fast_offset", "1"),
     ("w_fast_rise", "1"), ("continuous_tau_rise", "s"), ("continuous_tau_fall", "s"),
-    ("drive_law_code", "1"), ("relative_rise_power", "1"), ("relative_fall_power", "1"),
+    ("drive_law_code", "1"), ("relative_fall_power", "1"),
     ("relative_fall_floor", "s"), ("drive_tau_min", "s"),
 ))
 

@@ -31,17 +31,16 @@ W_FIELDS = ("w_slow_poly", "w_slow_a_poly", "w_slow_tau", "w_fast_b_poly", "w_fa
 # the constants of each drive-filter law (params.DRIVE_LAWS) that fit_drive_filter refits
 FILTER_FIELDS = {
     "tsianos2012": ("t_rise_poly", "t_fall_poly"),
-    "relative_drive": ("relative_rise_poly", "relative_rise_power", "relative_fall_poly",
-                       "relative_fall_power", "relative_fall_floor"),
+    "relative_drive": ("relative_rise_poly", "relative_fall_poly", "relative_fall_power",
+                       "relative_fall_floor"),
 }
 # Bounds of the fitted values (each coefficient of a polynomial), where the fit needs them: without
 # them the relative_drive fit can trade a smaller error for a law that holds Ueff for minutes after
 # a release (T_f ~ 1000 s with p ~ 150), where Ueff no longer means an effective drive. A time
 # constant coefficient stays within 2 s, p in 1-4 (1: T_U linear in the firing mismatch; 4: only a
-# large mismatch holds W), q in 0-4 (0: the rise's T_U does not depend on its size), T_f0 within
-# 0-0.5 s.
+# large mismatch holds W), T_f0 within 0-0.5 s.
 FILTER_BOUNDS = {
-    "relative_rise_poly": (-2.0, 2.0), "relative_rise_power": (0.0, 4.0),
+    "relative_rise_poly": (-2.0, 2.0),
     "relative_fall_poly": (-2.0, 2.0),
     "relative_fall_power": (1.0, 4.0), "relative_fall_floor": (0.0, 0.5),
 }
@@ -50,9 +49,8 @@ FILTER_BOUNDS = {
 # the ones shipped.
 DRIVE_FILTER_START = {
     "tsianos2012": None,
-    "relative_drive": {"relative_rise_poly": (0.0, 0.1), "relative_rise_power": 2.0,
-                       "relative_fall_poly": (0.0, 0.5), "relative_fall_power": 2.0,
-                       "relative_fall_floor": 0.05},
+    "relative_drive": {"relative_rise_poly": (0.0, 0.1), "relative_fall_poly": (0.0, 0.5),
+                       "relative_fall_power": 2.0, "relative_fall_floor": 0.05},
 }
 DEFAULT_FPCSA_GRID = (0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8)
 # The drive-filter fit's muscles: every (Fpcsa_S, Ur) of these

@@ -113,7 +113,6 @@ class LumpedParams:
     t_rise_step_scale: float = holds("1/s")
     drive_law: str = holds("-")
     relative_rise_poly: tuple = holds("s")
-    relative_rise_power: float = holds("1")
     relative_fall_poly: tuple = holds("s")
     relative_fall_power: float = holds("1")
     relative_fall_floor: float = holds("s")
@@ -336,9 +335,6 @@ def _validate_model_params(p: ModelParams) -> None:
         raise ConfigError(
             path, "recruitment.lumped.drive_tau_min", lumped.drive_tau_min, "must be > 0"
         )
-    if lumped.relative_rise_power <= 0:
-        raise ConfigError(path, "recruitment.lumped.relative_rise_power",
-                          lumped.relative_rise_power, "must be > 0")
     if lumped.relative_fall_power <= 0:
         raise ConfigError(path, "recruitment.lumped.relative_fall_power",
                           lumped.relative_fall_power, "must be > 0")

@@ -143,16 +143,17 @@ def firing_match(f_eff, f_env):
 
 
 @jitable
-def relative_drive_tau(u, ueff, rise_active, fall_active, t_rise, rise_power, t_fall, fall_floor,
-                       fall_power, tau_min):
+def relative_drive_tau(u, ueff, rise_active, fall_active, t_rise, t_fall, fall_floor, fall_power,
+                       tau_min):
     """Time constant (s) of a fibre type's filtered drive Ueff, relative_drive law (docs/model.md
     section 5d).
 
-    U >= Ueff: T_U = T_r (Ueff / U)^q m_rise, m_rise (``rise_active``) the firing match of the
-    type's own lumped unit (:func:`firing_match`): 0 from rest, where the unit's own firing-rate
-    rise carries the lag as each natural unit's does (the fast unit too, when U crosses U2 on top
-    of active slow units); up to T_r when units are recruited on top of active ones of the type,
-    which build up behind them.
+    U >= Ueff: T_U = T_r m_rise whatever the size of the rise (a power q of Ueff / U was fitted at
+    its bound 0 and removed), m_rise (``rise_active``) the firing match of the type's own lumped
+    unit (:func:`firing_match`): 0 from rest, where the unit's own firing-rate rise carries the lag
+    as each natural unit's does (the fast unit too, when U crosses U2 on top of active slow
+    units); up to T_r when units are recruited on top of active ones of the type, which build up
+    behind them.
     U < Ueff: T_U = T_f0 + T_f (1 - m_fall)^p, m_fall (``fall_active``, :func:`type_match`) the
     slow unit's firing match while U is at or above the type's threshold, 0 below it: T_f0 + T_f
     while the firing rate is still far above its new target or the type is released (m = 0: W
@@ -162,12 +163,8 @@ def relative_drive_tau(u, ueff, rise_active, fall_active, t_rise, rise_power, t_
     release (m -> 1).
     Held at or above ``tau_min``.
     """
-    up = u >= ueff
-    # one power per muscle: the branch's base and exponent chosen first
-    share = power(clip(where(up, safe_ratio(ueff, u), 1.0 - fall_active), 0.0, 1.0),
-                  where(up, rise_power, fall_power))
-    return np.maximum(where(up, t_rise * share * rise_active, fall_floor + t_fall * share),
-                      tau_min)
+    fall = fall_floor + t_fall * power(clip(1.0 - fall_active, 0.0, 1.0), fall_power)
+    return np.maximum(where(u >= ueff, t_rise * rise_active, fall), tau_min)
 
 
 @jitable
@@ -259,9 +256,8 @@ class LumpedRecruitment(_OnePoolPerFibreType):
         u, ueff = np.asarray(u, dtype=float)[:, None], drive_per_type(ueff)
         if p.drive_law == "relative_drive":
             return relative_drive_tau(u, ueff, rise, fall, c.relative_rise[:, None],
-                                      p.relative_rise_power, c.relative_fall[:, None],
-                                      p.relative_fall_floor, p.relative_fall_power,
-                                      p.drive_tau_min)
+                                      c.relative_fall[:, None], p.relative_fall_floor,
+                                      p.relative_fall_power, p.drive_tau_min)
         return lumped_drive_tau(u, ueff, c.t_rise[:, None], c.t_fall[:, None],
                                 p.t_rise_step_scale)
 
