@@ -85,10 +85,24 @@ def test_relative_drive_law_at_its_limits():
     taus = r.drive_tau(np.array([0.2]), np.array([[0.6, 0.6]]), np.ones((1, 2)), fall)[0]
     assert taus == pytest.approx([0.05 + 0.6 * 0.1**4, 0.05 + 0.6])
     # on a rise each type's own unit: from 0.3 to 0.6 across U2, the slow unit firing at its
-    # target (m 1: T_r (Ueff / U)^q), the fast unit not yet firing (m 0: from rest, no lag)
+    # target (m 1: T_r), the fast unit not yet firing (m 0: from rest, no lag)
     rise = np.array([[1.0, 0.0]])
     taus = r.drive_tau(np.array([0.6]), np.array([[0.3, 0.3]]), rise, np.ones((1, 2)))[0]
-    assert taus == pytest.approx([0.1 * 0.5**2, 1e-4])
+    assert taus == pytest.approx([0.1, 1e-4])
+
+
+def test_one_power_of_the_slow_match_gives_each_types_fall_share():
+    # (1 - m_fall)^p of each type: the slow unit's match m while the type is driven, 0 (share 1)
+    # below its threshold; the compiled step takes one power per muscle for both types
+    slow_match = np.array([0.0, 0.5, 0.9, 1.0, 0.3])
+    f_env = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [1.0, 1.0], [1.0, 0.0]])
+    driven = rc.relative_fall_share(slow_match, 2.5)
+    assert driven == pytest.approx((1 - slow_match) ** 2.5, rel=1e-15)
+    shares = rc.type_fall_share(driven[:, None], f_env)
+    assert shares.tolist() == [[1.0, 1.0], [0.5**2.5, 1.0], [driven[2], driven[2]],
+                               [0.0, 0.0], [0.7**2.5, 1.0]]
+    assert np.array_equal(shares, rc.relative_fall_share(rc.type_match(slow_match[:, None],
+                                                                       f_env), 2.5))
 
 
 def test_firing_match():

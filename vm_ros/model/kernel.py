@@ -286,17 +286,15 @@ def _store_outputs(block, i0, count, out_excitation, out_f_se, out_f_ce, out_act
 
 
 @jitable
-def _type_drive(dt, lumped, natural, relative_drive, u, ueff_old, f_eff, slow_match, threshold,
+def _type_drive(dt, lumped, natural, relative_drive, u, ueff_old, f_eff, f_env, driven_share,
                 relative_rise, relative_fall, t_rise, t_fall, t_rise_rate, s):
     """One fibre type's filtered drive Ueff after the step, the same for both types (the lumped
     relative-drive law: on a rise the firing match of the type's own unit, of firing rate
-    ``f_eff``; on a fall the slow unit's, ``slow_match``, while U is at or above the type's
-    ``threshold``)."""
-    f_env = act.firing_envelope(u, threshold, s[S.fmin], s[S.fmax])
+    ``f_eff`` and target ``f_env``; on a fall the slow unit's, whose (1 - m)^p is
+    ``driven_share``, while the type is driven)."""
     tau_relative = rc.relative_drive_tau(
-        u, ueff_old, rc.firing_match(f_eff, f_env), rc.type_match(slow_match, f_env),
-        relative_rise, relative_fall, s[S.relative_fall_floor], s[S.relative_fall_power],
-        s[S.drive_tau_min],
+        u, ueff_old, rc.firing_match(f_eff, f_env), rc.type_fall_share(driven_share, f_env),
+        relative_rise, relative_fall, s[S.relative_fall_floor], s[S.drive_tau_min],
     )
     tau_rate = rc.lumped_drive_tau_from_rate(u, ueff_old, t_rise, t_fall, t_rise_rate)
     tau_continuous = rc.continuous_drive_tau_song2008(
@@ -319,20 +317,21 @@ def _drive_loop(dt, count, lumped, natural, relative_drive, u_in, out_u, drive_s
         # candidates of every scheme are computed and one is selected: branches on the scheme
         # inside the loop would stop its vectorisation (the other schemes' constants are NaN,
         # never selected).
-        # lumped, relative-drive law: the slow pool (pool 0) says how active the units already are
-        slow_match = rc.firing_match(
-            f_eff_slow[i],
-            act.firing_envelope(u, c[ROW_C_THRESHOLD, i], s[S.fmin], s[S.fmax]),
-        )
+        # lumped, relative-drive law: the slow pool (pool 0) says how active the units already
+        # are; one power of its match serves both types' falls
+        f_env_s = act.firing_envelope(u, c[ROW_C_THRESHOLD, i], s[S.fmin], s[S.fmax])
+        f_env_f = act.firing_envelope(u, c[ROW_C_THRESHOLD + 1, i], s[S.fmin], s[S.fmax])
+        driven_share = rc.relative_fall_share(rc.firing_match(f_eff_slow[i], f_env_s),
+                                              s[S.relative_fall_power])
         drive_s[i] = _type_drive(
-            dt, lumped, natural, relative_drive, u, drive_s[i], f_eff_slow[i], slow_match,
-            c[ROW_C_THRESHOLD, i], c[M.relative_rise, i], c[M.relative_fall, i], c[M.t_rise, i],
+            dt, lumped, natural, relative_drive, u, drive_s[i], f_eff_slow[i], f_env_s,
+            driven_share, c[M.relative_rise, i], c[M.relative_fall, i], c[M.t_rise, i],
             c[M.t_fall, i], c[M.t_rise_rate, i], s,
         )
         drive_f[i] = _type_drive(
-            dt, lumped, natural, relative_drive, u, drive_f[i], f_eff_fast[i], slow_match,
-            c[ROW_C_THRESHOLD + 1, i], c[M.relative_rise, i], c[M.relative_fall, i],
-            c[M.t_rise, i], c[M.t_fall, i], c[M.t_rise_rate, i], s,
+            dt, lumped, natural, relative_drive, u, drive_f[i], f_eff_fast[i], f_env_f,
+            driven_share, c[M.relative_rise, i], c[M.relative_fall, i], c[M.t_rise, i],
+            c[M.t_fall, i], c[M.t_rise_rate, i], s,
         )
         weight_s[i], weight_f[i] = _type_weights(
             lumped, drive_s[i], drive_f[i], c[ROW_C_THRESHOLD, i], c[ROW_C_THRESHOLD + 1, i],

@@ -143,8 +143,7 @@ def firing_match(f_eff, f_env):
 
 
 @jitable
-def relative_drive_tau(u, ueff, rise_active, fall_active, t_rise, t_fall, fall_floor, fall_power,
-                       tau_min):
+def relative_drive_tau(u, ueff, rise_active, fall_share, t_rise, t_fall, fall_floor, tau_min):
     """Time constant (s) of a fibre type's filtered drive Ueff, relative_drive law (docs/model.md
     section 5d).
 
@@ -154,7 +153,8 @@ def relative_drive_tau(u, ueff, rise_active, fall_active, t_rise, t_fall, fall_f
     as each natural unit's does (the fast unit too, when U crosses U2 on top of active slow
     units); up to T_r when units are recruited on top of active ones of the type, which build up
     behind them.
-    U < Ueff: T_U = T_f0 + T_f (1 - m_fall)^p, m_fall (``fall_active``, :func:`type_match`) the
+    U < Ueff: T_U = T_f0 + T_f (1 - m_fall)^p, ``fall_share`` = (1 - m_fall)^p
+    (:func:`relative_fall_share`), m_fall (:func:`type_match`) the
     slow unit's firing match while U is at or above the type's threshold, 0 below it: T_f0 + T_f
     while the firing rate is still far above its new target or the type is released (m = 0: W
     held while the firing rate, and with it Af, decays as in natural units; a fall below U2
@@ -163,8 +163,23 @@ def relative_drive_tau(u, ueff, rise_active, fall_active, t_rise, t_fall, fall_f
     release (m -> 1).
     Held at or above ``tau_min``.
     """
-    fall = fall_floor + t_fall * power(clip(1.0 - fall_active, 0.0, 1.0), fall_power)
-    return np.maximum(where(u >= ueff, t_rise * rise_active, fall), tau_min)
+    return np.maximum(where(u >= ueff, t_rise * rise_active, fall_floor + t_fall * fall_share),
+                      tau_min)
+
+
+@jitable
+def relative_fall_share(fall_active, fall_power):
+    """(1 - m_fall)^p of :func:`relative_drive_tau` (1 for m_fall = 0: a released type)."""
+    return power(clip(1.0 - fall_active, 0.0, 1.0), fall_power)
+
+
+@jitable
+def type_fall_share(driven_share, f_env):
+    """:func:`relative_fall_share` of a type's m_fall (:func:`type_match`) given ``driven_share``,
+    that of the slow unit's firing match: it while the type is driven (``f_env`` > 0), 1 once U is
+    below its threshold (m_fall 0; the power of 1 is 1 exactly). One power per muscle serves both
+    types."""
+    return where(f_env > 0.0, driven_share, 1.0)
 
 
 @jitable
@@ -255,9 +270,10 @@ class LumpedRecruitment(_OnePoolPerFibreType):
         c, p = self.coefficients, self.params
         u, ueff = np.asarray(u, dtype=float)[:, None], drive_per_type(ueff)
         if p.drive_law == "relative_drive":
-            return relative_drive_tau(u, ueff, rise, fall, c.relative_rise[:, None],
-                                      c.relative_fall[:, None], p.relative_fall_floor,
-                                      p.relative_fall_power, p.drive_tau_min)
+            return relative_drive_tau(u, ueff, rise,
+                                      relative_fall_share(fall, p.relative_fall_power),
+                                      c.relative_rise[:, None], c.relative_fall[:, None],
+                                      p.relative_fall_floor, p.drive_tau_min)
         return lumped_drive_tau(u, ueff, c.t_rise[:, None], c.t_fall[:, None],
                                 p.t_rise_step_scale)
 
