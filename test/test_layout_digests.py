@@ -20,7 +20,8 @@ bb0d40a and 8817190 cannot read), DIGESTS and SLOW_LEG_DIGESTS were recomputed b
 procedure against the source of that change (commit cf33c05, a clean worktree, this file run
 against it as above; SLOW_LEG_DIGESTS by ``slow_leg_digests``), and again when the drive filter's
 fall came to follow the lumped unit's firing, against commit 1476522, and again when each fibre
-type got its own filtered drive (state effective_drive (n, 2)), against commit 7fa3863.
+type got its own filtered drive (state effective_drive (n, 2)), against commit 7fa3863, and when
+the rise lost its power q (constants refit), against commit 2b9e843 (X86_V3 only, below).
 
 A digest covers every message (channel topic and type, log time, publish time, raw CDR bytes),
 every attachment and the metadata except the library versions and the paths of the files read
@@ -39,8 +40,9 @@ skipped, naming it; to add one, run the procedure above on such a machine.
 
 When each fibre type got its own filtered drive (commit 7fa3863) the model's output changed on
 every level. No X86_V4 machine was available to recompute that level's digests after this
-model change, so its entries were dropped (the tests skip there, naming the level); X86_V3's are
-recomputed by the procedure above against the model's commit, named where they are set.
+model change, so its entries were dropped (the tests skip there, naming the level); X86_V3's were
+recomputed by the procedure above against the model's latest commit, named where they are set
+(a clean export of that commit's source, ``git archive``, in place of the worktree).
 """
 
 from __future__ import annotations
@@ -64,6 +66,16 @@ START_NS = 1_700_000_000_123_456_789
 COMPUTED_WITH = {"numpy": "2.4.6", "scipy": "1.17.1", "mcap": "1.6.0"}
 SIMD_LEVELS = ("X86_V3", "X86_V4")  # NumPy's dispatch targets the digests are kept for
 DIGESTS = {
+    # computed on 2026-12-03 on the 2-core AMD EPYC (Zen 3) against commit 2b9e843's source (the
+    # relative_drive rise without q, its constants refit), by the procedure of the docstring
+    "X86_V3": {
+        "bank_numpy": "0d6f4d9225899a1b494bc3a04460c7b12471469e9abddd165b735330d9b3229b",
+        "bank_auto": "213f38901960b84bdbd1d5e1c1e12dcb4e27235ac90c086835d10047fc4e00f2",
+        "knee": "73553edfa22ff049cfbbea04be1688c0db60dcfeb8cfde177c2b5c4db6f38031",
+        "leg": "b73cec23360aacadda86ccc09239b84c0f59b725b8994a365e973a7b52290942",
+        "knee_recomputed": "4f7135b256f36d646aa55f1754322a883763eb0a590269f37d9950398b627108",
+        "leg_recomputed": "7472d2f890db82dbe3b793b67f9b1383b7d1302994c843bdc130a2f67d026085",
+    },
 }
 
 
@@ -160,6 +172,11 @@ def log_digests(directory: Path) -> dict:
 # recompute read logs as arrays (commit 8817190), as above against that commit's source with
 # today's config/muscles.yaml
 SLOW_LEG_DIGESTS = {
+    # as DIGESTS["X86_V3"], against commit 2b9e843, with slow_leg_digests
+    "X86_V3": {
+        "leg_slow": "bfe7dd0b7139cc29061942440592ec6b8e1c63ab5401f7815773be0e1315a30a",
+        "leg_slow_recomputed": "72b42d9ffb749df8aa1a7be8fdac484b89ead00db391fae7709fb535443349c2",
+    },
 }
 
 
