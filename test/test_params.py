@@ -110,6 +110,24 @@ def test_bad_model_file_names_field(tmp_path):
         load_model_params(path)
 
 
+def test_a_model_file_of_earlier_equations_is_refused_with_why(tmp_path):
+    """A model file that still holds the drive filter's rise power (a log's attached model.yaml
+    from before the filtered drive per fibre type) names the field and says the file was
+    written by an earlier vm_ros; another unknown field is just unknown."""
+    data = yaml.safe_load((config_dir() / "model.yaml").read_text())
+    data["recruitment"]["lumped"]["relative_rise_power"] = {"value": 1.0, "unit": "1"}
+    path = tmp_path / "model.yaml"
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(ConfigError, match="earlier vm_ros") as info:
+        load_model_params(path)
+    assert info.value.field == "recruitment.lumped.relative_rise_power"
+    del data["recruitment"]["lumped"]["relative_rise_power"]
+    data["recruitment"]["lumped"]["no_such_constant"] = {"value": 1.0, "unit": "1"}
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(ConfigError, match="unknown parameter"):
+        load_model_params(path)
+
+
 def test_unreadable_and_invalid_yaml(tmp_path):
     with pytest.raises(ConfigError, match="cannot read"):
         load_model_params(tmp_path / "absent.yaml")

@@ -103,11 +103,27 @@ def _read_value(path, name: str, kind: str, entry: dict, factor: float):
     raise TypeError(f"{name}: no reader for fields of type {kind}")
 
 
+# Parameters a model file held before the model's equations changed: a file with one of them (a
+# log's attached model.yaml from an earlier version) was written for other equations, so it is
+# refused with why, not read with the new ones
+RETIRED = {
+    "recruitment.lumped.relative_rise_power": (
+        "a parameter of the drive filter before it kept a filtered drive per fibre type "
+        "(removed 2026-12-03, docs/model.md section 5d): this model file, or the log it is "
+        "attached to, was written by an earlier vm_ros whose equations this version does not "
+        "have; recompute such a log with the vm_ros version in its metadata"),
+}
+
+
 def read_section(cls, path, section: dict, section_name: str, info: dict) -> dict:
     """The fields of ``cls`` from one section of a model file, converted to the unit each field
     holds; each entry's unit, tag and source go into ``info``."""
     fields = {f.name: f for f in dataclasses.fields(cls)}
     unknown = sorted(set(section) - set(fields))
+    for name in unknown:
+        if f"{section_name}.{name}" in RETIRED:
+            raise ConfigError(path, f"{section_name}.{name}", None,
+                              RETIRED[f"{section_name}.{name}"])
     if unknown:
         raise ConfigError(path, f"{section_name}.{unknown[0]}", None, "unknown parameter")
     missing = sorted(set(fields) - set(section))
