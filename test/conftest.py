@@ -14,6 +14,7 @@ fails instead: a skip there would hide a broken install.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 import tempfile
@@ -266,8 +267,9 @@ class RosHarness:
             node.destroy_node()
 
 
-@pytest.fixture
-def ros():
+@contextlib.contextmanager
+def ros_context():
+    """A RosHarness in an rclpy context of its own, shut down on leaving."""
     rclpy = require_ros()
     context = rclpy.Context()
     rclpy.init(context=context)
@@ -277,3 +279,9 @@ def ros():
     finally:
         harness.close()
         rclpy.try_shutdown(context=context)
+
+
+@pytest.fixture
+def ros():
+    with ros_context() as harness:
+        yield harness
