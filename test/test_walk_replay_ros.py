@@ -24,12 +24,11 @@ one draw of the same spread."""
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 
 import numpy as np
 import pytest
-from conftest import RosHarness, require_ros, set_clock, stamp_ns
+from conftest import ros_context, set_clock, stamp_ns
 from test_node_coordination import PERIOD_NS, T0, CoordinationProbe
 
 from vm_ros import telemetry as tm
@@ -38,7 +37,6 @@ pytestmark = pytest.mark.ros
 
 HOLD_S = 1.0            # the first pose and target held before the walk plays
 BOUND_OF_PEAK = 0.05    # issue 30: the walk replayed over ROS within 5 % RMS of each peak
-PERTURBATION = 1e-9     # relative change of the profile's moments (module docstring)
 PERTURBATION_SEEDS = (1, 2, 3)
 
 
@@ -138,25 +136,11 @@ AT_6_HZ_MISSES = pytest.mark.xfail(raises=BoundMissedError, strict=True, reason=
     "hold"))
 
 
-@contextlib.contextmanager
-def own_context():
-    """A RosHarness in a context of its own, as the ``ros`` fixture makes one."""
-    rclpy = require_ros()
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    harness = RosHarness(rclpy, context)
-    try:
-        yield harness
-    finally:
-        harness.close()
-        rclpy.try_shutdown(context=context)
-
-
 def perturbed(targets, seed: int):
-    """``targets`` with each moment times 1 + PERTURBATION N(0, 1), drawn from ``seed``."""
-    rng = np.random.default_rng(seed)
-    return dataclasses.replace(targets, moments_nm=targets.moments_nm * (
-        1.0 + PERTURBATION * rng.standard_normal(targets.moments_nm.shape)))
+    """``targets`` with their moments perturbed by walk.perturbed_moments from ``seed``."""
+    from vm_ros.validation.walk import perturbed_moments
+
+    return dataclasses.replace(targets, moments_nm=perturbed_moments(targets.moments_nm, seed))
 
 
 @pytest.mark.parametrize("lowpass_hz", [pytest.param(0.0, marks=AS_GIVEN_MISSES),
@@ -167,9 +151,9 @@ def test_the_walk_replayed_as_a_planned_profile(walk, lowpass_hz):
     6 Hz (vm_ros.coordination.targets.lowpass_targets, as `vm-ros coordinate --targets-lowpass
     6` and the walk item's variant use it: the cutoff of the walk's own coordinates, without the
     heel-strike transients of its unfiltered ground reaction forces), at 6 Hz also perturbed
-    by PERTURBATION from each of PERTURBATION_SEEDS. Each replay: drives in [0, 1] for every
-    muscle, no stale input, a joint_efforts message per period of the walk; then each
-    coordinate's RMS error / peak of its profile against 5 % in every replay
+    by 1e-9 (walk.perturbed_moments) from each of PERTURBATION_SEEDS. Each replay: drives in
+    [0, 1] for every muscle, no stale input, a joint_efforts message per period of the walk;
+    then each coordinate's RMS error / peak of its profile against 5 % in every replay
     (BoundMissedError when missed in any)."""
     from vm_ros.coordination.targets import lowpass_targets
 
@@ -179,7 +163,7 @@ def test_the_walk_replayed_as_a_planned_profile(walk, lowpass_hz):
                          for seed in PERTURBATION_SEEDS})
     missed = []
     for label, profile in profiles.items():
-        with own_context() as ros:  # a node of an earlier replay must not hear this one
+        with ros_context() as ros:  # a node of an earlier replay must not hear this one
             done = replay(ros, walk, targets=profile)
         joints, rms, probe, node = (done["joints"], done["rms_of_peak"], done["probe"],
                                     done["node"])

@@ -437,6 +437,17 @@ def walk_problem(files, strength: tuple[str, str], out_dir, params) -> WalkProbl
     return WalkProblem(geometry, motion, targets, specs,
                        build_problem(geometry, motion, targets, muscles))
 
+TARGET_PERTURBATION = 1e-9  # relative change of target moments that shows what their last digits do
+
+
+def perturbed_moments(moments, seed: int, relative: float = TARGET_PERTURBATION) -> np.ndarray:
+    """``moments`` each times 1 + ``relative`` N(0, 1), drawn from NumPy's default_rng(``seed``):
+    the same targets to their last digits, for measuring how far such a change carries through
+    a coordination (docs/coordination.md, "Repeatable on one machine")."""
+    moments = np.asarray(moments, dtype=float)
+    return moments * (1.0 + relative * np.random.default_rng(seed).standard_normal(moments.shape))
+
+
 def cocontraction_share(moment_arm, forces) -> np.ndarray:
     """(C,): per coordinate, sum over frames of the moment muscles spend against each other,
     (sum_i |r_i F_i| - |sum_i r_i F_i|) / 2, over the sum of sum_i |r_i F_i| (0: no muscle
@@ -555,7 +566,8 @@ def check_walk(params=None) -> CheckResult:
     return result
 
 
-__all__ = ["TRACKED", "WalkSolution", "check_walk", "cocontraction_share", "evaluate_walk",
+__all__ = ["TARGET_PERTURBATION", "TRACKED", "WalkSolution", "check_walk",
+           "cocontraction_share", "evaluate_walk", "perturbed_moments",
            "target_content_above", "variant_reported",
            "high_frequency_share", "load_walk_config", "net_metabolic_references",
            "spike_frames", "tracking_errors", "window_means"]
