@@ -2,7 +2,8 @@
 #
 #   make venv         create/refresh $(VENV) with ".[ros,dev,fast,opensim,mujoco,study]" pinned by constraints.txt,
 #                     and compile the model step (Numba's cache)
-#   make test         the whole pytest suite (ruff included) in a loopback-only network namespace
+#   make test         the whole pytest suite (ruff included) in a loopback-only network namespace,
+#                     on TEST_WORKERS (2) pytest-xdist workers
 #   make demo         the demo, in a loopback-only network namespace
 #   make demo-closed-loop  muscle_node driving a MuJoCo elbow over ROS 2 (MCAP, PNG), same namespace
 #   make bench        vm-ros bench (results in bench-results/), in a loopback-only namespace
@@ -69,11 +70,14 @@ host-tools:
 	    fi; \
 	fi
 
-# pytest's exit status is passed through as is: 5 (no tests collected) fails the target.
-# $(VENV)/bin/pytest, not `python -m pytest`: -m would put the source tree first on sys.path, and
-# the suite is meant to exercise the installed package (data_files included).
+# pytest's exit status is passed through as is: 5 (no tests collected) fails the target, with
+# workers too. $(VENV)/bin/pytest, not `python -m pytest`: -m would put the source tree first on
+# sys.path, and the suite is meant to exercise the installed package (data_files included).
+# TEST_WORKERS pytest-xdist workers (2: the cores of the CI machine; each in a DDS domain of its
+# own, test/conftest.py), tests handed out by work stealing; TEST_WORKERS=0 runs them in one process.
+TEST_WORKERS ?= 2
 test: venv colcon-venv
-	scripts/netns-run $(VENV)/bin/pytest -q --durations=25 test
+	scripts/netns-run $(VENV)/bin/pytest -q --durations=25 -n $(TEST_WORKERS) --dist worksteal test
 
 demo: venv
 	scripts/netns-run $(VENV)/bin/vm-ros demo

@@ -27,6 +27,15 @@ import pytest
 # cover them; only that package is in bench/, so the source tree's vm_ros stays out of sys.path.
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "bench"))
 
+# `make test` runs the suite on pytest-xdist workers in one loopback-only namespace: each worker's
+# ROS graph gets a DDS domain of its own (scripts/netns-run's 42, plus 1 + the worker's number), so
+# that nodes and topics of the same names in two workers do not hear each other. Set at import,
+# before any rclpy context or child process starts; children inherit it.
+_XDIST_WORKER = os.environ.get("PYTEST_XDIST_WORKER", "")
+if _XDIST_WORKER.startswith("gw"):
+    os.environ["ROS_DOMAIN_ID"] = str(int(os.environ.get("ROS_DOMAIN_ID", "42")) + 1
+                                      + int(_XDIST_WORKER[2:]))
+
 STRICT = os.environ.get("VM_ROS_NETNS") == "1" or os.environ.get("CI", "").lower() not in (
     "", "0", "false")
 

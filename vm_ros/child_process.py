@@ -76,9 +76,10 @@ def environment_kept(names):
 
 
 def loopback_only(command: list) -> list:
-    """``command`` inside a new network namespace with only loopback (as scripts/netns-run)."""
+    """``command`` inside a new network namespace with only loopback (as scripts/netns-run), in
+    the caller's ROS_DOMAIN_ID (42 without one: a test worker's own domain stays its own)."""
     script = ("set -e; ip link set lo up; "
-              "export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST ROS_DOMAIN_ID=42 "
+              "export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST ROS_DOMAIN_ID=${ROS_DOMAIN_ID:-42} "
               "FASTDDS_BUILTIN_TRANSPORTS=UDPv4 VM_ROS_NETNS=1; exec \"$@\"")
     return ["unshare", "-n", "bash", "-c", script, "netns-run", *command]
 
