@@ -71,17 +71,20 @@ class CoordinationProbe:
     def send_joints(self, t_s: float):
         self.joint_states.publish(self.base.joint_state(JOINT_NAMES, *knee_pose(t_s)))
 
-    def send_trajectory(self, names, times_s, efforts, stamp_ns: int = 0):
+    def send_trajectory(self, names, times_s, efforts, stamp_ns: int = 0, positions=None):
+        """A JointTrajectory of ``efforts`` (points, joints) and, when given, ``positions``
+        (points, joints) at ``times_s`` from ``stamp_ns``."""
         from builtin_interfaces.msg import Duration, Time
         from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
         msg = JointTrajectory()
         msg.header.stamp = Time(sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000)
         msg.joint_names = list(names)
-        for t, effort in zip(times_s, efforts, strict=True):
+        planned = [()] * len(times_s) if positions is None else positions
+        for t, effort, position in zip(times_s, efforts, planned, strict=True):
             ns = int(round(t * 1e9))
             msg.points.append(JointTrajectoryPoint(
-                effort=[float(e) for e in effort],
+                effort=[float(e) for e in effort], positions=[float(q) for q in position],
                 time_from_start=Duration(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)))
         self.trajectory.publish(msg)
 
@@ -188,6 +191,8 @@ def test_stream_targets_report_lag_and_error_and_bad_targets_are_counted(ros, ge
             ["knee_angle"], [0.2, 0.1], [[1.0], [2.0]])),
         ("target_wrong_size", lambda: probe.send_trajectory(
             ["knee_angle"], [0.1, 0.2], [[1.0], [2.0, 3.0]])),
+        ("target_wrong_size", lambda: probe.send_trajectory(   # planned positions: one per name
+            ["knee_angle"], [0.1, 0.2], [[1.0], [2.0]], positions=[[1.0], [1.0, 2.0]])),
     ]
     for kind, send in bad:
         before = node.issues.counts[kind]

@@ -6,10 +6,13 @@ vm_ros.joint_space.JointMap.to_robot maps back).
 Two sources; the latest message of either replaces the other:
 
 - a planned profile (``joint_effort_trajectory``, trajectory_msgs/JointTrajectory): joint_names,
-  points with time_from_start and effort[] (positions, velocities and accelerations are not
-  used). It starts at header.stamp, or on receipt when the stamp is zero (the ROS convention);
-  efforts are linear between points and held before the first and after the last point.
-  Joints of ``joints`` it does not name are not tracked while it holds.
+  points with time_from_start and effort[], and optionally positions[] (the planned motion:
+  every point one per joint name, or none; velocities and accelerations are not used). It
+  starts at header.stamp, or on receipt when the stamp is zero (the ROS convention); efforts and
+  positions are linear between points and held before the first and after the last point.
+  Joints of ``joints`` it does not name are not tracked while it holds. Planned positions give
+  the coordinator the horizon's coming poses (:meth:`EffortTargets.model_positions_at`,
+  vm_ros.node.live_coordination).
 - a stream (``joint_effort_targets``, JointState effort[] by name, or
   ``joint_effort_targets_array``, Float64MultiArray data[] one per joint of ``joints``): each
   named joint's latest target held until the next. Joints never named are not tracked.
@@ -44,6 +47,9 @@ class EffortTargets:
         self.tracked = np.zeros(c, dtype=bool)
         self._times_ns = np.zeros(1, dtype=np.int64)  # planned: absolute point times
         self._efforts = np.zeros((1, c))              # robot convention, (points, c)
+        self._positions: np.ndarray | None = None     # planned positions, robot, NaN: not given
+        self._q_sign = space.map.sign[space.output]
+        self._q_offset = space.map.offset[space.output]
         self.last_message_ns: int | None = None
 
     def _select(self, topic: str, names, size: int):
@@ -86,6 +92,7 @@ class EffortTargets:
             self.kind, self.tracked = STREAM, np.zeros(len(self.names), dtype=bool)
             self._times_ns = np.zeros(1, dtype=np.int64)
             self._efforts = np.zeros((1, len(self.names)))
+            self._positions = None
         self._efforts = self._efforts.copy()
         self._efforts[0, joints] = values
         self.tracked = self.tracked.copy()
@@ -94,8 +101,9 @@ class EffortTargets:
         return issues
 
     def on_trajectory(self, names: Sequence[str], stamp_ns: int, times_from_start_ns,
-                      efforts: Sequence, now_ns: int) -> list[Issue]:
-        """A planned profile: ``times_from_start_ns`` (k,) and ``efforts`` (k sequences) of the
+                      efforts: Sequence, now_ns: int, positions: Sequence = ()) -> list[Issue]:
+        """A planned profile: ``times_from_start_ns`` (k,), ``efforts`` and ``positions`` (k
+        sequences each; positions all empty, or none given, when the plan has no motion) of the
         points, ``stamp_ns`` the header stamp (0: start on receipt)."""
         topic = tp.TOPIC_JOINT_EFFORT_TRAJECTORY
         times = np.asarray(times_from_start_ns, dtype=np.int64).ravel()
@@ -113,6 +121,16 @@ class EffortTargets:
         values = np.array([np.asarray(e, dtype=float) for e in efforts])[:, entries]
         if not np.isfinite(values).all():
             return issues + [Issue("target_non_finite", f"{topic}: effort is not finite")]
+        planned = None
+        position_sizes = {len(p) for p in positions}
+        if position_sizes - {0}:
+            if position_sizes != {len(names)} or len(positions) != times.size:
+                return issues + [Issue("target_wrong_size", f"{topic}: points with "
+                                       f"{sorted(position_sizes)} positions for {len(names)} joint "
+                                       "names (give none, or one per name in every point)")]
+            planned = np.array([np.asarray(p, dtype=float) for p in positions])[:, entries]
+            if not np.isfinite(planned).all():
+                return issues + [Issue("target_non_finite", f"{topic}: position is not finite")]
         if times[0] < 0 or np.any(np.diff(times) <= 0):
             return issues + [Issue("target_bad_time", f"{topic}: time_from_start must be >= 0 "
                                    "and increasing")]
@@ -123,8 +141,28 @@ class EffortTargets:
         start = stamp_ns if stamp_ns > 0 else now_ns
         self.kind, self.tracked = PLANNED, tracked
         self._times_ns, self._efforts = start + times, full
+        self._positions = None
+        if planned is not None:
+            self._positions = np.full((times.size, len(self.names)), np.nan)
+            self._positions[:, joints] = planned
         self.last_message_ns = now_ns
         return issues
+
+    @property
+    def has_planned_positions(self) -> bool:
+        """The planned profile that holds gives positions (of the joints it names)."""
+        return self.kind == PLANNED and self._positions is not None
+
+    def model_positions_at(self, times_ns) -> np.ndarray:
+        """(k, c) planned coordinate values at ``times_ns`` in the model's convention (q_model =
+        sign * q_robot + offset), linear between points and held beyond them; NaN for joints the
+        plan does not name, everywhere without planned positions."""
+        t = np.asarray(times_ns, dtype=np.int64)
+        if not self.has_planned_positions:
+            return np.full((len(t), len(self.names)), np.nan)
+        robot = np.stack([np.interp(t, self._times_ns, column) for column in self._positions.T],
+                         axis=1)
+        return self._q_sign * robot + self._q_offset
 
     def robot_at(self, times_ns) -> np.ndarray:
         """(k, c) target efforts (robot convention) at ``times_ns``; 0 where not tracked."""

@@ -36,8 +36,8 @@ JOINT_OUTPUT_TOPICS = (
 # run log keeps them as data, and its recompute applies the drives logged on coordination_drive
 COORDINATION_INPUT_TOPICS = (
     (tp.TOPIC_JOINT_EFFORT_TRAJECTORY, tp.TYPE_JOINT_TRAJECTORY,
-     "planned joint efforts (N m or N): joint_names, points' time_from_start and effort[] "
-     "(with coordination.enabled)"),
+     "planned joint efforts (N m or N): joint_names, points' time_from_start, effort[] and "
+     "optionally positions[] (the planned motion) (with coordination.enabled)"),
     (tp.TOPIC_JOINT_EFFORT_TARGETS, tp.TYPE_JOINT_STATE,
      "target joint efforts as a stream: name[], effort[] (with coordination.enabled)"),
     (tp.TOPIC_JOINT_EFFORT_TARGETS_ARRAY, tp.TYPE_FLOAT64_MULTI_ARRAY,

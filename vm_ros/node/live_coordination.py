@@ -5,9 +5,13 @@ Each publish period, before the model steps it:
 
 - the targets over the horizon (vm_ros.node.effort_targets) in the model's convention, for the
   joints of ``joints``;
-- the horizon's motion: each joint-driven muscle's latest path length moved on by its velocity
-  (as NodeInputs holds them; the node's extrapolation_max_s cap is not applied in the
-  prediction, the range clamp is), with the moment arms of the latest joint sample held;
+- the horizon's motion. With a planned profile that gives positions: the geometry evaluated at
+  the coming poses (``planned_poses``: the plan's positions, moved by a constant so that they
+  start from the latest joint sample's; coordinates the plan does not give moved on by their
+  sampled velocity), path lengths, velocities and moment arms at every probe step. Otherwise:
+  each joint-driven muscle's latest path length moved on by its velocity (as NodeInputs holds
+  them; the node's extrapolation_max_s cap is not applied in the prediction), with the moment
+  arms of the latest joint sample held. The range clamp of NodeInputs applies to both;
 - RecedingHorizon.solve from the bank's state gives the joint-driven muscles' drives for the
   period. Before any target arrives their drive is 0.
 
@@ -40,6 +44,34 @@ def horizon_settings(config) -> receding.HorizonSettings:
                            damping=config.coordination_damping)
 
 
+PLAN_DIFFERENCE_NS = 1_000_000  # half-step of the planned positions' central difference (1 ms)
+# spacing of the planned poses the geometry is evaluated at over the horizon; the path lengths,
+# velocities and moment arms are linear between them (on the walk over ROS the worst coordinate
+# within 0.13 points of peak of its value with poses at every probe step, 5 ms, and a third of
+# the geometry's time: docs/node.md section 13)
+PLAN_POSE_STEP_S = 0.02
+
+
+def planned_poses(targets: EffortTargets, space: JointSpace, times_ns,
+                  sample) -> tuple[np.ndarray, np.ndarray]:
+    """(k, n_coordinates) q and q' (model convention) at ``times_ns`` from ``targets``' planned
+    positions and the joint ``sample`` (JointSample; module docstring): a coordinate of the plan
+    follows it shifted by (sampled q - plan at the sample's time), its velocity the plan's
+    central difference over 2 PLAN_DIFFERENCE_NS; the others the sample's q moved on by its q'."""
+    t = np.asarray(times_ns, dtype=np.int64)
+    ahead_s = (t - sample.time_ns)[:, None] * 1e-9
+    q = sample.q[None, :] + sample.qdot[None, :] * ahead_s
+    qdot = np.repeat(np.asarray(sample.qdot, dtype=float)[None, :], len(t), axis=0)
+    planned = targets.model_positions_at(np.append(t, sample.time_ns))
+    given = np.isfinite(planned[0])
+    columns = space.output[given]
+    q[:, columns] = planned[:-1, given] + (sample.q[columns] - planned[-1, given])
+    h = PLAN_DIFFERENCE_NS
+    slope = targets.model_positions_at(t + h) - targets.model_positions_at(t - h)
+    qdot[:, columns] = slope[:, given] / (2 * h * 1e-9)
+    return q, qdot
+
+
 class LiveCoordination:
     """Targets, the coordinator and the tracking history of one muscle_node (module docstring)."""
 
@@ -70,6 +102,30 @@ class LiveCoordination:
         velocity = np.where(clamped == length, inputs.velocity_m_per_s[i], 0.0)
         return clamped, velocity
 
+    def _planned_motion(self, t0_ns: int, sample) -> tuple:
+        """(path length, velocity) (k, m) at the probe steps' starts and moment arms (k, m, c)
+        at their ends, from the geometry at the planned poses."""
+        c = self.coordinator
+        offsets = np.append(c.start_offsets_s, c.end_offsets_s[-1])
+        poses = np.linspace(0.0, offsets[-1], int(np.ceil(offsets[-1] / PLAN_POSE_STEP_S)) + 1)
+        q, qdot = planned_poses(self.targets, self.space,
+                                t0_ns + np.round(poses * 1e9).astype(np.int64), sample)
+        out = self.space.geometry.evaluate_many(q, qdot)
+        rows, i = self.space.rows, self.index
+
+        def at_offsets(values):  # (poses, ...) linear between the poses -> (offsets, ...)
+            flat = values.reshape(len(poses), -1)
+            return np.stack([np.interp(offsets, poses, column) for column in flat.T],
+                            axis=1).reshape(len(offsets), *values.shape[1:])
+
+        length = at_offsets(out.length_m[:, rows])[:-1]
+        velocity = at_offsets(out.velocity_m_per_s[:, rows])[:-1]
+        lo, hi = (bound[i] for bound in self.inputs.path_bounds())
+        clamped = np.minimum(np.maximum(length, lo), hi)
+        velocity = np.where(clamped == length, velocity, 0.0)
+        arms = at_offsets(out.moment_arm[:, rows][:, :, self.space.output])[1:]
+        return clamped, velocity, arms
+
     def solve(self, state, t0_ns: int, sample) -> None:
         """Set ``drive``, the joint-driven muscles' drives for the period starting at ``t0_ns``,
         from the bank's ``state`` and the joint ``sample`` (JointInputs.sample) held."""
@@ -79,9 +135,12 @@ class LiveCoordination:
         started = time.perf_counter_ns()
         c = self.coordinator
         ends = t0_ns + np.round(c.end_offsets_s * 1e9).astype(np.int64)
-        length, velocity = self._horizon_paths(t0_ns)
-        arms = np.broadcast_to(sample.moment_arm[:, self.space.output],
-                               (c.steps, len(self.index), len(self.space.output)))
+        if self.targets.has_planned_positions:
+            length, velocity, arms = self._planned_motion(t0_ns, sample)
+        else:
+            length, velocity = self._horizon_paths(t0_ns)
+            arms = np.broadcast_to(sample.moment_arm[:, self.space.output],
+                                   (c.steps, len(self.index), len(self.space.output)))
         plan = c.solve(state, length, velocity, arms, self.targets.at(ends),
                        self.targets.tracked)
         self.solve_times.add(time.perf_counter_ns() - started)
@@ -123,4 +182,4 @@ class LiveCoordination:
         return values
 
 
-__all__ = ["LiveCoordination", "horizon_settings"]
+__all__ = ["LiveCoordination", "horizon_settings", "planned_poses"]

@@ -471,7 +471,8 @@ class MuscleNode(Node):
             tm.TOPIC_JOINT_EFFORT_TRAJECTORY: lambda msg, now_ns: targets.on_trajectory(
                 msg.joint_names, msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec,
                 [p.time_from_start.sec * 1_000_000_000 + p.time_from_start.nanosec
-                 for p in msg.points], [p.effort for p in msg.points], now_ns),
+                 for p in msg.points], [p.effort for p in msg.points], now_ns,
+                [p.positions for p in msg.points]),
             tm.TOPIC_JOINT_EFFORT_TARGETS: lambda msg, now_ns: targets.on_stream(
                 topic, msg.name, msg.effort, now_ns),
             tm.TOPIC_JOINT_EFFORT_TARGETS_ARRAY: lambda msg, now_ns: targets.on_stream(
