@@ -8,6 +8,7 @@ import json
 import os
 import subprocess
 import sys
+import types
 from pathlib import Path
 
 import numpy as np
@@ -304,6 +305,30 @@ def test_coordination_myolegs_runs_only_when_named_on_a_gait_like_motion():
     met = {r["metric"]: r["met"] for r in bench._csv_rows({"coordination-myolegs": measured})
            if r["target"]}
     assert met == {"seconds": False}
+
+
+def test_planned_poses_time_the_geometry_at_the_horizon_poses():
+    """coordination_bench.planned_poses_ms: one positive median per pose count, from
+    consecutive frames of a motion; a CSV row per count in the coordination-myolegs section."""
+    from test_joint_space import small_geometry
+
+    from vm_ros_bench import cli as bench
+    from vm_ros_bench import coordination_bench as cb
+
+    frames = np.linspace(0.0, 1.0, 40)[:, None]
+    motion = types.SimpleNamespace(q=np.hstack([0.2 + 0 * frames, 0.5 + frames, 0 * frames]),
+                                   qdot=np.tile([0.0, 1.0, 0.0], (40, 1)))
+    ms = cb.planned_poses_ms(small_geometry(), motion, calls=3)
+    assert set(ms) == {str(c) for c in cb.PLANNED_POSE_COUNTS}
+    assert all(value > 0 for value in ms.values())
+    measured = {"muscles": 2, "motion_s": 1.0, "rms_percent": {}, "forward_runs": 1,
+                "cpu_s": 1.0, "targets_s": 1.0, "load_average_start": 1.0,
+                "infeasible_frames": 0, "seconds": 1.0, "planned_poses_ms": ms}
+    rows = [r for r in bench._csv_rows({"coordination-myolegs": measured})
+            if r["metric"] == "thread_cpu_ms_median"]
+    assert len(rows) == len(cb.PLANNED_POSE_COUNTS)
+
+
 def test_report_walk_runs_only_when_named_and_holds_plotting_to_5_s(monkeypatch, tmp_path):
     """Without the walk's files the section is one row saying where they are missing; measured,
     the plotting's CPU time (report with plots less --no-plots) is held to 5 s."""

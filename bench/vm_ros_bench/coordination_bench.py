@@ -266,4 +266,27 @@ def bench_myolegs(cache, progress=print, duration_s: float = MYOLEGS_S) -> dict:
             "seconds": seconds, "cpu_s": cpu_s, "targets_s": targets_s,
             "kept_step_s": [it.seconds for it in result.history],
             "load_average_start": load, "load_average_end": os.getloadavg()[0],
-            "infeasible_frames": len(result.infeasible)}
+            "infeasible_frames": len(result.infeasible),
+            "planned_poses_ms": planned_poses_ms(geometry, motion)}
+
+
+PLANNED_POSE_COUNTS = (9, 31)   # poses per publish period: every 20 ms / every 5 ms of 0.15 s
+
+
+def planned_poses_ms(geometry, motion, calls: int = 200) -> dict:
+    """What live coordination with a planned profile's positions adds per publish period
+    (vm_ros.node.live_coordination: the geometry at the horizon's planned poses): thread CPU
+    (ms) of ``geometry.evaluate_many`` at consecutive frames of ``motion``, median of ``calls``
+    calls, per pose count of PLANNED_POSE_COUNTS."""
+    q, qdot = np.asarray(motion.q, dtype=float), np.asarray(motion.qdot, dtype=float)
+    medians = {}
+    for count in PLANNED_POSE_COUNTS:
+        poses, speeds = q[:count], qdot[:count]
+        geometry.evaluate_many(poses, speeds)   # compiled before the timing
+        times = []
+        for _ in range(calls):
+            started = time.thread_time_ns()
+            geometry.evaluate_many(poses, speeds)
+            times.append(time.thread_time_ns() - started)
+        medians[str(count)] = float(np.median(times)) * 1e-6
+    return medians

@@ -47,8 +47,8 @@ def horizon_settings(config) -> receding.HorizonSettings:
 PLAN_DIFFERENCE_NS = 1_000_000  # half-step of the planned positions' central difference (1 ms)
 # spacing of the planned poses the geometry is evaluated at over the horizon; the path lengths,
 # velocities and moment arms are linear between them (on the walk over ROS the worst coordinate
-# within 0.13 points of peak of its value with poses at every probe step, 5 ms, and a third of
-# the geometry's time: docs/node.md section 13)
+# within 0.13 points of peak of its value with poses at every probe step, 5 ms, at about a
+# third of the geometry's time: docs/node.md section 13)
 PLAN_POSE_STEP_S = 0.02
 
 
