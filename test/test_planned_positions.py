@@ -80,3 +80,23 @@ def test_horizon_poses_follow_the_plan_from_the_sampled_pose(space):
     np.testing.assert_allclose(q[:, 0], 0.3 - 0.4 * ahead_s, rtol=0, atol=1e-12)
     np.testing.assert_allclose(q[:, 2], -0.2 + 0.1 * ahead_s, rtol=0, atol=1e-12)
     np.testing.assert_allclose(qdot[:, [0, 2]], np.tile([-0.4, 0.1], (4, 1)), rtol=0, atol=0)
+
+
+def test_positions_near_the_float_range_keep_the_sampled_prediction(space):
+    """Finite positions whose differences overflow (the plan holds +1.7e308 to 1 s, then goes to
+    -1.7e308 at 1.05 s) are accepted, as finite values are; the sample at 0.95 s lies where the
+    plan is finite, its horizon reaches where it overflows, and the poses stay finite: where the
+    plan overflows the knee falls back to the sample moved on by its velocity (where it does
+    not, the shift to the sampled pose rounds at this size: only finiteness is asked)."""
+    targets = EffortTargets(space)
+    issues = targets.on_trajectory(["knee"], START_NS, [0, S, S + S // 20],
+                                   [[-10.0], [-20.0], [-20.0]], START_NS,
+                                   [[1.7e308], [1.7e308], [-1.7e308]])
+    assert issues == [] and targets.has_planned_positions
+    sample = JointSample(START_NS + S - S // 20, np.array([0.3, 0.9, -0.2]),
+                         np.array([0.0, 2.0, 0.0]), np.zeros((2, 3)))
+    ahead_s = np.array([0.0, 0.03, 0.08])
+    q, qdot = planned_poses(targets, space, sample.time_ns + np.round(ahead_s * S).astype(
+        np.int64), sample)
+    assert np.isfinite(q).all() and np.isfinite(qdot).all()
+    assert q[2, 1] == pytest.approx(0.9 + 2.0 * 0.08, abs=1e-12) and qdot[2, 1] == 2.0

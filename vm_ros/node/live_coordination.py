@@ -8,7 +8,9 @@ Each publish period, before the model steps it:
 - the horizon's motion. With a planned profile that gives positions: the geometry evaluated at
   the coming poses (``planned_poses``: the plan's positions, moved by a constant so that they
   start from the latest joint sample's; coordinates the plan does not give moved on by their
-  sampled velocity), path lengths, velocities and moment arms at every probe step. Otherwise:
+  sampled velocity; where the plan's numbers overflow, the sampled prediction), every
+  PLAN_POSE_STEP_S of the horizon, the path lengths, velocities and moment arms linear between
+  those poses. Otherwise:
   each joint-driven muscle's latest path length moved on by its velocity (as NodeInputs holds
   them; the node's extrapolation_max_s cap is not applied in the prediction), with the moment
   arms of the latest joint sample held. The range clamp of NodeInputs applies to both;
@@ -65,11 +67,16 @@ def planned_poses(targets: EffortTargets, space: JointSpace, times_ns,
     planned = targets.model_positions_at(np.append(t, sample.time_ns))
     given = np.isfinite(planned[0])
     columns = space.output[given]
-    q[:, columns] = planned[:-1, given] + (sample.q[columns] - planned[-1, given])
-    h = PLAN_DIFFERENCE_NS
-    slope = targets.model_positions_at(t + h) - targets.model_positions_at(t - h)
-    qdot[:, columns] = slope[:, given] / (2 * h * 1e-9)
-    return q, qdot
+    sampled_q, sampled_qdot = q.copy(), qdot.copy()
+    with np.errstate(over="ignore", invalid="ignore"):
+        q[:, columns] = planned[:-1, given] + (sample.q[columns] - planned[-1, given])
+        h = PLAN_DIFFERENCE_NS
+        slope = targets.model_positions_at(t + h) - targets.model_positions_at(t - h)
+        qdot[:, columns] = slope[:, given] / (2 * h * 1e-9)
+    # positions near the float range overflow in these differences: those entries keep the
+    # sampled prediction (the message passed the finite check, so it is not refused)
+    finite = np.isfinite(q) & np.isfinite(qdot)
+    return np.where(finite, q, sampled_q), np.where(finite, qdot, sampled_qdot)
 
 
 class LiveCoordination:
