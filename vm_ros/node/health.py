@@ -61,10 +61,12 @@ ISSUE_KINDS = {
                                 "moment arms), the rest of the message is used"),
     "target_wrong_size": ("rejected: effort targets wrong size (messages)",
                           "message dropped: joint names and efforts differ in number, an unnamed "
-                          "array is not one effort per joint of joints, or a trajectory has no "
-                          "points or joint names"),
+                          "array is not one effort per joint of joints, a trajectory has no "
+                          "points or joint names, or its positions are not one per joint name "
+                          "in every point (or in none)"),
     "target_non_finite": ("rejected: effort targets NaN or inf (messages)",
-                          "message dropped: an effort of a known joint is NaN or inf"),
+                          "message dropped: an effort or planned position of a known joint "
+                          "is NaN or inf"),
     "target_duplicate_name": ("rejected: effort targets duplicate joint (messages)",
                               "message dropped: a joint is named twice"),
     "target_bad_time": ("rejected: effort trajectory times (messages)",
