@@ -198,6 +198,27 @@ def test_restamper_keeps_the_recorded_spacing_over_the_rate():
         Restamper(rate=0.0)
 
 
+def test_a_first_message_published_late_does_not_stamp_the_rest_at_their_publication():
+    """The first message published 4 ms after its due time (late_ns): it is stamped at its due
+    time, and the later ones, each published 1 ms after theirs, keep the recorded 10 ms spacing
+    (counted from their publication instead, all would have been stamped when published)."""
+    from vm_ros.recording import cdr
+    from vm_ros.recording.replay import Restamper
+
+    def stamped(ns):
+        return cdr.serialize("sensor_msgs/msg/JointState", {"header": {"stamp": {
+            "sec": ns // 1_000_000_000, "nanosec": ns % 1_000_000_000}}})
+
+    ms, due0 = 1_000_000, 7_000_000_000_000
+    restamp = Restamper()
+    recorded = [5_000 * ms, 5_010 * ms, 5_020 * ms]
+    published = [due0 + 4 * ms, due0 + 11 * ms, due0 + 21 * ms]
+    late = [4 * ms, 1 * ms, 1 * ms]
+    new = [cdr.header_stamp_ns(restamp(stamped(s), t, d))
+           for s, t, d in zip(recorded, published, late, strict=True)]
+    assert new == [due0, due0 + 10 * ms, due0 + 20 * ms]
+
+
 def test_replay_restamps_messages_with_a_header_on_its_clock(log, ros):
     """`vm-ros replay --restamp`: the excitation's JointState stamps start at the replay's own
     time (within the replay, after the log's own stamps) and keep the recorded spacing to the ns;

@@ -13,11 +13,11 @@ C typesupport prints on stderr for each of them is captured into that line). Nam
 with or without the leading slash.
 
 With --restamp, every message whose type starts with a std_msgs/Header gets a new header stamp on
-this process's ROS clock (recording.replay.Restamper): the first one the time it is published at,
-the others their recorded spacing from it. A node that places its inputs at their stamps
-(muscle_node, within its input_timeout_s) then places them as they were recorded, relative to
-each other, instead of at their arrival; without it the log's own stamps, hours or days old, are
-sent.
+this process's ROS clock (recording.replay.Restamper): the first one the time it was due at (its
+publication less how late the pace yielded it), the others their recorded spacing from it. A
+node that places its inputs at their stamps (muscle_node, within its input_timeout_s) then places
+them as they were recorded, relative to each other, instead of at their arrival; without it the
+log's own stamps, hours or days old, are sent.
 """
 
 from __future__ import annotations
@@ -239,10 +239,12 @@ def run(args) -> int:
                                f"{', restamped' if restamp is not None else ''}")
         if args.wait > 0 and not wait_for_subscribers(publishers.values(), args.wait):
             node.get_logger().warning(f"not every topic has a subscriber after {args.wait:g} s")
-        for message in replay(args.log, topics=set(publishers), rate=args.rate, loop=args.loop):
+        for message, due in replay(args.log, topics=set(publishers), rate=args.rate,
+                                   loop=args.loop, with_due=True):
             data = bytes(message.data)
             if restamp is not None and message.topic in stamped and len(data) >= 12:
-                data = restamp(data, node.get_clock().now().nanoseconds)  # at its due time
+                late_ns = round((time.monotonic() - due) * 1e9)   # replay's clock: monotonic
+                data = restamp(data, node.get_clock().now().nanoseconds, late_ns)
             if not check(message.topic, data, types[message.topic], message.log_time_ns):
                 continue
             publishers[message.topic].publish(data)

@@ -38,8 +38,10 @@ def recorded_messages(path, topics: Iterable[str] | None = None,
 
 def paced(messages: Iterable[RecordedMessage], rate: float = 1.0,
           clock: Callable[[], float] = time.monotonic,
-          sleep: Callable[[float], None] = time.sleep) -> Iterator[RecordedMessage]:
-    """Yield each message when (its log time - the first's) / rate has elapsed on ``clock``."""
+          sleep: Callable[[float], None] = time.sleep, with_due: bool = False) -> Iterator:
+    """Yield each message when (its log time - the first's) / rate has elapsed on ``clock``;
+    with ``with_due``, (message, due) pairs, due the time on ``clock`` it was due at (the
+    replay verb restamps from it: a message yielded late is stamped at its due time)."""
     if not rate > 0:
         raise ValueError(f"rate must be > 0, got {rate}")
     origin_log = origin_clock = None
@@ -50,28 +52,32 @@ def paced(messages: Iterable[RecordedMessage], rate: float = 1.0,
         delay = due - clock()
         if delay > 0:
             sleep(delay)
-        yield message
+        yield (message, due) if with_due else message
 
 
 def replay(path, topics: Iterable[str] | None = None, rate: float = 1.0, loop: bool = False,
            include_offline: bool = False, clock: Callable[[], float] = time.monotonic,
-           sleep: Callable[[float], None] = time.sleep) -> Iterator[RecordedMessage]:
-    """Paced messages of the log; with ``loop`` the log starts over after its end, forever."""
+           sleep: Callable[[float], None] = time.sleep, with_due: bool = False) -> Iterator:
+    """Paced messages of the log (``with_due``: with their due times, as :func:`paced`); with
+    ``loop`` the log starts over after its end, forever."""
     while True:
-        yield from paced(recorded_messages(path, topics, include_offline), rate, clock, sleep)
+        yield from paced(recorded_messages(path, topics, include_offline), rate, clock, sleep,
+                         with_due)
         if not loop:
             return
 
 
 class Restamper:
-    """Header stamps moved onto the replay's clock: the first message restamped gets ``now_ns``
-    (the time it is published at), each later one that time plus the distance of its recorded
-    stamp from the first one's, divided by ``rate``, so that the stamps keep their recorded
-    spacing; never later than ``now_ns``, so that no stamp lies ahead of its publication (the
-    pace counts from the first message's yield, a little before its stamp was taken: stamps
-    0.35 ms ahead of their arrival made muscle_node place most of them at their arrival). A
-    message stamped 0 (not stamped) is left so. ``restamper(data, now_ns)``: the CDR bytes of a
-    message whose first field is a std_msgs/Header (ValueError otherwise)."""
+    """Header stamps moved onto the replay's clock: the first message restamped gets the time it
+    was due at (``now_ns - late_ns``: ``late_ns`` how long after its due time it is published),
+    each later one that time plus the distance of its recorded stamp from the first one's,
+    divided by ``rate``, so that the stamps keep their recorded spacing; never later than
+    ``now_ns``, so that no stamp lies ahead of its publication (stamps 0.35 ms ahead of their
+    arrival made muscle_node place most of them at their arrival). Counting from the first
+    message's due time rather than its publication keeps a first message published late (the
+    process descheduled on a loaded machine) from stamping every later one at its publication.
+    A message stamped 0 (not stamped) is left so. ``restamper(data, now_ns, late_ns=0)``: the
+    CDR bytes of a message whose first field is a std_msgs/Header (ValueError otherwise)."""
 
     def __init__(self, rate: float = 1.0):
         if not rate > 0:
@@ -79,11 +85,11 @@ class Restamper:
         self.rate = rate
         self.origin: tuple[int, int] | None = None  # (recorded stamp, new stamp) of the first
 
-    def __call__(self, data: bytes, now_ns: int) -> bytes:
+    def __call__(self, data: bytes, now_ns: int, late_ns: int = 0) -> bytes:
         stamp = header_stamp_ns(data)
         if stamp == 0:
             return data
         if self.origin is None:
-            self.origin = (stamp, int(now_ns))
+            self.origin = (stamp, int(now_ns) - max(int(late_ns), 0))
         recorded, new = self.origin
         return restamped(data, min(new + round((stamp - recorded) / self.rate), int(now_ns)))
