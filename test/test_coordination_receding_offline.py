@@ -31,9 +31,11 @@ def problem_of(tmp_path, arms: dict, moment, duration_s=1.0, amplitude_rad=0.0):
 
 
 def test_frame_interpolation_is_linear_and_held_outside():
+    from vm_ros.coordination.receding import at_times
+
     frames = np.array([0.0, 0.1, 0.3])
     values = np.array([[1.0], [3.0], [7.0]])
-    got = receding_offline.at_times(values, frames, np.array([-0.2, 0.0, 0.05, 0.2, 0.3, 0.9]))
+    got = at_times(values, frames, np.array([-0.2, 0.0, 0.05, 0.2, 0.3, 0.9]))
     assert got[:, 0] == pytest.approx([1.0, 1.0, 2.0, 5.0, 7.0, 7.0])
 
 

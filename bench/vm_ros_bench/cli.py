@@ -59,9 +59,10 @@ by default; --only picks some):
             MuJoCo's inverse dynamics, default options (--method auto: the receding horizon at
             this size): seconds (target < 60 s), CPU seconds, forward runs, reserve RMS per
             coordinate (% of peak); and the thread CPU of the geometry at 9 and 31 poses of
-            that motion, what muscle_node's live coordination adds per publish period with a
-            planned profile's positions (coordination_bench.planned_poses_ms). Skipped with the
-            reason without the mujoco extra.
+            that motion interpolated to the horizon's probe steps, what muscle_node's live
+            coordination adds per publish period with a planned profile's positions
+            (coordination_bench.planned_poses_ms). Skipped with the reason without the mujoco
+            extra.
   help      `vm-ros --help` and `muscle_node --help` as child processes, 5 times each:
             median wall and CPU time (target < 0.5 s of CPU)
   report-walk
@@ -413,7 +414,8 @@ def _myolegs_csv_rows(r: dict | None, add) -> None:
         f"< {MYOLEGS_TARGET_S:g} s", r["seconds"] < MYOLEGS_TARGET_S)
     for count, ms in r.get("planned_poses_ms", {}).items():
         add("coordination-myolegs", f"myolegs, {r['muscles']} muscles, live coordination's "
-            f"geometry at {count} planned poses per period", "thread_cpu_ms_median", ms, "ms")
+            f"horizon motion from {count} planned poses per period", "thread_cpu_ms_median",
+            ms, "ms")
 
 
 def _csv_rows(results: dict) -> list[dict]:

@@ -275,18 +275,26 @@ PLANNED_POSE_COUNTS = (9, 31)   # poses per publish period: every 20 ms / every 
 
 def planned_poses_ms(geometry, motion, calls: int = 200) -> dict:
     """What live coordination with a planned profile's positions adds per publish period
-    (vm_ros.node.live_coordination: the geometry at the horizon's planned poses): thread CPU
-    (ms) of ``geometry.evaluate_many`` at consecutive frames of ``motion``, median of ``calls``
-    calls, per pose count of PLANNED_POSE_COUNTS."""
+    (vm_ros.node.live_coordination.motion_at_poses: the geometry at the horizon's planned poses,
+    interpolated to its 31 probe offsets, every muscle and coordinate): thread CPU (ms), median
+    of ``calls`` calls at consecutive frames of ``motion``, per pose count of
+    PLANNED_POSE_COUNTS."""
+    from vm_ros.node.live_coordination import motion_at_poses
+
     q, qdot = np.asarray(motion.q, dtype=float), np.asarray(motion.qdot, dtype=float)
+    rows, output = np.arange(len(geometry.muscle_names)), np.arange(q.shape[1])
+    offsets = np.linspace(0.0, 0.15, 31)
     medians = {}
     for count in PLANNED_POSE_COUNTS:
-        poses, speeds = q[:count], qdot[:count]
-        geometry.evaluate_many(poses, speeds)   # compiled before the timing
+        poses, speeds, at = q[:count], qdot[:count], np.linspace(0.0, 0.15, count)
+
+        def call(poses=poses, speeds=speeds, at=at):
+            return motion_at_poses(geometry, rows, output, poses, speeds, at, offsets)
+        call()   # compiled before the timing
         times = []
         for _ in range(calls):
             started = time.thread_time_ns()
-            geometry.evaluate_many(poses, speeds)
+            call()
             times.append(time.thread_time_ns() - started)
         medians[str(count)] = float(np.median(times)) * 1e-6
     return medians

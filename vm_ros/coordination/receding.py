@@ -46,6 +46,27 @@ from vm_ros.model.layout import STATE_NAMES, BankState
 DRIVE_FLOOR_WEIGHT = 1e-3  # (N m)^2 per drive^2: keeps the energy cost's quadratic part > 0
 
 
+def frame_interpolation(frame_times_s, times_s) -> tuple[np.ndarray, np.ndarray]:
+    """(low, weight) of linear interpolation between the frames at ``times_s``, held before the
+    first frame and after the last: value = (1 - w) v[low] + w v[low + 1]."""
+    frames = np.asarray(frame_times_s, dtype=float)
+    if len(frames) == 1:
+        return np.zeros(len(times_s), dtype=int), np.zeros(len(times_s))
+    t = np.clip(np.asarray(times_s, dtype=float), frames[0], frames[-1])
+    low = np.clip(np.searchsorted(frames, t, side="right") - 1, 0, len(frames) - 2)
+    weight = (t - frames[low]) / np.maximum(frames[low + 1] - frames[low], 1e-15)
+    return low, weight
+
+
+def at_times(values, frame_times_s, times_s) -> np.ndarray:
+    """``values`` (T, ...) given at the frames, linearly interpolated to ``times_s``."""
+    low, weight = frame_interpolation(frame_times_s, times_s)
+    values = np.asarray(values, dtype=float)
+    high = np.minimum(low + 1, len(values) - 1)
+    shape = (-1,) + (1,) * (values.ndim - 1)
+    return values[low] * (1.0 - weight).reshape(shape) + values[high] * weight.reshape(shape)
+
+
 @dataclass(frozen=True)
 class HorizonSettings:
     """The receding-horizon problem's constants (module docstring).
@@ -462,6 +483,7 @@ def tracking_lag(times_s, target, achieved, max_lag_s: float) -> tuple[float, fl
 
 
 __all__ = ["DRIVE2_WEIGHT", "RATE_WEIGHT", "HorizonSettings", "Probe", "RecedingHorizon",
+           "at_times", "frame_interpolation",
            "BoxQP", "WindowPlan", "block_edges", "box_qp", "coupled_pairs", "solve_window",
            "tracking_hessian", "tracking_lag", "window_entries",
            "window_term"]

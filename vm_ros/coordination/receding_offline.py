@@ -32,7 +32,7 @@ import numpy as np
 
 from vm_ros.coordination.forward import ForwardModel
 from vm_ros.coordination.problem import CoordinationProblem
-from vm_ros.coordination.receding import HorizonSettings, RecedingHorizon
+from vm_ros.coordination.receding import HorizonSettings, RecedingHorizon, at_times
 from vm_ros.coordination.solver import (
     CoordinationResult,
     SolverOptions,
@@ -42,27 +42,6 @@ from vm_ros.coordination.solver import (
     reference_objective,
 )
 from vm_ros.errors import VmRosError
-
-
-def frame_interpolation(frame_times_s, times_s) -> tuple[np.ndarray, np.ndarray]:
-    """(low, weight) of linear interpolation between the frames at ``times_s``, held before the
-    first frame and after the last: value = (1 - w) v[low] + w v[low + 1]."""
-    frames = np.asarray(frame_times_s, dtype=float)
-    if len(frames) == 1:
-        return np.zeros(len(times_s), dtype=int), np.zeros(len(times_s))
-    t = np.clip(np.asarray(times_s, dtype=float), frames[0], frames[-1])
-    low = np.clip(np.searchsorted(frames, t, side="right") - 1, 0, len(frames) - 2)
-    weight = (t - frames[low]) / np.maximum(frames[low + 1] - frames[low], 1e-15)
-    return low, weight
-
-
-def at_times(values, frame_times_s, times_s) -> np.ndarray:
-    """``values`` (T, ...) given at the frames, linearly interpolated to ``times_s``."""
-    low, weight = frame_interpolation(frame_times_s, times_s)
-    values = np.asarray(values, dtype=float)
-    high = np.minimum(low + 1, len(values) - 1)
-    shape = (-1,) + (1,) * (values.ndim - 1)
-    return values[low] * (1.0 - weight).reshape(shape) + values[high] * weight.reshape(shape)
 
 
 def horizon_inputs(problem: CoordinationProblem, forward: ForwardModel,
@@ -146,4 +125,4 @@ def solve(bank, problem: CoordinationProblem, options: SolverOptions | None = No
         unsolved_qps=unsolved)
 
 
-__all__ = ["at_times", "frame_interpolation", "horizon_inputs", "receding_drives", "solve"]
+__all__ = ["horizon_inputs", "receding_drives", "solve"]

@@ -160,17 +160,19 @@ class EffortTargets:
         t = np.asarray(times_ns, dtype=np.int64)
         if not self.has_planned_positions:
             return np.full((len(t), len(self.names)), np.nan)
-        robot = np.stack([np.interp(t, self._times_ns, column) for column in self._positions.T],
-                         axis=1)
-        return self._q_sign * robot + self._q_offset
+        return self._q_sign * self._between_points(self._positions, t) + self._q_offset
+
+    def _between_points(self, values, t) -> np.ndarray:
+        """(k, c) ``values`` (points, c) at the times ``t``: linear between the planned points'
+        times, held beyond them."""
+        return np.stack([np.interp(t, self._times_ns, column) for column in values.T], axis=1)
 
     def robot_at(self, times_ns) -> np.ndarray:
         """(k, c) target efforts (robot convention) at ``times_ns``; 0 where not tracked."""
         t = np.asarray(times_ns, dtype=np.int64)
         if self.kind != PLANNED:
             return np.repeat(self._efforts[:1], len(t), axis=0)
-        return np.stack([np.interp(t, self._times_ns, column) for column in self._efforts.T],
-                        axis=1)
+        return self._between_points(self._efforts, t)
 
     def at(self, times_ns) -> np.ndarray:
         """(k, c) target generalized forces at ``times_ns`` in the model's convention."""

@@ -49,8 +49,8 @@ def horizon_settings(config) -> receding.HorizonSettings:
 PLAN_DIFFERENCE_NS = 1_000_000  # half-step of the planned positions' central difference (1 ms)
 # spacing of the planned poses the geometry is evaluated at over the horizon; the path lengths,
 # velocities and moment arms are linear between them (on the walk over ROS the worst coordinate
-# within 0.13 points of peak of its value with poses at every probe step, 5 ms, at about a
-# third of the geometry's time: docs/node.md section 13)
+# within 0.13 points of peak of its value with poses at every probe step, 5 ms; on myolegs 0.55
+# against 0.95 ms per period: docs/node.md section 13)
 PLAN_POSE_STEP_S = 0.02
 
 
@@ -79,6 +79,18 @@ def planned_poses(targets: EffortTargets, space: JointSpace, times_ns,
     return np.where(finite, q, sampled_q), np.where(finite, qdot, sampled_qdot)
 
 
+def motion_at_poses(geometry, rows, output, q, qdot, poses_s, offsets_s) -> tuple:
+    """The geometry at the poses ``q``, ``qdot`` (p, n_coordinates) taken at ``poses_s`` (p,),
+    linear between them (receding.at_times) at ``offsets_s`` (k + 1,): path length and velocity
+    (k, m) of the muscles ``rows`` at offsets_s[:-1] (the probe steps' starts), moment arms
+    (k, m, c) on the coordinates ``output`` at offsets_s[1:] (their ends)."""
+    out = geometry.evaluate_many(q, qdot)
+    length = receding.at_times(out.length_m[:, rows], poses_s, offsets_s[:-1])
+    velocity = receding.at_times(out.velocity_m_per_s[:, rows], poses_s, offsets_s[:-1])
+    arms = receding.at_times(out.moment_arm[:, rows][:, :, output], poses_s, offsets_s[1:])
+    return length, velocity, arms
+
+
 class LiveCoordination:
     """Targets, the coordinator and the tracking history of one muscle_node (module docstring)."""
 
@@ -104,10 +116,8 @@ class LiveCoordination:
         t = t0_ns + np.round(self.coordinator.start_offsets_s * 1e9).astype(np.int64)
         since_s = np.maximum(t[:, None] - inputs.length_time_ns[i], 0) * 1e-9
         length = inputs.length_m[i] + inputs.velocity_m_per_s[i] * since_s
-        lo, hi = (bound[i] for bound in inputs.path_bounds())
-        clamped = np.minimum(np.maximum(length, lo), hi)
-        velocity = np.where(clamped == length, inputs.velocity_m_per_s[i], 0.0)
-        return clamped, velocity
+        return self._within_range(length, np.broadcast_to(inputs.velocity_m_per_s[i],
+                                                          length.shape))
 
     def _planned_motion(self, t0_ns: int, sample) -> tuple:
         """(path length, velocity) (k, m) at the probe steps' starts and moment arms (k, m, c)
@@ -117,21 +127,16 @@ class LiveCoordination:
         poses = np.linspace(0.0, offsets[-1], int(np.ceil(offsets[-1] / PLAN_POSE_STEP_S)) + 1)
         q, qdot = planned_poses(self.targets, self.space,
                                 t0_ns + np.round(poses * 1e9).astype(np.int64), sample)
-        out = self.space.geometry.evaluate_many(q, qdot)
-        rows, i = self.space.rows, self.index
+        length, velocity, arms = motion_at_poses(self.space.geometry, self.space.rows,
+                                                 self.space.output, q, qdot, poses, offsets)
+        return (*self._within_range(length, velocity), arms)
 
-        def at_offsets(values):  # (poses, ...) linear between the poses -> (offsets, ...)
-            flat = values.reshape(len(poses), -1)
-            return np.stack([np.interp(offsets, poses, column) for column in flat.T],
-                            axis=1).reshape(len(offsets), *values.shape[1:])
-
-        length = at_offsets(out.length_m[:, rows])[:-1]
-        velocity = at_offsets(out.velocity_m_per_s[:, rows])[:-1]
-        lo, hi = (bound[i] for bound in self.inputs.path_bounds())
+    def _within_range(self, length, velocity) -> tuple[np.ndarray, np.ndarray]:
+        """Path lengths (k, m) clamped to NodeInputs' range of the joint-driven muscles, their
+        velocities 0 where clamped."""
+        lo, hi = (bound[self.index] for bound in self.inputs.path_bounds())
         clamped = np.minimum(np.maximum(length, lo), hi)
-        velocity = np.where(clamped == length, velocity, 0.0)
-        arms = at_offsets(out.moment_arm[:, rows][:, :, self.space.output])[1:]
-        return clamped, velocity, arms
+        return clamped, np.where(clamped == length, velocity, 0.0)
 
     def solve(self, state, t0_ns: int, sample) -> None:
         """Set ``drive``, the joint-driven muscles' drives for the period starting at ``t0_ns``,
@@ -189,4 +194,4 @@ class LiveCoordination:
         return values
 
 
-__all__ = ["LiveCoordination", "horizon_settings", "planned_poses"]
+__all__ = ["LiveCoordination", "horizon_settings", "motion_at_poses", "planned_poses"]
