@@ -209,6 +209,23 @@ def test_stream_targets_report_lag_and_error_and_bad_targets_are_counted(ros, ge
         int(probe.base.last_diagnostics().get(label, "0")) >= 1 for label in labels.values()),
         timeout_s=10)
 
+    # planned positions: the knee held at 1.0 rad (box 0-2 rad); a plan at 1.05 rad (0.025 of
+    # the box away) is not counted, one at 1.5 rad (0.25 of the box, above
+    # coordination.plan_offset_max's 0.1) is, once per publish period it is used
+    far_label = ISSUE_KINDS["plan_far_from_joints"][0]
+    for plan_q, far in ((1.05, False), (1.5, True)):
+        probe.send_joints(0.0)
+        probe.send_trajectory(["knee_angle"], [0.0, 10.0], [[-10.0], [-10.0]],
+                              positions=[[plan_q], [plan_q]])
+        assert ros.spin_until(lambda q=plan_q: node.coordination.targets.has_planned_positions
+                              and node.coordination.targets.model_positions_at([0])[0, 0] == q,
+                              timeout_s=10)
+        ticks = node.ticks
+        assert ros.spin_until(lambda t=ticks: node.ticks > t + 5, timeout_s=10)
+        assert (node.issues.counts["plan_far_from_joints"] > 0) == far, plan_q
+    assert ros.spin_until(lambda: int(probe.base.last_diagnostics().get(far_label, "0")) >= 1,
+                          timeout_s=10)
+
 
 def _effort_state(probe, names, effort):
     msg = probe.base.joint_state(names)

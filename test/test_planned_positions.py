@@ -13,7 +13,7 @@ from test_joint_space import small_geometry
 from vm_ros.joint_space import JointMap, JointSpace
 from vm_ros.node.effort_targets import PLANNED, EffortTargets
 from vm_ros.node.joint_inputs import JointSample
-from vm_ros.node.live_coordination import planned_poses
+from vm_ros.node.live_coordination import plan_far_issue, plan_offsets, planned_poses
 
 S = 1_000_000_000
 # the robot's "knee" is the model's knee_angle with the opposite sign and 0.1 rad apart
@@ -100,3 +100,20 @@ def test_positions_near_the_float_range_keep_the_sampled_prediction(space):
         np.int64), sample)
     assert np.isfinite(q).all() and np.isfinite(qdot).all()
     assert q[2, 1] == pytest.approx(0.9 + 2.0 * 0.08, abs=1e-12) and qdot[2, 1] == 2.0
+
+
+def test_a_plan_far_from_the_sampled_pose_is_named_with_its_offset(space):
+    """The plan's knee is 0.85 rad (model) at 0.25 s. A sample there at 0.9 rad is 0.05 rad
+    above it: 0.025 of the knee's 2 rad box, within 0.1 of it; at 1.3 rad it is 0.45 rad above,
+    0.225 of the box: named, with its offset. The hip, which the plan omits, is never far."""
+    targets, _ = planned(space)
+    width = np.array([2.0, 2.0])   # knee_angle 0-2 rad, hip_flexion -0.5-1.5 rad (small_geometry)
+    for knee, far in ((0.9, False), (1.3, True)):
+        sample = JointSample(START_NS + S // 4, np.array([0.3, knee, -0.2]), np.zeros(3),
+                             np.zeros((2, 3)))
+        offset = plan_offsets(targets, space, sample)
+        np.testing.assert_allclose(offset[0], knee - 0.85, rtol=0, atol=1e-12)
+        assert np.isnan(offset[1])
+        issue = plan_far_issue(offset, space.output_names, width, 0.1)
+        assert (issue is not None) == far
+    assert issue.kind == "plan_far_from_joints" and "knee +0.45 (0.23 of its box)" in issue.text

@@ -75,6 +75,11 @@ ISSUE_KINDS = {
     "target_unknown_joint": ("ignored: effort targets unknown joints (entries)",
                              "entries whose joint is not in the joints parameter are ignored, "
                              "the rest of the message is used"),
+    "plan_far_from_joints": ("counted: planned positions far from joint_states (periods)",
+                             "at a publish period's solve a planned coordinate lies further than "
+                             "coordination.plan_offset_max of its geometry box's width from the "
+                             "latest joint sample: the plan is still moved by that offset to "
+                             "start from the sample, and the period solved"),
     "stale_excitation": ("stale: excitation (events)",
                          "excitation older than input_timeout_s: stale_input_policy applies "
                          "(hold: drive held; zero_drive: drive 0; pause: model paused)"),

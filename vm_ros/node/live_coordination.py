@@ -33,7 +33,7 @@ from vm_ros.blas_threads import limit_blas_threads
 from vm_ros.coordination import receding  # a room below the node (docs/architecture.md)
 from vm_ros.joint_space import JointEfforts, JointSpace
 from vm_ros.node.effort_targets import EffortTargets
-from vm_ros.node.health import DurationWindow
+from vm_ros.node.health import DurationWindow, Issue
 
 
 def horizon_settings(config) -> receding.HorizonSettings:
@@ -79,6 +79,29 @@ def planned_poses(targets: EffortTargets, space: JointSpace, times_ns,
     return np.where(finite, q, sampled_q), np.where(finite, qdot, sampled_qdot)
 
 
+def plan_offsets(targets: EffortTargets, space: JointSpace, sample) -> np.ndarray:
+    """(c,) for the joints of ``joints``: the joint ``sample``'s q less the planned position at
+    the sample's time (model convention), the constant planned_poses moves the plan by; NaN
+    where the plan gives no position."""
+    planned = targets.model_positions_at([sample.time_ns])[0]
+    with np.errstate(over="ignore", invalid="ignore"):
+        return sample.q[space.output] - planned
+
+
+def plan_far_issue(offset, names, box_width, limit_of_box: float) -> Issue | None:
+    """plan_far_from_joints naming the joints (``names``) whose ``offset`` (plan_offsets)
+    exceeds ``limit_of_box`` of their coordinate's geometry box width ``box_width`` (None when
+    none does)."""
+    with np.errstate(invalid="ignore"):
+        far = np.abs(offset) > limit_of_box * box_width  # NaN (not planned) is never far
+    if not far.any():
+        return None
+    details = ", ".join(f"{names[j]} {offset[j]:+.4g} ({abs(offset[j]) / box_width[j]:.2f} of "
+                        "its box)" for j in np.flatnonzero(far))
+    return Issue("plan_far_from_joints", "planned positions far from joint_states (sample - "
+                 f"plan, model convention): {details}")
+
+
 def motion_at_poses(geometry, rows, output, q, qdot, poses_s, offsets_s) -> tuple:
     """The geometry at the poses ``q``, ``qdot`` (p, n_coordinates) taken at ``poses_s`` (p,),
     linear between them (receding.at_times) at ``offsets_s`` (k + 1,): path length and velocity
@@ -106,6 +129,8 @@ class LiveCoordination:
         keep = max(int(round(config.coordination_lag_window_s / period_s)), 2)
         self.history: deque = deque(maxlen=keep)  # (stamp ns, target, effort, tracked) robot
         self.max_lag_s = config.coordination_horizon_s
+        self.plan_offset_max = config.coordination_plan_offset_max
+        self.box_width = (space.geometry.upper - space.geometry.lower)[space.output]
         self.solve_times = DurationWindow()
         self.drive = np.zeros(len(self.index))  # of the current period
 
@@ -138,16 +163,21 @@ class LiveCoordination:
         clamped = np.minimum(np.maximum(length, lo), hi)
         return clamped, np.where(clamped == length, velocity, 0.0)
 
-    def solve(self, state, t0_ns: int, sample) -> None:
+    def solve(self, state, t0_ns: int, sample) -> list[Issue]:
         """Set ``drive``, the joint-driven muscles' drives for the period starting at ``t0_ns``,
-        from the bank's ``state`` and the joint ``sample`` (JointInputs.sample) held."""
+        from the bank's ``state`` and the joint ``sample`` (JointInputs.sample) held; the issues
+        met (plan_far_from_joints)."""
         if self.targets.kind is None or sample is None:
             self.drive = np.zeros(len(self.index))
-            return
+            return []
         started = time.perf_counter_ns()
         c = self.coordinator
         ends = t0_ns + np.round(c.end_offsets_s * 1e9).astype(np.int64)
+        issues = []
         if self.targets.has_planned_positions:
+            far = plan_far_issue(plan_offsets(self.targets, self.space, sample),
+                                 self.space.output_names, self.box_width, self.plan_offset_max)
+            issues += [far] if far is not None else []
             length, velocity, arms = self._planned_motion(t0_ns, sample)
         else:
             length, velocity = self._horizon_paths(t0_ns)
@@ -157,6 +187,7 @@ class LiveCoordination:
                        self.targets.tracked)
         self.solve_times.add(time.perf_counter_ns() - started)
         self.drive = plan.drive
+        return issues
 
     def reserves(self, stamp_ns: int, efforts: JointEfforts) -> np.ndarray:
         """Target - effort (robot convention) per joint of ``joints`` at a published step, 0
@@ -194,4 +225,5 @@ class LiveCoordination:
         return values
 
 
-__all__ = ["LiveCoordination", "horizon_settings", "motion_at_poses", "planned_poses"]
+__all__ = ["LiveCoordination", "horizon_settings", "motion_at_poses", "plan_far_issue",
+           "plan_offsets", "planned_poses"]

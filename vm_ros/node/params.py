@@ -173,6 +173,10 @@ PARAMS = (
     ParamSpec("coordination.damping", 0.0, "double", "(N m)^2 per drive^2",
               "Weight of each drive's step away from the plan the period is linearised about "
               "(a trust region)", low=0.0, high=1e6),
+    ParamSpec("coordination.plan_offset_max", 0.1, "double", "1 (of the coordinate's box)",
+              "A planned profile's positions further than this share of the geometry box's "
+              "width from the latest joint sample are counted (plan_far_from_joints); the plan "
+              "is still moved to start from the sample", low=0.0, high=1e6),
     ParamSpec("coordination.lag_window_s", 2.0, "double", "s",
               "Window of published steps over which diagnostics report the tracking lag and "
               "error", low=0.05, high=60.0),
@@ -240,6 +244,7 @@ class NodeConfig:
     coordination_effort_weight: float
     coordination_smoothness: float
     coordination_damping: float
+    coordination_plan_offset_max: float
     coordination_lag_window_s: float
     qos_depth: int
     diagnostics_period_s: float

@@ -614,8 +614,8 @@ class MuscleNode(Node):
             if self.coordination is not None:  # the joint-driven muscles' drives: solved at
                 # the start of each publish period, held over it
                 if self.scheduler.total_steps % every == 0:
-                    self.coordination.solve(self.bank.restore_point(),
-                                            self.scheduler.model_time_ns, joints)
+                    self._report(self.coordination.solve(self.bank.restore_point(),
+                                                         self.scheduler.model_time_ns, joints))
                     self._publish_coordination_drive(now_ns)
                 u[done:done + count, self.coordination.index] = self.coordination.drive
             self._run_batch(u[done:done + count], lp[done:done + count],
