@@ -43,7 +43,8 @@ def horizon_settings(config) -> receding.HorizonSettings:
                            eval_step_s=config.coordination_sample_period_s,
                            effort_weight=config.coordination_effort_weight or None,
                            smoothness=config.coordination_smoothness,
-                           damping=config.coordination_damping)
+                           damping=config.coordination_damping,
+                           probe_drive=config.coordination_probe_drive)
 
 
 PLAN_DIFFERENCE_NS = 1_000_000  # half-step of the planned positions' central difference (1 ms)

@@ -173,6 +173,10 @@ PARAMS = (
     ParamSpec("coordination.damping", 0.0, "double", "(N m)^2 per drive^2",
               "Weight of each drive's step away from the plan the period is linearised about "
               "(a trust region)", low=0.0, high=1e6),
+    ParamSpec("coordination.probe_drive", 0.2, "double", "1",
+              "Drive step of the horizon's derivative runs (a secant per block): a muscle at "
+              "rest shows force within a short block only for a step that recruits it (with 4 "
+              "blocks use 0.4: docs/node.md section 13)", low=0.01, high=1.0),
     ParamSpec("coordination.plan_offset_max", 0.1, "double", "1 (of the coordinate's box)",
               "A planned profile's positions further than this share of the geometry box's "
               "width from the latest joint sample are counted (plan_far_from_joints); the plan "
@@ -244,6 +248,7 @@ class NodeConfig:
     coordination_effort_weight: float
     coordination_smoothness: float
     coordination_damping: float
+    coordination_probe_drive: float
     coordination_plan_offset_max: float
     coordination_lag_window_s: float
     qos_depth: int
