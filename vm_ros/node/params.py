@@ -176,7 +176,9 @@ PARAMS = (
     ParamSpec("coordination.probe_drive", 0.2, "double", "1",
               "Drive step of the horizon's derivative runs (a secant per block): a muscle at "
               "rest shows force within a short block only for a step that recruits it (with 4 "
-              "blocks use 0.4: docs/node.md section 13)", low=0.01, high=1.0),
+              "blocks use 0.4: docs/node.md section 13); at most 0.5, so that the step down "
+              "taken where a step up would pass 1 stays >= 0 (the bank clips drives, which "
+              "would bend the secant)", low=0.01, high=0.5),
     ParamSpec("coordination.plan_offset_max", 0.1, "double", "1 (of the coordinate's box)",
               "A planned profile's positions further than this share of the geometry box's "
               "width from the latest joint sample are counted (plan_far_from_joints); the plan "
