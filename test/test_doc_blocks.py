@@ -290,15 +290,52 @@ def _command(block: Block) -> list[str]:
     return ["bash", "-e", "-o", "pipefail", "-c", block.code]
 
 
+BLOCK_TIMEOUT_S = 900
+
+
+def _run_to_the_end(block: Block, tmp_path) -> tuple[int, str, str]:
+    """(exit status, stdout, stderr) of the block run in its own session. A block still running
+    after BLOCK_TIMEOUT_S fails the test naming the processes of its session that were alive
+    (the ones a block starts in the background hold its output open), and they are killed, so
+    that none outlives the test."""
+    proc = subprocess.Popen(_command(block), cwd=tmp_path, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=_env(),
+                            start_new_session=True)
+    try:
+        out, err = proc.communicate(timeout=BLOCK_TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        alive = _session_processes(proc.pid)
+        os.killpg(proc.pid, signal.SIGKILL)
+        out, err = proc.communicate(timeout=60)
+        pytest.fail(f"{block.name}: still running after {BLOCK_TIMEOUT_S} s; alive: "
+                    f"{alive}\n{out[-3000:]}\n{err[-3000:]}")
+    if proc.returncode == 0 and _session_processes(proc.pid):  # background processes left
+        os.killpg(proc.pid, signal.SIGKILL)
+    return proc.returncode, out, err
+
+
+def _session_processes(session: int) -> list[str]:
+    """'pid command' of the live processes of session ``session`` (from /proc)."""
+    alive = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+            if int(fields[3]) == session and fields[0] != "Z":  # session id, state
+                command = (stat.parent / "cmdline").read_bytes().replace(b"\0", b" ")
+                alive.append(f"{stat.parent.name} {command.decode(errors='replace')[:200]}")
+        except (OSError, IndexError, ValueError):
+            continue  # the process ended meanwhile
+    return alive
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("block", RUN, ids=[b.name for b in RUN])
 def test_block_runs(block, built, tmp_path):
     _provide(block, built, tmp_path)
     service = block.part("runs until stopped:")
     if service is None:
-        proc = subprocess.run(_command(block), cwd=tmp_path, capture_output=True, text=True,
-                              timeout=900, env=_env())
-        assert proc.returncode == 0, f"{block.name}:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
+        returncode, out, err = _run_to_the_end(block, tmp_path)
+        assert returncode == 0, f"{block.name}:\n{out[-3000:]}\n{err[-3000:]}"
         return
     proc = subprocess.Popen(_command(block), cwd=tmp_path, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=_env(),
