@@ -1,9 +1,13 @@
-"""The node programs' spin (vm_ros.node.shell.spin): a stop request ends it at the next callback."""
+"""The node programs' spin (vm_ros.node.shell.spin): a stop request ends it at the next callback;
+and their end (vm_ros.node.shell.run_node): a DDS teardown that does not end is cut off."""
 
 from __future__ import annotations
 
 import os
 import signal
+import subprocess
+import sys
+import textwrap
 import time
 
 import pytest
@@ -61,3 +65,45 @@ def test_a_callback_given_after_the_request_runs_at_once():
     finally:
         for sig, handler in saved.items():
             signal.signal(sig, handler)
+
+
+HANGING_TEARDOWN = textwrap.dedent("""
+    import os, signal, sys, time
+    from pathlib import Path
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from vm_ros.node import shell
+
+    shell.TEARDOWN_LIMIT_S = 1.0
+
+    class Stuck(Node):
+        def destroy_node(self):
+            while True:          # as rcl_node_fini spun in Fast DDS, holding the GIL
+                pass
+
+    def make_node():
+        node = Stuck("stuck_teardown")
+        os.kill(os.getpid(), signal.SIGTERM)   # a stop request: the spin returns at once
+        return node
+
+    def finish(node):
+        Path(sys.argv[1]).write_text("finished")
+
+    sys.exit(shell.run_node("stuck", shell.argparse.ArgumentParser(), make_node,
+                            lambda node: SingleThreadedExecutor(), ["stuck"], finish=finish))
+""")
+
+
+def test_a_teardown_that_does_not_end_is_cut_off_after_the_node_finished(ros, tmp_path):
+    """A node program whose DDS teardown never returns (a destroy_node that spins in a loop,
+    as Fast DDS's participant destruction once spun for over an hour, holding the GIL) ends
+    TEARDOWN_LIMIT_S (1 s here) after its spin: exit status 1, every thread's stack on stderr
+    (the hung destroy_node named), and its own outputs finished first (``finish`` ran)."""
+    marker = tmp_path / "finished"
+    started = time.monotonic()
+    done = subprocess.run([sys.executable, "-c", HANGING_TEARDOWN, str(marker)],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 1, done.stderr[-2000:]
+    assert "Timeout" in done.stderr and "destroy_node" in done.stderr, done.stderr[-2000:]
+    assert marker.read_text() == "finished"
+    assert time.monotonic() - started < 60

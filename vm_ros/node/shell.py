@@ -35,6 +35,8 @@ subscribed raw, logged as received, then deserialised.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import faulthandler
 import gc
 import importlib
 import inspect
@@ -885,13 +887,42 @@ def spin(executor, context, stop: ShutdownRequest) -> None:
         executor.spin_until_future_complete(requested, timeout_sec=SPIN_CHECK_S)
 
 
+# the longest the DDS teardown at exit (executor shutdown, node destruction, context shutdown)
+# may take before the process gives up on it: Fast DDS 2.14's participant destruction can spin
+# forever waiting for a discovery callback of a peer that stops at the same moment (seen once:
+# mujoco_sim_node busy at 53 % of a core in DomainParticipant::set_listener for over an hour;
+# eProsima/Fast-DDS#6513); a normal teardown takes well under a second
+TEARDOWN_LIMIT_S = 30.0
+
+
+@contextlib.contextmanager
+def teardown_limit(limit_s: float):
+    """Within the block, a process still in it after ``limit_s`` prints every thread's stack to
+    stderr and exits with status 1 (faulthandler's watchdog: a C thread, which fires also while a
+    native call holds the GIL, as the hung DDS teardown does). Without a usable stderr the
+    block runs unbounded."""
+    try:
+        faulthandler.dump_traceback_later(limit_s, exit=True, file=sys.__stderr__)
+        armed = True
+    except (AttributeError, ValueError, OSError):  # no stderr, or one without a descriptor
+        armed = False
+    try:
+        yield
+    finally:
+        if armed:
+            faulthandler.cancel_dump_traceback_later()
+
+
 def run_node(name: str, parser: argparse.ArgumentParser, make_node, executor_for,
-             args=None) -> int:
+             args=None, finish=None) -> int:
     """The Jazzy-style main of a vm_ros node program: --help (ROS arguments stripped), init with
     vm_ros's signal handling, ``make_node()``, spin on ``executor_for(node)`` until SIGINT or
-    SIGTERM, destroy, shutdown. Exit status 2 with one line (vm_ros.node.startup.error_line) for
-    a VmRosError (a bad parameter) or an rcl error at init (an unparsable --params-file); 0
-    otherwise, also when a signal came before the node was built (then nothing was started)."""
+    SIGTERM, ``finish(node)`` (the node's own outputs, e.g. its run log, closed before any DDS
+    teardown), then destroy and shutdown within TEARDOWN_LIMIT_S (teardown_limit). Exit status 2
+    with one line (vm_ros.node.startup.error_line) for a VmRosError (a bad parameter) or an rcl
+    error at init (an unparsable --params-file); 1 with the threads' stacks on stderr when the
+    teardown did not end in time; 0 otherwise, also when a signal came before the node was
+    built (then nothing was started)."""
     argv = sys.argv if args is None else list(args)
     stop = ShutdownRequest.install()  # vm_ros.node.main installs it before rclpy's import
     try:
@@ -915,18 +946,22 @@ def run_node(name: str, parser: argparse.ArgumentParser, make_node, executor_for
         print(error_line(name, exc), file=sys.stderr)
         return EXIT_BAD_PARAMETER
     finally:
-        if executor is not None:
-            executor.shutdown()
-        if node is not None:
-            node.destroy_node()  # muscle_node: finishes the MCAP file
-        rclpy.try_shutdown()
+        if node is not None and finish is not None:
+            finish(node)
+        with teardown_limit(TEARDOWN_LIMIT_S):
+            if executor is not None:
+                executor.shutdown()
+            if node is not None:
+                node.destroy_node()
+            rclpy.try_shutdown()
     return 0
 
 
 def main(args=None) -> int:
     """muscle_node [--help] [--ros-args ...]: init, node, spin, destroy, shutdown."""
     return run_node(NODE_NAME, interface.argument_parser(), MuscleNode,
-                    lambda node: make_executor(node.config.executor), args)
+                    lambda node: make_executor(node.config.executor), args,
+                    finish=MuscleNode.close_run_log)
 
 
 if __name__ == "__main__":
