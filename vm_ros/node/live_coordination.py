@@ -55,31 +55,6 @@ PLAN_DIFFERENCE_NS = 1_000_000  # half-step of the planned positions' central di
 PLAN_POSE_STEP_S = 0.02
 
 
-def planned_poses(targets: EffortTargets, space: JointSpace, times_ns,
-                  sample) -> tuple[np.ndarray, np.ndarray]:
-    """(k, n_coordinates) q and q' (model convention) at ``times_ns`` from ``targets``' planned
-    positions and the joint ``sample`` (JointSample; module docstring): a coordinate of the plan
-    follows it shifted by (sampled q - plan at the sample's time), its velocity the plan's
-    central difference over 2 PLAN_DIFFERENCE_NS; the others the sample's q moved on by its q'."""
-    t = np.asarray(times_ns, dtype=np.int64)
-    ahead_s = (t - sample.time_ns)[:, None] * 1e-9
-    q = sample.q[None, :] + sample.qdot[None, :] * ahead_s
-    qdot = np.repeat(np.asarray(sample.qdot, dtype=float)[None, :], len(t), axis=0)
-    planned = targets.model_positions_at(np.append(t, sample.time_ns))
-    given = np.isfinite(planned[0])
-    columns = space.output[given]
-    sampled_q, sampled_qdot = q.copy(), qdot.copy()
-    with np.errstate(over="ignore", invalid="ignore"):
-        q[:, columns] = planned[:-1, given] + (sample.q[columns] - planned[-1, given])
-        h = PLAN_DIFFERENCE_NS
-        slope = targets.model_positions_at(t + h) - targets.model_positions_at(t - h)
-        qdot[:, columns] = slope[:, given] / (2 * h * 1e-9)
-    # positions near the float range overflow in these differences: those entries keep the
-    # sampled prediction (the message passed the finite check, so it is not refused)
-    finite = np.isfinite(q) & np.isfinite(qdot)
-    return np.where(finite, q, sampled_q), np.where(finite, qdot, sampled_qdot)
-
-
 def plan_offsets(targets: EffortTargets, space: JointSpace, sample) -> np.ndarray:
     """(c,) for the joints of ``joints``: the joint ``sample``'s q less the planned position at
     the sample's time (model convention), the constant planned_poses moves the plan by; NaN
@@ -87,6 +62,32 @@ def plan_offsets(targets: EffortTargets, space: JointSpace, sample) -> np.ndarra
     planned = targets.model_positions_at([sample.time_ns])[0]
     with np.errstate(over="ignore", invalid="ignore"):
         return sample.q[space.output] - planned
+
+
+def planned_poses(targets: EffortTargets, space: JointSpace, times_ns, sample,
+                  offset=None) -> tuple[np.ndarray, np.ndarray]:
+    """(k, n_coordinates) q and q' (model convention) at ``times_ns`` from ``targets``' planned
+    positions and the joint ``sample`` (JointSample; module docstring): a coordinate of the plan
+    follows it shifted by ``offset`` (plan_offsets, computed when None), its velocity the plan's
+    central difference over 2 PLAN_DIFFERENCE_NS; the others the sample's q moved on by its q'."""
+    t = np.asarray(times_ns, dtype=np.int64)
+    ahead_s = (t - sample.time_ns)[:, None] * 1e-9
+    q = sample.q[None, :] + sample.qdot[None, :] * ahead_s
+    qdot = np.repeat(np.asarray(sample.qdot, dtype=float)[None, :], len(t), axis=0)
+    planned = targets.model_positions_at(t)
+    offset = plan_offsets(targets, space, sample) if offset is None else offset
+    given = np.isfinite(planned[0])
+    columns = space.output[given]
+    sampled_q, sampled_qdot = q.copy(), qdot.copy()
+    with np.errstate(over="ignore", invalid="ignore"):
+        q[:, columns] = planned[:, given] + offset[given]
+        h = PLAN_DIFFERENCE_NS
+        slope = targets.model_positions_at(t + h) - targets.model_positions_at(t - h)
+        qdot[:, columns] = slope[:, given] / (2 * h * 1e-9)
+    # positions near the float range overflow in these differences: those entries keep the
+    # sampled prediction (the message passed the finite check, so it is not refused)
+    finite = np.isfinite(q) & np.isfinite(qdot)
+    return np.where(finite, q, sampled_q), np.where(finite, qdot, sampled_qdot)
 
 
 def plan_far_issue(offset, names, box_width, limit_of_box: float) -> Issue | None:
@@ -145,14 +146,15 @@ class LiveCoordination:
         return self._within_range(length, np.broadcast_to(inputs.velocity_m_per_s[i],
                                                           length.shape))
 
-    def _planned_motion(self, t0_ns: int, sample) -> tuple:
+    def _planned_motion(self, t0_ns: int, sample, plan_offset) -> tuple:
         """(path length, velocity) (k, m) at the probe steps' starts and moment arms (k, m, c)
-        at their ends, from the geometry at the planned poses."""
+        at their ends, from the geometry at the planned poses (the plan shifted by
+        ``plan_offset``: plan_offsets)."""
         c = self.coordinator
         offsets = np.append(c.start_offsets_s, c.end_offsets_s[-1])
         poses = np.linspace(0.0, offsets[-1], int(np.ceil(offsets[-1] / PLAN_POSE_STEP_S)) + 1)
         q, qdot = planned_poses(self.targets, self.space,
-                                t0_ns + np.round(poses * 1e9).astype(np.int64), sample)
+                                t0_ns + np.round(poses * 1e9).astype(np.int64), sample, plan_offset)
         length, velocity, arms = motion_at_poses(self.space.geometry, self.space.rows,
                                                  self.space.output, q, qdot, poses, offsets)
         return (*self._within_range(length, velocity), arms)
@@ -176,10 +178,11 @@ class LiveCoordination:
         ends = t0_ns + np.round(c.end_offsets_s * 1e9).astype(np.int64)
         issues = []
         if self.targets.has_planned_positions:
-            far = plan_far_issue(plan_offsets(self.targets, self.space, sample),
-                                 self.space.output_names, self.box_width, self.plan_offset_max)
+            offset = plan_offsets(self.targets, self.space, sample)
+            far = plan_far_issue(offset, self.space.output_names, self.box_width,
+                                 self.plan_offset_max)
             issues += [far] if far is not None else []
-            length, velocity, arms = self._planned_motion(t0_ns, sample)
+            length, velocity, arms = self._planned_motion(t0_ns, sample, offset)
         else:
             length, velocity = self._horizon_paths(t0_ns)
             arms = np.broadcast_to(sample.moment_arm[:, self.space.output],
